@@ -1,0 +1,163 @@
+"""Data types shared by the stages of the contact-resolution core.
+
+Conventions used everywhere in ``collres_ros.core``:
+
+* Frames: every pose, velocity, point and normal is in the world frame.
+* Quaternions are ``x, y, z, w`` as in ROS, unit length.
+* A body's origin is its centre of mass; ``linear`` is the velocity of that
+  origin (m/s), ``angular`` the angular velocity (rad/s), both world frame.
+* Arrays are indexed by body index (the order of the body specs given to the
+  world) or by contact index; units are SI (m, s, kg, N s).
+* Normals are unit vectors pointing from body A towards body B.
+
+This module holds data only: no coal, no ROS.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+
+class ContactState(IntEnum):
+    """What a contact did this step (values equal the Contact.msg constants)."""
+
+    IMPACT = 1    # approach speed above the restitution threshold: it bounced
+    RESTING = 2   # below the threshold, no tangential motion, no friction needed
+    SLIDING = 3   # friction at the cone limit (kinetic coefficient)
+    STICKING = 4  # friction inside the static cone held the contact still
+
+
+class ContactKind(IntEnum):
+    """How the narrow phase classified a contact's pair (see DESIGN.md)."""
+
+    PERSISTENT = 0  # overlapping (or within the speculative margin) at the previous state
+    IMPACT = 1      # separated before, overlapping now: time of impact by bisection
+    TUNNELLED = 2   # separated at both ends, the sweep hits: advancement + bisection
+
+
+@dataclass
+class BodyStates:
+    """States of all N bodies at one time; world frame, SI units."""
+
+    position: np.ndarray      # (N, 3) m, centre of mass
+    orientation: np.ndarray   # (N, 4) unit quaternion x, y, z, w
+    linear: np.ndarray        # (N, 3) m/s
+    angular: np.ndarray       # (N, 3) rad/s
+
+    @property
+    def count(self) -> int:
+        return int(self.position.shape[0])
+
+    def copy(self) -> 'BodyStates':
+        return BodyStates(self.position.copy(), self.orientation.copy(),
+                          self.linear.copy(), self.angular.copy())
+
+    @staticmethod
+    def zeros(count: int) -> 'BodyStates':
+        orientation = np.zeros((count, 4))
+        orientation[:, 3] = 1.0
+        return BodyStates(np.zeros((count, 3)), orientation,
+                          np.zeros((count, 3)), np.zeros((count, 3)))
+
+
+@dataclass
+class ContactSet:
+    """Contact points found by the narrow phase, M of them, before solving.
+
+    ``point`` is in the world frame at the contact configuration (the time of
+    impact for IMPACT/TUNNELLED contacts, the current state for PERSISTENT).
+    ``separation`` is the signed gap along the normal at the current state
+    (negative when penetrating, m); ``depth = max(0, -separation)``.
+    ``toi`` is the time of impact as a fraction of the step in [0, 1]
+    (0 for PERSISTENT contacts: they touch from the start of the step).
+    ``feature`` identifies the point within its pair across steps for warm
+    starting (e.g. the index in a face-on-face manifold); the pair itself is
+    identified by (body_a, body_b) with body_a < body_b.
+    """
+
+    body_a: np.ndarray        # (M,) int64
+    body_b: np.ndarray        # (M,) int64
+    point: np.ndarray         # (M, 3) m, world
+    normal: np.ndarray        # (M, 3) unit, world, from A to B
+    separation: np.ndarray    # (M,) m, signed, < 0 when penetrating
+    toi: np.ndarray           # (M,) fraction of the step in [0, 1]
+    kind: np.ndarray          # (M,) int8, ContactKind
+    feature: np.ndarray       # (M,) int64
+
+    @property
+    def count(self) -> int:
+        return int(self.body_a.shape[0])
+
+    @property
+    def depth(self) -> np.ndarray:
+        return np.maximum(0.0, -self.separation)
+
+    @staticmethod
+    def empty() -> 'ContactSet':
+        return ContactSet(
+            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
+            np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int8),
+            np.zeros(0, np.int64))
+
+
+@dataclass
+class ContactReport:
+    """Solved contacts of one step, M of them (ContactSet plus results)."""
+
+    contacts: ContactSet
+    normal_impulse: np.ndarray    # (M,) N s, >= 0, applied to B along +normal (to A along -normal)
+    friction_impulse: np.ndarray  # (M, 3) N s, world, applied to B (opposite on A), normal to `normal`
+    state: np.ndarray             # (M,) uint8, ContactState
+
+    @staticmethod
+    def empty() -> 'ContactReport':
+        return ContactReport(ContactSet.empty(), np.zeros(0), np.zeros((0, 3)),
+                             np.zeros(0, np.uint8))
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """One input that was refused, and why (reason is a short stable key)."""
+
+    body: str      # body name ('' when the whole input was refused)
+    reason: str    # e.g. 'non_finite', 'zero_quaternion', 'unknown_body', 'time_backwards'
+    detail: str    # one human-readable line
+
+
+@dataclass
+class StepResult:
+    """Output of one world step."""
+
+    states: BodyStates                 # corrected, non-penetrating states of all N bodies
+    report: ContactReport
+    rejected: list[Rejection] = field(default_factory=list)
+
+
+SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """What a body is: shape, mass properties and material (body frame = shape frame).
+
+    ``size`` by shape: sphere (r,); box (x, y, z) full edges; capsule, cylinder,
+    cone (r, length) along the body z axis; plane (nx, ny, nz, d): the
+    half-space n.x <= d in the body frame (static only); convex: ``points``
+    (K, 3) in the body frame, ``size`` unused. ``mass`` in kg is ignored for
+    static bodies (infinite mass). ``inertia`` (ixx, iyy, izz) in kg m^2 about
+    the origin in the body frame, or None to derive it from shape and mass.
+    """
+
+    name: str
+    shape: str
+    size: tuple[float, ...] = ()
+    static: bool = False
+    mass: float = 1.0
+    inertia: tuple[float, float, float] | None = None
+    restitution: float = 0.5
+    static_friction: float = 0.5
+    kinetic_friction: float = 0.3
+    points: tuple[tuple[float, float, float], ...] = ()

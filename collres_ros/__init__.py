@@ -1,0 +1,34 @@
+"""collres_ros: rigid-body contact resolution for ROS 2 topic pipelines.
+
+``collres_ros.core`` is the ROS-free physics core (numpy + coal); the node,
+the simulator, the replay tool and the demo are thin adapters around it.
+"""
+
+import ctypes
+import glob
+import os
+
+
+def _preload_interface_libraries() -> None:
+    """Load the package's own rosidl libraries when they live inside the package.
+
+    A pip/venv install keeps ``libcollres_ros__rosidl_*.so`` in ``collres_ros/_lib``
+    (no ROS ``lib/`` on the loader path for them). rmw dlopen()s typesupport
+    libraries by bare name, which resolves to an already-loaded library of that
+    name, so loading them here once makes publishing work. A colcon/apt install
+    has no ``_lib`` and the ROS environment's loader path finds them.
+    """
+    pending = sorted(glob.glob(os.path.join(os.path.dirname(__file__), '_lib', '*.so')))
+    while pending:  # dependency order is not known up front: retry until no progress
+        failed = []
+        for path in pending:
+            try:
+                ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+            except OSError:
+                failed.append(path)
+        if len(failed) == len(pending):
+            return  # ROS libraries unavailable (e.g. the core used without ROS): skip
+        pending = failed
+
+
+_preload_interface_libraries()

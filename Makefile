@@ -1,0 +1,53 @@
+# The two commands of the README: `make demo` and `make test`.
+# Each creates .venv/ when missing, installs the requirements, builds the
+# messages and installs collres_ros (editable); a second run only checks stamps.
+
+PYTHON ?= python3.11
+VENV := .venv
+VPY := $(VENV)/bin/python
+PIP := $(VPY) -m pip --disable-pip-version-check -q
+MSG_STAMP := collres_ros/msg/.build-stamp
+INTERFACE_INPUTS := CMakeLists.txt package.xml cmake/RepairImportedIncludeDirs.cmake \
+	cmake/build_interfaces.py $(wildcard msg/*.msg)
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+
+.PHONY: demo test setup test-setup bench goldens clean
+
+demo: setup
+	$(VENV)/bin/collres_demo
+
+test: setup test-setup
+	$(VPY) -m pytest test
+
+setup: $(VENV)/.editable-stamp
+
+test-setup: $(VENV)/.test-deps-stamp
+
+$(VPY):
+	$(PYTHON) -m venv $(VENV)
+	$(PIP) install -U pip "setuptools>=70.1,<80" wheel
+
+$(VENV)/.deps-stamp: requirements.txt | $(VPY)
+	$(PIP) install -r requirements.txt
+	touch $@
+
+$(VENV)/.test-deps-stamp: requirements-test.txt $(VENV)/.deps-stamp
+	$(PIP) install -r requirements-test.txt
+	touch $@
+
+$(MSG_STAMP): $(INTERFACE_INPUTS) $(VENV)/.deps-stamp
+	$(VPY) cmake/build_interfaces.py collres_ros
+	touch $@
+
+$(VENV)/.editable-stamp: setup.py pyproject.toml $(MSG_STAMP)
+	$(PIP) install --no-deps --no-build-isolation -e .
+	touch $@
+
+bench: setup
+	$(VPY) bench/bench_step.py
+
+goldens: setup
+	$(VPY) tools/regenerate_goldens.py
+
+clean:
+	rm -rf build collres_ros/msg collres_ros/_lib collres_ros/*.so demo_out

@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Build the collres_ros message interfaces with CMake and place them in a Python package dir.
+
+Used by the Makefile (in-tree, for the editable install) and by setup.py
+(into build_lib, for ``pip install .``). It runs the package's own
+CMakeLists.txt (rosidl_generate_interfaces) against the ROS 2 wheels of the
+running interpreter's environment, into a scratch prefix, then copies:
+
+* ``collres_ros/msg/`` (generated Python, plus the .msg definitions),
+* ``collres_ros/collres_ros_s__rosidl_typesupport_*.so`` (extension modules),
+* ``collres_ros/_lib/libcollres_ros__rosidl_*.so`` (preloaded by collres_ros/__init__.py,
+  because rmw dlopen()s typesupport libraries by bare name).
+
+Usage: build_interfaces.py DEST_PACKAGE_DIR [--build-dir DIR]
+"""
+
+import argparse
+import glob
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+INPUTS = ['CMakeLists.txt', 'package.xml', 'cmake/RepairImportedIncludeDirs.cmake'] + sorted(
+    os.path.relpath(p, ROOT) for p in glob.glob(os.path.join(ROOT, 'msg', '*.msg')))
+
+
+def _fingerprint() -> str:
+    digest = hashlib.sha256(sys.executable.encode())
+    for rel in INPUTS:
+        with open(os.path.join(ROOT, rel), 'rb') as f:
+            digest.update(rel.encode() + b'\0' + f.read())
+    return digest.hexdigest()
+
+
+def build(dest: str, build_dir: str) -> None:
+    """Generate and compile the interfaces; copy them into ``dest`` (a collres_ros/ dir)."""
+    stamp = os.path.join(dest, 'msg', '.build-stamp')
+    fingerprint = _fingerprint()
+    if os.path.exists(stamp) and open(stamp).read() == fingerprint:
+        print('interfaces up to date')
+        return
+    prefix = sys.prefix
+    env = dict(os.environ)
+    for var in ('AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH'):
+        env[var] = os.pathsep.join(p for p in (prefix, env.get(var, '')) if p)
+    install = os.path.join(build_dir, 'install')
+    pyver = f'python{sys.version_info.major}.{sys.version_info.minor}'
+    site = os.path.join('lib', pyver, 'site-packages')
+    generator = ['-G', 'Ninja'] if shutil.which('ninja') else []
+    shutil.rmtree(install, ignore_errors=True)
+    run = [
+        ['cmake', '-S', ROOT, '-B', os.path.join(build_dir, 'cmake'), *generator,
+         f'-DPython3_EXECUTABLE={sys.executable}',
+         f'-DPython3_INCLUDE_DIR={sysconfig.get_paths()["include"]}',
+         f'-DCMAKE_INSTALL_PREFIX={install}', f'-DPYTHON_INSTALL_DIR={site}',
+         '-DBUILD_TESTING=OFF', '-DCOLLRES_SKIP_PYTHON_INSTALL=ON',
+         '-DCMAKE_BUILD_TYPE=Release'],
+        ['cmake', '--build', os.path.join(build_dir, 'cmake')],
+        ['cmake', '--install', os.path.join(build_dir, 'cmake')],
+    ]
+    for cmd in run:
+        result = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True)
+        if result.returncode:
+            sys.stderr.write(result.stdout[-6000:])
+            raise SystemExit(f'error: {" ".join(cmd[:2])} failed (exit {result.returncode})')
+    generated = os.path.join(install, site, 'collres_ros')
+    shutil.rmtree(os.path.join(dest, 'msg'), ignore_errors=True)
+    shutil.copytree(os.path.join(generated, 'msg'), os.path.join(dest, 'msg'),
+                    ignore=shutil.ignore_patterns('*.c', '__pycache__'))
+    for ext in glob.glob(os.path.join(generated, 'collres_ros_s__*.so')):
+        shutil.copy2(ext, dest)
+    lib_dir = os.path.join(dest, '_lib')
+    shutil.rmtree(lib_dir, ignore_errors=True)
+    os.makedirs(lib_dir)
+    for lib in glob.glob(os.path.join(install, 'lib', 'libcollres_ros__*.so')):
+        shutil.copy2(lib, lib_dir)
+    for definition in glob.glob(os.path.join(ROOT, 'msg', '*.msg')):
+        shutil.copy2(definition, os.path.join(dest, 'msg'))
+    with open(stamp, 'w') as f:
+        f.write(fingerprint)
+    print(f'interfaces built into {dest}')
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('dest', help='the collres_ros package directory to place them in')
+    parser.add_argument('--build-dir', default=os.path.join(ROOT, 'build', 'interfaces'))
+    args = parser.parse_args()
+    build(os.path.abspath(args.dest), os.path.abspath(args.build_dir))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,242 @@
+"""rosbag2 reading and writing (mcap or sqlite3 storage) with rclpy messages.
+
+No rosbag2_py exists for these wheels, so the bag container is handled by
+``rosbags`` while the payload is always rclpy's own CDR: messages are written
+as ``rclpy.serialization.serialize_message`` bytes (the bytes the node
+publishes) and read back with ``deserialize_message`` into rclpy classes.
+
+Every connection embeds its message definition (our ``collres_ros/msg/*``
+types are registered from the ``.msg`` text next to the std types of the
+Jazzy typestore), so the bags open with ``ros2 bag info/play`` on a ROS
+install, with ``rosbags``, and (mcap) with the ``mcap`` + ``mcap_ros2``
+readers. Timestamps are receive (log) times in ns since the epoch.
+
+rclpy leaves CDR padding bytes uninitialised: compare decoded fields, never
+raw bytes.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Iterable, Iterator
+
+from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2.enums import StoragePlugin
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
+
+from collres_ros.resources import MESSAGE_NAMES, message_definition
+
+STORAGES = ('mcap', 'sqlite3')
+PACKAGE = 'collres_ros'
+_PLUGINS = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+BAG_VERSION = 9  # rosbag2 metadata version written by Jazzy
+
+
+class BagError(Exception):
+    """A bag cannot be opened, read or written; the message is one line for users."""
+
+
+@lru_cache(maxsize=1)
+def typestore() -> Typestore:
+    """The Jazzy typestore with the ``collres_ros/msg/*`` types registered."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types: dict[str, Any] = {}
+    for name in MESSAGE_NAMES:
+        types.update(get_types_from_msg(message_definition(name), f'{PACKAGE}/msg/{name}'))
+    store.register(types)
+    return store
+
+
+def type_name(msg: Any) -> str:
+    """Wire type name of an rclpy message instance or class, e.g. 'std_msgs/msg/Header'."""
+    cls = msg if isinstance(msg, type) else type(msg)
+    package = cls.__module__.split('.')[0]
+    return f'{package}/msg/{cls.__name__}'
+
+
+@lru_cache(maxsize=None)
+def message_class(msgtype: str) -> type:
+    """The rclpy class of a wire type name ('pkg/msg/Name'); BagError when unknown."""
+    parts = msgtype.split('/')
+    if len(parts) != 3:
+        raise BagError(f'malformed message type {msgtype!r}')
+    package, kind, name = parts
+    try:
+        return getattr(importlib.import_module(f'{package}.{kind}'), name)
+    except (ImportError, AttributeError):
+        raise BagError(f'message type {msgtype} is not available in this environment') from None
+
+
+def storage_of(path: str | Path) -> str:
+    """Storage id of an existing bag directory ('mcap' or 'sqlite3'); BagError otherwise."""
+    path = Path(path)
+    metadata = path / 'metadata.yaml'
+    if not path.exists():
+        raise BagError(f'bag not found: {path}')
+    if not metadata.is_file():
+        raise BagError(f'not a rosbag2 bag (no metadata.yaml): {path}')
+    for line in metadata.read_text().splitlines():
+        key, _, value = line.strip().partition(':')
+        if key == 'storage_identifier':
+            storage = value.strip().strip('\'"')
+            if storage not in STORAGES:
+                raise BagError(f'unknown storage {storage!r} in {path} '
+                               f'(supported: {", ".join(STORAGES)})')
+            return storage
+    raise BagError(f'no storage_identifier in {metadata}')
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    """One message of a bag: topic, wire type, log time (ns) and the rclpy message."""
+
+    topic: str
+    msgtype: str
+    log_time: int
+    msg: Any
+
+
+class BagWriter:
+    """Write rclpy messages to a new rosbag2 bag; use as a context manager.
+
+    Topics are added on first write from the message's class (or explicitly
+    with ``add_topic``). ``path`` must not exist yet (rosbag2's rule).
+    """
+
+    def __init__(self, path: str | Path, storage: str = 'mcap') -> None:
+        if storage not in STORAGES:
+            raise BagError(f'unknown storage {storage!r} (supported: {", ".join(STORAGES)})')
+        self.path = Path(path)
+        if self.path.exists():
+            raise BagError(f'output bag already exists: {self.path}')
+        self.storage = storage
+        self._writer = Writer(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
+        self._connections: dict[str, Any] = {}
+        self._types: dict[str, str] = {}
+        self.count = 0
+        self._open = False
+
+    def open(self) -> 'BagWriter':
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._writer.open()
+        self._open = True
+        return self
+
+    def close(self) -> None:
+        if self._open:
+            self._writer.close()
+            self._open = False
+
+    def __enter__(self) -> 'BagWriter':
+        return self.open()
+
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.close()
+
+    def add_topic(self, topic: str, msgtype: str) -> None:
+        """Declare a topic with its wire type (idempotent); BagError on a type clash."""
+        known = self._types.get(topic)
+        if known == msgtype:
+            return
+        if known is not None:
+            raise BagError(f'topic {topic} already has type {known}, not {msgtype}')
+        self._connections[topic] = self._writer.add_connection(
+            topic, msgtype, typestore=typestore())
+        self._types[topic] = msgtype
+
+    def write(self, topic: str, log_time: int, msg: Any) -> None:
+        """Write one rclpy message at ``log_time`` (ns)."""
+        from rclpy.serialization import serialize_message
+        self.write_raw(topic, type_name(msg), log_time, serialize_message(msg))
+
+    def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes) -> None:
+        """Write CDR bytes (as rclpy publishes them) at ``log_time`` (ns)."""
+        self.add_topic(topic, msgtype)
+        self._writer.write(self._connections[topic], int(log_time), data)
+        self.count += 1
+
+
+class BagReader:
+    """Read a rosbag2 bag (mcap or sqlite3) into rclpy messages; a context manager."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.storage = storage_of(self.path)
+        try:
+            self._reader = Reader(self.path)
+        except Exception as error:  # rosbags raises several types for a bad bag
+            raise BagError(f'cannot open bag {self.path}: {error}') from None
+        self._open = False
+
+    def open(self) -> 'BagReader':
+        try:
+            self._reader.open()
+        except Exception as error:
+            raise BagError(f'cannot open bag {self.path}: {error}') from None
+        self._open = True
+        return self
+
+    def close(self) -> None:
+        if self._open:
+            self._reader.close()
+            self._open = False
+
+    def __enter__(self) -> 'BagReader':
+        return self.open()
+
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.close()
+
+    @property
+    def topics(self) -> dict[str, str]:
+        """Topic name -> wire type of every topic in the bag."""
+        return {c.topic: c.msgtype for c in self._reader.connections}
+
+    @property
+    def message_count(self) -> int:
+        return int(self._reader.message_count)
+
+    def topic_count(self, topic: str) -> int:
+        return sum(c.msgcount for c in self._reader.connections if c.topic == topic)
+
+    def raw(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, str, int, bytes]]:
+        """(topic, msgtype, log_time ns, CDR bytes) in log-time order."""
+        wanted = None if topics is None else set(topics)
+        connections = [c for c in self._reader.connections
+                       if wanted is None or c.topic in wanted]
+        if not connections:
+            return
+        for connection, log_time, data in self._reader.messages(connections=connections):
+            yield connection.topic, connection.msgtype, int(log_time), bytes(data)
+
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
+        """Decoded rclpy messages in log-time order, optionally only ``topics``."""
+        from rclpy.serialization import deserialize_message
+        for topic, msgtype, log_time, data in self.raw(topics):
+            yield BagMessage(topic, msgtype, log_time,
+                             deserialize_message(data, message_class(msgtype)))
+
+
+def read_messages(path: str | Path, topics: Iterable[str] | None = None) -> list[BagMessage]:
+    """All (or ``topics``') decoded messages of a bag, in log-time order."""
+    with BagReader(path) as reader:
+        return list(reader.messages(topics))
+
+
+def message_fields(msg: Any) -> Any:
+    """A message as nested plain Python values (dicts, lists, floats) for comparison."""
+    if hasattr(msg, 'get_fields_and_field_types'):
+        return {name: message_fields(getattr(msg, name))
+                for name in msg.get_fields_and_field_types()}
+    if isinstance(msg, (list, tuple)):
+        return [message_fields(item) for item in msg]
+    if hasattr(msg, 'tolist'):  # numpy arrays of fixed-size fields
+        return msg.tolist()
+    return msg

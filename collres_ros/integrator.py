@@ -1,0 +1,43 @@
+"""The test simulator's integrator: semi-implicit (symplectic) Euler with gravity.
+
+Shared by ``collres_sim`` live and offline so both produce the same input
+states. ROS-free: numpy and the core's quaternion helpers only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from collres_ros.core.rotation import integrate as integrate_orientation
+from collres_ros.core.types import BodyStates
+
+
+def euler_step(states: BodyStates, dynamic: np.ndarray, gravity: np.ndarray,
+               dt: float) -> BodyStates:
+    """States after ``dt`` s: v += g dt, then x += v dt, q rotated by omega dt (world frame).
+
+    ``dynamic``: (N,) bool, static bodies keep their pose and zero twist.
+    ``gravity``: (3,) m/s^2, world frame. Torque-free bodies keep their
+    world angular velocity (no gyroscopic term: the test scenes do not need it).
+    """
+    moving = np.asarray(dynamic, bool)[:, None]
+    linear = np.where(moving, states.linear + np.asarray(gravity, float) * dt, 0.0)
+    angular = np.where(moving, states.angular, 0.0)
+    position = states.position + linear * dt
+    orientation = np.where(moving, integrate_orientation(states.orientation, angular, dt),
+                           states.orientation)
+    return BodyStates(position, orientation, linear, angular)
+
+
+def kinetic_energy(states: BodyStates, mass: np.ndarray, inertia_body: np.ndarray,
+                   dynamic: np.ndarray) -> np.ndarray:
+    """Kinetic energy per body, J: 1/2 m v^2 + 1/2 w^T I_world w (0 for static bodies).
+
+    ``inertia_body``: (N, 3) principal inertia about the origin, kg m^2.
+    """
+    from collres_ros.core.rotation import to_matrix
+    rot = to_matrix(states.orientation)
+    w_body = np.einsum('nji,nj->ni', rot, states.angular)  # R^T w
+    energy = 0.5 * mass * np.sum(states.linear ** 2, axis=1) \
+        + 0.5 * np.sum(inertia_body * w_body ** 2, axis=1)
+    return np.where(np.asarray(dynamic, bool), energy, 0.0)

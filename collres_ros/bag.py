@@ -25,7 +25,7 @@ from types import TracebackType
 from typing import Any, Iterable, Iterator
 
 from rosbags.rosbag2 import Reader, Writer
-from rosbags.rosbag2.enums import StoragePlugin
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -106,9 +106,11 @@ class BagWriter:
 
     Topics are added on first write from the message's class (or explicitly
     with ``add_topic``). ``path`` must not exist yet (rosbag2's rule).
+    ``compress``: zstd-compressed mcap chunks (the mcap format's own chunk
+    compression, read transparently by every mcap reader; mcap storage only).
     """
 
-    def __init__(self, path: str | Path, storage: str = 'mcap') -> None:
+    def __init__(self, path: str | Path, storage: str = 'mcap', compress: bool = False) -> None:
         if storage not in STORAGES:
             raise BagError(f'unknown storage {storage!r} (supported: {", ".join(STORAGES)})')
         self.path = Path(path)
@@ -116,6 +118,10 @@ class BagWriter:
             raise BagError(f'output bag already exists: {self.path}')
         self.storage = storage
         self._writer = Writer(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
+        if compress:
+            if storage != 'mcap':
+                raise BagError('chunk compression needs mcap storage')
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._connections: dict[str, Any] = {}
         self._types: dict[str, str] = {}
         self.count = 0

@@ -31,7 +31,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -167,55 +167,54 @@ class OfflineSummary:
     wall_s: float
 
 
-def offline_outputs(sim: SimScene) -> Iterator[tuple[int, list[tuple[str, Any]]]]:
-    """Run the scene through the core in-process: yields (stamp, [(topic, msg)]) per step.
+def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
+             on_step: Callable[[int, int], None] | None = None) -> int:
+    """Run the scene through the core in-process; returns the number of steps.
 
-    The list starts with ('body_states', input) followed by every output of
-    the node's message builder for that step.
+    ``sink(stamp_ns, [(topic, msg), ...])`` gets, per step, ('body_states',
+    input) followed by every output of the node's message builder (relative
+    topic names, as the node publishes them).
     """
     from collres_ros import messages
     from collres_ros.core.pipeline import Resolver
     resolver = Resolver(sim.scene)
-    produced: list[tuple[int, list[tuple[str, Any]]]] = []
 
     def exchange(stamp: int, msg: Any) -> Any:
         step = resolver.resolve(stamp, messages.inputs_from_array(msg))
-        outputs = messages.build_outputs(step, sim.world_frame, per_body=sim.per_body)
-        produced.append((stamp, [(STATES_TOPIC, msg)] + list(outputs)))
+        outputs = list(messages.build_outputs(step, sim.world_frame, per_body=False))
+        sink(stamp, [(STATES_TOPIC, msg)] + outputs)
         return dict(outputs)[CORRECTED_TOPIC]
 
-    # run_loop drives the integrator; outputs are collected step by step
-    all_stamps = stamps(sim.rate_hz, sim.duration)
-    states = sim.initial.copy()
-    for k, stamp in enumerate(all_stamps):
-        if k > 0:
-            states = euler_step(states, sim.dynamic, sim.gravity,
-                                (stamp - all_stamps[k - 1]) * 1e-9)
-        corrected = exchange(stamp, states_to_msg(sim.names, states, sim.rows, stamp,
-                                                  sim.world_frame))
-        states = adopt(states, sim.names, corrected)
-        yield produced.pop()
+    steps, _ = run_loop(sim, exchange, on_step)
+    return steps
 
 
-def run_offline(sim: SimScene, record: Path, storage: str = 'mcap',
-                progress: bool = False) -> OfflineSummary:
-    """Step the scene in-process and record input and outputs to a new bag."""
+def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bool = False,
+                topics: Sequence[str] | None = None, compress: bool = False) -> OfflineSummary:
+    """Step the scene in-process and record input and outputs to a new bag.
+
+    ``topics``: record only these (relative names; default: all). ``compress``:
+    zstd mcap chunks.
+    """
     from collres_ros.bag import BagWriter
-    total = len(stamps(sim.rate_hz, sim.duration))
     contacts: dict[str, int] = {}
     start = time.perf_counter()
-    steps = 0
-    with BagWriter(record, storage) as writer:
-        for stamp, outputs in offline_outputs(sim):
+
+    def show(step: int, total: int) -> None:
+        if progress and (step % 200 == 0 or step == total):
+            print(f'\rstep {step}/{total}', end='', file=sys.stderr, flush=True)
+
+    with BagWriter(record, storage, compress) as writer:
+        def sink(stamp: int, outputs: list[tuple[str, Any]]) -> None:
             for topic, msg in outputs:
-                writer.write(absolute(topic), stamp, msg)
+                if topics is None or topic in topics:
+                    writer.write(absolute(topic), stamp, msg)
                 if topic == 'contacts':
                     for contact in msg.contacts:
                         key = STATE_NAMES.get(contact.state, str(contact.state))
                         contacts[key] = contacts.get(key, 0) + 1
-            steps += 1
-            if progress and (steps % 200 == 0 or steps == total):
-                print(f'\rstep {steps}/{total}', end='', file=sys.stderr, flush=True)
+
+        steps = run_core(sim, sink, show)
         messages = writer.count
     if progress:
         print(file=sys.stderr)
@@ -257,8 +256,9 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
             pose_pubs[name] = node.create_publisher(PoseStamped, f'bodies/{name}/pose', qos)
             twist_pubs[name] = node.create_publisher(TwistStamped, f'bodies/{name}/twist', qos)
     answers: dict[int, Any] = {}
-    node.create_subscription(BodyStateArray, CORRECTED_TOPIC,
-                             lambda m: answers.__setitem__(stamp_ns(m.header.stamp), m), qos)
+    corrected = node.create_subscription(
+        BodyStateArray, CORRECTED_TOPIC,
+        lambda m: answers.__setitem__(stamp_ns(m.header.stamp), m), qos)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     log = node.get_logger()
@@ -272,7 +272,7 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
             executor.spin_once(timeout_sec=min(remaining, 0.05))
         return True
 
-    wall_start = time.monotonic()
+    wall_start = time.monotonic()  # reset once the node answered discovery
 
     def exchange(stamp: int, msg: Any) -> Any | None:
         if args.realtime:
@@ -298,12 +298,13 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
 
     code = 0
     try:
-        matched = spin_until(lambda: publisher.get_subscription_count() > 0
-                             and node.count_publishers(CORRECTED_TOPIC) > 0, args.wait)
+        matched = spin_until(lambda: publisher.get_subscription_count() >= args.subscribers
+                             and corrected.get_publisher_count() > 0, args.wait)
         if not matched:
             log.error(f'error: no collres_node answered on {STATES_TOPIC} within {args.wait} s')
             code = 1
         else:
+            wall_start = time.monotonic()
             steps, dropped = run_loop(sim, exchange, progress)
             log.info(f'done: {steps} steps, {dropped} dropped, '
                      f'{time.monotonic() - wall_start:.2f} s wall time')
@@ -344,12 +345,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--offline', action='store_true', help='no DDS: run the core in-process')
     p.add_argument('--record', help='offline: output bag directory (must not exist)')
     p.add_argument('--storage', default='mcap', help='offline: mcap (default) or sqlite3')
+    p.add_argument('--compress', action='store_true', help='offline: zstd mcap chunks')
     p.add_argument('--per-body', action='store_true',
                    help='live: also publish bodies/<name>/pose and bodies/<name>/twist')
     p.add_argument('--step-timeout', type=float, default=1.0,
                    help='live: s to wait for each corrected state before dropping the step')
     p.add_argument('--wait', type=float, default=20.0,
                    help='live: s to wait for collres_node to appear')
+    p.add_argument('--subscribers', type=int, default=1,
+                   help='live: wait for this many subscribers of body_states (e.g. 2 with a '
+                        'recorder) before the first step')
     p.add_argument('--realtime', action='store_true',
                    help='live: pace the steps to the wall clock')
     return p
@@ -375,7 +380,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.storage not in STORAGES:
                 raise ValueError(f'unknown storage {args.storage!r} '
                                  f'(supported: {", ".join(STORAGES)})')
-            summary = run_offline(sim, Path(args.record), args.storage, progress=True)
+            summary = run_offline(sim, Path(args.record), args.storage, progress=True,
+                                  compress=args.compress)
             rate = summary.steps / summary.wall_s if summary.wall_s > 0 else float('inf')
             print(f'recorded {summary.steps} steps, {summary.messages} messages to '
                   f'{args.record} in {summary.wall_s:.2f} s ({rate:.0f} steps/s); contacts: '

@@ -33,11 +33,12 @@ def _contacts():
     return msg
 
 
-def _write(path: Path, storage: str) -> list:
-    written = [('/body_states', 1_000_000_000 + i * 4_166_667, _body_states(i * 4_166_667, 1.0 - i))
+def _write(path: Path, storage: str, compress: bool = False) -> list:
+    step = 4_166_667
+    written = [('/body_states', 10**9 + i * step, _body_states(i * step, 1.0 - i))
                for i in range(3)]
     written.append(('/contacts', 2_000_000_000, _contacts()))
-    with BagWriter(path, storage) as writer:
+    with BagWriter(path, storage, compress) as writer:
         for topic, stamp, msg in written:
             writer.write(topic, stamp, msg)
     return written
@@ -70,10 +71,11 @@ def test_bag_opens_with_rosbags_alone(tmp_path: Path, storage: str) -> None:
     assert decoded[3].contacts[0].normal_impulse == 0.25
 
 
-def test_mcap_opens_with_the_independent_mcap_reader(tmp_path: Path) -> None:
+@pytest.mark.parametrize('compress', [False, True])
+def test_mcap_opens_with_the_independent_mcap_reader(tmp_path: Path, compress: bool) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
-    _write(tmp_path / 'bag', 'mcap')
+    _write(tmp_path / 'bag', 'mcap', compress)
     (file,) = (tmp_path / 'bag').glob('*.mcap')
     with open(file, 'rb') as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])

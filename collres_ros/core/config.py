@@ -177,3 +177,74 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('points', 'double_array', [],
               'convex: vertices [x0, y0, z0, x1, ...] in the body frame', unit='m'),
 )
+
+
+# Node settings: the non-solver parameters of collres_node (its own section).
+NODE_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('sync_slop', 'double', 0.0,
+              'Per-body topics: largest stamp difference grouped into one step (0: exact)',
+              0.0, 1.0, unit='s', reason='exact stamps are deterministic; a simulator sends them'),
+    ParamSpec('stale_timeout', 'double', 1.0,
+              'A body not updated for longer than this is reported stale in /diagnostics',
+              1e-3, 3600.0, unit='s', reason='one second is many steps at any control rate'),
+    ParamSpec('marker_lifetime', 'double', 0.5,
+              'Lifetime of contact markers (each message also starts with DELETEALL)',
+              0.0, 60.0, unit='s', reason='stale markers vanish even if the node stops publishing'),
+    ParamSpec('diagnostics_period', 'double', 1.0,
+              'Period of the /diagnostics status', 0.01, 60.0, unit='s',
+              reason='1 Hz is the diagnostic_updater default'),
+    ParamSpec('per_body_outputs', 'bool', True,
+              'Publish bodies/<name>/{pose,twist}/corrected for steps from per-body inputs',
+              reason='per-body users expect per-body answers; batched users read the array'),
+    ParamSpec('queue_depth', 'integer', 10,
+              'Depth of the reliable QoS of state topics (keep last)', 1, 1000,
+              reason='a few steps of buffering; old states are worthless to a control loop'),
+)
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """collres_node settings outside the solver; see NODE_PARAMS."""
+
+    sync_slop: float = 0.0
+    stale_timeout: float = 1.0
+    marker_lifetime: float = 0.5
+    diagnostics_period: float = 1.0
+    per_body_outputs: bool = True
+    queue_depth: int = 10
+
+
+# Simulator settings: the parameters of collres_sim (its own section).
+SIM_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('gravity', 'double_array', [0.0, 0.0, -9.81], 'Gravity, world frame',
+              unit='m/s^2'),
+    ParamSpec('rate_hz', 'double', 240.0, 'Integration and publishing rate', 1.0, 100000.0,
+              unit='Hz', reason='a common physics rate (Bullet, Unity: 60-240 Hz)'),
+    ParamSpec('duration', 'double', 5.0, 'Simulated time to run', 0.0, 86400.0, unit='s'),
+    ParamSpec('publish_per_body', 'bool', False,
+              'Also publish bodies/<name>/pose and twist (live mode)'),
+)
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """collres_sim settings; see SIM_PARAMS. ``gravity`` in m/s^2, world frame."""
+
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    rate_hz: float = 240.0
+    duration: float = 5.0
+    publish_per_body: bool = False
+
+
+assert [f.name for f in fields(NodeSettings)] == [p.name for p in NODE_PARAMS]
+assert all(getattr(NodeSettings(), p.name) == p.default for p in NODE_PARAMS)
+assert [f.name for f in fields(SimSettings)] == [p.name for p in SIM_PARAMS]
+
+
+# Scene parameters shared by every node (the `/**` section), besides `body.<name>.*`.
+SCENE_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('world_frame', 'string', 'world',
+              'Frame of every pose and world-frame twist (inputs in other frames are refused)'),
+    ParamSpec('bodies', 'string_array', [],
+              'Body names, in order (letters, digits, _; used in topic names)'),
+)

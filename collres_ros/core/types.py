@@ -161,3 +161,23 @@ class BodySpec:
     static_friction: float = 0.5
     kinetic_friction: float = 0.3
     points: tuple[tuple[float, float, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class BodyInput:
+    """One body's published state for one step, as received (not yet validated).
+
+    ``frame_id``: frame of the pose (must be the world frame; '' counts as the
+    world frame). ``twist_frame_id``: frame of the twist: the world frame (or
+    '') for a world-frame twist, the body's own name for a body-frame twist
+    (linear velocity of the origin and angular velocity, both expressed in the
+    body axes). Position m, orientation x, y, z, w, linear m/s, angular rad/s.
+    """
+
+    name: str
+    position: tuple[float, float, float]
+    orientation: tuple[float, float, float, float]
+    linear: tuple[float, float, float]
+    angular: tuple[float, float, float]
+    frame_id: str = ''
+    twist_frame_id: str = ''

@@ -1,0 +1,224 @@
+"""Collision shapes: coal geometries, mass properties and bounds of a BodySpec.
+
+Conventions (see ``types.BodySpec``): the body frame is the shape frame and
+its origin is the centre of mass. Every shape is centred on its origin except
+the cone: coal puts a cone's origin at the middle of its axis, while its
+centre of mass lies a quarter of the length above the base. Our cone's body
+origin is its centre of mass, so its coal geometry sits at ``shape_offset``
+(0, 0, +length/4) in the body frame: base at z = -length/4, apex at
+z = +3 length/4. Sizes are in m, masses in kg, inertia in kg m^2.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from pathlib import Path
+
+import coal
+import numpy as np
+
+from collres_ros.core.types import BodySpec
+
+
+def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
+    """A new coal geometry for ``spec`` (one instance per body: its id names the body)."""
+    size = [float(s) for s in spec.size]
+    shape = spec.shape
+    if shape == 'sphere':
+        return coal.Sphere(_positive(spec, size, 1)[0])
+    if shape == 'box':
+        return coal.Box(*_positive(spec, size, 3))
+    if shape == 'capsule':
+        radius, length = _radius_length(spec, size)
+        return coal.Capsule(radius, length)
+    if shape == 'cylinder':
+        radius, length = _radius_length(spec, size)
+        return coal.Cylinder(radius, length)
+    if shape == 'cone':
+        radius, length = _radius_length(spec, size)
+        return coal.Cone(radius, length)
+    if shape == 'plane':
+        normal, offset = plane_normal_offset(spec)
+        return coal.Halfspace(normal, offset)
+    if shape == 'convex':
+        return convex_hull(convex_points(spec))
+    raise ValueError(f'{spec.name}: unknown shape {shape!r}')
+
+
+def shape_offset(spec: BodySpec) -> np.ndarray:
+    """Position (3,) m of the coal geometry's origin in the body frame (non-zero for cones)."""
+    if spec.shape == 'cone':
+        return np.array([0.0, 0.0, 0.25 * float(spec.size[1])])
+    return np.zeros(3)
+
+
+def plane_normal_offset(spec: BodySpec) -> tuple[np.ndarray, float]:
+    """Unit normal (3,) and offset d (m) of a plane spec: the solid half-space n.x <= d."""
+    if len(spec.size) != 4:
+        raise ValueError(f'{spec.name}: plane size must be [nx, ny, nz, d]')
+    normal = np.array(spec.size[:3], dtype=float)
+    length = float(np.linalg.norm(normal))
+    if not length > 0.0 or not math.isfinite(length):
+        raise ValueError(f'{spec.name}: plane normal must be non-zero and finite')
+    return normal / length, float(spec.size[3]) / length
+
+
+def convex_points(spec: BodySpec) -> np.ndarray:
+    """Vertices (K, 3) m, body frame, of a convex spec (needs at least 4, not coplanar)."""
+    points = np.asarray(spec.points, dtype=float).reshape(-1, 3)
+    if points.shape[0] < 4 or not np.all(np.isfinite(points)):
+        raise ValueError(f'{spec.name}: convex needs at least 4 finite points')
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    if spread[-1] <= 1e-9 * max(spread[0], 1e-300):
+        raise ValueError(f'{spec.name}: convex points are coplanar (no volume)')
+    return points
+
+
+def convex_hull(points: np.ndarray) -> coal.Convex:
+    """coal convex hull (with its triangles, so volume and inertia work) of (K, 3) points."""
+    vertices = coal.StdVec_Vec3s()
+    for point in np.asarray(points, dtype=float):
+        vertices.append(point)
+    return coal.ConvexBase.convexHull(vertices, True, 'Qt')
+
+
+def mass_properties(spec: BodySpec) -> tuple[float, np.ndarray]:
+    """(inverse mass 1/kg, inverse inertia (3, 3) 1/(kg m^2), body frame about the origin).
+
+    Both are zero for static bodies (infinite mass). Solid shapes of uniform
+    density; ``spec.inertia`` (principal moments) overrides the shape's. A
+    zero principal moment gives a zero inverse on that axis (no division by 0).
+    """
+    if spec.static or spec.shape == 'plane':
+        return 0.0, np.zeros((3, 3))
+    mass = float(spec.mass)
+    if not mass > 0.0 or not math.isfinite(mass):
+        raise ValueError(f'{spec.name}: mass must be positive and finite (got {mass})')
+    if spec.inertia is not None:
+        inertia = np.diag(np.asarray(spec.inertia, dtype=float))
+    else:
+        inertia = inertia_tensor(spec)
+    return 1.0 / mass, _guarded_inverse(inertia)
+
+
+def inertia_tensor(spec: BodySpec) -> np.ndarray:
+    """Inertia (3, 3) kg m^2 of the solid shape of mass ``spec.mass`` about the body origin."""
+    m = float(spec.mass)
+    size = [float(s) for s in spec.size]
+    shape = spec.shape
+    if shape == 'sphere':
+        r = size[0]
+        return np.diag([0.4 * m * r * r] * 3)
+    if shape == 'box':
+        x, y, z = (s * s for s in size[:3])
+        return np.diag([m * (y + z), m * (x + z), m * (x + y)]) / 12.0
+    if shape == 'cylinder':
+        r, h = size[0], size[1]
+        side = m * (3.0 * r * r + h * h) / 12.0
+        return np.diag([side, side, 0.5 * m * r * r])
+    if shape == 'cone':  # about the centre of mass, a quarter of the length above the base
+        r, h = size[0], size[1]
+        side = m * (3.0 * r * r / 20.0 + 3.0 * h * h / 80.0)
+        return np.diag([side, side, 0.3 * m * r * r])
+    if shape == 'capsule':
+        r, h = size[0], size[1]
+        cylinder_volume = math.pi * r * r * h
+        balls_volume = 4.0 / 3.0 * math.pi * r ** 3
+        mc = m * cylinder_volume / (cylinder_volume + balls_volume)
+        mb = m - mc
+        axial = 0.5 * mc * r * r + 0.4 * mb * r * r
+        side = (mc * (h * h / 12.0 + r * r / 4.0)
+                + mb * (0.4 * r * r + h * h / 4.0 + 3.0 * h * r / 8.0))
+        return np.diag([side, side, axial])
+    if shape == 'convex':
+        hull = convex_hull(convex_points(spec))
+        volume = float(hull.computeVolume())
+        if not volume > 0.0:
+            raise ValueError(f'{spec.name}: convex hull has no volume')
+        centre = np.asarray(hull.computeCOM(), dtype=float)
+        about_com = np.asarray(hull.computeMomentofInertiaRelatedToCOM()) * (m / volume)
+        # parallel axis: inertia about the body origin, which is the declared centre of mass
+        shift = m * (centre @ centre * np.eye(3) - np.outer(centre, centre))
+        return 0.5 * (about_com + about_com.T) + shift
+    raise ValueError(f'{spec.name}: no inertia for shape {shape!r}')
+
+
+def bounding_radius(spec: BodySpec) -> float:
+    """Radius (m) of the smallest origin-centred sphere holding the shape (inf for planes)."""
+    size = [float(s) for s in spec.size]
+    shape = spec.shape
+    if shape == 'sphere':
+        return size[0]
+    if shape == 'box':
+        return 0.5 * math.sqrt(sum(s * s for s in size[:3]))
+    if shape == 'capsule':
+        return size[0] + 0.5 * size[1]
+    if shape == 'cylinder':
+        return math.hypot(size[0], 0.5 * size[1])
+    if shape == 'cone':
+        return max(0.75 * size[1], math.hypot(size[0], 0.25 * size[1]))
+    if shape == 'plane':
+        return math.inf
+    if shape == 'convex':
+        return float(np.max(np.linalg.norm(convex_points(spec), axis=1)))
+    raise ValueError(f'{spec.name}: unknown shape {shape!r}')
+
+
+def local_aabb(spec: BodySpec, geometry: coal.CollisionGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) corners (3,) m of the shape's box in the body frame (cone offset included)."""
+    geometry.computeLocalAABB()
+    aabb = geometry.aabb_local
+    offset = shape_offset(spec)
+    return np.array(aabb.min_, dtype=float) + offset, np.array(aabb.max_, dtype=float) + offset
+
+
+def load_mesh_points(path: str) -> np.ndarray:
+    """Distinct vertices (K, 3) of an OBJ or STL (ASCII or binary) file, in the file's units."""
+    data = Path(path).read_bytes()
+    suffix = Path(path).suffix.lower()
+    if suffix == '.obj':
+        points = _obj_vertices(data.decode('utf-8', errors='replace'))
+    elif suffix == '.stl':
+        points = _stl_vertices(data)
+    else:
+        raise ValueError(f'{path}: unsupported mesh format (use .obj or .stl)')
+    if points.shape[0] == 0:
+        raise ValueError(f'{path}: no vertices found')
+    return np.unique(points, axis=0)
+
+
+def _obj_vertices(text: str) -> np.ndarray:
+    rows = [line.split()[1:4] for line in text.splitlines() if line.startswith('v ')]
+    return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def _stl_vertices(data: bytes) -> np.ndarray:
+    if len(data) >= 84:
+        count = struct.unpack_from('<I', data, 80)[0]
+        if len(data) == 84 + 50 * count:  # binary: 12 floats + 2 bytes per triangle
+            records = np.frombuffer(data, dtype=np.dtype([('f', '<f4', (12,)), ('a', '<u2')]),
+                                    count=count, offset=84)
+            return records['f'][:, 3:].reshape(-1, 3).astype(float)
+    text = data.decode('ascii', errors='replace')
+    rows = [line.split()[1:4] for line in text.splitlines() if line.strip().startswith('vertex')]
+    return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def _positive(spec: BodySpec, size: list[float], count: int) -> list[float]:
+    if len(size) < count or not all(s > 0.0 and math.isfinite(s) for s in size[:count]):
+        raise ValueError(f'{spec.name}: {spec.shape} size needs {count} positive values')
+    return size[:count]
+
+
+def _radius_length(spec: BodySpec, size: list[float]) -> tuple[float, float]:
+    radius, length = _positive(spec, size, 2)
+    return radius, length
+
+
+def _guarded_inverse(inertia: np.ndarray) -> np.ndarray:
+    """Inverse of a symmetric inertia; axes with a non-positive moment get 0."""
+    values, vectors = np.linalg.eigh(0.5 * (inertia + inertia.T))
+    scale = max(float(np.max(np.abs(values))), 1e-300)
+    inverse = np.where(values > 1e-12 * scale, 1.0 / np.where(values > 0.0, values, 1.0), 0.0)
+    return (vectors * inverse) @ vectors.T

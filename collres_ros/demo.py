@@ -1,0 +1,222 @@
+"""collres_demo: collres_node + collres_sim over real DDS, recorded, measured, plotted.
+
+The README's main command (``make demo``)::
+
+    collres_demo [--params FILE] [--duration S] [--out DIR] [--domain-id N]
+
+starts ``collres_node`` and ``collres_sim`` as separate processes on the
+default scene (config/collres.yaml) over DDS on localhost, in a private
+``ROS_DOMAIN_ID``, records every topic to a rosbag2 bag from this process
+(an rclpy recorder writing with ``collres_ros.bag``), shows progress, and
+ends with a short report: contacts per state, the ball's apex heights
+against the e^2 law, energy, momentum drift, dropped steps (must be zero),
+the bag and a PNG plot. Exit code 0 when both processes ended cleanly and no
+step was dropped, 1 otherwise (``error: ...`` for bad arguments).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+from collres_ros.analysis import RunReport, analyse, plot
+
+OUTPUT_TOPICS = ('/body_states/corrected', '/contacts', '/contact_markers', '/diagnostics')
+
+
+class DemoError(Exception):
+    """A one-line failure of the demo (printed as ``error: ...``)."""
+
+
+@dataclass
+class DemoResult:
+    """What a demo run produced."""
+
+    report: RunReport
+    bag: Path
+    plot: Path
+    node_exit: int | None
+    sim_exit: int | None
+    wall_s: float
+    domain_id: int
+    logs: dict[str, Path] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.node_exit == 0 and self.sim_exit == 0 and self.report.dropped == 0 \
+            and self.report.steps_in > 0
+
+
+def _wait(predicate: Callable[[], bool], timeout: float, period: float = 0.02) -> bool:
+    """Poll ``predicate`` until true or ``timeout`` s passed (a deadline, not a sleep)."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(period)
+    return True
+
+
+def _private_domain_id() -> int:
+    """A domain id unlikely to collide with other runs on this host (1..100)."""
+    return 1 + (os.getpid() + int(time.time())) % 100
+
+
+def _launcher() -> Any:
+    """NODE's child-process harness (collres_ros.processes)."""
+    from collres_ros import processes
+    return processes
+
+
+def run_demo(out_dir: Path, params: Path | None = None, duration: float | None = None,
+             domain_id: int | None = None, storage: str = 'mcap', progress: bool = True,
+             timeout: float = 60.0) -> DemoResult:
+    """Run node + sim over DDS, record, analyse, plot; DemoError on a failure to start."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from collres_ros.bag import BagError, read_messages
+    from collres_ros.recorder import Recorder
+    from collres_ros.resources import config_path
+    from collres_ros.sim import load_sim_scene
+
+    params = Path(params) if params is not None else config_path('collres.yaml')
+    if not params.is_file():
+        raise DemoError(f'params file not found: {params}')
+    sim_scene = load_sim_scene(params, duration)   # ValueError names a bad parameter
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    bag = out_dir / 'bag'
+    if bag.exists():
+        if not (bag / 'metadata.yaml').is_file():
+            raise DemoError(f'{bag} exists and is not a bag: not overwriting it')
+        shutil.rmtree(bag)
+    domain_id = _private_domain_id() if domain_id is None else domain_id
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    processes = _launcher()
+    logs = {'node': out_dir / 'node.log', 'sim': out_dir / 'sim.log'}
+    expected_steps = int(round(sim_scene.duration * sim_scene.rate_hz)) + 1
+
+    start = time.monotonic()
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node_proc = sim_proc = None
+    try:
+        node = rclpy.create_node('collres_demo_recorder', context=context)
+        try:
+            recorder = Recorder(node, bag, storage)
+        except BagError as error:
+            raise DemoError(str(error)) from None
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+
+        def recorded(topic: str) -> int:
+            return recorder.counts.get(topic, 0)
+
+        def subscribed(topic: str) -> bool:
+            subscription = recorder.subscription(topic)
+            return subscription is not None and subscription.get_publisher_count() > 0
+
+        node_proc = processes.start(
+            'collres_node', ['--ros-args', '--params-file', str(params)], env=env,
+            log=logs['node'])
+        if not _wait(lambda: all(subscribed(t) for t in OUTPUT_TOPICS)
+                     or node_proc.poll() is not None, 30.0):
+            raise DemoError(f'collres_node did not come up within 30 s (log: {logs["node"]})')
+        if node_proc.poll() is not None:
+            raise DemoError(f'collres_node exited with {node_proc.poll()} '
+                            f'(log: {logs["node"]})')
+        sim_args = ['--duration', str(sim_scene.duration), '--subscribers', '2',
+                    '--ros-args', '--params-file', str(params)]
+        sim_proc = processes.start('collres_sim', sim_args, env=env, log=logs['sim'])
+
+        last = 0.0
+        deadline = time.monotonic() + timeout
+        while sim_proc.poll() is None and time.monotonic() < deadline:
+            if progress and time.monotonic() - last > 0.25:
+                last = time.monotonic()
+                done = recorded('/body_states/corrected')
+                print(f'\rdemo: step {done}/{expected_steps}', end='', file=sys.stderr,
+                      flush=True)
+            time.sleep(0.02)
+        if sim_proc.poll() is None:
+            raise DemoError(f'collres_sim did not finish within {timeout} s '
+                            f'(log: {logs["sim"]})')
+        # the last answers may still be in flight to the recorder
+        _wait(lambda: recorded('/body_states/corrected') >= recorded('/body_states'), 2.0)
+        if progress:
+            print(f'\rdemo: step {recorded("/body_states/corrected")}/{expected_steps}',
+                  file=sys.stderr)
+        node_exit = processes.stop(node_proc)
+        node_proc = None
+        sim_exit = sim_proc.poll()
+        recorder.close()
+        executor.shutdown()
+    finally:
+        for proc in (sim_proc, node_proc):
+            if proc is not None and proc.poll() is None:
+                processes.stop(proc)
+        rclpy.try_shutdown(context=context)
+
+    messages = read_messages(bag)
+    solver = getattr(sim_scene.scene, 'solver', None)
+    rule = getattr(solver, 'restitution_rule', 'max')
+    report = analyse(messages, sim_scene.scene.bodies, sim_scene.gravity, rule)
+    picture = plot(report, out_dir / 'demo.png')
+    return DemoResult(report, bag, picture, node_exit, sim_exit, time.monotonic() - start,
+                      domain_id, logs)
+
+
+def summary_lines(result: DemoResult) -> list[str]:
+    """The ten-second report."""
+    lines = [f'collres demo: node + sim over DDS (ROS_DOMAIN_ID {result.domain_id}), '
+             f'{result.wall_s:.1f} s']
+    lines += result.report.lines()
+    lines += [f'dropped steps: {result.report.dropped}'
+              + ('' if result.report.dropped == 0 else '  <-- must be zero'),
+              f'processes: collres_node exit {result.node_exit}, '
+              f'collres_sim exit {result.sim_exit}',
+              f'bag:  {result.bag}',
+              f'plot: {result.plot}']
+    return lines
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog='collres_demo',
+        description='Run collres_node and collres_sim over DDS, record a bag, report and plot.')
+    p.add_argument('--params', help='scene params file (default: the package collres.yaml)')
+    p.add_argument('--duration', type=float, help='s of simulated time (default: from params)')
+    p.add_argument('--out', default='demo_out', help='output directory (default: ./demo_out)')
+    p.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: a private one)')
+    p.add_argument('--storage', default='mcap', help='bag storage: mcap or sqlite3')
+    p.add_argument('--timeout', type=float, default=60.0, help='s allowed for the sim to run')
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        result = run_demo(Path(args.out), Path(args.params) if args.params else None,
+                          args.duration, args.domain_id, args.storage,
+                          timeout=args.timeout)
+    except (DemoError, ValueError, OSError) as error:
+        print(f'error: {error}', file=sys.stderr)
+        return 1
+    for line in summary_lines(result):
+        print(line)
+    return 0 if result.ok else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,373 @@
+"""Scenes from ROS 2 parameters: a params YAML file or a node's flat parameter values.
+
+Both roads meet in ``scene_from_values``, the one validator: every error is a
+``ValueError`` whose message is one line naming the parameter and what is
+allowed, e.g. ``body.ball.restitution: allowed range [0.0, 1.0] (got 1.5)``.
+
+File schema (DESIGN.md): the ``/**`` section holds ``world_frame``,
+``bodies`` and ``body.<name>.*``; the ``collres_node`` section ``solver.*``
+and the node settings; the ``collres_sim`` section the sim settings. The
+defaults, units and ranges come from ``collres_ros.core.config``. No ROS import.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import struct
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Optional
+
+import numpy as np
+
+from collres_ros.core.config import (
+    BODY_PARAMS, NODE_PARAMS, SCENE_PARAMS, SIM_PARAMS, SOLVER_PARAMS, NodeSettings,
+    ParamSpec, SimSettings, SolverSettings, check_value, range_text)
+from collres_ros.core.types import BodySpec, BodyStates
+
+NODE_NAME = 'collres_node'
+SIM_NAME = 'collres_sim'
+NAME_PATTERN = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+# Parameters every rclpy node has; accepted and ignored here.
+ROS_BUILTIN = ('use_sim_time', 'start_type_description_service')
+
+# Runtime-changeable parameters: solver settings, materials and node settings.
+MATERIALS = ('restitution', 'static_friction', 'kinetic_friction')
+SIZES = {'sphere': ('[r]', 1), 'box': ('[x, y, z]', 3), 'capsule': ('[r, length]', 2),
+         'cylinder': ('[r, length]', 2), 'cone': ('[r, length]', 2),
+         'plane': ('[nx, ny, nz, d]', 4)}
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene: bodies, their initial (static: fixed) states and all settings.
+
+    ``initial``: world frame, one row per body in ``bodies`` order (treat as
+    read-only; copy before changing). ``values``: every parameter (dotted
+    name as the node declares it) with its validated value, defaults filled in.
+    ``base_dir``: where relative mesh paths are resolved.
+    """
+
+    world_frame: str
+    bodies: tuple[BodySpec, ...]
+    initial: BodyStates
+    solver: SolverSettings = SolverSettings()
+    node: NodeSettings = NodeSettings()
+    sim: SimSettings = SimSettings()
+    values: Mapping[str, Any] = field(default_factory=dict)
+    base_dir: Optional[Path] = None
+
+    @property
+    def names(self) -> list[str]:
+        return [b.name for b in self.bodies]
+
+    def index(self, name: str) -> int:
+        """Index of a body by name (ValueError when unknown)."""
+        return self.names.index(name)
+
+
+# --- the table of every parameter -------------------------------------------------------------
+
+def body_param(name: str, spec: ParamSpec) -> ParamSpec:
+    """``spec`` renamed to ``body.<name>.<param>``."""
+    return replace(spec, name=f'body.{name}.{spec.name}')
+
+
+def node_specs(body_names: Iterable[str] = ()) -> list[ParamSpec]:
+    """Every parameter collres_node declares, full dotted names, in table order."""
+    specs = list(SCENE_PARAMS)
+    for name in body_names:
+        specs += [body_param(name, s) for s in BODY_PARAMS]
+    specs += [replace(s, name=f'solver.{s.name}') for s in SOLVER_PARAMS]
+    return specs + list(NODE_PARAMS)
+
+
+def all_specs(body_names: Iterable[str] = ()) -> list[ParamSpec]:
+    """Every parameter of a scene file (node's plus sim's)."""
+    return node_specs(body_names) + list(SIM_PARAMS)
+
+
+def is_runtime_changeable(name: str) -> bool:
+    """Whether a running node accepts a change of this parameter (others are read-only)."""
+    if name.startswith('solver.') or name in {s.name for s in NODE_PARAMS}:
+        return name != 'queue_depth'
+    parts = name.split('.')
+    return len(parts) == 3 and parts[0] == 'body' and parts[2] in MATERIALS
+
+
+# --- reading files ----------------------------------------------------------------------------
+
+def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    if isinstance(value, dict) and value:
+        for key, item in value.items():
+            _flatten(f'{prefix}.{key}' if prefix else str(key), item, out)
+    else:
+        # rcl reads `{}` and `[]` as "not set": so do we
+        out[prefix] = None if value in ({}, []) else value
+
+
+def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, SIM_NAME)
+                     ) -> dict[str, Any]:
+    """Flat {dotted name: value} of the ``/**`` section and the sections of ``node_names``.
+
+    Later sections win, as in rcl. ValueError (one line) for unreadable YAML.
+    """
+    import yaml
+    path = Path(path)
+    try:
+        document = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as error:
+        mark = getattr(error, 'problem_mark', None)
+        where = f' line {mark.line + 1}' if mark is not None else ''
+        raise ValueError(f'{path}:{where} not valid YAML '
+                         f'({getattr(error, "problem", None) or error})') from None
+    if not isinstance(document, dict):
+        raise ValueError(f'{path}: not a ROS 2 params file (top level must be a mapping)')
+    wanted = {'/**'} | {n for name in node_names for n in (name, f'/{name}', f'/**/{name}')}
+    values: dict[str, Any] = {}
+    for section, body in document.items():
+        if section not in wanted:
+            continue
+        if not isinstance(body, dict) or 'ros__parameters' not in body:
+            raise ValueError(f'{path}: section {section!r} has no ros__parameters')
+        params = body['ros__parameters'] or {}
+        if not isinstance(params, dict):
+            raise ValueError(f'{path}: {section}.ros__parameters must be a mapping')
+        _flatten('', params, values)
+    return values
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Load a scene from a params file (ValueError with one line naming the parameter).
+
+    A missing file raises FileNotFoundError (an OSError).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f'params file not found: {path}')
+    values = read_params_file(path)
+    return scene_from_values(values, path.resolve().parent)
+
+
+# --- the validator ----------------------------------------------------------------------------
+
+def _fail(name: str, why: str, value: Any) -> None:
+    raise ValueError(f'{name}: {why} (got {_show(value)})')
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_show(v) for v in value) + ']'
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    return str(value)
+
+
+def _typed(spec: ParamSpec, value: Any) -> Any:
+    """``value`` coerced to the spec's type (an integer where a double goes is fine)."""
+    if value is None:
+        value = spec.default
+    kind = spec.type
+    if kind == 'double' and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if kind == 'integer' and isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if kind in ('double_array', 'string_array'):
+        if isinstance(value, tuple):
+            value = list(value)
+        if not isinstance(value, list):
+            _fail(spec.name, f'must be a list ({spec.type})', value)
+        if kind == 'double_array':
+            if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+                _fail(spec.name, 'must be a list of numbers', value)
+            value = [float(v) for v in value]
+            if not all(math.isfinite(v) for v in value):
+                _fail(spec.name, 'values must be finite', value)
+        elif not all(isinstance(v, str) for v in value):
+            _fail(spec.name, 'must be a list of strings', value)
+        return value
+    if kind == 'double' and isinstance(value, float) and not math.isfinite(value):
+        _fail(spec.name, 'must be finite', value)
+    check_value(spec, value)
+    return value
+
+
+def _vector(name: str, value: list[float], count: int, what: str) -> tuple[float, ...]:
+    if len(value) != count:
+        _fail(name, f'needs {count} values {what}', value)
+    return tuple(value)
+
+
+def _read_mesh(path: Path) -> np.ndarray:
+    """Vertices (K, 3) of an OBJ or STL (ASCII or binary) file."""
+    data = path.read_bytes()
+    if path.suffix.lower() == '.stl' and not data.lstrip().startswith(b'solid'):
+        count = struct.unpack_from('<I', data, 80)[0]
+        raw = np.frombuffer(data, np.dtype([('n', '<f4', 3), ('v', '<f4', (3, 3)),
+                                            ('a', '<u2')]), count, 84)
+        return raw['v'].reshape(-1, 3).astype(float)
+    keyword = 'vertex' if path.suffix.lower() == '.stl' else 'v'
+    rows = [line.split()[1:4] for line in data.decode(errors='replace').splitlines()
+            if line.split()[:1] == [keyword]]
+    return np.array(rows, float).reshape(-1, 3)
+
+
+def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
+                   ) -> tuple[tuple[float, float, float], ...]:
+    mesh, flat = values[f'{name}.mesh'], values[f'{name}.points']
+    if mesh:
+        path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
+        try:
+            points = _read_mesh(path)
+        except (OSError, ValueError, struct.error) as error:
+            _fail(f'{name}.mesh', f'cannot read mesh {path} ({error})', mesh)
+    else:
+        if len(flat) % 3:
+            _fail(f'{name}.points', 'needs x, y, z triples', flat)
+        points = np.array(flat, float).reshape(-1, 3)
+    points = np.unique(points, axis=0)
+    if len(points) < 4 or np.linalg.matrix_rank(points - points.mean(axis=0)) < 3:
+        _fail(f'{name}.{"mesh" if mesh else "points"}',
+              'convex needs at least 4 points spanning a volume', mesh or flat)
+    return tuple(tuple(float(c) for c in p) for p in points)
+
+
+def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
+          ) -> tuple[BodySpec, np.ndarray]:
+    """BodySpec and the 13-vector initial state of body ``name`` from validated values."""
+    key = f'body.{name}'
+    shape = values[f'{key}.shape']
+    size = values[f'{key}.size']
+    static = values[f'{key}.static']
+    points: tuple[tuple[float, float, float], ...] = ()
+    if shape == 'convex':
+        points = _convex_points(key, values, base_dir)
+    else:
+        what, count = SIZES[shape]
+        _vector(f'{key}.size', size, count, what)
+        if shape == 'plane':
+            if not any(size[:3]):
+                _fail(f'{key}.size', 'plane normal [nx, ny, nz] must be non-zero', size)
+            if not static:
+                _fail(f'{key}.static', 'a plane must be static', static)
+        elif min(size) <= 0.0:
+            _fail(f'{key}.size', f'{shape} needs {count} values {what} > 0', size)
+    inertia = values[f'{key}.inertia']
+    if inertia and (len(inertia) != 3 or min(inertia) <= 0.0):
+        _fail(f'{key}.inertia', 'needs [ixx, iyy, izz] > 0, or [] to derive it', inertia)
+    mu_s, mu_k = values[f'{key}.static_friction'], values[f'{key}.kinetic_friction']
+    if mu_k > mu_s:
+        _fail(f'{key}.kinetic_friction', f'must be <= static_friction {mu_s}', mu_k)
+    position = _vector(f'{key}.position', values[f'{key}.position'], 3, '[x, y, z]')
+    orientation = _vector(f'{key}.orientation', values[f'{key}.orientation'], 4,
+                          '[x, y, z, w]')
+    norm = math.sqrt(sum(c * c for c in orientation))
+    if norm < 1e-6:
+        _fail(f'{key}.orientation', 'quaternion must be non-zero', list(orientation))
+    linear = _vector(f'{key}.linear_velocity', values[f'{key}.linear_velocity'], 3,
+                     '[vx, vy, vz]')
+    angular = _vector(f'{key}.angular_velocity', values[f'{key}.angular_velocity'], 3,
+                      '[wx, wy, wz]')
+    spec = BodySpec(name=name, shape=shape, size=tuple(size) if shape != 'convex' else (),
+                    static=static, mass=values[f'{key}.mass'],
+                    inertia=tuple(inertia) if inertia else None,  # type: ignore[arg-type]
+                    restitution=values[f'{key}.restitution'], static_friction=mu_s,
+                    kinetic_friction=mu_k, points=points)
+    state = np.array(position + tuple(c / norm for c in orientation) + linear + angular)
+    return spec, state
+
+
+def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None) -> Scene:
+    """Validate flat {dotted name: value} parameters into a Scene (ValueError: one line).
+
+    Missing parameters take their defaults; ``None`` means not set. Unknown
+    names are errors (a typo must not pass silently).
+    """
+    raw = dict(values)
+    bodies_value = _typed(SCENE_PARAMS[1], raw.get('bodies'))
+    if not bodies_value:
+        _fail('bodies', 'at least one body name required', bodies_value)
+    for name in bodies_value:
+        if not NAME_PATTERN.match(name):
+            _fail('bodies', f'name {name!r} must match {NAME_PATTERN.pattern} '
+                  '(it is part of topic names)', bodies_value)
+    duplicates = sorted({n for n in bodies_value if bodies_value.count(n) > 1})
+    if duplicates:
+        _fail('bodies', f'duplicate name {duplicates[0]!r}', bodies_value)
+
+    specs = {s.name: s for s in all_specs(bodies_value)}
+    for name in raw:
+        if name in specs or name in ROS_BUILTIN or name.startswith('qos_overrides.'):
+            continue
+        parts = name.split('.')
+        if parts[0] == 'body' and len(parts) >= 3 and parts[1] not in bodies_value:
+            _fail(name, f'body {parts[1]!r} is not in bodies', bodies_value)
+        if name == 'solver' and raw[name] is None:
+            continue
+        raise ValueError(f'{name}: unknown parameter')
+    typed = {name: _typed(spec, raw.get(name)) for name, spec in specs.items()}
+
+    world_frame = typed['world_frame']
+    if not world_frame:
+        _fail('world_frame', 'must not be empty', world_frame)
+    built = [_body(name, typed, base_dir) for name in bodies_value]
+    state = np.array([s for _, s in built]).reshape(len(built), 13)
+    initial = BodyStates(state[:, 0:3].copy(), state[:, 3:7].copy(), state[:, 7:10].copy(),
+                         state[:, 10:13].copy())
+    gravity = _vector('gravity', typed['gravity'], 3, '[gx, gy, gz]')
+    solver = SolverSettings(**{f.name: typed[f'solver.{f.name}']
+                               for f in fields(SolverSettings)})
+    node = NodeSettings(**{f.name: typed[f.name] for f in fields(NodeSettings)})
+    sim = SimSettings(gravity=gravity, rate_hz=typed['rate_hz'],  # type: ignore[arg-type]
+                      duration=typed['duration'], publish_per_body=typed['publish_per_body'])
+    return Scene(world_frame, tuple(spec for spec, _ in built), initial, solver, node, sim,
+                 typed, base_dir)
+
+
+def with_changes(scene: Scene, changes: Mapping[str, Any]) -> Scene:
+    """The scene with some parameters changed, fully re-validated (ValueError: one line)."""
+    return scene_from_values({**scene.values, **changes}, scene.base_dir)
+
+
+# --- documentation ----------------------------------------------------------------------------
+
+def _default_text(spec: ParamSpec) -> str:
+    value = spec.default
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, list):
+        return '[' + ', '.join(str(v) for v in value) + ']'
+    if isinstance(value, str):
+        return f"'{value}'"
+    return str(value)
+
+
+def markdown_table() -> str:
+    """The README's parameter table (Markdown), generated from core/config.py."""
+    sections = (
+        ('`/**` (shared by collres_node and collres_sim)', list(SCENE_PARAMS)
+         + [replace(s, name=f'body.<name>.{s.name}') for s in BODY_PARAMS]),
+        ('`collres_node`', [replace(s, name=f'solver.{s.name}') for s in SOLVER_PARAMS]
+         + list(NODE_PARAMS)),
+        ('`collres_sim`', list(SIM_PARAMS)),
+    )
+    lines = []
+    for title, specs in sections:
+        lines += ['', f'Section {title}:', '',
+                  '| parameter | type | default | range | unit | runtime | description |',
+                  '|---|---|---|---|---|---|---|']
+        for spec in specs:
+            runtime = 'yes' if is_runtime_changeable(spec.name.replace('<name>', 'x')) \
+                and not title.startswith('`collres_sim') else 'no'
+            text = spec.description + (f' ({spec.reason})' if spec.reason else '')
+            lines.append(f'| `{spec.name}` | {spec.type} | `{_default_text(spec)}` | '
+                         f'{range_text(spec).replace("|", "or")} | {spec.unit} | {runtime} | '
+                         f'{text.replace("|", "/")} |')
+    return '\n'.join(lines[1:]) + '\n'
+
+
+if __name__ == '__main__':
+    print(markdown_table(), end='')

@@ -1,0 +1,225 @@
+"""The resolution pipeline: body inputs of one stamp in, corrected states and contacts out.
+
+``Resolver`` is the one place that calls ``World.step``; the node, the offline
+sim and the replay tool all go through it, so they give the same answers.
+It keeps every body's last good (corrected) state and stamp, and:
+
+* validates the inputs (``validation.check_inputs``); a refused body is held
+  at its last good state (inactive: infinite mass this step) and reported;
+* previous = the body's last corrected state, current = its input; a body seen
+  for the first time, after its stamp went backwards, after a gap longer than
+  ``settings.max_dt`` or after missing the previous step starts fresh
+  (previous = current, its warm-start entries forgotten);
+* static bodies take their params pose unless it is published; a dynamic body
+  never published yet sits, inactive, at its params pose;
+* dt = stamp - the previous step's stamp; when there is no usable previous
+  step every body is fresh and ``FRESH_DT`` is used (nothing moves between
+  identical previous and current states);
+* returns the corrected states of every accepted input body (never NaN; a
+  non-finite result keeps the input and is reported ``non_finite_result``),
+  the contacts with absolute time of impact (ns) and the rejections.
+
+Deterministic: the same sequence of calls gives bit-identical results.
+No ROS import: numpy and the core only.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.types import (
+    BodyInput, BodySpec, BodyStates, ContactReport, Rejection)
+from collres_ros.core.validation import (
+    NO_STAMP, check_inputs, check_stamps, stale_bodies)
+
+FRESH_DT = 1e-3            # s, dt given to the world when no body has a usable previous state
+DEFAULT_STALE_TIMEOUT = 1.0  # s
+
+
+@dataclass
+class ResolvedStep:
+    """Everything one step produced; K output bodies, M contacts."""
+
+    stamp_ns: int
+    names: list[str]                  # (K) accepted input bodies, in input order
+    index: np.ndarray                 # (K,) body index in the scene
+    states: BodyStates                # (K) corrected states, world frame
+    twist_in_body: np.ndarray         # (K,) bool: the input twist was in the body frame
+    body_names: tuple[str, ...]       # all N names: contacts' body_a/body_b index these
+    report: ContactReport             # M solved contacts (body indices, world frame)
+    toi_ns: np.ndarray                # (M,) int64 absolute time of impact, ns
+    rejected: list[Rejection] = field(default_factory=list)  # refused inputs (bodies held)
+    resets: list[Rejection] = field(default_factory=list)    # accepted as a fresh start
+    stale: list[str] = field(default_factory=list)           # bodies silent > stale timeout
+    dt: float = 0.0                   # s, step length used (FRESH_DT on a fresh start)
+    step_time_s: float = 0.0          # wall time of resolve() (not deterministic)
+
+    def contact_names(self, k: int) -> tuple[str, str]:
+        """Body names (A, B) of contact ``k``."""
+        c = self.report.contacts
+        return self.body_names[int(c.body_a[k])], self.body_names[int(c.body_b[k])]
+
+
+def _default_world(bodies: Sequence[BodySpec], settings: SolverSettings) -> Any:
+    from collres_ros.core.world import World
+    return World(bodies, settings)
+
+
+class Resolver:
+    """Stateful resolution of a stream of steps (see module docstring)."""
+
+    def __init__(self, scene: Any, settings: Optional[SolverSettings] = None,
+                 world: Any = None, world_frame: Optional[str] = None,
+                 initial: Optional[BodyStates] = None,
+                 stale_timeout: Optional[float] = None) -> None:
+        """``scene``: a params.Scene, or a sequence of BodySpec (then pass the rest).
+
+        ``world``: the World to step (default: ``core.world.World``), for tests.
+        """
+        if hasattr(scene, 'bodies'):
+            bodies = tuple(scene.bodies)
+            settings = settings or scene.solver
+            world_frame = world_frame or scene.world_frame
+            initial = initial if initial is not None else scene.initial
+            if stale_timeout is None:
+                stale_timeout = scene.node.stale_timeout
+        else:
+            bodies = tuple(scene)
+        self.bodies = bodies
+        self.names = tuple(b.name for b in bodies)
+        self.index_of = {name: i for i, name in enumerate(self.names)}
+        self.world_frame = world_frame or 'world'
+        self.stale_timeout = DEFAULT_STALE_TIMEOUT if stale_timeout is None else stale_timeout
+        self.dynamic = np.array([not b.static for b in bodies], bool)
+        self._settings = settings or SolverSettings()
+        self.world = world if world is not None else _default_world(bodies, self._settings)
+        self._params_state = (initial if initial is not None
+                              else BodyStates.zeros(len(bodies))).copy()
+        self.reset()
+
+    # --- runtime changes (take effect on the next step) -------------------------------------
+
+    @property
+    def settings(self) -> SolverSettings:
+        return self._settings
+
+    @settings.setter
+    def settings(self, value: SolverSettings) -> None:
+        self._settings = value
+        self.world.settings = value
+
+    def set_material(self, name: str, restitution: Optional[float] = None,
+                     static_friction: Optional[float] = None,
+                     kinetic_friction: Optional[float] = None) -> None:
+        """Change a body's material (values already validated by the caller)."""
+        self.world.set_material(self.index_of[name], restitution=restitution,
+                                static_friction=static_friction,
+                                kinetic_friction=kinetic_friction)
+
+    def reset(self) -> None:
+        """Forget all history: every body back to its params state, never seen."""
+        self.state = self._params_state.copy()
+        self.last_stamp = np.full(len(self.bodies), NO_STAMP, np.int64)
+        self.previous_step_ns = NO_STAMP
+        self.totals: Counter[str] = Counter()
+        if len(self.bodies):
+            self.world.forget(np.arange(len(self.bodies)))
+
+    # --- one step ---------------------------------------------------------------------------
+
+    def resolve(self, stamp_ns: int, inputs: Sequence[BodyInput]) -> ResolvedStep:
+        """Resolve one step at ``stamp_ns`` (ns) from the bodies' inputs."""
+        start = time.perf_counter()
+        stamp_ns = int(stamp_ns)
+        settings = self._settings
+        # 1. validate: refused inputs are reported, their bodies held
+        checked = check_inputs(inputs, self.index_of, self.world_frame)
+        rejected = list(checked.rejected)
+        history = check_stamps(self.last_stamp[checked.index], stamp_ns,
+                               int(settings.max_dt * 1e9), self.previous_step_ns)
+        for k in np.flatnonzero(history.repeated):
+            name = self.names[checked.index[k]]
+            rejected.append(Rejection(name, 'repeated_stamp',
+                                      f'{name}: already resolved at stamp {stamp_ns} ns'))
+        resets = self._resets(checked.index, history, stamp_ns)
+        use = ~history.repeated
+        index, fresh = checked.index[use], history.fresh[use]
+
+        # 2. previous and current states of all N bodies
+        previous, current = self.state.copy(), self.state.copy()
+        for target in (previous, current):
+            target.position[index] = checked.position[use]
+            target.orientation[index] = checked.orientation[use]
+            target.linear[index] = checked.linear[use]
+            target.angular[index] = checked.angular[use]
+        kept = index[~fresh]
+        for name in ('position', 'orientation', 'linear', 'angular'):
+            getattr(previous, name)[kept] = getattr(self.state, name)[kept]
+        active = np.zeros(len(self.bodies), bool)
+        active[index] = True
+        active |= ~self.dynamic
+        if fresh.any():
+            self.world.forget(index[fresh])
+        step_ns = stamp_ns - self.previous_step_ns
+        usable = (self.previous_step_ns != NO_STAMP and 0 < step_ns
+                  and step_ns <= settings.max_dt * 1e9 and not fresh.all())
+        dt = step_ns * 1e-9 if usable else FRESH_DT
+
+        # 3. the world step
+        result = self.world.step(previous, current, dt, active)
+        out = result.states
+        rows = np.concatenate([out.position, out.orientation, out.linear, out.angular], axis=1)
+        bad = ~np.isfinite(rows[index]).all(axis=1)
+        for i in index[bad]:
+            rejected.append(Rejection(self.names[i], 'non_finite_result',
+                                      f'{self.names[i]}: the solver produced a non-finite '
+                                      'state; the input is passed through'))
+        rejected += [r for r in result.rejected if r.reason != 'non_finite_result']
+
+        # 4. keep the corrected states as the history of the next step
+        good = index[~bad]
+        for name in ('position', 'orientation', 'linear', 'angular'):
+            getattr(self.state, name)[good] = getattr(out, name)[good]
+            getattr(self.state, name)[index[bad]] = getattr(current, name)[index[bad]]
+        self.last_stamp[index] = stamp_ns
+        self.previous_step_ns = stamp_ns
+
+        # 5. report
+        report = result.report
+        toi = np.asarray(report.contacts.toi, float)
+        span_ns = step_ns if usable else 0
+        toi_ns = stamp_ns - np.rint((1.0 - toi) * span_ns).astype(np.int64)
+        stale = stale_bodies(self.last_stamp, stamp_ns, int(self.stale_timeout * 1e9),
+                             self.dynamic)
+        self.totals['steps'] += 1
+        self.totals['contacts'] += report.contacts.count
+        self.totals.update(r.reason for r in rejected + resets)
+        names = [self.names[i] for i in index]
+        states = BodyStates(self.state.position[index].copy(),
+                            self.state.orientation[index].copy(),
+                            self.state.linear[index].copy(), self.state.angular[index].copy())
+        return ResolvedStep(stamp_ns, names, index, states, checked.twist_in_body[use],
+                            self.names, report, toi_ns, rejected, resets,
+                            [self.names[i] for i in np.flatnonzero(stale)], dt,
+                            time.perf_counter() - start)
+
+    def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
+        resets = []
+        for k in np.flatnonzero(history.backwards):
+            name = self.names[index[k]]
+            resets.append(Rejection(name, 'time_backwards',
+                                    f'{name}: stamp {stamp_ns} ns is older than its last one '
+                                    f'{self.last_stamp[index[k]]} ns; history reset'))
+        for k in np.flatnonzero(history.gap & ~history.backwards):
+            name = self.names[index[k]]
+            gap = (stamp_ns - self.last_stamp[index[k]]) * 1e-9
+            resets.append(Rejection(name, 'large_gap',
+                                    f'{name}: {gap:.3g} s since its last state (> max_dt '
+                                    f'{self._settings.max_dt:g} s); fresh start'))
+        return resets

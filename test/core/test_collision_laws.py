@@ -1,0 +1,143 @@
+"""Collision detection against geometry: time of impact, tunnelling, manifolds, broad phase."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from collres_ros.core import rotation
+from collres_ros.core.collision import CollisionWorld
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.types import BodySpec, BodyStates, ContactKind
+
+SETTINGS = SolverSettings()
+
+
+def states(positions, orientations=None) -> BodyStates:
+    out = BodyStates.zeros(len(positions))
+    out.position[:] = positions
+    if orientations is not None:
+        out.orientation[:] = orientations
+    return out
+
+
+def test_time_of_impact_of_two_approaching_spheres_matches_the_analytic_time() -> None:
+    # r = 0.1 each; centres 1.0 apart close at 0.9 per step: touch at gap 0.2, t = 0.8 / 0.9
+    world = CollisionWorld([BodySpec('a', 'sphere', (0.1,)), BodySpec('b', 'sphere', (0.1,))],
+                           SETTINGS)
+    contacts = world.detect(states([[-0.5, 0, 0], [0.5, 0, 0]]),
+                            states([[-0.05, 0, 0], [0.05, 0, 0]]))
+    assert contacts.count == 1 and contacts.kind[0] == ContactKind.IMPACT
+    expected = 0.8 / 0.9
+    print(f'toi {contacts.toi[0]:.6f} expected {expected:.6f}')
+    assert abs(contacts.toi[0] - expected) <= SETTINGS.toi_tolerance
+    assert contacts.toi[0] >= expected  # t1 side: overlapping at the reported time
+    np.testing.assert_allclose(contacts.normal[0], [1, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(contacts.point[0], [0, 0, 0], atol=1e-3)
+    assert contacts.depth[0] == pytest.approx(0.1, abs=1e-9)  # penetration at detection
+
+
+def test_fast_small_sphere_through_a_thin_wall_is_caught_as_tunnelled() -> None:
+    # 2 cm sphere at 200 m/s, 1 cm wall, 100 Hz: apart at both ends of the step
+    world = CollisionWorld([BodySpec('wall', 'box', (0.01, 1.0, 1.0), static=True),
+                            BodySpec('ball', 'sphere', (0.01,))], SETTINGS)
+    before, after = states([[0, 0, 0], [-1.0, 0, 0]]), states([[0, 0, 0], [1.0, 0, 0]])
+    contacts = world.detect(before, after)
+    assert contacts.count == 1 and contacts.kind[0] == ContactKind.TUNNELLED
+    expected = (1.0 - 0.005 - 0.01) / 2.0  # front face reached after 0.985 m of 2 m
+    print(f'toi {contacts.toi[0]:.6f} expected {expected:.6f}')
+    assert abs(contacts.toi[0] - expected) <= 2 * SETTINGS.toi_tolerance
+    np.testing.assert_allclose(contacts.normal[0], [-1, 0, 0], atol=1e-6)  # wall -> ball
+    assert contacts.point[0][0] == pytest.approx(-0.005, abs=1e-3)
+    without_ccd = CollisionWorld(world.specs, SETTINGS.with_values(ccd=False))
+    assert without_ccd.detect(before, after).count == 0  # the sweep is what catches it
+
+
+def test_box_resting_face_down_gives_four_points_on_the_floor() -> None:
+    for floor in (BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
+                  BodySpec('floor', 'box', (10, 10, 0.2), static=True)):
+        world = CollisionWorld([floor, BodySpec('box', 'box', (0.2, 0.4, 0.2))], SETTINGS)
+        floor_z = 0.0 if floor.shape == 'plane' else -0.1
+        resting = states([[0, 0, floor_z], [0, 0, 0.1 - 0.001]])
+        contacts = world.detect(resting, resting)
+        assert contacts.count == 4
+        assert set(contacts.kind) == {ContactKind.PERSISTENT}
+        np.testing.assert_allclose(contacts.normal, np.tile([0, 0, 1], (4, 1)), atol=1e-9)
+        np.testing.assert_allclose(contacts.separation, -0.001, atol=1e-8)
+        corners = sorted(map(tuple, np.round(contacts.point[:, :2], 6)))
+        assert corners == sorted(itertools.product((-0.1, 0.1), (-0.2, 0.2)))
+        assert sorted(contacts.feature) == [0, 1, 2, 3]
+
+
+def test_sphere_on_plane_depth_matches_geometry() -> None:
+    world = CollisionWorld([BodySpec('floor', 'plane', (0, 0, 1, 0.5), static=True),
+                            BodySpec('ball', 'sphere', (0.25,))], SETTINGS)
+    state = states([[0, 0, 0], [0.3, -0.2, 0.5 + 0.25 - 0.0123]])
+    contacts = world.detect(state, state)
+    assert contacts.count == 1
+    assert contacts.depth[0] == pytest.approx(0.0123, abs=1e-9)
+    np.testing.assert_allclose(contacts.normal[0], [0, 0, 1], atol=1e-12)
+
+
+def test_speculative_contact_within_margin_has_positive_separation() -> None:
+    world = CollisionWorld([BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
+                            BodySpec('ball', 'sphere', (0.1,))], SETTINGS)
+    state = states([[0, 0, 0], [0, 0, 0.1 + 0.005]])
+    contacts = world.detect(state, state)
+    assert contacts.count == 1 and contacts.kind[0] == ContactKind.PERSISTENT
+    assert contacts.separation[0] == pytest.approx(0.005, abs=1e-9)
+    far = states([[0, 0, 0], [0, 0, 0.1 + 2 * SETTINGS.speculative_margin]])
+    assert world.detect(far, far).count == 0
+
+
+def test_convex_hull_of_a_cube_collides_like_the_box() -> None:
+    corners = tuple(itertools.product((-0.1, 0.1), repeat=3))
+    floor = BodySpec('floor', 'plane', (0, 0, 1, 0), static=True)
+    tilt = rotation.normalize(np.array([0.1, 0.2, 0.0, 1.0]))
+    state = states([[0, 0, 0], [0, 0, 0.12]], [[0, 0, 0, 1], tilt])
+    results = []
+    for body in (BodySpec('c', 'box', (0.2, 0.2, 0.2)), BodySpec('c', 'convex', points=corners)):
+        contacts = CollisionWorld([floor, body], SETTINGS).detect(state, state)
+        results.append((contacts.count, np.sort(contacts.separation)))
+    assert results[0][0] == results[1][0] >= 1
+    np.testing.assert_allclose(results[0][1], results[1][1], atol=1e-6)
+
+
+def test_broad_phase_finds_the_same_pairs_as_all_pairs() -> None:
+    rng = np.random.default_rng(7)
+    count = 200
+    shapes = [BodySpec(f'b{i}', 'sphere', (0.05,)) if i % 2 else
+              BodySpec(f'b{i}', 'box', (0.08, 0.08, 0.08)) for i in range(count)]
+    world = CollisionWorld(shapes, SETTINGS)
+    before = states(rng.uniform(0, 1.2, (count, 3)))
+    after = before.copy()
+    after.position += rng.normal(0, 0.03, (count, 3))
+    found = set(world.candidate_pairs(before, after))
+    radius = np.array([0.05 if i % 2 else math.sqrt(3) * 0.04 for i in range(count)])
+    lo = np.minimum(before.position, after.position) - radius[:, None]
+    hi = np.maximum(before.position, after.position) + radius[:, None]
+    margin = SETTINGS.speculative_margin
+    brute = {(i, j) for i, j in itertools.combinations(range(count), 2)
+             if np.all(lo[i] - 0.5 * margin <= hi[j] + 0.5 * margin)
+             and np.all(lo[j] - 0.5 * margin <= hi[i] + 0.5 * margin)}
+    print(f'{len(found)} broad-phase pairs, {len(brute)} by brute force')
+    assert len(brute) > 50
+    assert found == brute
+
+
+def test_every_shape_detects_resting_on_the_floor() -> None:
+    floor = BodySpec('floor', 'box', (4, 4, 0.2), static=True)
+    cases = [('sphere', (0.1,), 0.1), ('box', (0.2, 0.2, 0.3), 0.15),
+             ('capsule', (0.1, 0.3), 0.25), ('cylinder', (0.1, 0.3), 0.15),
+             ('cone', (0.1, 0.4), 0.1)]  # cone origin: centre of mass, a quarter up the axis
+    for shape, size, half_height in cases:
+        world = CollisionWorld([floor, BodySpec('b', shape, size)], SETTINGS)
+        state = states([[0, 0, -0.1], [0, 0, half_height - 0.002]])
+        contacts = world.detect(state, state)
+        assert contacts.count >= 1, shape
+        print(shape, contacts.count, contacts.separation)
+        np.testing.assert_allclose(contacts.separation, -0.002, atol=2e-4, err_msg=shape)
+        np.testing.assert_allclose(contacts.normal[:, 2], 1.0, atol=1e-6, err_msg=shape)

@@ -126,6 +126,7 @@ class BounceCheck:
     measured: list[float]               # m
     expected: list[float]               # m
     times: list[float]                  # s
+    contact_height: float = 0.0         # m, centre height (along -g) at touch-down
 
     @property
     def errors(self) -> list[float]:
@@ -148,7 +149,7 @@ class RunReport:
     momentum_drift: float = 0.0         # N s
     resting_drift: dict[str, float] = field(default_factory=dict)   # m, per box at rest
     ball_time: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    ball_height: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ball_height: np.ndarray = field(default_factory=lambda: np.zeros(0))  # m, above touch-down
 
     @property
     def dropped(self) -> int:
@@ -198,20 +199,31 @@ def _stamp(msg: Any) -> int:
 
 
 def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequence[float],
-            restitution_rule: str = 'max', namespace: str = '/') -> RunReport:
-    """Measure a run from its bag messages (``collres_ros.bag.BagMessage`` list)."""
+            restitution_rule: str = 'max', namespace: str = '/',
+            initial: Any = None) -> RunReport:
+    """Measure a run from its bag messages (``collres_ros.bag.BagMessage`` list).
+
+    ``initial``: the scene's BodyStates (``Scene.initial``), for the static
+    bodies' poses (the floor's top face is the bounce law's reference height).
+    """
     ns = namespace.rstrip('/')
     by_topic: dict[str, list[Any]] = {}
     for m in messages:
         by_topic.setdefault(m.topic, []).append(m.msg)
     inputs = by_topic.get(f'{ns}/body_states', [])
     corrected = by_topic.get(f'{ns}/body_states/corrected', [])
-    report = RunReport(steps_in=len(inputs), steps_out=len(corrected))
+    dynamic = [s for s in specs if not s.static]
+    if inputs:
+        input_stamps = [_stamp(msg) for msg in inputs]
+    else:  # per-body inputs: one step per stamp of the first dynamic body's pose
+        poses = by_topic.get(f'{ns}/bodies/{dynamic[0].name}/pose', []) if dynamic else []
+        input_stamps = sorted({_stamp(msg) for msg in poses})
+    report = RunReport(steps_in=len(input_stamps), steps_out=len(corrected))
     answers: dict[int, int] = {}
     for msg in corrected:
         answers[_stamp(msg)] = answers.get(_stamp(msg), 0) + 1
-    for msg in inputs:
-        n = answers.get(_stamp(msg), 0)
+    for stamp in input_stamps:
+        n = answers.get(stamp, 0)
         report.unanswered += n == 0
         report.duplicated += n > 1
     first_impact: dict[str, Any] = {}
@@ -223,7 +235,6 @@ def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequenc
                 first_impact.setdefault(c.body_a, c)
                 first_impact.setdefault(c.body_b, c)
 
-    dynamic = [s for s in specs if not s.static]
     if not corrected or not dynamic:
         return report
     g = np.asarray(gravity, float)
@@ -231,22 +242,42 @@ def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequenc
     report.energy_time, report.energy = traj.time, energy(traj, dynamic, g)
     report.momentum_drift = horizontal_momentum_drift(traj, dynamic, g)
     start = trajectory(inputs[:1], [s.name for s in dynamic]) if inputs else traj
+    if initial is not None:  # the scene's initial state (also right for per-body inputs)
+        rows = [i for i, spec in enumerate(specs) if not spec.static]
+        start = Trajectory(start.names, np.zeros(1), np.zeros(1, np.int64),
+                           initial.position[rows][None], initial.orientation[rows][None],
+                           initial.linear[rows][None], initial.angular[rows][None])
     for i, spec in enumerate(dynamic):
         if spec.shape == 'box' and np.linalg.norm(start.linear[0, i]) < 1e-9:
             moved = np.linalg.norm(traj.position[:, i] - start.position[0, i], axis=1)
             report.resting_drift[spec.name] = float(np.max(moved))
-    report.bounce = _bounce(traj, start, dynamic, specs, g, first_impact, restitution_rule)
+    poses = None if initial is None else {
+        spec.name: (initial.position[i], initial.orientation[i]) for i, spec in enumerate(specs)}
+    report.bounce = _bounce(traj, start, dynamic, specs, g, first_impact, restitution_rule,
+                            poses)
     if report.bounce is not None:
         i = traj.names.index(report.bounce.ball)
         up = -g / np.linalg.norm(g)
         report.ball_time = traj.time
-        report.ball_height = traj.position[:, i] @ up
+        report.ball_height = traj.position[:, i] @ up - report.bounce.contact_height
     return report
+
+
+def _top_height(spec: BodySpec, pose: tuple[np.ndarray, np.ndarray] | None,
+                up: np.ndarray) -> float | None:
+    """Height along ``up`` of the top of a static box (support function), else None."""
+    if pose is None or not spec.static or spec.shape != 'box':
+        return None
+    position, orientation = pose
+    axes = to_matrix(np.asarray(orientation, float))      # columns: body axes in world
+    half = 0.5 * np.asarray(spec.size, float)
+    return float(np.asarray(position) @ up + np.sum(half * np.abs(axes.T @ up)))
 
 
 def _bounce(traj: Trajectory, start: Trajectory, dynamic: Sequence[BodySpec],
             specs: Sequence[BodySpec], g: np.ndarray, first_impact: dict[str, Any],
-            rule: str) -> BounceCheck | None:
+            rule: str, initial: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
+            ) -> BounceCheck | None:
     """The e^2 law for the first sphere dropped from rest that hit something."""
     norm = float(np.linalg.norm(g))
     if norm == 0:
@@ -259,16 +290,21 @@ def _bounce(traj: Trajectory, start: Trajectory, dynamic: Sequence[BodySpec],
                 or np.linalg.norm(start.linear[0, i]) > 1e-9:
             continue
         other_name = contact.body_b if contact.body_a == spec.name else contact.body_a
-        e = _pair_restitution(spec, by_name.get(other_name), rule)
-        point = np.array([contact.position.x, contact.position.y, contact.position.z])
-        contact_height = float(point @ up) + spec.size[0]    # centre height at touch-down
+        other = by_name.get(other_name)
+        e = _pair_restitution(spec, other, rule)
+        surface = None if other is None or initial is None else \
+            _top_height(other, initial[other_name], up)
+        if surface is None:  # no analytic surface: the reported contact point
+            surface = float(np.array([contact.position.x, contact.position.y,
+                                      contact.position.z]) @ up)
+        contact_height = surface + spec.size[0]    # centre height at touch-down
         height = traj.position[:, i] @ up - contact_height
         speed = traj.linear[:, i] @ up
         drop = float(start.position[0, i] @ up) - contact_height
         found = apexes(traj.time, height, speed)
         expected = [drop * e ** (2 * n) for n in range(1, len(found) + 1)]
         return BounceCheck(spec.name, e, drop, [h for _, h in found], expected,
-                           [t for t, _ in found])
+                           [t for t, _ in found], contact_height)
     return None
 
 
@@ -281,7 +317,8 @@ def plot(report: RunReport, path: str | Path) -> Path:
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     b = report.bounce
     if b is not None:
-        top.plot(report.ball_time, report.ball_height, label=f'{b.ball} height above contact')
+        top.plot(report.ball_time, report.ball_height,
+                 label=f'{b.ball}: lowest point above the floor')
         top.plot(b.times, b.measured, 'o', label='measured apex')
         top.plot(b.times, b.expected, 'x', markersize=10,
                  label=f'h0 e^2n (e = {b.restitution:g})')

@@ -24,10 +24,11 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Sequence
 
 from collres_ros.analysis import RunReport, analyse, plot
 
+DEMO_DURATION = 2.5  # s of simulated time by default: four bounces of the default ball
 OUTPUT_TOPICS = ('/body_states/corrected', '/contacts', '/contact_markers', '/diagnostics')
 
 
@@ -46,22 +47,13 @@ class DemoResult:
     sim_exit: int | None
     wall_s: float
     domain_id: int
+    expected_steps: int
     logs: dict[str, Path] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
         return self.node_exit == 0 and self.sim_exit == 0 and self.report.dropped == 0 \
-            and self.report.steps_in > 0
-
-
-def _wait(predicate: Callable[[], bool], timeout: float, period: float = 0.02) -> bool:
-    """Poll ``predicate`` until true or ``timeout`` s passed (a deadline, not a sleep)."""
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() >= deadline:
-            return False
-        time.sleep(period)
-    return True
+            and self.report.steps_in == self.expected_steps
 
 
 def _private_domain_id() -> int:
@@ -69,19 +61,17 @@ def _private_domain_id() -> int:
     return 1 + (os.getpid() + int(time.time())) % 100
 
 
-def _launcher() -> Any:
-    """NODE's child-process harness (collres_ros.processes)."""
-    from collres_ros import processes
-    return processes
-
-
 def run_demo(out_dir: Path, params: Path | None = None, duration: float | None = None,
              domain_id: int | None = None, storage: str = 'mcap', progress: bool = True,
-             timeout: float = 60.0) -> DemoResult:
-    """Run node + sim over DDS, record, analyse, plot; DemoError on a failure to start."""
+             timeout: float = 60.0, per_body: bool = False) -> DemoResult:
+    """Run node + sim over DDS, record, analyse, plot; DemoError on a failure to start.
+
+    ``per_body``: the sim publishes bodies/<name>/{pose,twist} instead of body_states.
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    from collres_ros import processes
     from collres_ros.bag import BagError, read_messages
     from collres_ros.recorder import Recorder
     from collres_ros.resources import config_path
@@ -91,6 +81,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     if not params.is_file():
         raise DemoError(f'params file not found: {params}')
     sim_scene = load_sim_scene(params, duration)   # ValueError names a bad parameter
+    if duration is None and sim_scene.duration > DEMO_DURATION:
+        sim_scene = load_sim_scene(params, DEMO_DURATION)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     bag = out_dir / 'bag'
@@ -99,9 +91,7 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
             raise DemoError(f'{bag} exists and is not a bag: not overwriting it')
         shutil.rmtree(bag)
     domain_id = _private_domain_id() if domain_id is None else domain_id
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    processes = _launcher()
+    env = processes.ros_env(domain_id)
     logs = {'node': out_dir / 'node.log', 'sim': out_dir / 'sim.log'}
     expected_steps = int(round(sim_scene.duration * sim_scene.rate_hz)) + 1
 
@@ -130,14 +120,16 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
         node_proc = processes.start(
             'collres_node', ['--ros-args', '--params-file', str(params)], env=env,
             log=logs['node'])
-        if not _wait(lambda: all(subscribed(t) for t in OUTPUT_TOPICS)
-                     or node_proc.poll() is not None, 30.0):
+        node_up = processes.wait_for(lambda: all(subscribed(t) for t in OUTPUT_TOPICS)
+                                     or node_proc.poll() is not None, 30.0)
+        if not node_up:
             raise DemoError(f'collres_node did not come up within 30 s (log: {logs["node"]})')
         if node_proc.poll() is not None:
             raise DemoError(f'collres_node exited with {node_proc.poll()} '
                             f'(log: {logs["node"]})')
-        sim_args = ['--duration', str(sim_scene.duration), '--subscribers', '2',
-                    '--ros-args', '--params-file', str(params)]
+        sim_args = ['--duration', str(sim_scene.duration), '--subscribers', '2'] \
+            + (['--per-body'] if per_body else []) \
+            + ['--ros-args', '--params-file', str(params)]
         sim_proc = processes.start('collres_sim', sim_args, env=env, log=logs['sim'])
 
         last = 0.0
@@ -153,7 +145,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
             raise DemoError(f'collres_sim did not finish within {timeout} s '
                             f'(log: {logs["sim"]})')
         # the last answers may still be in flight to the recorder
-        _wait(lambda: recorded('/body_states/corrected') >= recorded('/body_states'), 2.0)
+        processes.wait_for(
+            lambda: recorded('/body_states/corrected') >= expected_steps, 2.0)
         if progress:
             print(f'\rdemo: step {recorded("/body_states/corrected")}/{expected_steps}',
                   file=sys.stderr)
@@ -171,10 +164,11 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     messages = read_messages(bag)
     solver = getattr(sim_scene.scene, 'solver', None)
     rule = getattr(solver, 'restitution_rule', 'max')
-    report = analyse(messages, sim_scene.scene.bodies, sim_scene.gravity, rule)
+    report = analyse(messages, sim_scene.scene.bodies, sim_scene.gravity, rule,
+                     initial=sim_scene.scene.initial)
     picture = plot(report, out_dir / 'demo.png')
     return DemoResult(report, bag, picture, node_exit, sim_exit, time.monotonic() - start,
-                      domain_id, logs)
+                      domain_id, expected_steps, logs)
 
 
 def summary_lines(result: DemoResult) -> list[str]:
@@ -196,11 +190,14 @@ def parser() -> argparse.ArgumentParser:
         prog='collres_demo',
         description='Run collres_node and collres_sim over DDS, record a bag, report and plot.')
     p.add_argument('--params', help='scene params file (default: the package collres.yaml)')
-    p.add_argument('--duration', type=float, help='s of simulated time (default: from params)')
+    p.add_argument('--duration', type=float,
+                   help=f's of simulated time (default: the scene\'s, at most {DEMO_DURATION})')
     p.add_argument('--out', default='demo_out', help='output directory (default: ./demo_out)')
     p.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: a private one)')
     p.add_argument('--storage', default='mcap', help='bag storage: mcap or sqlite3')
     p.add_argument('--timeout', type=float, default=60.0, help='s allowed for the sim to run')
+    p.add_argument('--per-body', action='store_true',
+                   help='the sim publishes bodies/<name>/{pose,twist} instead of body_states')
     return p
 
 
@@ -209,7 +206,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         result = run_demo(Path(args.out), Path(args.params) if args.params else None,
                           args.duration, args.domain_id, args.storage,
-                          timeout=args.timeout)
+                          timeout=args.timeout, per_body=args.per_body)
     except (DemoError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
         return 1

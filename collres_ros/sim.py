@@ -7,9 +7,10 @@ Live (default)::
 integrates the scene of the params file (semi-implicit Euler with gravity,
 ``collres_ros.integrator``) at ``rate_hz`` for ``duration`` s of simulated time.
 Each step it publishes ``body_states`` (BodyStateArray of the dynamic bodies,
-stamped with simulated time; optionally also ``bodies/<name>/pose`` and
-``bodies/<name>/twist``) and ``/clock``, waits for ``body_states/corrected``
-of the same stamp and adopts it (closing the loop). A step whose answer does
+stamped with simulated time; or, with ``--per-body``/``publish_per_body``,
+``bodies/<name>/pose`` and ``bodies/<name>/twist`` instead) and ``/clock``,
+waits for ``body_states/corrected`` of the same stamp and adopts it
+(closing the loop). A step whose answer does
 not arrive within ``--step-timeout`` s is counted as dropped and the sim goes
 on with its own uncorrected state. The run is lock-step, as fast as the node
 answers (``--realtime`` paces it to the wall clock). Exit code 0 at the end.
@@ -177,11 +178,16 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
     """
     from collres_ros import messages
     from collres_ros.core.pipeline import Resolver
+    from collres_ros.replay import OfflineDiagnostics
     resolver = Resolver(sim.scene)
+    node = sim.scene.node
+    diagnostics = OfflineDiagnostics(node.diagnostics_period)
 
     def exchange(stamp: int, msg: Any) -> Any:
         step = resolver.resolve(stamp, messages.inputs_from_array(msg))
-        outputs = list(messages.build_outputs(step, sim.world_frame, per_body=False))
+        outputs = messages.build_outputs(step, sim.world_frame, per_body=False,
+                                         marker_lifetime=node.marker_lifetime,
+                                         diagnostics=diagnostics.update(step))
         sink(stamp, [(STATES_TOPIC, msg)] + outputs)
         return dict(outputs)[CORRECTED_TOPIC]
 
@@ -247,14 +253,16 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
     rclpy.init(args=['collres_sim'] + ros_args)
     node = Node('collres_sim')
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-    publisher = node.create_publisher(BodyStateArray, STATES_TOPIC, qos)
     clock = node.create_publisher(Clock, '/clock', 10)
     pose_pubs, twist_pubs = {}, {}
-    if sim.per_body or args.per_body:
+    per_body = sim.per_body or args.per_body
+    publisher = None if per_body else node.create_publisher(BodyStateArray, STATES_TOPIC, qos)
+    if per_body:  # per-body topics instead of the batched one: one node step per stamp
         for i in sim.rows:
             name = sim.names[i]
             pose_pubs[name] = node.create_publisher(PoseStamped, f'bodies/{name}/pose', qos)
             twist_pubs[name] = node.create_publisher(TwistStamped, f'bodies/{name}/twist', qos)
+    inputs = list(pose_pubs.values()) + list(twist_pubs.values()) if per_body else [publisher]
     answers: dict[int, Any] = {}
     corrected = node.create_subscription(
         BodyStateArray, CORRECTED_TOPIC,
@@ -285,7 +293,8 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
             if body.name in pose_pubs:
                 pose_pubs[body.name].publish(PoseStamped(header=msg.header, pose=body.pose))
                 twist_pubs[body.name].publish(TwistStamped(header=msg.header, twist=body.twist))
-        publisher.publish(msg)
+        if publisher is not None:
+            publisher.publish(msg)
         if not spin_until(lambda: stamp in answers, args.step_timeout):
             log.warning(f'no corrected state for stamp {stamp} ns within '
                         f'{args.step_timeout} s: step dropped')
@@ -298,7 +307,8 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
 
     code = 0
     try:
-        matched = spin_until(lambda: publisher.get_subscription_count() >= args.subscribers
+        matched = spin_until(lambda: all(p.get_subscription_count() >= args.subscribers
+                                         for p in inputs)
                              and corrected.get_publisher_count() > 0, args.wait)
         if not matched:
             log.error(f'error: no collres_node answered on {STATES_TOPIC} within {args.wait} s')
@@ -347,7 +357,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--storage', default='mcap', help='offline: mcap (default) or sqlite3')
     p.add_argument('--compress', action='store_true', help='offline: zstd mcap chunks')
     p.add_argument('--per-body', action='store_true',
-                   help='live: also publish bodies/<name>/pose and bodies/<name>/twist')
+                   help='live: publish bodies/<name>/pose and bodies/<name>/twist instead of '
+                        'body_states (also: publish_per_body in the params file)')
     p.add_argument('--step-timeout', type=float, default=1.0,
                    help='live: s to wait for each corrected state before dropping the step')
     p.add_argument('--wait', type=float, default=20.0,

@@ -31,10 +31,8 @@ def demo(tmp_path_factory: pytest.TempPathFactory):
 
 def test_every_input_step_got_exactly_one_output(demo) -> None:
     report = demo.report
-    from collres_ros.sim import load_sim_scene, stamps
-    from collres_ros.resources import config_path
-    sim = load_sim_scene(config_path('collres.yaml'))
-    assert report.steps_in == len(stamps(sim.rate_hz, sim.duration))
+    assert demo.expected_steps > 100
+    assert report.steps_in == demo.expected_steps
     assert report.steps_out == report.steps_in
     assert report.unanswered == 0 and report.duplicated == 0
     assert demo.node_exit == 0 and demo.sim_exit == 0

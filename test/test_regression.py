@@ -128,3 +128,22 @@ def test_replay_matches_golden(tmp_path: Path, scene: str) -> None:
     assert summary.steps == len([m for m in golden if m.topic == '/body_states/corrected'])
     difference = first_difference(replayed, golden)
     assert difference is None, difference
+
+
+def test_a_difference_is_reported_with_both_values() -> None:
+    """The regression check is not vacuous: a 1e-5 m change is caught and shown."""
+    import copy
+
+    from collres_ros.bag import read_messages
+    scene = 'bouncing_ball' if 'bouncing_ball' in SHIPPED else SHIPPED[0]
+    golden = read_messages(DATA / scene / 'golden')
+    assert first_difference(golden, golden) is None
+    changed = copy.deepcopy(golden)
+    k = len(changed) // 2
+    while changed[k].topic != '/body_states/corrected':
+        k += 1
+    changed[k].msg.bodies[0].pose.position.z += 1e-5
+    why = first_difference(changed, golden)
+    assert why is not None and 'position' in why
+    assert 'replayed:' in why and 'golden:' in why
+    print(why.splitlines()[0])

@@ -145,3 +145,25 @@ def test_summary_on_stdout(ball_bag: Path, tmp_path: Path, capsys: pytest.Captur
     assert 'steps: ' in out.out and 'contacts: IMPACT' in out.out
     assert 'rejected inputs: ' in out.out
     assert 'replay: ' in out.err  # progress
+
+
+def test_fast_decoder_equals_rclpy_deserialization() -> None:
+    """Replay's CDR fast path gives exactly the BodyInputs of the rclpy path."""
+    from rclpy.serialization import deserialize_message, serialize_message
+
+    from collres_ros import messages
+    from collres_ros.msg import BodyState, BodyStateArray
+    from collres_ros.replay import decode_body_state_array
+    msg = BodyStateArray()
+    msg.header.frame_id = 'odd_frame'
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 345
+    for k, name in enumerate(['a', 'bb', 'ccc', 'dddd', 'eeeee', '', 'ünï']):
+        body = BodyState(name=name)
+        body.pose.position.x, body.pose.orientation.w = 0.1 * k, 1.0 - 1e-3 * k
+        body.twist.angular.z = -float(k)
+        msg.bodies.append(body)
+    for m in (msg, BodyStateArray()):
+        data = serialize_message(m)
+        slow = deserialize_message(data, BodyStateArray)
+        assert decode_body_state_array(data) == (
+            messages.stamp_ns(slow.header.stamp), messages.inputs_from_array(slow))

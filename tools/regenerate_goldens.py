@@ -50,7 +50,7 @@ DURATIONS = {
     'box_slide': 1.0,
     'slope_hold': 1.0,
     'slope_slide': 1.0,
-    'box_stack': 1.0,
+    'box_stack': 0.5,
     'fast_sphere_wall': 0.05,
     'pile': 0.1,
 }
@@ -83,7 +83,7 @@ def _run(scene: str, messages: list) -> Run:
     sim = load_sim_scene(SCENES_DIR / f'{scene}.yaml', DURATIONS[scene])
     specs = sim.scene.bodies
     report = analysis.analyse(messages, specs, sim.gravity,
-                              sim.scene.solver.restitution_rule)
+                              sim.scene.solver.restitution_rule, initial=sim.scene.initial)
     dynamic = [s.name for s in specs if not s.static]
     corrected = [m.msg for m in messages if m.topic == '/body_states/corrected']
     return Run(sim, report, analysis.trajectory(corrected, dynamic))

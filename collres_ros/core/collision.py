@@ -1,304 +1,507 @@
-"""Collision detection with coal: swept broad phase, narrow phase, time of impact.
+"""Collision detection of one step with coal: the contacts the solver resolves.
 
 The one place that talks to coal for queries; it returns our own ContactSet
-(world frame, normals from body A to body B, A < B). One step:
+(world frame, normals unit from body A to body B, A < B). One step:
 
-1. Broad phase: every finite body gets an axis-aligned proxy box covering its
-   bounding sphere swept from the previous to the current pose (plus the
-   speculative margin) in a coal DynamicAABBTree manager; pairs of overlapping
-   proxies are the candidates. Planes (half-spaces) are tested against every
-   body's swept bounding sphere directly.
-2. Narrow phase per candidate pair (DESIGN.md, "one step"): PERSISTENT when the
-   pair touches (within the margin) at the previous state, IMPACT when it is
-   apart before and overlapping now (bisection for the time of impact),
-   TUNNELLED when apart at both ends but the sweep hits (conservative
-   advancement with coal distance queries, then bisection).
-3. Manifolds: coal contact patches (four points for a box face on a floor).
+1. Motion: each body moves from its previous pose (s = 0) to its current pose
+   (s = 1) by lerp of position and slerp of orientation. ``motion_bound``
+   bounds how far any point of a body travels over the step.
+2. Broad phase (``broadphase``): boxes swept over the step and padded by half
+   the speculative margin give the candidate pairs; half-spaces are tested
+   against every body's swept box directly. Pairs of two fixed bodies (static
+   or inactive) are skipped.
+3. Persistent manifolds: a pair that was in contact last step and whose
+   relative pose has barely changed keeps its contact points, stored in the
+   two body frames, and only their gaps are recomputed (numpy, no coal call):
+   a settled pile costs almost nothing.
+4. Narrow phase of the other pairs (``narrowphase``, one batched coal call per
+   pair at the current state), then per pair (DESIGN.md, "one step"):
+   PERSISTENT when within the margin at the previous state too (or within it
+   now and apart before without a hit: a speculative contact); IMPACT when
+   apart before and overlapping now: bisection for the time of impact
+   (``toi``); TUNNELLED when apart at both ends but the conservative
+   advancement finds a hit, then the same bisection; none otherwise.
+5. Manifolds: coal contact patches where faces touch (four points for a box
+   face on a floor), with a ``feature`` id that is the same every step for
+   the same corner, edge or face of the two bodies.
+
+ContactSet fields (see types.ContactSet): PERSISTENT rows are at the current
+state (toi 0, separation > 0 for a speculative gap, < 0 for a penetration).
+IMPACT rows have point and normal at the time of impact and separation
+min(separation there, signed distance now) < 0; TUNNELLED rows have point,
+normal and separation (about 0) at the time of impact.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Sequence
 
 import coal
 import numpy as np
 
-from . import rotation
-from .config import SolverSettings
-from .shapes import bounding_radius, make_geometry
-from .types import BodySpec, BodyStates, ContactKind, ContactSet
+from collres_ros.core import rotation
+from collres_ros.core.broadphase import FatPairs, TreeBroadPhase, swept_bounds, world_boxes
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.narrowphase import NarrowPhase
+from collres_ros.core.shapes import (bounding_radius, local_aabb, make_geometry,
+                                     plane_normal_offset, shape_offset)
+from collres_ros.core.toi import Motion, advance, bisect
+from collres_ros.core.types import BodySpec, BodyStates, ContactKind, ContactSet
 
-DEEP_FRACTION = 0.25  # EPA normal not trusted beyond this fraction of the smaller radius
+DEEP_FRACTION = 0.25        # EPA's normal is not trusted deeper than this part of the thinner body
+REUSE_TRANSLATION = 1e-3    # m: a manifold is reused while its pair has moved less than this ...
+REUSE_ROTATION = 1e-2       # rad: ... and turned less than this relative to each other
 
 
-class _Pose:
-    """Lerp/slerp of one body between its previous (t=0) and current (t=1) pose."""
+@dataclass
+class _Step:
+    """Poses of all bodies at both ends of the step (see the module docstring)."""
 
-    __slots__ = ('p0', 'p1', 'q0', 'q1', 'tf')
+    p0: np.ndarray       # (N, 3) m, previous centre of mass
+    p1: np.ndarray       # (N, 3) m, current centre of mass
+    q0: np.ndarray       # (N, 4) previous orientation x, y, z, w
+    q1: np.ndarray       # (N, 4) current orientation
+    r0: np.ndarray       # (N, 3, 3) previous rotation
+    r1: np.ndarray       # (N, 3, 3) current rotation
+    turn: np.ndarray     # (N,) rad, rotation over the step
+    moved: np.ndarray    # (N,) m, bound on any point's travel over the step
+    fixed: np.ndarray    # (N,) bool, static or inactive: never moved by the solver
 
-    def __init__(self, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray):
-        self.p0, self.p1, self.q0, self.q1 = p0, p1, q0, q1
-        self.tf = coal.Transform3s()
 
-    def at(self, t: float) -> coal.Transform3s:
-        self.tf.setTranslation(self.p0 + t * (self.p1 - self.p0))
-        self.tf.setRotation(rotation.to_matrix(rotation.slerp(self.q0, self.q1, t)))
-        return self.tf
+@dataclass
+class _Manifolds:
+    """Contact points of the pairs in contact at the end of the last step, in body frames."""
+
+    key: np.ndarray       # (P,) int64, a * N + b, sorted
+    rel_p: np.ndarray     # (P, 3) m, B's origin in A's frame when computed
+    rel_q: np.ndarray     # (P, 4) B's orientation in A's frame when computed
+    row_pair: np.ndarray  # (R,) index into the pairs
+    local_a: np.ndarray   # (R, 3) m, point on A in A's frame
+    local_b: np.ndarray   # (R, 3) m, point on B in B's frame
+    normal_a: np.ndarray  # (R, 3) unit normal A->B in A's frame
+    feature: np.ndarray   # (R,) int64
+
+    @staticmethod
+    def empty() -> '_Manifolds':
+        z3 = np.zeros((0, 3))
+        return _Manifolds(np.zeros(0, np.int64), z3, np.zeros((0, 4)), np.zeros(0, np.int64),
+                          z3, z3, z3, np.zeros(0, np.int64))
 
 
 class CollisionWorld:
-    """coal geometries, broad phase and queries for a fixed list of bodies."""
+    """coal geometries, broad phase and narrow phase for a fixed list of bodies."""
 
-    def __init__(self, bodies: Sequence[BodySpec], settings: SolverSettings) -> None:
+    def __init__(self, bodies: Sequence[BodySpec], settings: SolverSettings,
+                 broad_phase: str = 'sweep') -> None:
+        """``broad_phase``: 'sweep' (numpy sort and sweep) or 'tree' (coal AABB tree)."""
+        if broad_phase not in ('sweep', 'tree'):
+            raise ValueError(f'broad_phase must be sweep or tree (got {broad_phase!r})')
         self.specs = list(bodies)
         self.settings = settings
+        count = len(self.specs)
         self._geoms = [make_geometry(s) for s in self.specs]
-        self._radius = np.array([bounding_radius(s) for s in self.specs])
-        self._static = np.array([s.static for s in self.specs], dtype=bool)
-        plane = np.array([s.shape == 'plane' for s in self.specs], dtype=bool)
+        self._offset = np.array([shape_offset(s) for s in self.specs]).reshape(count, 3)
+        self._radius = np.array([bounding_radius(s) for s in self.specs], dtype=float)
+        self._static = np.array([s.static or s.shape == 'plane' for s in self.specs], bool)
+        self._round = np.array([s.shape == 'sphere' for s in self.specs], bool)
+        plane = np.array([s.shape == 'plane' for s in self.specs], bool)
         self._planes = np.flatnonzero(plane)
         self._finite = np.flatnonzero(~plane)
-        self._plane_normal = np.zeros((len(self.specs), 3))
-        self._plane_offset = np.zeros(len(self.specs))
+        self._local_lo = np.zeros((count, 3))
+        self._local_hi = np.zeros((count, 3))
+        self._half = np.full((count, 3), np.inf)   # local half extents (feature ids)
+        for k in self._finite:
+            self._local_lo[k], self._local_hi[k] = local_aabb(self.specs[k], self._geoms[k])
+            self._half[k] = 0.5 * (self._local_hi[k] - self._local_lo[k])
+        self._thickness = np.where(plane, np.inf, np.min(self._half, axis=1))
+        self._plane_n = np.zeros((count, 3))
+        self._plane_d = np.zeros(count)
         for k in self._planes:
-            g = self._geoms[k]
-            self._plane_normal[k], self._plane_offset[k] = np.array(g.n), float(g.d)
-        # broad phase: one proxy box per finite body, resized every step
-        self._proxies = [coal.Box(1.0, 1.0, 1.0) for _ in self._finite]
-        self._proxy_objects = [coal.CollisionObject(g, coal.Transform3s()) for g in self._proxies]
-        self._proxy_body = {g.id(): int(i) for g, i in zip(self._proxies, self._finite)}
-        self._manager = coal.DynamicAABBTreeCollisionManager()
-        for obj in self._proxy_objects:
-            self._manager.registerObject(obj)
-        self._manager.setup()
-        self._callback = coal.CollisionCallBackDefault()
-        self._callback.data.request.num_max_contacts = 10 ** 8
-        # reusable query objects
-        self._tf_prev = [coal.Transform3s() for _ in self.specs]
-        self._tf_curr = [coal.Transform3s() for _ in self.specs]
-        self._req = coal.CollisionRequest()
-        self._res = coal.CollisionResult()
-        self._dreq = coal.DistanceRequest()
-        self._dres = coal.DistanceResult()
-        self._patch_req = coal.ContactPatchRequest()
-        self._patch_res = coal.ContactPatchResult()
+            self._plane_n[k], self._plane_d[k] = plane_normal_offset(self.specs[k])
+        self._transforms = [coal.Transform3s() for _ in self.specs]
+        self._narrow = NarrowPhase()
+        self._broad: FatPairs | TreeBroadPhase = (
+            TreeBroadPhase(len(self._finite)) if broad_phase == 'tree'
+            else FatPairs(skin=2.0 * settings.speculative_margin + 1e-3))
+        self._manifolds = _Manifolds.empty()
+        self._manifold_margin = settings.speculative_margin
 
     # -- public ------------------------------------------------------------------------------
 
     def detect(self, previous: BodyStates, current: BodyStates,
                active: np.ndarray | None = None) -> ContactSet:
-        """Contacts of the step previous -> current (see the module docstring).
+        """Contacts of the step ``previous`` -> ``current`` (see the module docstring).
 
-        ``active`` False marks quarantined bodies: the caller holds them fixed
-        (previous = current); they still collide but are never moved here.
+        ``active`` (N,) bool: False marks a frozen body, held at its current pose
+        over the whole step (its previous pose is ignored); it still collides.
         """
-        self._set_transforms(previous, current)
-        out = _ContactLists()
-        for a, b in self._candidate_pairs(previous, current):
-            self._narrow_phase(a, b, previous, current, out)
-        return out.to_set()
+        if self._manifold_margin != self.settings.speculative_margin:
+            self.reset()
+            self._manifold_margin = self.settings.speculative_margin
+        step = self._step(previous, current, active)
+        a, b = self._pairs(step)
+        out = _Rows()
+        kept = self._reuse_manifolds(step, a, b, out)
+        self._narrow_phase(step, a[~kept], b[~kept], out)
+        self._manifolds = out.manifolds(len(self.specs))
+        return out.contact_set()
 
-    def candidate_pairs(self, previous: BodyStates, current: BodyStates) -> list[tuple[int, int]]:
+    def candidate_pairs(self, previous: BodyStates, current: BodyStates,
+                        active: np.ndarray | None = None) -> list[tuple[int, int]]:
         """Broad-phase pairs (a < b) whose swept bounds overlap (for tests and tools)."""
-        return sorted(self._candidate_pairs(previous, current))
+        a, b = self._pairs(self._step(previous, current, active))
+        return list(zip(a.tolist(), b.tolist()))
 
-    # -- broad phase -------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the stored manifolds (e.g. after bodies were teleported)."""
+        self._manifolds = _Manifolds.empty()
 
-    def _set_transforms(self, previous: BodyStates, current: BodyStates) -> None:
-        r_prev = rotation.to_matrix(previous.orientation)
-        r_curr = rotation.to_matrix(current.orientation)
-        for i in range(len(self.specs)):
-            self._tf_prev[i].setRotation(r_prev[i])
-            self._tf_prev[i].setTranslation(previous.position[i])
-            self._tf_curr[i].setRotation(r_curr[i])
-            self._tf_curr[i].setTranslation(current.position[i])
+    # -- motion and broad phase --------------------------------------------------------------
 
-    def _candidate_pairs(self, previous: BodyStates, current: BodyStates) -> set[tuple[int, int]]:
-        margin = self.settings.speculative_margin
-        pairs: set[tuple[int, int]] = set()
+    def _step(self, previous: BodyStates, current: BodyStates,
+              active: np.ndarray | None) -> _Step:
+        p0, q0 = previous.position, previous.orientation
+        p1, q1 = current.position, current.orientation
+        fixed = self._static.copy()
+        if active is not None:
+            frozen = ~np.asarray(active, dtype=bool)
+            p0 = np.where(frozen[:, None], p1, p0)
+            q0 = np.where(frozen[:, None], q1, q0)
+            fixed |= frozen
+        turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q0 * q1, axis=1)), 0.0, 1.0))
+        moved = np.linalg.norm(p1 - p0, axis=1) + turn * np.where(self._static, 0.0,
+                                                                   self._radius)
+        moved = np.where(np.isfinite(moved), moved, 0.0)
+        return _Step(p0, p1, q0, q1, rotation.to_matrix(q0), rotation.to_matrix(q1),
+                     turn, moved, fixed)
+
+    def _pairs(self, step: _Step) -> tuple[np.ndarray, np.ndarray]:
+        """Candidate pairs (a < b), sorted, with at least one movable body."""
+        pad = 0.5 * self.settings.speculative_margin
         fin = self._finite
-        if len(fin) > 1:
-            lo = np.minimum(previous.position[fin], current.position[fin])
-            hi = np.maximum(previous.position[fin], current.position[fin])
-            half = 0.5 * (hi - lo) + (self._radius[fin] + 0.5 * margin)[:, None]
-            centre = 0.5 * (hi + lo)
-            for k, (g, obj) in enumerate(zip(self._proxies, self._proxy_objects)):
-                g.halfSide = half[k]
-                g.computeLocalAABB()
-                obj.setTranslation(centre[k])
-                obj.computeAABB()
-            self._manager.update()
-            self._callback.data.result.clear()
-            self._manager.collide(self._callback)
-            body = self._proxy_body
-            static = self._static
-            for c in self._callback.data.result.getContacts():
-                a, b = body[c.o1.id()], body[c.o2.id()]
-                if a != b and not (static[a] and static[b]):
-                    pairs.add((a, b) if a < b else (b, a))
-        # half-spaces against every dynamic body's swept bounding sphere
-        for k in self._planes:
-            n, d = self._plane_normal[k], self._plane_offset[k]
-            r_prev = rotation.to_matrix(previous.orientation[k])
-            r_curr = rotation.to_matrix(current.orientation[k])
-            gap_prev = (previous.position[fin] - previous.position[k]) @ (r_prev @ n) - d
-            gap_curr = (current.position[fin] - current.position[k]) @ (r_curr @ n) - d
-            near = np.minimum(gap_prev, gap_curr) - self._radius[fin] < margin
-            for i in fin[near & ~self._static[fin]]:
-                pairs.add((int(min(i, k)), int(max(i, k))))
-        return pairs
+        # local boxes are in the body frame (cone offset included): place them by the pose
+        lo0, hi0 = world_boxes(step.r0[fin], step.p0[fin], self._local_lo[fin],
+                               self._local_hi[fin])
+        lo1, hi1 = world_boxes(step.r1[fin], step.p1[fin], self._local_lo[fin],
+                               self._local_hi[fin])
+        # a point at radius r turning by angle t leaves its chord by r (1 - cos(t / 2))
+        bulge = self._radius[fin] * (1.0 - np.cos(0.5 * np.minimum(step.turn[fin], np.pi)))
+        lo, hi = swept_bounds(lo0, hi0, lo1, hi1, bulge, pad)
+        i, j = self._broad.pairs(lo, hi)
+        a, b = fin[i], fin[j]
+        found_a, found_b = [a], [b]
+        for k in self._planes:   # half-space n.x <= d against each swept box
+            for r, p in ((step.r0[k], step.p0[k]), (step.r1[k], step.p1[k])):
+                normal = r @ self._plane_n[k]
+                offset = self._plane_d[k] + normal @ p
+                lowest = 0.5 * (lo + hi) @ normal - 0.5 * (hi - lo) @ np.abs(normal)
+                near = fin[lowest <= offset + pad]
+                found_a.append(np.minimum(near, k))
+                found_b.append(np.maximum(near, k))
+        a, b = np.concatenate(found_a), np.concatenate(found_b)
+        keep = ~(step.fixed[a] & step.fixed[b])
+        key = np.unique(a[keep] * len(self.specs) + b[keep])
+        return key // len(self.specs), key % len(self.specs)
 
-    # -- narrow phase ------------------------------------------------------------------------
+    # -- persistent manifolds ----------------------------------------------------------------
 
-    def _collide(self, a: int, tf_a: coal.Transform3s, b: int, tf_b: coal.Transform3s,
-                 margin: float) -> bool:
-        self._req.security_margin = margin
-        self._res.clear()
-        return coal.collide(self._geoms[a], tf_a, self._geoms[b], tf_b,
-                            self._req, self._res) > 0
+    def _reuse_manifolds(self, step: _Step, a: np.ndarray, b: np.ndarray,
+                         out: '_Rows') -> np.ndarray:
+        """Refresh the stored manifolds of pairs that barely moved; mask of pairs done."""
+        stored = self._manifolds
+        kept = np.zeros(a.shape[0], bool)
+        if stored.key.shape[0] == 0 or a.shape[0] == 0:
+            return kept
+        key = a * len(self.specs) + b
+        where = np.minimum(np.searchsorted(stored.key, key), stored.key.shape[0] - 1)
+        hit = stored.key[where] == key
+        if not np.any(hit):
+            return kept
+        rel_p, rel_q = _relative(step, a[hit], b[hit])
+        slow = ((step.moved[a[hit]] + step.moved[b[hit]] <= self.settings.speculative_margin)
+                & (np.linalg.norm(rel_p - stored.rel_p[where[hit]], axis=1)
+                   <= REUSE_TRANSLATION)
+                & (_angle(rel_q, stored.rel_q[where[hit]]) <= REUSE_ROTATION))
+        kept[np.flatnonzero(hit)[slow]] = True
+        if not np.any(kept):
+            return kept
+        # rows of the reused pairs (stored rows are grouped by pair)
+        reused = np.zeros(stored.key.shape[0], bool)
+        reused[where[kept]] = True
+        rows = np.flatnonzero(reused[stored.row_pair])
+        pair = stored.row_pair[rows]
+        ra, rb = stored.key[pair] // len(self.specs), stored.key[pair] % len(self.specs)
+        on_a = np.einsum('nij,nj->ni', step.r1[ra], stored.local_a[rows]) + step.p1[ra]
+        on_b = np.einsum('nij,nj->ni', step.r1[rb], stored.local_b[rows]) + step.p1[rb]
+        normal = np.einsum('nij,nj->ni', step.r1[ra], stored.normal_a[rows])
+        separation = np.einsum('ni,ni->n', on_b - on_a, normal)
+        # a pair whose every point left the margin is no longer in contact
+        starts = np.flatnonzero(np.r_[True, pair[1:] != pair[:-1]])
+        gap = np.minimum.reduceat(separation, starts)
+        alive = np.repeat(gap <= self.settings.speculative_margin, np.diff(np.r_[starts,
+                                                                              pair.shape[0]]))
+        rows, pair = rows[alive], pair[alive]
+        out.add_block(ra[alive], rb[alive], on_a[alive], on_b[alive], normal[alive],
+                      separation[alive], np.zeros(rows.shape[0]), ContactKind.PERSISTENT,
+                      stored.feature[rows], stored.local_a[rows], stored.local_b[rows],
+                      stored.normal_a[rows], stored.rel_p[pair], stored.rel_q[pair])
+        return kept
 
-    def _distance(self, a: int, tf_a: coal.Transform3s, b: int, tf_b: coal.Transform3s) -> float:
-        self._dres.clear()
-        return float(coal.distance(self._geoms[a], tf_a, self._geoms[b], tf_b,
-                                   self._dreq, self._dres))
+    # -- narrow phase and time of impact -----------------------------------------------------
 
-    def _narrow_phase(self, a: int, b: int, previous: BodyStates, current: BodyStates,
-                      out: '_ContactLists') -> None:
-        margin = self.settings.speculative_margin
-        if self._collide(a, self._tf_prev[a], b, self._tf_prev[b], margin):
-            if self._collide(a, self._tf_curr[a], b, self._tf_curr[b], margin):
-                self._add_manifold(a, self._tf_curr[a], b, self._tf_curr[b],
-                                   ContactKind.PERSISTENT, 0.0, None, out)
+    def _narrow_phase(self, step: _Step, a: np.ndarray, b: np.ndarray, out: '_Rows') -> None:
+        if a.shape[0] == 0:
             return
-        if self._collide(a, self._tf_curr[a], b, self._tf_curr[b], margin):
-            separation = self._res.getContact(0).penetration_depth
-            if separation >= 0.0:  # within the margin, not penetrating: speculative
-                self._add_manifold(a, self._tf_curr[a], b, self._tf_curr[b],
-                                   ContactKind.PERSISTENT, 0.0, None, out)
-            else:
-                self._time_of_impact(a, b, previous, current, 0.0, 1.0,
-                                     ContactKind.IMPACT, separation, out)
+        settings = self.settings
+        margin = settings.speculative_margin
+        self._push(step, np.unique(np.concatenate((a, b))))
+        geoms, tfs = self._geoms, self._transforms
+        al, bl = a.tolist(), b.tolist()
+        distance, normal, on_a, on_b = self._narrow.batch(
+            [geoms[i] for i in al], [tfs[i] for i in al],
+            [geoms[j] for j in bl], [tfs[j] for j in bl])
+        relative = (np.linalg.norm((step.p1[b] - step.p0[b]) - (step.p1[a] - step.p0[a]), axis=1)
+                    + step.turn[a] * self._radius_or_zero(a)
+                    + step.turn[b] * self._radius_or_zero(b))
+        near = distance <= margin
+        # touching at the previous state for sure: it cannot have been farther than this
+        persistent = near & (distance + relative <= margin)
+        maybe_hit = settings.ccd & (relative > distance)
+        raw = _Raw()
+        single = persistent & (self._round[a] | self._round[b])   # a sphere touches at a point
+        for k in np.flatnonzero(single):
+            raw.add(al[k], bl[k], on_a[k:k + 1], on_b[k:k + 1], normal[k], 0.0,
+                    ContactKind.PERSISTENT)
+        for k in np.flatnonzero(persistent & ~single):
+            self._current_manifold(al[k], bl[k], raw)
+        for k in np.flatnonzero(~persistent & (near | maybe_hit)):
+            self._classify(step, al[k], bl[k], float(distance[k]), float(relative[k]),
+                           bool(near[k]), raw)
+        self._finish(step, raw, out)
+
+    def _classify(self, step: _Step, a: int, b: int, distance_now: float, relative: float,
+                  near: bool, raw: '_Raw') -> None:
+        """One pair that moved too much to know its previous state without a query."""
+        settings = self.settings
+        narrow = self._narrow
+        ga, gb = self._geoms[a], self._geoms[b]
+        ma, mb = self._motion(step, a), self._motion(step, b)
+        before, _, _ = narrow.distance(ga, ma.at(0.0), gb, mb.at(0.0))
+        if before <= settings.speculative_margin:
+            if near:   # in contact at both ends
+                self._current_manifold(a, b, raw)
             return
-        if self.settings.ccd:
-            self._sweep(a, b, previous, current, out)
+        if distance_now < 0.0:   # apart before, overlapping now
+            self._time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind.IMPACT, distance_now, raw)
+            return
+        if settings.ccd:
+            tolerance = max(1e-9, min(settings.toi_tolerance * relative,
+                                      0.5 * settings.linear_slop))
+            bracket = advance(lambda s: narrow.distance(ga, ma.at(s), gb, mb.at(s))[0],
+                              lambda s: narrow.overlaps(ga, ma.at(s), gb, mb.at(s)),
+                              relative, tolerance, 4 * settings.toi_max_iterations)
+            if bracket is not None:
+                self._time_of_impact(a, b, ma, mb, bracket[0], bracket[1],
+                                     ContactKind.TUNNELLED, None, raw)
+                return
+        if near:   # approaching, not touching yet: a speculative contact
+            self._current_manifold(a, b, raw)
 
-    def _poses(self, a: int, b: int, previous: BodyStates, current: BodyStates
-               ) -> tuple[_Pose, _Pose]:
-        return (_Pose(previous.position[a], current.position[a],
-                      previous.orientation[a], current.orientation[a]),
-                _Pose(previous.position[b], current.position[b],
-                      previous.orientation[b], current.orientation[b]))
-
-    def _time_of_impact(self, a: int, b: int, previous: BodyStates, current: BodyStates,
-                        t0: float, t1: float, kind: ContactKind, separation_now: float,
-                        out: '_ContactLists') -> None:
-        """Bisection on [t0, t1] (apart at t0, overlapping at t1), then the manifold at t1."""
-        pose_a, pose_b = self._poses(a, b, previous, current)
-        tolerance = self.settings.toi_tolerance
-        for _ in range(self.settings.toi_max_iterations):
-            if t1 - t0 <= tolerance:
-                break
-            mid = 0.5 * (t0 + t1)
-            if self._collide(a, pose_a.at(mid), b, pose_b.at(mid), 0.0):
-                t1 = mid
-            else:
-                t0 = mid
-        tf_a, tf_b = pose_a.at(t1), pose_b.at(t1)
-        self._collide(a, tf_a, b, tf_b, 0.0)
-        depth_at_toi = -self._res.getContact(0).penetration_depth
-        fallback = None
-        if depth_at_toi > DEEP_FRACTION * min(self._radius[a], self._radius[b]):
-            # EPA on a deep overlap is not trusted: the lecture's estimate from the
+    def _time_of_impact(self, a: int, b: int, ma: Motion, mb: Motion, s0: float, s1: float,
+                        kind: ContactKind, distance_now: float | None, raw: '_Raw') -> None:
+        """Bisection on [s0, s1] (apart at s0, overlapping at s1), then contacts at s1."""
+        settings, narrow = self.settings, self._narrow
+        ga, gb = self._geoms[a], self._geoms[b]
+        s0, s1 = bisect(lambda s: narrow.overlaps(ga, ma.at(s), gb, mb.at(s)), s0, s1,
+                        settings.toi_tolerance, settings.toi_max_iterations)
+        found = narrow.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0)
+        if found is None:   # only for a degenerate bracket: the end of the step overlaps
+            s1 = 1.0
+            found = narrow.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0)
+            if found is None:
+                return
+        override = None
+        if -found[0] > DEEP_FRACTION * min(self._thickness[a], self._thickness[b]):
+            # EPA on a deep overlap is not trusted: the lecture's direction from the
             # closest points of the last separated configuration
-            if self._distance(a, pose_a.at(t0), b, pose_b.at(t0)) > 0.0:
-                p1, p2 = self._dres.getNearestPoint1(), self._dres.getNearestPoint2()
-                gap = p2 - p1
-                norm = float(np.linalg.norm(gap))
-                if norm > 0.0:
-                    fallback = gap / norm
-            tf_a, tf_b = pose_a.at(t1), pose_b.at(t1)
-            self._collide(a, tf_a, b, tf_b, 0.0)
-        self._add_manifold(a, tf_a, b, tf_b, kind, t1, fallback, out,
-                           separation_now=separation_now)
+            gap, point_a, point_b = narrow.distance(ga, ma.at(s0), gb, mb.at(s0))
+            direction = np.asarray(point_b) - np.asarray(point_a)
+            length = float(np.linalg.norm(direction))
+            if gap > 0.0 and length > 0.0:
+                override = direction / length
+            narrow.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0)
+        on_a, on_b, normal = narrow.manifold(ga, ma.at(s1), gb, mb.at(s1))
+        pose = (ma.rotation_at(s1), ma.position_at(s1), mb.rotation_at(s1), mb.position_at(s1))
+        raw.add(a, b, on_a, on_b, normal if override is None else override, s1, kind,
+                distance_now, pose)
 
-    def _sweep(self, a: int, b: int, previous: BodyStates, current: BodyStates,
-               out: '_ContactLists') -> None:
-        """Conservative advancement over the step for a pair apart at both ends."""
-        motion = (np.linalg.norm((current.position[b] - previous.position[b])
-                                 - (current.position[a] - previous.position[a]))
-                  + _angle(previous.orientation[a], current.orientation[a]) * self._radius[a]
-                  + _angle(previous.orientation[b], current.orientation[b]) * self._radius[b])
-        if not np.isfinite(motion) or motion <= 0.0:
+    def _current_manifold(self, a: int, b: int, raw: '_Raw') -> None:
+        """Contact points of a pair at the current state (several where faces touch)."""
+        narrow = self._narrow
+        ga, ta, gb, tb = self._geoms[a], self._transforms[a], self._geoms[b], self._transforms[b]
+        if narrow.contact(ga, ta, gb, tb, self.settings.speculative_margin) is not None:
+            on_a, on_b, normal = narrow.manifold(ga, ta, gb, tb)
+            raw.add(a, b, on_a, on_b, normal, 0.0, ContactKind.PERSISTENT)
+
+    def _finish(self, step: _Step, raw: '_Raw', out: '_Rows') -> None:
+        """Turn the raw coal points into contact rows, all pairs at once."""
+        if not raw.a:
             return
-        pose_a, pose_b = self._poses(a, b, previous, current)
-        tolerance = max(1e-9, min(self.settings.toi_tolerance * motion,
-                                  0.5 * self.settings.linear_slop))
-        t = 0.0
-        for _ in range(4 * self.settings.toi_max_iterations):
-            gap = self._distance(a, pose_a.at(t), b, pose_b.at(t))
-            if gap <= tolerance:
-                break
-            t += gap / motion
-            if t >= 1.0:
-                return
-        else:
-            return
-        # overlap just after the advancement's stop: refine by bisection
-        t1 = min(1.0, t + 4.0 * tolerance / motion)
-        while not self._collide(a, pose_a.at(t1), b, pose_b.at(t1), 0.0):
-            if t1 >= 1.0:
-                return
-            t1 = min(1.0, t1 + (t1 - t))
-        self._collide(a, self._tf_curr[a], b, self._tf_curr[b], 0.0)
-        self._time_of_impact(a, b, previous, current, t, t1, ContactKind.TUNNELLED,
-                             0.0, out)
+        a, b = np.array(raw.a, np.int64), np.array(raw.b, np.int64)
+        count = np.array(raw.count)
+        ra, pa, rb, pb = step.r1[a], step.p1[a], step.r1[b], step.p1[b]
+        for k, (r_a, p_a, r_b, p_b) in raw.poses.items():   # contacts at a time of impact
+            ra[k], pa[k], rb[k], pb[k] = r_a, p_a, r_b, p_b
+        normal = np.array(raw.normal, dtype=float)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        row = np.repeat(np.arange(a.shape[0]), count)
+        on_a, on_b = np.concatenate(raw.on_a), np.concatenate(raw.on_b)
+        normal_rows = normal[row]
+        separation = np.einsum('ni,ni->n', on_b - on_a, normal_rows)
+        separation = np.fmin(separation, np.array(raw.cap)[row])   # nan: no cap
+        local_a = np.einsum('nji,nj->ni', ra[row], on_a - pa[row])
+        local_b = np.einsum('nji,nj->ni', rb[row], on_b - pb[row])
+        feature = _features(row, local_a, local_b, self._half[a[row]], self._half[b[row]])
+        rel_p, rel_q = _relative(step, a, b)
+        kind = np.array(raw.kind, np.int8)
+        out.add_block(a[row], b[row], on_a, on_b, normal_rows, separation,
+                      np.array(raw.toi)[row], kind[row], feature, local_a, local_b,
+                      np.einsum('nji,nj->ni', ra[row], normal_rows), rel_p[row], rel_q[row],
+                      cache=(kind == ContactKind.PERSISTENT)[row])
 
-    def _add_manifold(self, a: int, tf_a: coal.Transform3s, b: int, tf_b: coal.Transform3s,
-                      kind: ContactKind, toi: float, normal_override: np.ndarray | None,
-                      out: '_ContactLists', separation_now: float | None = None) -> None:
-        """Contact points of the current collision result (several for face contacts)."""
-        contact = self._res.getContact(0)
-        normal = np.array(contact.normal) if normal_override is None else normal_override
-        self._patch_res.clear()
-        points: list[tuple[np.ndarray, float]] = []
-        if normal_override is None:
-            coal.computeContactPatch(self._geoms[a], tf_a, self._geoms[b], tf_b, self._res,
-                                     self._patch_req, self._patch_res)
-            if self._patch_res.numContactPatches() > 0:
-                patch = self._patch_res.getContactPatch(0)
-                for k in range(patch.size()):
-                    p1, p2 = patch.getPointShape1(k), patch.getPointShape2(k)
-                    points.append((0.5 * (p1 + p2), float(np.dot(p2 - p1, normal))))
-        if not points:
-            points.append((np.array(contact.pos), float(contact.penetration_depth)))
-        for k, (point, separation) in enumerate(points):
-            if separation_now is not None:
-                separation = min(separation, separation_now)
-            out.add(a, b, point, normal, separation, toi, int(kind), k)
+    # -- helpers -----------------------------------------------------------------------------
+
+    def _push(self, step: _Step, bodies: np.ndarray) -> None:
+        """Set the coal transforms of ``bodies`` to their current pose."""
+        origin = step.p1[bodies] + np.einsum('nij,nj->ni', step.r1[bodies], self._offset[bodies])
+        rotations = step.r1[bodies]
+        transforms = self._transforms
+        for k, body in enumerate(bodies.tolist()):
+            transforms[body].setTransform(rotations[k], origin[k])
+
+    def _motion(self, step: _Step, body: int) -> Motion:
+        return Motion(step.p0[body], step.p1[body], step.q0[body], step.q1[body],
+                      self._offset[body])
+
+    def _radius_or_zero(self, bodies: np.ndarray) -> np.ndarray:
+        return np.where(np.isfinite(self._radius[bodies]), self._radius[bodies], 0.0)
 
 
-def _angle(q0: np.ndarray, q1: np.ndarray) -> float:
-    """Rotation angle (rad) between two unit quaternions."""
-    return float(2.0 * np.arccos(np.clip(abs(np.dot(q0, q1)), 0.0, 1.0)))
+def _relative(step: _Step, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """B's origin (M, 3) m and orientation (M, 4) in A's frame, at the current state."""
+    rel_p = np.einsum('nji,nj->ni', step.r1[a], step.p1[b] - step.p1[a])
+    qa = step.q1[a] * np.array([-1.0, -1.0, -1.0, 1.0])
+    return rel_p, rotation.multiply(qa, step.q1[b])
 
 
-class _ContactLists:
-    """Column lists gathered during the narrow phase, turned into arrays once."""
+def _angle(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad) between unit quaternions, row by row."""
+    return 2.0 * np.arccos(np.clip(np.abs(np.sum(q0 * q1, axis=-1)), 0.0, 1.0))
+
+
+def _features(group: np.ndarray, local_a: np.ndarray, local_b: np.ndarray,
+              half_a: np.ndarray, half_b: np.ndarray) -> np.ndarray:
+    """Feature ids (M,) of contact points: which corner/edge/face of A and of B they are on.
+
+    Each coordinate of a point in a body's frame (local_*, (M, 3) m) is coded -1, 0
+    or +1 by whether it lies in the outer quarter of the body's half extent (half_*,
+    (M, 3) m) on that side; repeated codes within one ``group`` (one pair) are made
+    distinct by their rank.
+    """
+    def code(local: np.ndarray, half: np.ndarray) -> np.ndarray:
+        side = np.where(local > 0.5 * half, 2, np.where(local < -0.5 * half, 1, 0))
+        return side @ np.array([1, 3, 9])
+
+    key = (27 * code(local_a, half_a) + code(local_b, half_b)).astype(np.int64)
+    combined = group.astype(np.int64) * 729 + key
+    order = np.argsort(combined, kind='stable')
+    ordered = combined[order]
+    start = np.r_[True, ordered[1:] != ordered[:-1]]
+    index = np.arange(ordered.shape[0])
+    rank = np.empty_like(key)
+    rank[order] = index - np.maximum.accumulate(np.where(start, index, 0))
+    return key + 729 * rank
+
+
+class _Raw:
+    """Contact points straight from coal, one entry per pair, before vectorised post-work."""
 
     def __init__(self) -> None:
-        self.rows: list[tuple] = []
+        self.a: list[int] = []
+        self.b: list[int] = []
+        self.count: list[int] = []
+        self.on_a: list[np.ndarray] = []
+        self.on_b: list[np.ndarray] = []
+        self.normal: list[np.ndarray] = []
+        self.toi: list[float] = []
+        self.kind: list[int] = []
+        self.cap: list[float] = []
+        self.poses: dict[int, tuple[np.ndarray, ...]] = {}
 
-    def add(self, a: int, b: int, point: np.ndarray, normal: np.ndarray, separation: float,
-            toi: float, kind: int, feature: int) -> None:
-        self.rows.append((a, b, point, normal, separation, toi, kind, feature))
+    def add(self, a: int, b: int, on_a: np.ndarray, on_b: np.ndarray, normal: np.ndarray,
+            toi: float, kind: ContactKind, cap: float | None = None,
+            pose: tuple[np.ndarray, ...] | None = None) -> None:
+        """Points (k, 3) on A and on B (world, m) with their normal A->B; ``cap`` bounds
+        the separation (IMPACT); ``pose`` (R_a, p_a, R_b, p_b) when not the current one."""
+        if pose is not None:
+            self.poses[len(self.a)] = pose
+        self.a.append(a)
+        self.b.append(b)
+        self.count.append(on_a.shape[0])
+        self.on_a.append(on_a)
+        self.on_b.append(on_b)
+        self.normal.append(normal)
+        self.toi.append(toi)
+        self.kind.append(int(kind))
+        self.cap.append(np.nan if cap is None else cap)
 
-    def to_set(self) -> ContactSet:
-        if not self.rows:
+
+class _Rows:
+    """Contact rows gathered during one detect(), turned into arrays once."""
+
+    def __init__(self) -> None:
+        self.blocks: list[tuple] = []
+
+    def add_block(self, a: np.ndarray, b: np.ndarray, on_a: np.ndarray, on_b: np.ndarray,
+                  normal: np.ndarray, separation: np.ndarray, toi: np.ndarray,
+                  kind: np.ndarray | int, feature: np.ndarray, local_a: np.ndarray,
+                  local_b: np.ndarray, normal_a: np.ndarray, rel_p: np.ndarray,
+                  rel_q: np.ndarray, cache: np.ndarray | bool = True) -> None:
+        count = a.shape[0]
+        if count:
+            self.blocks.append((a, b, on_a, on_b, normal, separation, toi,
+                                np.broadcast_to(np.asarray(kind, np.int8), (count,)), feature,
+                                local_a, local_b, normal_a, rel_p, rel_q,
+                                np.broadcast_to(np.asarray(cache, bool), (count,))))
+
+    def _columns(self) -> list[np.ndarray]:
+        if len(self.blocks) == 1:
+            return list(self.blocks[0])
+        return [np.concatenate(column) for column in zip(*self.blocks)]
+
+    def contact_set(self) -> ContactSet:
+        if not self.blocks:
             return ContactSet.empty()
-        a, b, point, normal, sep, toi, kind, feature = zip(*self.rows)
-        normal_arr = np.array(normal, dtype=float)
-        normal_arr /= np.linalg.norm(normal_arr, axis=1, keepdims=True)
-        return ContactSet(np.array(a, np.int64), np.array(b, np.int64),
-                          np.array(point, dtype=float), normal_arr, np.array(sep, dtype=float),
-                          np.array(toi, dtype=float), np.array(kind, np.int8),
-                          np.array(feature, np.int64))
+        a, b, on_a, on_b, normal, separation, toi, kind, feature = self._columns()[:9]
+        order = np.lexsort((feature, b, a))
+        return ContactSet(a[order].astype(np.int64), b[order].astype(np.int64),
+                          0.5 * (on_a[order] + on_b[order]), normal[order],
+                          separation[order].astype(float), toi[order].astype(float),
+                          kind[order].astype(np.int8), feature[order].astype(np.int64))
+
+    def manifolds(self, count: int) -> _Manifolds:
+        """The persistent rows, grouped by pair, stored for reuse next step."""
+        if not self.blocks:
+            return _Manifolds.empty()
+        (a, b, _, _, _, _, _, _, feature, local_a, local_b, normal_a, rel_p, rel_q,
+         cache) = self._columns()
+        rows = np.flatnonzero(cache)
+        if rows.shape[0] == 0:
+            return _Manifolds.empty()
+        row_key = a[rows].astype(np.int64) * count + b[rows]
+        order = np.argsort(row_key, kind='stable')
+        rows, row_key = rows[order], row_key[order]
+        key, first, row_pair = np.unique(row_key, return_index=True, return_inverse=True)
+        return _Manifolds(key, rel_p[rows[first]], rel_q[rows[first]], row_pair.reshape(-1),
+                          local_a[rows], local_b[rows], normal_a[rows], feature[rows])

@@ -11,11 +11,15 @@ Relative velocity of a row: ``(v_B + w_B x r_B - v_A - w_A x r_A) . d``
 (negative normal component = approaching), ``r`` the contact point minus the
 body's centre of mass.
 
-Contacts are greedily coloured so that no movable body appears twice in a
-colour; rows are sorted by colour, and each colour is solved at once with
-numpy (Gauss-Seidel across colours, exact per contact within a colour).
+Contacts are grouped by body pair (a manifold: up to a few points of one
+face contact). The pairs are greedily coloured so that no movable body is in
+two pairs of one colour; rows are sorted by colour, and each colour is solved
+at once with numpy: Gauss-Seidel across colours, and within a manifold
+Jacobi with mass splitting (each of the k points of a pair acts on 1/k of
+each body's mass, and the k impulses are summed: Tonge et al. 2012), which is
+exact for one point and converges for face contacts without a loop per point.
 Immovable bodies (static or inactive) have zero inverse mass and inertia and
-may appear in any number of contacts of a colour: their velocity never
+may appear in any number of pairs of a colour: their velocity never
 changes. Stages, as in Box2D v3: prepare, warm start, solve (iterate),
 restitution, store impulses; plus a split-impulse position stage.
 """
@@ -46,16 +50,15 @@ class ContactRows:
     jacobian: np.ndarray       # (M, 3, 12) relative velocity of each row = J . [vA wA vB wB]
     response: np.ndarray       # (M, 12, 3) velocity change per unit row impulse, M^-1 J^T
     normal_mass: np.ndarray    # (M,) kg, 1 / (J_n M^-1 J_n^T); 0 when both are immovable
-    tangent_mass: np.ndarray   # (M, 2, 2) kg, inverse of the tangential Delassus block
+    tangent_block: np.ndarray  # (M, 2, 2) 1/kg, tangential Delassus block J_t M^-1 J_t^T
     coupling: np.ndarray       # (M, 2) m/s per N s: tangential velocity per normal impulse
     approach: np.ndarray       # (M,) m/s, pre-solve normal relative velocity (< 0 approaching)
     allowance: np.ndarray      # (M,) m/s >= 0, approach speed allowed without impulse
     bounce: np.ndarray         # (M,) bool, approach faster than the restitution threshold
     restitution_a: np.ndarray  # (M,) e applied to A's impulse
     restitution_b: np.ndarray  # (M,) e applied to B's impulse (equal unless per_object)
-    mu_static: np.ndarray      # (M,)
-    mu_kinetic: np.ndarray     # (M,)
-    sticking: np.ndarray       # (M,) bool, tangential speed below sticking_speed: mu_static may hold
+    mu: np.ndarray             # (M,) friction coefficient of the cone this step
+    sticking: np.ndarray       # (M,) bool, slow enough to stick: mu is the static coefficient
 
     @property
     def count(self) -> int:
@@ -68,13 +71,11 @@ class Impulses:
 
     normal: np.ndarray        # (M,) >= 0, from the iterations (what is warm started)
     tangent: np.ndarray       # (M, 2) along t1, t2, |.| <= mu * normal
-    slipping: np.ndarray      # (M,) bool, the static cone did not hold: kinetic coefficient
     restitution: np.ndarray   # (M, 2) extra normal impulse on A, on B from the restitution pass
 
     @staticmethod
     def zeros(count: int) -> 'Impulses':
-        return Impulses(np.zeros(count), np.zeros((count, 2)), np.zeros(count, bool),
-                        np.zeros((count, 2)))
+        return Impulses(np.zeros(count), np.zeros((count, 2)), np.zeros((count, 2)))
 
 
 def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -85,28 +86,35 @@ def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, np.cross(normal, t1)
 
 
-def colour_contacts(pair: np.ndarray, movable: np.ndarray) -> np.ndarray:
-    """Greedy colour per contact: no movable body twice in one colour (bitmask per body)."""
-    masks = [0] * movable.shape[0]
-    colours = []
+def colour_pairs(pair: np.ndarray, movable: np.ndarray) -> np.ndarray:
+    """Colour per contact: no movable body in two different pairs of one colour.
+
+    Greedy over the distinct pairs with one bitmask of used colours per body.
+    """
+    count = movable.shape[0]
+    key = pair[:, 0] * count + pair[:, 1]
+    keys, which = np.unique(key, return_inverse=True)
+    masks = [0] * count
     move = movable.tolist()
-    for a, b in pair.tolist():
+    colours = []
+    for k in keys.tolist():
+        a, b = divmod(k, count)
         used = (masks[a] if move[a] else 0) | (masks[b] if move[b] else 0)
-        free = ~used
-        bit = free & -free
+        bit = ~used & (used + 1)            # lowest free colour
         colours.append(bit.bit_length() - 1)
         if move[a]:
             masks[a] |= bit
         if move[b]:
             masks[b] |= bit
-    return np.asarray(colours, np.int64)
+    return np.asarray(colours, np.int64)[which]
 
 
 def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarray,
             inv_mass: np.ndarray, inv_inertia: np.ndarray, velocity: np.ndarray,
             allowance: np.ndarray, restitution: tuple[np.ndarray, np.ndarray],
             friction: tuple[np.ndarray, np.ndarray], threshold: float,
-            sticking_speed: float, sticking_velocity: np.ndarray | None = None) -> ContactRows:
+            sticking_speed: float, sticking_velocity: np.ndarray | None = None,
+            jacobi: bool = False) -> ContactRows:
     """Constraint rows of M contacts.
 
     pair (M, 2) body indices; normal (M, 3) unit, A to B; r_a, r_b (M, 3) m,
@@ -117,14 +125,24 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
     threshold m/s (restitution above it); a contact whose tangential speed is
     below ``sticking_speed`` (m/s) may stick: that speed is measured with
     ``sticking_velocity`` (N, 6), e.g. the velocities before this step's
-    external forces, default ``velocity``.
+    external forces, default ``velocity``. ``jacobi``: one batch for all
+    rows (Jacobi with mass splitting) instead of coloured pairs.
     """
     pair = np.asarray(pair, np.int64).reshape(-1, 2)
-    movable = inv_mass > 0.0
-    colour = colour_contacts(pair, movable)
+    count = inv_mass.shape[0]
+    if jacobi:
+        colour = np.zeros(pair.shape[0], np.int64)
+    else:
+        colour = colour_pairs(pair, inv_mass > 0.0)
     order = np.argsort(colour, kind='stable')
     edges = np.searchsorted(colour[order], np.arange(colour.max() + 2 if colour.size else 1))
     batches = [slice(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:]) if hi > lo]
+    # mass splitting: rows of a batch that act on each body (k), per side of each row
+    share = np.empty((pair.shape[0], 2))
+    for batch in batches:
+        sub = pair[order[batch]]
+        rows_of = np.bincount(sub.ravel(), minlength=count)
+        share[order[batch]] = rows_of[sub]
 
     pair, normal, r_a, r_b = pair[order], normal[order], r_a[order], r_b[order]
     t1, t2 = tangent_basis(normal)
@@ -137,34 +155,28 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
     response = np.concatenate((
         -ma[:, None, None] * basis.transpose(0, 2, 1), -ia @ arm_a.transpose(0, 2, 1),
         mb[:, None, None] * basis.transpose(0, 2, 1), ib @ arm_b.transpose(0, 2, 1)), axis=1)
-    delassus = jacobian @ response                             # (M, 3, 3)
+    # Delassus block of each row, each body's mass split over the rows of the batch on it
+    share = share[order]
+    delassus = (jacobian[:, :, :6] @ response[:, :6, :]) * share[:, 0, None, None] \
+        + (jacobian[:, :, 6:] @ response[:, 6:, :]) * share[:, 1, None, None]
     k_n = delassus[:, 0, 0]
     normal_mass = np.where(k_n > _TINY, 1.0 / np.where(k_n > _TINY, k_n, 1.0), 0.0)
-    block = delassus[:, 1:, 1:]
-    det = block[:, 0, 0] * block[:, 1, 1] - block[:, 0, 1] * block[:, 1, 0]
-    ok = det > _TINY * _TINY
-    inv_det = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    tangent_mass = np.empty_like(block)
-    tangent_mass[:, 0, 0] = block[:, 1, 1] * inv_det
-    tangent_mass[:, 1, 1] = block[:, 0, 0] * inv_det
-    tangent_mass[:, 0, 1] = -block[:, 0, 1] * inv_det
-    tangent_mass[:, 1, 0] = -block[:, 1, 0] * inv_det
-
     relative = _row_velocity(jacobian, velocity, pair)
     slow = relative if sticking_velocity is None else \
         _row_velocity(jacobian, sticking_velocity, pair)
     approach = relative[:, 0]
+    sticking = np.hypot(slow[:, 1], slow[:, 2]) < sticking_speed
     return ContactRows(
         order=order, batches=batches, pair=pair, basis=basis, jacobian=jacobian,
-        response=response, normal_mass=normal_mass, tangent_mass=tangent_mass,
+        response=response, normal_mass=normal_mass, tangent_block=delassus[:, 1:, 1:],
         coupling=delassus[:, 1:, 0], approach=approach,
         allowance=np.asarray(allowance, float)[order],
         bounce=approach < -threshold,
         restitution_a=np.asarray(restitution[0], float)[order],
         restitution_b=np.asarray(restitution[1], float)[order],
-        mu_static=np.asarray(friction[0], float)[order],
-        mu_kinetic=np.asarray(friction[1], float)[order],
-        sticking=np.hypot(slow[:, 1], slow[:, 2]) < sticking_speed)
+        mu=np.where(sticking, np.asarray(friction[0], float)[order],
+                    np.asarray(friction[1], float)[order]),
+        sticking=sticking)
 
 
 def _row_velocity(jacobian: np.ndarray, velocity: np.ndarray, pair: np.ndarray) -> np.ndarray:
@@ -173,15 +185,11 @@ def _row_velocity(jacobian: np.ndarray, velocity: np.ndarray, pair: np.ndarray) 
     return np.einsum('mdj,mj->md', jacobian, stacked)
 
 
-def _apply(rows: ContactRows, velocity: np.ndarray, rows_slice: slice | np.ndarray,
-           delta: np.ndarray, stacked: np.ndarray | None = None) -> None:
-    """Add the velocity change of row impulses ``delta`` (m, 3) to the bodies of a batch."""
-    pair = rows.pair[rows_slice]
+def _apply(rows: ContactRows, velocity: np.ndarray, rows_slice: slice,
+           delta: np.ndarray) -> None:
+    """Add the velocity change of row impulses ``delta`` (m, 3) to the bodies (summed)."""
     change = np.einsum('mjd,md->mj', rows.response[rows_slice], delta)
-    if stacked is None:
-        np.add.at(velocity, pair.ravel(), change.reshape(-1, 6))
-    else:   # a colour: bodies unique (immovable ones get a zero change)
-        velocity[pair] = (stacked + change).reshape(-1, 2, 6)
+    np.add.at(velocity, rows.pair[rows_slice].ravel(), change.reshape(-1, 6))
 
 
 def warm_start(rows: ContactRows, impulses: Impulses, velocity: np.ndarray) -> None:
@@ -207,21 +215,28 @@ def _solve_batch(rows: ContactRows, impulses: Impulses, velocity: np.ndarray,
     old_n = impulses.normal[s]
     new_n = np.maximum(old_n - rows.normal_mass[s] * (rel[:, 0] + rows.allowance[s]), 0.0)
     d_n = new_n - old_n
-    # friction: stop the tangential motion left after the normal change, within mu * j_n
+    # friction: oppose the tangential slip left after the normal change (the lecture's
+    # tangent, v_t / |v_t|), as much as stops it along that direction, within mu * j_n
     v_t = rel[:, 1:] + rows.coupling[s] * d_n[:, None]
     old_t = impulses.tangent[s]
-    trial = old_t - np.einsum('mij,mj->mi', rows.tangent_mass[s], v_t)
-    slipping = impulses.slipping[s]
-    limit = np.where(slipping, rows.mu_kinetic[s], rows.mu_static[s]) * new_n
+    trial = old_t - v_t * _slip_mass(rows.tangent_block[s], v_t)[:, None]
+    limit = rows.mu[s] * new_n
     size = np.hypot(trial[:, 0], trial[:, 1])
-    over = size > limit * (1.0 + 1e-12)
+    over = size > limit
     scale = np.where(over, limit / np.where(over, size, 1.0), 1.0)
     new_t = trial * scale[:, None]
-    impulses.slipping[s] = slipping | over
+    delta = np.concatenate((d_n[:, None], new_t - old_t), axis=1)   # before old_* (views) change
     impulses.normal[s] = new_n
     impulses.tangent[s] = new_t
-    delta = np.concatenate((d_n[:, None], new_t - old_t), axis=1)
-    _apply(rows, velocity, s, delta, stacked)
+    _apply(rows, velocity, s, delta)
+
+
+def _slip_mass(block: np.ndarray, v_t: np.ndarray) -> np.ndarray:
+    """|v_t|^2 / (v_t^T K_t v_t): impulse per unit slip speed along -v_t; 0 when v_t = 0."""
+    speed2 = np.einsum('mi,mi->m', v_t, v_t)
+    k = np.einsum('mi,mij,mj->m', v_t, block, v_t)
+    ok = k > _TINY * np.maximum(speed2, _TINY)
+    return np.where(ok, speed2 / np.where(ok, k, 1.0), 0.0)
 
 
 def apply_restitution(rows: ContactRows, impulses: Impulses, velocity: np.ndarray) -> None:
@@ -248,7 +263,7 @@ def apply_restitution(rows: ContactRows, impulses: Impulses, velocity: np.ndarra
         response = rows.response[s, :, 0]                      # (m, 12)
         change = np.concatenate((response[:, :6] * d_a[:, None],
                                  response[:, 6:] * d_b[:, None]), axis=1)
-        velocity[rows.pair[s]] = (stacked + change).reshape(-1, 2, 6)
+        np.add.at(velocity, rows.pair[s].ravel(), change.reshape(-1, 6))
 
 
 def solve_positions(rows: ContactRows, push: np.ndarray, count: int,
@@ -269,9 +284,9 @@ def solve_positions(rows: ContactRows, push: np.ndarray, count: int,
             v_n = np.einsum('mj,mj->m', rows.jacobian[s, 0, :], stacked)
             old = accumulated[s]
             new = np.maximum(old + rows.normal_mass[s] * (push[s] - v_n), 0.0)
-            accumulated[s] = new
             change = rows.response[s, :, 0] * (new - old)[:, None]
-            pseudo[rows.pair[s]] = (stacked + change).reshape(-1, 2, 6)
+            accumulated[s] = new
+            np.add.at(pseudo, rows.pair[s].ravel(), change.reshape(-1, 6))
     return pseudo
 
 
@@ -290,17 +305,20 @@ def contact_states(rows: ContactRows, impulses: Impulses, velocity: np.ndarray,
     """State per row (colour order), the first rule that applies.
 
     IMPACT: approached faster than the restitution threshold and was pushed
-    (normal impulse > 0). SLIDING: the friction reached the kinetic cone or
-    the contact still slides faster than ``sticking_speed`` after solving.
-    STICKING: a non-zero friction impulse inside the static cone held it.
-    RESTING: otherwise (no bounce, no friction needed).
+    (normal impulse > 0). SLIDING: slid faster than ``sticking_speed`` before
+    the step (kinetic coefficient) or after solving, or the friction reached
+    the static cone (it broke away). STICKING: a non-zero friction impulse
+    inside the static cone held it. RESTING: otherwise (no friction needed).
     """
     rel = _row_velocity(rows.jacobian, velocity, rows.pair)
-    sliding = np.hypot(rel[:, 1], rel[:, 2]) > sticking_speed
-    friction = np.hypot(impulses.tangent[:, 0], impulses.tangent[:, 1]) > _TINY
+    size = np.hypot(impulses.tangent[:, 0], impulses.tangent[:, 1])
+    friction = size > _TINY
     touching = impulses.normal > 0.0
+    at_limit = size >= rows.mu * impulses.normal * (1.0 - 1e-9)
+    sliding = (np.hypot(rel[:, 1], rel[:, 2]) > sticking_speed) | ~rows.sticking \
+        | (friction & at_limit)
     state = np.full(rows.count, int(ContactState.RESTING), np.uint8)
     state[friction] = ContactState.STICKING
-    state[touching & (sliding | (impulses.slipping & friction))] = ContactState.SLIDING
+    state[touching & sliding & (friction | (rows.mu == 0.0))] = ContactState.SLIDING
     state[rows.bounce & touching] = ContactState.IMPACT
     return state

@@ -69,7 +69,9 @@ def test_box_resting_face_down_gives_four_points_on_the_floor() -> None:
         np.testing.assert_allclose(contacts.separation, -0.001, atol=1e-8)
         corners = sorted(map(tuple, np.round(contacts.point[:, :2], 6)))
         assert corners == sorted(itertools.product((-0.1, 0.1), (-0.2, 0.2)))
-        assert sorted(contacts.feature) == [0, 1, 2, 3]
+        assert len(set(contacts.feature)) == 4  # one id per corner, the same next step
+        again = world.detect(resting, resting)
+        assert list(again.feature) == list(contacts.feature)
 
 
 def test_sphere_on_plane_depth_matches_geometry() -> None:
@@ -123,9 +125,20 @@ def test_broad_phase_finds_the_same_pairs_as_all_pairs() -> None:
     brute = {(i, j) for i, j in itertools.combinations(range(count), 2)
              if np.all(lo[i] - 0.5 * margin <= hi[j] + 0.5 * margin)
              and np.all(lo[j] - 0.5 * margin <= hi[i] + 0.5 * margin)}
-    print(f'{len(found)} broad-phase pairs, {len(brute)} by brute force')
+    print(f'{len(found)} broad-phase pairs, {len(brute)} by bounding spheres')
     assert len(brute) > 50
-    assert found == brute
+    # the broad phase uses oriented boxes, tighter than bounding spheres, and is sound:
+    # every pair within the margin at either end of the step is a candidate (checked
+    # exactly on the sphere-sphere pairs)
+    assert found <= brute
+    close = set()
+    for state in (before, after):
+        for i, j in itertools.combinations(range(1, count, 2), 2):
+            gap = np.linalg.norm(state.position[i] - state.position[j]) - radius[i] - radius[j]
+            if gap <= margin:
+                close.add((i, j))
+    print(f'{len(close)} sphere pairs within the margin')
+    assert len(close) > 5 and close <= found
 
 
 def test_every_shape_detects_resting_on_the_floor() -> None:

@@ -1,0 +1,344 @@
+"""collres_node: resolve rigid-body contacts in a topic pipeline (a thin adapter on the core).
+
+Run: ``collres_node --ros-args --params-file FILE`` (default file: the
+package's ``config/collres.yaml``). Every parameter is declared with a
+descriptor (description, type, range) generated from ``core/config.py``; the
+scene comes from the same validator as ``params.load_scene``, so a bad file
+stops the node at start with one line (``error: <parameter>: <why>``, exit
+code 1). Solver settings, materials (restitution, static_friction,
+kinetic_friction) and node settings may change at runtime and take effect on
+the next step; shapes, sizes, masses, poses and the body list are read-only.
+Range and type errors are refused by rclpy's descriptor check, naming the
+parameter and its range; the rest (choices, kinetic <= static friction) by an
+on-set callback with the validator's one-line reason.
+
+Topics (relative names): in ``body_states`` (BodyStateArray, one step per
+message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
+every non-stale dynamic body has both for one stamp, see ``sync.py``); out
+``body_states/corrected``, ``bodies/<name>/{pose,twist}/corrected`` (for
+per-body steps), ``contacts``, ``contact_markers``, ``/diagnostics``.
+
+QoS: states, contacts and markers are reliable, volatile, keep-last with
+depth ``queue_depth`` (10): a control loop wants every step delivered in
+order but never a backlog of old states. ``/diagnostics`` is reliable,
+depth 10 (as diagnostic_updater).
+
+Bad input never stops the node: it is refused per body (``core/validation``),
+logged at most once a second per reason, counted in ``/diagnostics``; the
+other bodies are still served. Time comes from the message stamps only, so
+``use_sim_time`` works. SIGINT and SIGTERM shut the node down with exit 0.
+"""
+
+from __future__ import annotations
+
+import array
+import sys
+import time
+from functools import partial
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from rcl_interfaces.msg import (
+    FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
+    SetParametersResult)
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from visualization_msgs.msg import MarkerArray
+
+from collres_ros import messages, params
+from collres_ros.core.config import ParamSpec, range_text
+from collres_ros.core.pipeline import ResolvedStep, Resolver
+from collres_ros.msg import BodyStateArray, ContactArray
+from collres_ros.sync import Group, StampSync
+
+NAME = 'collres_node'
+LOG_PERIOD = 1.0   # s, at most one warning per reason per period
+
+_TYPES = {
+    'double': ParameterType.PARAMETER_DOUBLE, 'integer': ParameterType.PARAMETER_INTEGER,
+    'bool': ParameterType.PARAMETER_BOOL, 'string': ParameterType.PARAMETER_STRING,
+    'double_array': ParameterType.PARAMETER_DOUBLE_ARRAY,
+    'string_array': ParameterType.PARAMETER_STRING_ARRAY}
+
+
+def descriptor(spec: ParamSpec, read_only: bool) -> ParameterDescriptor:
+    """The ROS parameter descriptor of a ParamSpec (ranges from its minimum/maximum)."""
+    text = spec.description + (f' [{spec.unit}]' if spec.unit else '')
+    d = ParameterDescriptor(name=spec.name, type=_TYPES[spec.type], description=text,
+                            read_only=read_only)
+    if spec.choices:
+        d.additional_constraints = 'one of: ' + range_text(spec)
+    if spec.minimum is not None and spec.maximum is not None:
+        if spec.type == 'double':
+            d.floating_point_range = [FloatingPointRange(
+                from_value=float(spec.minimum), to_value=float(spec.maximum), step=0.0)]
+        elif spec.type == 'integer':
+            d.integer_range = [IntegerRange(from_value=int(spec.minimum),
+                                            to_value=int(spec.maximum), step=0)]
+    return d
+
+
+def _value(spec: ParamSpec, value: Any) -> Any:
+    """The declared default: the value, or the bare type for an empty array (not set)."""
+    if isinstance(value, (list, tuple)) and not value:
+        return Parameter.Type.DOUBLE_ARRAY if spec.type == 'double_array' \
+            else Parameter.Type.STRING_ARRAY
+    return list(value) if isinstance(value, tuple) else value
+
+
+def _plain(value: Any) -> Any:
+    """rclpy parameter value -> plain Python (arrays as lists)."""
+    if isinstance(value, (array.array, tuple)):
+        return list(value)
+    return value
+
+
+def params_file_dir(argv: Sequence[str]) -> Optional[Path]:
+    """Directory of the last ``--params-file`` in ``argv`` (relative mesh paths start there)."""
+    files = [argv[k + 1] for k, arg in enumerate(argv[:-1]) if arg == '--params-file']
+    return Path(files[-1]).resolve().parent if files else None
+
+
+def default_params_file() -> Optional[Path]:
+    from collres_ros.resources import config_path
+    try:
+        return config_path('collres.yaml')
+    except FileNotFoundError:
+        return None
+
+
+class CollresNode(Node):
+    """The ROS adapter around ``Resolver`` (see module docstring)."""
+
+    def __init__(self, base_dir: Optional[Path] = None, **kwargs: Any) -> None:
+        super().__init__(NAME, automatically_declare_parameters_from_overrides=False, **kwargs)
+        overrides = {name: _plain(p.value) for name, p in self._parameter_overrides.items()}
+        self.scene = params.scene_from_values(overrides, base_dir)   # ValueError: one line
+        self._declare_parameters()
+        self.resolver = Resolver(self.scene)
+        names = self.scene.names
+        statics = [b.name for b in self.scene.bodies if b.static]
+        self.dynamic = [b.name for b in self.scene.bodies if not b.static]
+        self.sync = StampSync(self.dynamic, statics, self._ns(self.scene.node.sync_slop),
+                              self._ns(self.scene.node.stale_timeout))
+        depth = self.scene.node.queue_depth
+        self.qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE,
+                              history=HistoryPolicy.KEEP_LAST, depth=depth)
+        self._publishers_by_topic: dict[str, Any] = {}
+        for topic, kind in ((messages.CORRECTED_STATES, BodyStateArray),
+                            (messages.CONTACTS, ContactArray),
+                            (messages.MARKERS, MarkerArray)):
+            self._publisher(topic, kind)
+        self._diagnostics = self.create_publisher(DiagnosticArray, messages.DIAGNOSTICS, 10)
+        self.create_subscription(BodyStateArray, 'body_states', self._on_states, self.qos)
+        for name in names:
+            self.create_subscription(PoseStamped, messages.pose_topic(name),
+                                     partial(self._on_part, name, 'pose'), self.qos)
+            self.create_subscription(TwistStamped, messages.twist_topic(name),
+                                     partial(self._on_part, name, 'twist'), self.qos)
+        self._pending: Optional[params.Scene] = None
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._timer = self._diagnostics_timer()
+        self._last_log: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+        self._window = {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0,
+                        'since': time.monotonic()}
+        self.last_step: Optional[ResolvedStep] = None
+        self.get_logger().info(
+            f'resolving {len(names)} bodies ({", ".join(names)}) in frame '
+            f'{self.scene.world_frame!r}')
+
+    @staticmethod
+    def _ns(seconds: float) -> int:
+        return int(round(seconds * 1e9))
+
+    # --- parameters -------------------------------------------------------------------------
+
+    def _declare_parameters(self) -> None:
+        for spec in params.node_specs(self.scene.names):
+            read_only = not params.is_runtime_changeable(spec.name)
+            self.declare_parameter(spec.name, _value(spec, self.scene.values[spec.name]),
+                                   descriptor(spec, read_only), ignore_override=True)
+
+    def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        changes = {p.name: _plain(p.value) for p in parameters
+                   if p.name not in params.ROS_BUILTIN}
+        if not changes:
+            return SetParametersResult(successful=True)
+        try:
+            self._pending = params.with_changes(self.scene, changes)
+        except ValueError as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, parameters: list[Parameter]) -> None:
+        new, self._pending = self._pending, None
+        if new is None:
+            return
+        old, self.scene = self.scene, new
+        if new.solver != old.solver:
+            self.resolver.settings = new.solver
+        for before, after in zip(old.bodies, new.bodies):
+            changed = {m: getattr(after, m) for m in params.MATERIALS
+                       if getattr(after, m) != getattr(before, m)}
+            if changed:
+                self.resolver.set_material(after.name, **changed)
+        self.resolver.stale_timeout = new.node.stale_timeout
+        self.sync.slop_ns = self._ns(new.node.sync_slop)
+        self.sync.stale_timeout_ns = self._ns(new.node.stale_timeout)
+        if new.node.diagnostics_period != old.node.diagnostics_period:
+            self.destroy_timer(self._timer)
+            self._timer = self._diagnostics_timer()
+        self.get_logger().info('parameters changed: ' + ', '.join(p.name for p in parameters))
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def _on_states(self, msg: BodyStateArray) -> None:
+        self._step(messages.stamp_ns(msg.header.stamp), messages.inputs_from_array(msg), False)
+
+    def _on_part(self, name: str, kind: str, msg: Any) -> None:
+        for group in self.sync.add(name, kind, messages.stamp_ns(msg.header.stamp), msg):
+            self._step(group.stamp_ns, self._group_inputs(group), True)
+
+    def _group_inputs(self, group: Group) -> list[Any]:
+        inputs = []
+        for name, parts in group.parts.items():
+            pose, twist = parts.get('pose'), parts.get('twist')
+            if pose is None or (twist is None and name in self.dynamic):
+                continue
+            if twist is None:   # a static body may publish its pose only
+                twist = TwistStamped()
+                twist.header.frame_id = pose.header.frame_id
+            inputs.append(messages.input_from_pose_twist(name, pose, twist))
+        return inputs
+
+    # --- one step ---------------------------------------------------------------------------
+
+    def _step(self, stamp_ns: int, inputs: list[Any], per_body: bool) -> None:
+        start = time.perf_counter()
+        step = self.resolver.resolve(stamp_ns, inputs)
+        outputs = messages.build_outputs(
+            step, self.scene.world_frame, per_body and self.scene.node.per_body_outputs,
+            self.scene.node.marker_lifetime,
+            markers=self._publisher(messages.MARKERS, MarkerArray).get_subscription_count() > 0)
+        for topic, msg in outputs:
+            self._publisher(topic, type(msg)).publish(msg)
+        self.last_step = step
+        w = self._window
+        w['steps'] += 1
+        w['time'] += step.step_time_s
+        w['max'] = max(w['max'], step.step_time_s)
+        w['callback'] += time.perf_counter() - start
+        for item in step.rejected + step.resets:
+            self._warn(item.reason, item.detail)
+
+    def _publisher(self, topic: str, kind: type) -> Any:
+        publisher = self._publishers_by_topic.get(topic)
+        if publisher is None:
+            publisher = self.create_publisher(kind, topic, self.qos)
+            self._publishers_by_topic[topic] = publisher
+        return publisher
+
+    def _warn(self, reason: str, detail: str) -> None:
+        """At most one warning per reason per LOG_PERIOD, with the count of the others."""
+        now = time.monotonic()
+        if now - self._last_log.get(reason, -LOG_PERIOD) < LOG_PERIOD:
+            self._suppressed[reason] = self._suppressed.get(reason, 0) + 1
+            return
+        more = self._suppressed.pop(reason, 0)
+        self._last_log[reason] = now
+        suffix = f' (+{more} more since last report)' if more else ''
+        self.get_logger().warning(f'input refused [{reason}]: {detail}{suffix}')
+
+    # --- diagnostics ------------------------------------------------------------------------
+
+    def _diagnostics_timer(self) -> Any:
+        return self.create_timer(self.scene.node.diagnostics_period, self._publish_diagnostics,
+                                 clock=self._steady)
+
+    def snapshot(self) -> messages.DiagnosticsSnapshot:
+        """Counters for /diagnostics (resets the rate window)."""
+        w = self._window
+        now = time.monotonic()
+        elapsed = max(now - w['since'], 1e-9)
+        totals = self.resolver.totals
+        counts = {k: v for k, v in totals.items() if k not in ('steps', 'contacts')}
+        stale = sorted(set(self.sync.stale()) | set(self.last_step.stale if self.last_step
+                                                    else ()))
+        snap = messages.DiagnosticsSnapshot(
+            stamp_ns=self.get_clock().now().nanoseconds, steps=totals['steps'],
+            rate_hz=w['steps'] / elapsed,
+            step_time_mean_ms=1e3 * w['time'] / w['steps'] if w['steps'] else 0.0,
+            step_time_max_ms=1e3 * w['max'],
+            contacts=self.last_step.report.contacts.count if self.last_step else 0,
+            counts=counts, stale=stale,
+            extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
+                   'contacts_total': totals['contacts'],
+                   'callback_time_mean_ms': f"{1e3 * w['callback'] / max(w['steps'], 1):.3f}"})
+        self._window = {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0, 'since': now}
+        return snap
+
+    def _publish_diagnostics(self) -> None:
+        self._diagnostics.publish(messages.diagnostics_array(self.snapshot()))
+
+
+def _check_files(argv: Sequence[str]) -> None:
+    """Readable params files (rcl's own errors are cryptic): ValueError/OSError, one line."""
+    for k, arg in enumerate(argv[:-1]):
+        if arg == '--params-file':
+            path = Path(argv[k + 1])
+            if not path.is_file():
+                raise FileNotFoundError(f'params file not found: {path}')
+            params.read_params_file(path, ())
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    """Console script ``collres_node``: 0 on a clean shutdown, 1 on a bad configuration."""
+    argv = list(sys.argv if args is None else args)
+    if '--params-file' not in argv:
+        default = default_params_file()
+        if default is not None:
+            argv += (['--ros-args'] if '--ros-args' not in argv else []) + \
+                ['--params-file', str(default)]
+    try:
+        _check_files(argv)
+        rclpy.init(args=argv)
+    except (ValueError, OSError) as error:
+        print(f'error: {error}', file=sys.stderr)
+        return 1
+    except Exception as error:   # rcl's parser: RCLError and friends
+        print(f'error: cannot read parameters: {str(error).splitlines()[0]}', file=sys.stderr)
+        return 1
+    node = None
+    try:
+        executor = SingleThreadedExecutor()
+        try:
+            node = CollresNode(params_file_dir(argv))
+        except (ValueError, OSError) as error:
+            print(f'error: {error}', file=sys.stderr)
+            return 1
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok():   # a real failure; otherwise a signal shut us down while starting
+            raise
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

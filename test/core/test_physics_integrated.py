@@ -1,0 +1,127 @@
+"""Laws over many steps: the core closing the loop with a tiny gravity integrator.
+
+Each test integrates with semi-implicit Euler (test/core/integrator.py) at
+120 Hz unless the issue asks for 240 Hz, runs World.step every step, and
+asserts a textbook law within the issue's tolerance, after checking that
+the event under test happened (bounces, friction impulses, contacts).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from collres_ros.core.types import BodySpec, ContactState
+
+from contacts import box, sphere, states  # noqa: I100
+from integrator import count, Simulation
+
+G = 9.81
+
+
+def floor(mu_s: float = 0.5, mu_k: float = 0.3, e: float = 0.0,
+          normal=(0.0, 0.0, 1.0)) -> BodySpec:
+    return BodySpec('floor', 'plane', (*normal, 0.0), static=True, restitution=e,
+                    static_friction=mu_s, kinetic_friction=mu_k)
+
+
+def apexes(height: np.ndarray) -> list[float]:
+    """Heights of the local maxima of a sampled trajectory, in order."""
+    return [float(height[i]) for i in range(1, len(height) - 1)
+            if height[i] >= height[i - 1] and height[i] > height[i + 1]]
+
+
+def test_ball_dropped_from_1m_bounces_to_e_squared_heights():
+    r, e = 0.1, 0.8
+    sim = Simulation([floor(), sphere('ball', r, 1.0, e=e)],
+                     states([[0, 0, 0], [0, 0, 1.0 + r]], np.zeros((2, 3))), 120.0)
+    trace = sim.run(2.6)
+    heights = apexes(trace.positions()[:, 1, 2] - r)
+    expected = [e ** 2, e ** 4, e ** 6]
+    print('apex heights', heights[:3], 'expected', expected)
+    assert count(trace, ContactState.IMPACT) >= 3, trace.states
+    assert len(heights) >= 3
+    for measured, law in zip(heights[:3], expected):
+        assert abs(measured - law) <= 0.02 * law
+    assert max(trace.energy) <= trace.energy[0] * (1 + 1e-9)
+
+
+def test_box_sliding_stops_after_v2_over_2_mu_g():
+    v0, mu = 2.0, 0.3
+    sim = Simulation([floor(mu, mu), box('box', (0.2, 0.2, 0.2), 1.0, mu_s=mu, mu_k=mu)],
+                     states([[0, 0, 0], [0, 0, 0.1]], [[0, 0, 0], [v0, 0, 0]]), 120.0)
+    trace = sim.run(1.0)
+    x = trace.positions()[:, 1, 0]
+    speed = np.linalg.norm(np.asarray(trace.linear)[:, 1], axis=1)
+    law = v0 ** 2 / (2 * mu * G)
+    print(f'stopping distance {x[-1]:.4f} m, law {law:.4f} m, '
+          f'error {100 * (x[-1] - law) / law:.2f} %')
+    assert count(trace, ContactState.SLIDING) > 0 and trace.friction > 0.0
+    assert speed[-1] < 1e-6, 'the box did not stop'
+    assert abs(x[-1] - law) <= 0.02 * law
+    assert np.all(np.diff(x) >= -1e-9), 'friction pushed the box backwards'
+
+
+def slope(mu_s: float, mu_k: float, duration: float, angle_deg: float = 20.0):
+    """A 0.2 m box resting on a static plane inclined about y (rises along +x)."""
+    th = np.radians(angle_deg)
+    normal = np.array([-np.sin(th), 0.0, np.cos(th)])
+    q = [0.0, np.sin(-th / 2), 0.0, np.cos(-th / 2)]
+    bodies = [floor(mu_s, mu_k, normal=normal), box('box', (0.2, 0.2, 0.2), 1.0, mu_s=mu_s,
+                                                      mu_k=mu_k)]
+    sim = Simulation(bodies, states([[0, 0, 0], 0.1 * normal], np.zeros((2, 3)),
+                                    orientation=[[0, 0, 0, 1], q]), 120.0)
+    trace = sim.run(duration)
+    down = np.array([-np.cos(th), 0.0, -np.sin(th)])
+    travel = (trace.positions()[:, 1] - 0.1 * normal) @ down
+    return th, trace, travel
+
+
+def test_box_holds_on_20_degree_slope_with_static_friction():
+    th, trace, travel = slope(0.5, 0.3, 5.0)
+    print(f'drift down the slope after 5 s: {travel[-1] * 1000:.4f} mm '
+          f'(tan 20 deg = {np.tan(th):.3f} < mu_s 0.5)')
+    assert count(trace, ContactState.STICKING) > 0 and trace.friction > 0.0
+    assert np.max(np.abs(travel)) < 1e-3
+
+
+def test_box_slides_down_20_degree_slope_at_g_sin_minus_mu_cos():
+    mu = 0.2
+    th, trace, travel = slope(mu, mu, 1.0)
+    t = np.asarray(trace.time)
+    accel = 2.0 * np.polyfit(t, travel, 2)[0]
+    law = G * (np.sin(th) - mu * np.cos(th))
+    print(f'acceleration {accel:.5f} m/s^2, law {law:.5f} m/s^2')
+    assert count(trace, ContactState.SLIDING) > 0 and trace.friction > 0.0
+    assert abs(accel - law) <= 0.03 * law
+
+
+def test_box_resting_10s_at_240hz_stays_and_never_gains_energy():
+    sim = Simulation([floor(), box('box', (0.2, 0.2, 0.2), 1.0, mu_s=0.5, mu_k=0.3)],
+                     states([[0, 0, 0], [0, 0, 0.1]], np.zeros((2, 3))), 240.0)
+    start = sim.state.position[1].copy()
+    e0 = sim.energy()
+    trace = sim.run(10.0)
+    moved = np.linalg.norm(trace.positions()[:, 1] - start, axis=1)
+    print(f'largest displacement {moved.max() * 1000:.5f} mm, energy {e0} -> '
+          f'max {max(trace.energy)}')
+    assert trace.contacts >= 4 * len(trace.time), 'the box lost its contacts'
+    assert moved.max() < 1e-4
+    assert max(trace.energy) <= e0 + 1e-9
+
+
+def test_stack_of_five_boxes_stands_10s():
+    count_boxes, size = 5, 0.2
+    bodies = [floor()] + [box(f'b{i}', (size,) * 3, 1.0, mu_s=0.5, mu_k=0.3)
+                          for i in range(count_boxes)]
+    start = np.array([[0, 0, 0]] + [[0, 0, size / 2 + size * i] for i in range(count_boxes)],
+                     float)
+    sim = Simulation(bodies, states(start, np.zeros_like(start)), 120.0)
+    e0 = sim.energy()
+    trace = sim.run(10.0)
+    top = trace.positions()[:, -1]
+    drift = np.linalg.norm(top - start[-1], axis=1)
+    print(f'top box drift: max {drift.max() * 1000:.3f} mm, final {drift[-1] * 1000:.3f} mm; '
+          f'energy {e0:.4f} -> {trace.energy[-1]:.4f} J')
+    assert trace.contacts >= 4 * count_boxes * len(trace.time) * 0.99
+    assert drift.max() < 0.01
+    assert max(trace.energy) <= e0 + 1e-9

@@ -1,0 +1,50 @@
+"""A stand-in for core.world.World that records its calls (pipeline tests without physics)."""
+
+from __future__ import annotations
+
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.types import (
+    BodySpec, BodyStates, ContactReport, ContactSet, StepResult)
+
+
+class FakeWorld:
+    """Returns ``current`` (optionally changed by ``hook``) and the ``contacts`` it is given."""
+
+    def __init__(self, bodies: Sequence[BodySpec], settings: Optional[SolverSettings] = None
+                 ) -> None:
+        self.bodies = list(bodies)
+        self.settings = settings or SolverSettings()
+        self.calls: list[dict[str, Any]] = []
+        self.forgotten: list[list[int]] = []
+        self.materials: dict[int, dict[str, Any]] = {}
+        self.report: ContactReport = ContactReport.empty()
+        self.hook: Any = None
+
+    def set_material(self, index: int, **values: Any) -> None:
+        self.materials[index] = values
+
+    def forget(self, bodies: np.ndarray) -> None:
+        self.forgotten.append([int(i) for i in bodies])
+
+    def step(self, previous: BodyStates, current: BodyStates, dt: float,
+             active: Optional[np.ndarray] = None) -> StepResult:
+        self.calls.append({'previous': previous.copy(), 'current': current.copy(), 'dt': dt,
+                           'active': None if active is None else active.copy(),
+                           'settings': self.settings})
+        out = current.copy()
+        if self.hook is not None:
+            self.hook(out)
+        return StepResult(out, self.report)
+
+
+def one_contact(a: int, b: int, toi: float) -> ContactReport:
+    """A report with a single IMPACT contact between bodies a and b."""
+    contacts = ContactSet(np.array([a]), np.array([b]), np.array([[0.0, 0.0, 0.0]]),
+                          np.array([[0.0, 0.0, 1.0]]), np.array([-0.001]), np.array([toi]),
+                          np.array([1], np.int8), np.array([0]))
+    return ContactReport(contacts, np.array([0.5]), np.array([[0.1, 0.0, 0.0]]),
+                         np.array([1], np.uint8))

@@ -1,0 +1,220 @@
+"""Resolver history rules, quarantine and determinism (core/pipeline.py, core/validation.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from fake_world import FakeWorld, one_contact
+
+from collres_ros.core.pipeline import FRESH_DT, Resolver
+from collres_ros.core.types import BodyInput
+from collres_ros.params import scene_from_values
+
+MS = 1_000_000  # ns
+T0 = 5_000 * MS
+
+
+def scene():
+    return scene_from_values({
+        'bodies': ['floor', 'ball', 'box'],
+        'body.floor.shape': 'box', 'body.floor.size': [10.0, 10.0, 0.2],
+        'body.floor.static': True, 'body.floor.position': [0.0, 0.0, -0.1],
+        'body.ball.shape': 'sphere', 'body.ball.size': [0.1],
+        'body.ball.position': [0.0, 0.0, 1.0],
+        'body.box.shape': 'box', 'body.box.size': [0.2, 0.2, 0.2],
+        'body.box.position': [1.0, 0.0, 0.1],
+        'solver.max_dt': 0.5, 'stale_timeout': 0.05})
+
+
+def make(world=None):
+    s = scene()
+    world = world or FakeWorld(s.bodies, s.solver)
+    return Resolver(s, world=world), world
+
+
+def body(name, z=1.0, vz=0.0, q=(0.0, 0.0, 0.0, 1.0), frame='world', twist_frame='world',
+         x=0.0, wz=0.0):
+    return BodyInput(name, (x, 0.0, z), q, (0.0, 0.0, vz), (0.0, 0.0, wz), frame, twist_frame)
+
+
+def test_first_sight_starts_fresh_then_previous_is_last_corrected():
+    resolver, world = make()
+    first = resolver.resolve(T0, [body('ball', 1.0, -1.0)])
+    call = world.calls[-1]
+    assert call['dt'] == FRESH_DT
+    np.testing.assert_array_equal(call['previous'].position[1], call['current'].position[1])
+    assert [1] in world.forgotten
+    assert first.names == ['ball'] and [r.reason for r in first.resets] == []
+
+    def lift(states):
+        states.position[1, 2] += 0.25   # the "solver" moves the ball
+    world.hook = lift
+    resolver.resolve(T0 + 4 * MS, [body('ball', 0.99, -1.0)])
+    world.hook = None
+    out = resolver.resolve(T0 + 8 * MS, [body('ball', 0.98, -1.0)])
+    call = world.calls[-1]
+    print('dt', call['dt'], 'previous z', call['previous'].position[1, 2])
+    assert call['dt'] == pytest.approx(0.004, abs=1e-15)
+    assert call['previous'].position[1, 2] == pytest.approx(0.99 + 0.25, abs=1e-12)
+    assert call['current'].position[1, 2] == 0.98
+    assert out.states.position[0, 2] == 0.98
+
+
+def test_time_backwards_resets_that_body():
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0)])
+    resolver.resolve(T0 + 4 * MS, [body('ball', 0.9)])
+    world.forgotten.clear()
+    out = resolver.resolve(T0 + 2 * MS, [body('ball', 0.5)])
+    call = world.calls[-1]
+    assert [r.reason for r in out.resets] == ['time_backwards']
+    assert out.names == ['ball'] and out.states.position[0, 2] == 0.5
+    assert call['previous'].position[1, 2] == 0.5 and call['dt'] == FRESH_DT
+    assert [1] in world.forgotten
+    assert resolver.totals['time_backwards'] == 1
+
+
+def test_huge_dt_is_a_fresh_start():
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0)])
+    out = resolver.resolve(T0 + 2_000 * MS, [body('ball', 0.2)])
+    call = world.calls[-1]
+    assert [r.reason for r in out.resets] == ['large_gap']
+    assert call['previous'].position[1, 2] == 0.2 and call['dt'] == FRESH_DT
+
+
+@pytest.mark.parametrize('bad, reason', [
+    (body('ball', math.nan), 'non_finite'),
+    (body('ball', 1.0, vz=math.inf), 'non_finite'),
+    (body('ball', q=(0.0, 0.0, 0.0, 0.0)), 'zero_quaternion'),
+    (body('ball', q=(0.0, 0.0, 0.0, 1.5)), 'non_unit_quaternion'),
+    (body('ball', frame='map'), 'wrong_frame'),
+    (body('ball', twist_frame='base_link'), 'wrong_frame'),
+])
+def test_quarantine_holds_bad_body_and_serves_the_others(bad, reason):
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0, -1.0), body('box', 0.1, x=1.0)])
+    out = resolver.resolve(T0 + 4 * MS, [bad, body('box', 0.1, x=1.0)])
+    call = world.calls[-1]
+    assert [(r.body, r.reason) for r in out.rejected] == [('ball', reason)]
+    assert out.names == ['box']
+    assert call['active'].tolist() == [True, False, True]
+    # held at its last good state, finite
+    assert call['current'].position[1, 2] == 1.0 and call['current'].linear[1, 2] == -1.0
+    assert all(np.isfinite(getattr(call['current'], f)).all()
+               for f in ('position', 'orientation', 'linear', 'angular'))
+
+
+def test_unknown_and_duplicate_names_are_refused():
+    resolver, world = make()
+    out = resolver.resolve(T0, [body('ghost'), body('ball', 1.0), body('ball', 2.0),
+                                body('box', 0.1, x=1.0)])
+    assert sorted((r.body, r.reason) for r in out.rejected) == [
+        ('ball', 'duplicate_body'), ('ball', 'duplicate_body'), ('ghost', 'unknown_body')]
+    assert out.names == ['box']
+    assert resolver.totals['duplicate_body'] == 2 and resolver.totals['unknown_body'] == 1
+
+
+def test_repeated_stamp_is_refused():
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0)])
+    out = resolver.resolve(T0, [body('ball', 0.5)])
+    assert [r.reason for r in out.rejected] == ['repeated_stamp'] and out.names == []
+
+
+def test_near_unit_quaternion_is_normalised():
+    resolver, world = make()
+    out = resolver.resolve(T0, [body('ball', q=(0.0, 0.0, 0.0, 1.0005))])
+    assert not out.rejected
+    assert np.linalg.norm(out.states.orientation[0]) == pytest.approx(1.0, abs=1e-15)
+
+
+def test_body_frame_twist_is_rotated_to_world():
+    resolver, world = make()
+    half = math.sqrt(0.5)   # 90 deg about z: body x = world y
+    item = BodyInput('ball', (0.0, 0.0, 1.0), (0.0, 0.0, half, half), (1.0, 0.0, 0.0),
+                     (0.0, 0.0, 0.0), 'world', 'ball')
+    out = resolver.resolve(T0, [item])
+    np.testing.assert_allclose(world.calls[-1]['current'].linear[1], [0.0, 1.0, 0.0],
+                               atol=1e-12)
+    assert out.twist_in_body.tolist() == [True]
+
+
+def test_statics_take_params_pose_unless_published():
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0)])
+    assert world.calls[-1]['current'].position[0].tolist() == [0.0, 0.0, -0.1]
+    assert world.calls[-1]['active'][0]
+    resolver.resolve(T0 + 4 * MS, [body('ball', 1.0), body('floor', z=-0.3)])
+    assert world.calls[-1]['current'].position[0].tolist() == [0.0, 0.0, -0.3]
+
+
+def test_time_of_impact_is_absolute():
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0)])
+    world.report = one_contact(0, 1, 0.25)
+    out = resolver.resolve(T0 + 4 * MS, [body('ball', 0.9)])
+    print('toi_ns', out.toi_ns, 'expected', T0 + MS)
+    assert out.toi_ns.tolist() == [T0 + MS]
+    assert out.contact_names(0) == ('floor', 'ball')
+
+
+def test_non_finite_result_passes_input_through():
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0)])
+    world.hook = lambda states: states.linear.__setitem__((1, 0), math.nan)
+    out = resolver.resolve(T0 + 4 * MS, [body('ball', 0.9, -1.0)])
+    assert [r.reason for r in out.rejected] == ['non_finite_result']
+    assert out.states.position[0, 2] == 0.9 and out.states.linear[0, 2] == -1.0
+    assert np.isfinite(out.states.linear).all()
+
+
+def test_stale_bodies_are_reported():
+    resolver, world = make()
+    resolver.resolve(T0, [body('ball', 1.0), body('box', 0.1, x=1.0)])
+    out = resolver.resolve(T0 + 40 * MS, [body('ball', 1.0)])
+    assert out.stale == []
+    out = resolver.resolve(T0 + 80 * MS, [body('ball', 1.0)])
+    assert out.stale == ['box']
+
+
+def test_runtime_settings_and_materials_reach_the_world():
+    resolver, world = make()
+    resolver.settings = resolver.settings.with_values(velocity_iterations=33)
+    resolver.set_material('ball', restitution=0.1)
+    resolver.resolve(T0, [body('ball', 1.0)])
+    assert world.calls[-1]['settings'].velocity_iterations == 33
+    assert world.materials == {1: {'restitution': 0.1, 'static_friction': None,
+                                   'kinetic_friction': None}}
+
+
+def _world_available() -> bool:
+    try:
+        import collres_ros.core.world  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(not _world_available(), reason='core/world.py not there yet')
+def test_real_world_is_deterministic_bit_for_bit():
+    """Two resolvers fed the same falling-ball inputs give identical states and contacts."""
+    runs = []
+    for _ in range(2):
+        resolver = Resolver(scene())
+        z, v, dt = 0.3, 0.0, 1 / 240
+        outputs = []
+        for k in range(200):
+            v -= 9.81 * dt
+            z += v * dt
+            out = resolver.resolve(T0 + int(round(k * dt * 1e9)), [body('ball', z, v)])
+            z, v = out.states.position[0, 2], out.states.linear[0, 2]
+            outputs.append((out.states.position.tobytes(), out.states.linear.tobytes(),
+                            out.report.normal_impulse.tobytes(), out.toi_ns.tobytes()))
+        runs.append(outputs)
+    impacts = sum(1 for o in runs[0] if len(o[2]))
+    print('steps with contacts', impacts)
+    assert impacts > 0
+    assert runs[0] == runs[1]

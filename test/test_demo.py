@@ -67,12 +67,12 @@ def test_plot_and_bag_are_written(demo) -> None:
             assert topic in reader.topics
 
 
-def test_live_bag_replayed_offline_gives_the_live_corrected_states(demo, tmp_path: Path) -> None:
+def _largest_replay_difference(bag: Path, out: Path) -> float:
+    """Replay a live bag offline; the largest |live - offline| over all corrected states."""
     from collres_ros.bag import read_messages
     from collres_ros.replay import replay
     from collres_ros.resources import config_path
-    replay(demo.bag, tmp_path / 'replayed', config_path('collres.yaml'),
-           topics=('body_states/corrected',))
+    replay(bag, out, config_path('collres.yaml'), topics=('body_states/corrected',))
 
     def by_stamp(path: Path) -> dict:
         out = {}
@@ -86,7 +86,7 @@ def test_live_bag_replayed_offline_gives_the_live_corrected_states(demo, tmp_pat
                 for b in m.msg.bodies}
         return out
 
-    live, offline = by_stamp(demo.bag), by_stamp(tmp_path / 'replayed')
+    live, offline = by_stamp(bag), by_stamp(out)
     assert len(live) > 0 and sorted(live) == sorted(offline)
     worst = 0.0
     for stamp, bodies in live.items():
@@ -94,7 +94,25 @@ def test_live_bag_replayed_offline_gives_the_live_corrected_states(demo, tmp_pat
         for name, values in bodies.items():
             worst = max(worst, float(np.max(np.abs(values - offline[stamp][name]))))
     print(f'largest live vs offline difference: {worst:.3e}')
-    assert worst <= 1e-9
+    return worst
+
+
+def test_live_bag_replayed_offline_gives_the_live_corrected_states(demo, tmp_path: Path) -> None:
+    assert _largest_replay_difference(demo.bag, tmp_path / 'replayed') <= 1e-9
+
+
+def test_per_body_live_run_replays_to_the_same_states(tmp_path: Path) -> None:
+    """The sim on per-body topics over DDS; replay groups them by stamp like the node."""
+    from conftest import next_domain_id
+    from collres_ros.bag import BagReader
+    from collres_ros.demo import run_demo
+    result = run_demo(tmp_path / 'demo', duration=1.0, domain_id=next_domain_id(),
+                      progress=False, per_body=True)
+    assert result.ok, result.report.lines()
+    with BagReader(result.bag) as reader:
+        assert '/body_states' not in reader.topics
+        assert reader.topic_count('/bodies/ball/pose') == result.expected_steps
+    assert _largest_replay_difference(result.bag, tmp_path / 'replayed') <= 1e-9
 
 
 def test_demo_bad_params_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -301,9 +301,26 @@ def _check_files(argv: Sequence[str]) -> None:
             params.read_params_file(path, ())
 
 
+def _print_help_if_asked(argv: Sequence[str]) -> bool:
+    """``collres_node -h|--help`` (before any ``--ros-args``): print usage, True."""
+    own = argv[1:argv.index('--ros-args')] if '--ros-args' in argv else argv[1:]
+    if not {'-h', '--help'} & set(own):
+        return False
+    import argparse
+    parser = argparse.ArgumentParser(
+        prog=NAME, formatter_class=argparse.RawDescriptionHelpFormatter,
+        usage=f'{NAME} [-h] [--ros-args --params-file FILE [-p NAME:=VALUE ...]]',
+        description=__doc__, epilog='Parameters: see README.md, or print them with '
+        '`python -m collres_ros.params`.')
+    parser.print_help()
+    return True
+
+
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Console script ``collres_node``: 0 on a clean shutdown, 1 on a bad configuration."""
     argv = list(sys.argv if args is None else args)
+    if _print_help_if_asked(argv):
+        return 0
     if '--params-file' not in argv:
         default = default_params_file()
         if default is not None:

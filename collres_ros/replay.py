@@ -21,6 +21,7 @@ give identical decoded messages.
 from __future__ import annotations
 
 import argparse
+import os
 import struct
 import sys
 import time
@@ -352,9 +353,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ReplayError, BagError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
         return 1
-    print(f'wrote {args.out_bag}')
-    for line in summary.lines():
-        print(line)
+    try:
+        print(f'wrote {args.out_bag}')
+        for line in summary.lines():
+            print(line)
+        sys.stdout.flush()
+    except BrokenPipeError:  # e.g. piped into head: the bag is written, that is what counts
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 

@@ -97,3 +97,13 @@ def test_offline_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert main(['--offline', '--params', str(SCENES / 'bouncing_ball.yaml'),
                  '--record', str(tmp_path / 'b'), '--storage', 'hdf5']) == 1
     assert "unknown storage 'hdf5'" in capsys.readouterr().err
+
+
+def test_pile_scene_is_what_its_generator_writes(tmp_path: Path) -> None:
+    """config/scenes/pile.yaml is generated: edit tools/make_pile_scene.py, not the yaml."""
+    import subprocess
+    import sys
+    tool = Path(__file__).resolve().parent.parent / 'tools' / 'make_pile_scene.py'
+    subprocess.run([sys.executable, str(tool), str(tmp_path / 'pile.yaml')], check=True,
+                   capture_output=True)
+    assert (tmp_path / 'pile.yaml').read_text() == (SCENES / 'pile.yaml').read_text()

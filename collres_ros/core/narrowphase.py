@@ -8,9 +8,10 @@ the second, and the witness point on each shape (world, m).
 Speed: one ``coal.collide`` per pair is unavoidable, but reading a contact
 back field by field costs several coal calls per pair. ``NarrowPhase.batch``
 therefore runs all pairs into one CollisionResult and reads it in one go
-from coal's binary serialisation (a fixed 120-byte record per contact),
-checked against the field-by-field answer once per process; if the layout
-ever differs, it silently falls back to the field-by-field read.
+from coal's binary serialisation: a fixed 120-byte record per contact after
+the first (the first carries boost's class preamble and is read field by
+field), checked against the field-by-field answer on first use; if the
+layout ever differs, it falls back to the field-by-field read.
 """
 
 from __future__ import annotations
@@ -80,31 +81,42 @@ class NarrowPhase:
 
     def _read(self, result: coal.CollisionResult, count: int
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        first = result.getContact(0)
+        distance = np.empty(count)
+        normal, on_a, on_b = np.empty((count, 3)), np.empty((count, 3)), np.empty((count, 3))
+        distance[0], normal[0] = first.penetration_depth, first.normal
+        on_a[0], on_b[0] = first.getNearestPoint1(), first.getNearestPoint2()
+        if count == 1:
+            return distance, normal, on_a, on_b
+        records = None
         if self._binary_ok is not False:
             try:
-                records = self._read_binary(result, count)
+                records = self._read_binary(result, count - 1)
             except (OSError, ValueError):
                 records = None
             if records is not None and self._binary_ok is None:
                 self._binary_ok = self._agrees(records, result)
-            if records is not None and self._binary_ok:
-                return (records['distance'].copy(), records['normal'].copy(),
-                        records['p1'].copy(), records['p2'].copy())
-            self._binary_ok = False
-        contacts = result.getContacts()
-        return (np.array([c.penetration_depth for c in contacts]),
-                np.array([c.normal for c in contacts]),
-                np.array([c.getNearestPoint1() for c in contacts]),
-                np.array([c.getNearestPoint2() for c in contacts]))
+            if not self._binary_ok:
+                self._binary_ok, records = False, None
+        if records is not None:
+            distance[1:], normal[1:] = records['distance'], records['normal']
+            on_a[1:], on_b[1:] = records['p1'], records['p2']
+            return distance, normal, on_a, on_b
+        for k in range(1, count):
+            c = result.getContact(k)
+            distance[k], normal[k] = c.penetration_depth, c.normal
+            on_a[k], on_b[k] = c.getNearestPoint1(), c.getNearestPoint2()
+        return distance, normal, on_a, on_b
 
-    def _read_binary(self, result: coal.CollisionResult, count: int) -> np.ndarray | None:
+    def _read_binary(self, result: coal.CollisionResult, last: int) -> np.ndarray | None:
+        """The ``last`` contacts of ``result`` as records (contacts 1.., not the first)."""
         result.saveToBinary(self._dump)
         with open(self._dump, 'rb') as stream:
             data = stream.read()
-        start = len(data) - _TAIL - count * _RECORD.itemsize
+        start = len(data) - _TAIL - last * _RECORD.itemsize
         if start < 0:
             return None
-        records = np.frombuffer(data, dtype=_RECORD, count=count, offset=start)
+        records = np.frombuffer(data, dtype=_RECORD, count=last, offset=start)
         if not np.all(records['count'] == 2):
             return None
         return records
@@ -112,7 +124,7 @@ class NarrowPhase:
     @staticmethod
     def _agrees(records: np.ndarray, result: coal.CollisionResult) -> bool:
         for k in (0, len(records) - 1):
-            c = result.getContact(k)
+            c = result.getContact(k + 1)
             expected = np.concatenate(([c.penetration_depth], c.normal,
                                        c.getNearestPoint1(), c.getNearestPoint2()))
             got = np.concatenate(([records['distance'][k]], records['normal'][k],

@@ -80,7 +80,11 @@ def body_inertia(spec: BodySpec) -> np.ndarray:
 
 
 def energy(traj: Trajectory, specs: Sequence[BodySpec], gravity: np.ndarray) -> np.ndarray:
-    """Total mechanical energy (T,) J: kinetic + potential -m g.x of the dynamic bodies."""
+    """Return the total mechanical energy, J per sample: kinetic + potential, dynamic bodies.
+
+    Kinetic 1/2 m v^2 + 1/2 w.I w (principal inertia, body frame); potential
+    -m g.x (zero at the world origin). Shape (T,).
+    """
     mass = np.array([s.mass for s in specs])
     inertia = np.array([body_inertia(s) for s in specs])
     rot = to_matrix(traj.orientation)                          # (T, N, 3, 3)
@@ -278,7 +282,7 @@ def _bounce(traj: Trajectory, start: Trajectory, dynamic: Sequence[BodySpec],
             specs: Sequence[BodySpec], g: np.ndarray, first_impact: dict[str, Any],
             rule: str, initial: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
             ) -> BounceCheck | None:
-    """The e^2 law for the first sphere dropped from rest that hit something."""
+    """Check the e^2 law on the first sphere dropped from rest that hit something."""
     norm = float(np.linalg.norm(g))
     if norm == 0:
         return None

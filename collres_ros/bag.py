@@ -43,7 +43,7 @@ class BagError(Exception):
 
 @lru_cache(maxsize=1)
 def typestore() -> Typestore:
-    """The Jazzy typestore with the ``collres_ros/msg/*`` types registered."""
+    """Return the Jazzy typestore with the ``collres_ros/msg/*`` types registered."""
     store = get_typestore(Stores.ROS2_JAZZY)
     types: dict[str, Any] = {}
     for name in MESSAGE_NAMES:
@@ -61,7 +61,7 @@ def type_name(msg: Any) -> str:
 
 @lru_cache(maxsize=None)
 def message_class(msgtype: str) -> type:
-    """The rclpy class of a wire type name ('pkg/msg/Name'); BagError when unknown."""
+    """Return the rclpy class of a wire type name ('pkg/msg/Name'); BagError if unknown."""
     parts = msgtype.split('/')
     if len(parts) != 3:
         raise BagError(f'malformed message type {msgtype!r}')
@@ -223,7 +223,7 @@ class BagReader:
             yield connection.topic, connection.msgtype, int(log_time), bytes(data)
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
-        """Decoded rclpy messages in log-time order, optionally only ``topics``."""
+        """Yield decoded rclpy messages in log-time order, optionally only ``topics``."""
         from rclpy.serialization import deserialize_message
         for topic, msgtype, log_time, data in self.raw(topics):
             yield BagMessage(topic, msgtype, log_time,
@@ -237,7 +237,7 @@ def read_messages(path: str | Path, topics: Iterable[str] | None = None) -> list
 
 
 def message_fields(msg: Any) -> Any:
-    """A message as nested plain Python values (dicts, lists, floats) for comparison."""
+    """Return a message as nested plain Python values (dicts, lists, floats) to compare."""
     if hasattr(msg, 'get_fields_and_field_types'):
         return {name: message_fields(getattr(msg, name))
                 for name in msg.get_fields_and_field_types()}

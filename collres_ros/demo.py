@@ -57,7 +57,7 @@ class DemoResult:
 
 
 def _private_domain_id() -> int:
-    """A domain id unlikely to collide with other runs on this host (1..100)."""
+    """Pick a domain id unlikely to collide with other runs on this host (1..100)."""
     return 1 + (os.getpid() + int(time.time())) % 100
 
 
@@ -172,7 +172,7 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
 
 
 def summary_lines(result: DemoResult) -> list[str]:
-    """The ten-second report."""
+    """Return the ten-second report, line by line."""
     lines = [f'collres demo: node + sim over DDS (ROS_DOMAIN_ID {result.domain_id}), '
              f'{result.wall_s:.1f} s']
     lines += result.report.lines()
@@ -180,8 +180,8 @@ def summary_lines(result: DemoResult) -> list[str]:
               + ('' if result.report.dropped == 0 else '  <-- must be zero'),
               f'processes: collres_node exit {result.node_exit}, '
               f'collres_sim exit {result.sim_exit}',
-              f'bag:  {result.bag}',
-              f'plot: {result.plot}']
+              f'bag:  {result.bag.resolve()}',
+              f'plot: {result.plot.resolve()}']
     return lines
 
 

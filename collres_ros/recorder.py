@@ -63,7 +63,7 @@ class Recorder:
         return write
 
     def subscription(self, topic: str) -> Any | None:
-        """The recorder's subscription of ``topic`` (absolute name), None before discovery."""
+        """Return the subscription of ``topic`` (absolute name), None before discovery."""
         return self._subscriptions.get(topic)
 
     @property

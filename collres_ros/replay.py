@@ -73,30 +73,28 @@ class ReplaySummary:
 
 
 class OfflineDiagnostics:
-    """/diagnostics of an offline run, as the node reports them, on the stamps' clock.
+    """/diagnostics of an offline run, as collres_node reports them, on the stamps' clock.
 
     A snapshot every ``period`` s of stamp time (the node's
-    ``diagnostics_period``): steps, rate (steps per second of stamp time),
-    contacts of the last step, rejected and reset inputs by reason (cumulative)
-    and stale bodies. Step times are wall-clock figures: they are reported
-    only with ``timings=True``, otherwise 0, so that a replay is deterministic.
+    ``diagnostics_period``) with the node's fields: steps, rate (steps per
+    second of stamp time here), contacts of the last step, the resolver's
+    totals by reason, stale bodies, and the extras (bodies, sync_dropped,
+    contacts_total). Step times are wall-clock figures: reported only with
+    ``timings=True``, otherwise 0, so that a replay is deterministic.
     """
 
     def __init__(self, period: float, timings: bool = False) -> None:
         self.period_ns = int(round(period * 1e9))
         self.timings = timings
         self.steps = 0
-        self.counts: dict[str, int] = {}
         self._last_ns: int | None = None
         self._steps_at_last = 0
         self._times: list[float] = []
 
-    def update(self, resolved: Any) -> Any | None:
+    def update(self, resolved: Any, resolver: Any, sync_dropped: int = 0) -> Any | None:
         """Account for one ResolvedStep; a DiagnosticsSnapshot when one is due, else None."""
         from collres_ros.messages import DiagnosticsSnapshot
         self.steps += 1
-        for item in list(resolved.rejected) + list(getattr(resolved, 'resets', [])):
-            self.counts[item.reason] = self.counts.get(item.reason, 0) + 1
         self._times.append(float(getattr(resolved, 'step_time_s', 0.0)))
         stamp = int(resolved.stamp_ns)
         if self._last_ns is None:
@@ -106,11 +104,15 @@ class OfflineDiagnostics:
             return None
         rate = (self.steps - self._steps_at_last) / (elapsed * 1e-9) if elapsed > 0 else 0.0
         times = self._times if self.timings else [0.0]
+        totals = resolver.totals
         snapshot = DiagnosticsSnapshot(
-            stamp_ns=stamp, steps=self.steps, rate_hz=rate,
+            stamp_ns=stamp, steps=int(totals.get('steps', self.steps)), rate_hz=rate,
             step_time_mean_ms=1000.0 * sum(times) / len(times),
             step_time_max_ms=1000.0 * max(times), contacts=int(resolved.report.contacts.count),
-            counts=dict(self.counts), stale=list(getattr(resolved, 'stale', [])))
+            counts={k: v for k, v in totals.items() if k not in ('steps', 'contacts')},
+            stale=sorted(getattr(resolved, 'stale', [])),
+            extra={'bodies': len(resolver.bodies), 'sync_dropped': sync_dropped,
+                   'contacts_total': int(totals.get('contacts', 0))})
         self._last_ns, self._steps_at_last, self._times = stamp, self.steps, []
         return snapshot
 
@@ -188,7 +190,7 @@ class BatchedSource:
 
 
 def read_steps(reader: Any, scene: Any, namespace: str) -> tuple[Any, int]:
-    """A step source (``.steps(reader)``, ``.incomplete``) for a bag and its step count.
+    """Return a step source (``.steps(reader)``, ``.incomplete``) and the step count.
 
     Batched if the bag has body_states, else per body.
 
@@ -198,7 +200,6 @@ def read_steps(reader: Any, scene: Any, namespace: str) -> tuple[Any, int]:
     batched = topic_name('body_states', namespace)
     if batched in topics:
         return BatchedSource(batched), reader.topic_count(batched)
-    dynamic = [b.name for b in scene.bodies if not b.static]
     wanted = {}
     for body in scene.bodies:
         for kind in ('pose', 'twist'):
@@ -209,41 +210,55 @@ def read_steps(reader: Any, scene: Any, namespace: str) -> tuple[Any, int]:
         raise ReplayError(f'no input topics in {reader.path}: expected {batched} or '
                           f'{topic_name("bodies/<name>/pose", namespace)} and .../twist '
                           f'(found: {", ".join(sorted(topics)) or "none"})')
-    grouper = PerBodyGrouper(wanted, dynamic)
+    grouper = PerBodyGrouper(wanted, scene)
     return grouper, min(reader.topic_count(t) for t in wanted)
 
 
 class PerBodyGrouper:
-    """Group per-body pose/twist messages by stamp; a step once every dynamic body has both.
+    """Per-body pose/twist messages grouped into steps by the node's own ``StampSync``.
 
-    Stamps older than a completed one can no longer complete in order: they
-    are dropped (as the node's exact sync does) and counted in ``incomplete``.
+    Same rules as collres_node: a step once every (non-stale) dynamic body
+    has a pose and a twist for the stamp (within ``sync_slop``); static bodies
+    join with their pose (twist optional); groups overtaken by a newer
+    complete one are dropped and counted in ``incomplete``.
     """
 
-    def __init__(self, wanted: dict[str, tuple[str, str]], dynamic: Sequence[str]) -> None:
+    def __init__(self, wanted: dict[str, tuple[str, str]], scene: Any) -> None:
+        from collres_ros.sync import StampSync
         self.wanted = wanted
-        self.required = set(dynamic)
+        self.dynamic = [b.name for b in scene.bodies if not b.static]
+        node = scene.node
+        self.sync = StampSync(self.dynamic, [b.name for b in scene.bodies if b.static],
+                              int(round(node.sync_slop * 1e9)),
+                              int(round(node.stale_timeout * 1e9)))
         self.incomplete = 0
 
+    @property
+    def sync_dropped(self) -> int:
+        return int(self.sync.dropped)
+
     def steps(self, reader: Any) -> Iterator[Step]:
-        from collres_ros import messages
-        pending: dict[int, dict[str, dict[str, Any]]] = {}
         for m in reader.messages(list(self.wanted)):
             name, kind = self.wanted[m.topic]
-            stamp = _stamp_ns(m.msg.header.stamp)
-            group = pending.setdefault(stamp, {})
-            group.setdefault(name, {})[kind] = m.msg
-            complete = {n for n, parts in group.items() if len(parts) == 2}
-            if not self.required <= complete:
+            for group in self.sync.add(name, kind, _stamp_ns(m.msg.header.stamp), m.msg):
+                yield Step(group.stamp_ns, m.log_time, self._inputs(group), True)
+        self.incomplete = self.sync.dropped + len(self.sync.pending)
+
+    def _inputs(self, group: Any) -> list[Any]:
+        """Convert a complete group to BodyInputs (as collres_node's ``_group_inputs``)."""
+        from geometry_msgs.msg import TwistStamped
+
+        from collres_ros import messages
+        inputs = []
+        for name, parts in group.parts.items():
+            pose, twist = parts.get('pose'), parts.get('twist')
+            if pose is None or (twist is None and name in self.dynamic):
                 continue
-            del pending[stamp]
-            inputs = [messages.input_from_pose_twist(n, parts['pose'], parts['twist'])
-                      for n, parts in sorted(group.items()) if len(parts) == 2]
-            yield Step(stamp, m.log_time, inputs, True)
-            for old in [s for s in pending if s < stamp]:
-                del pending[old]
-                self.incomplete += 1
-        self.incomplete += len(pending)
+            if twist is None:   # a static body may publish its pose only
+                twist = TwistStamped()
+                twist.header.frame_id = pose.header.frame_id
+            inputs.append(messages.input_from_pose_twist(name, pose, twist))
+        return inputs
 
 
 def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None,
@@ -278,7 +293,9 @@ def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None
                     resolved, scene.world_frame,
                     per_body=step.per_body and scene.node.per_body_outputs,
                     marker_lifetime=scene.node.marker_lifetime,
-                    diagnostics=diagnostics.update(resolved))
+                    diagnostics=diagnostics.update(resolved, resolver,
+                                                   getattr(source, 'sync_dropped', 0)),
+                    markers=topics is None or 'contact_markers' in topics)
                 for topic, msg in outputs:
                     if topics is None or topic in topics:
                         writer.write(topic_name(topic, namespace) if not topic.startswith('/')

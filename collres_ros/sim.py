@@ -54,7 +54,7 @@ def stamps(rate_hz: float, duration: float, start_ns: int = START_NS) -> list[in
 
 def states_to_msg(names: Sequence[str], states: BodyStates, rows: Sequence[int],
                   stamp_ns: int, frame_id: str) -> Any:
-    """BodyStateArray of bodies ``rows`` of ``states`` (world frame) at ``stamp_ns``."""
+    """Build the BodyStateArray of bodies ``rows`` of ``states`` (world frame) at a stamp."""
     from collres_ros.msg import BodyState, BodyStateArray
     msg = BodyStateArray()
     msg.header.frame_id = frame_id
@@ -162,6 +162,8 @@ def run_loop(sim: SimScene, exchange: Callable[[int, Any], Any | None],
 
 @dataclass
 class OfflineSummary:
+    """What an offline run recorded: steps, bag messages, contacts by state, wall time (s)."""
+
     steps: int
     messages: int
     contacts: dict[str, int]
@@ -169,12 +171,13 @@ class OfflineSummary:
 
 
 def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
-             on_step: Callable[[int, int], None] | None = None) -> int:
+             on_step: Callable[[int, int], None] | None = None, markers: bool = True) -> int:
     """Run the scene through the core in-process; returns the number of steps.
 
     ``sink(stamp_ns, [(topic, msg), ...])`` gets, per step, ('body_states',
     input) followed by every output of the node's message builder (relative
-    topic names, as the node publishes them).
+    topic names, as the node publishes them). ``markers`` False skips
+    building contact_markers (they dominate the cost with many contacts).
     """
     from collres_ros import messages
     from collres_ros.core.pipeline import Resolver
@@ -187,7 +190,8 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
         step = resolver.resolve(stamp, messages.inputs_from_array(msg))
         outputs = messages.build_outputs(step, sim.world_frame, per_body=False,
                                          marker_lifetime=node.marker_lifetime,
-                                         diagnostics=diagnostics.update(step))
+                                         diagnostics=diagnostics.update(step, resolver),
+                                         markers=markers)
         sink(stamp, [(STATES_TOPIC, msg)] + outputs)
         return dict(outputs)[CORRECTED_TOPIC]
 
@@ -220,7 +224,8 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
                         key = STATE_NAMES.get(contact.state, str(contact.state))
                         contacts[key] = contacts.get(key, 0) + 1
 
-        steps = run_core(sim, sink, show)
+        steps = run_core(sim, sink, show,
+                         markers=topics is None or 'contact_markers' in topics)
         messages = writer.count
     if progress:
         print(file=sys.stderr)
@@ -240,7 +245,7 @@ def absolute(topic: str, namespace: str = '/') -> str:
 # --- live --------------------------------------------------------------------------------------
 
 def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> int:
-    """The DDS loop: publish, wait for the corrected state, adopt, integrate."""
+    """Run the DDS loop: publish, wait for the corrected state, adopt, integrate."""
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node

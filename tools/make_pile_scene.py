@@ -25,7 +25,7 @@ HEIGHT = 1.0      # m, wall height
 
 
 def unit_quaternion(rng: random.Random) -> list[float]:
-    """A uniformly random rotation, x, y, z, w (Shoemake)."""
+    """Draw a uniformly random rotation, x, y, z, w (Shoemake)."""
     u1, u2, u3 = rng.random(), rng.random(), rng.random()
     a, b = math.sqrt(1 - u1), math.sqrt(u1)
     return [a * math.sin(2 * math.pi * u2), a * math.cos(2 * math.pi * u2),

@@ -3,7 +3,10 @@
 
 Usage (also ``make goldens``)::
 
-    .venv/bin/python tools/regenerate_goldens.py [SCENE ...]
+    .venv/bin/python tools/regenerate_goldens.py [--out DIR] [SCENE ...]
+
+``--out DIR`` writes elsewhere (e.g. to review the physical checks of a core
+change before replacing the shipped goldens).
 
 For each shipped scene (config/scenes/<scene>.yaml), over a short duration:
 
@@ -187,10 +190,10 @@ CHECKS: dict[str, Callable[[Run], list[Check]]] = {
 }
 
 
-def regenerate(scene: str) -> tuple[list[Check], int]:
-    """Write test/data/<scene>/{input,golden}; returns the checks and the bytes written."""
+def regenerate(scene: str, data_dir: Path = DATA_DIR) -> tuple[list[Check], int]:
+    """Write <data_dir>/<scene>/{input,golden}; returns the checks and the bytes written."""
     params = SCENES_DIR / f'{scene}.yaml'
-    target = DATA_DIR / scene
+    target = data_dir / scene
     with tempfile.TemporaryDirectory() as scratch:
         tmp = Path(scratch)
         sim = load_sim_scene(params, DURATIONS[scene])
@@ -208,6 +211,12 @@ def regenerate(scene: str) -> tuple[list[Check], int]:
 
 
 def main(argv: list[str]) -> int:
+    data_dir = DATA_DIR
+    if argv[:1] == ['--out']:
+        if len(argv) < 2:
+            print('error: --out needs a directory', file=sys.stderr)
+            return 1
+        data_dir, argv = Path(argv[1]), argv[2:]
     scenes = argv or list(DURATIONS)
     unknown = [s for s in scenes if s not in DURATIONS]
     if unknown:
@@ -217,9 +226,9 @@ def main(argv: list[str]) -> int:
     failed = 0
     total = 0
     for scene in scenes:
-        checks, size = regenerate(scene)
+        checks, size = regenerate(scene, data_dir)
         total += size
-        print(f'{scene}: {DURATIONS[scene]} s, {size / 1024:.1f} KiB -> test/data/{scene}/')
+        print(f'{scene}: {DURATIONS[scene]} s, {size / 1024:.1f} KiB -> {data_dir / scene}/')
         for check in checks:
             print(check.line())
         failed += sum(not c.ok for c in checks)

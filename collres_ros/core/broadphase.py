@@ -49,17 +49,17 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     start = lo[order, axis]
     # for the k-th box in sweep order, the boxes after it that start before it ends
     stop = np.searchsorted(start, hi[order, axis], side='right')
-    first = np.arange(1, count + 1)
-    length = np.maximum(stop - first, 0)
+    length = np.maximum(stop - np.arange(1, count + 1), 0)
     total = int(length.sum())
     if total == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     left = np.repeat(np.arange(count), length)
-    offsets = np.arange(total) - np.repeat(np.cumsum(length) - length, length)
-    right = left + 1 + offsets
-    i, j = order[left], order[right]
-    keep = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
-    i, j = i[keep], j[keep]
+    right = left + 1 + (np.arange(total) - np.repeat(np.cumsum(length) - length, length))
+    keep = np.ones(total, bool)
+    for other in {0, 1, 2} - {axis}:   # the sweep axis overlaps by construction
+        low, high = lo[order, other], hi[order, other]
+        keep &= (low[left] <= high[right]) & (low[right] <= high[left])
+    i, j = order[left[keep]], order[right[keep]]
     a, b = np.minimum(i, j), np.maximum(i, j)
     key = np.lexsort((b, a))
     return a[key].astype(np.int64), b[key].astype(np.int64)
@@ -87,7 +87,7 @@ class FatPairs:
             self._rebuild(lo, hi)
         else:
             escaped = np.flatnonzero(np.any((lo < self._lo) | (hi > self._hi), axis=1))
-            if escaped.shape[0] * lo.shape[0] > 4 * max(self._i.shape[0], lo.shape[0]):
+            if escaped.shape[0] * lo.shape[0] > 32 * max(self._i.shape[0], lo.shape[0]):
                 self._rebuild(lo, hi)
             elif escaped.shape[0]:
                 self._update(escaped, lo, hi)

@@ -67,6 +67,7 @@ class _Step:
     turn: np.ndarray     # (N,) rad, rotation over the step
     moved: np.ndarray    # (N,) m, bound on any point's travel over the step
     fixed: np.ndarray    # (N,) bool, static or inactive: never moved by the solver
+    valid: np.ndarray    # (N,) bool, finite poses: bodies without them get no contacts
 
 
 @dataclass
@@ -163,6 +164,15 @@ class CollisionWorld:
               active: np.ndarray | None) -> _Step:
         p0, q0 = previous.position, previous.orientation
         p1, q1 = current.position, current.orientation
+        valid = np.ones(len(self.specs), bool)
+        for array in (p0, p1, q0, q1):
+            valid &= np.all(np.isfinite(array), axis=1)
+        for q in (q0, q1):
+            valid &= np.linalg.norm(np.where(np.isfinite(q), q, 0.0), axis=1) > 0.5
+        if not np.all(valid):   # the caller validates; this only keeps NaN out of coal
+            p0, p1 = (np.where(valid[:, None], p, 0.0) for p in (p0, p1))
+            q0, q1 = (np.where(valid[:, None], q, [0.0, 0.0, 0.0, 1.0]) for q in (q0, q1))
+        q0, q1 = rotation.normalize(q0), rotation.normalize(q1)
         fixed = self._static.copy()
         if active is not None:
             frozen = ~np.asarray(active, dtype=bool)
@@ -174,7 +184,7 @@ class CollisionWorld:
                                                                    self._radius)
         moved = np.where(np.isfinite(moved), moved, 0.0)
         return _Step(p0, p1, q0, q1, rotation.to_matrix(q0), rotation.to_matrix(q1),
-                     turn, moved, fixed)
+                     turn, moved, fixed, valid)
 
     def _pairs(self, step: _Step) -> tuple[np.ndarray, np.ndarray]:
         """Candidate pairs (a < b), sorted, with at least one movable body."""
@@ -200,7 +210,7 @@ class CollisionWorld:
                 found_a.append(np.minimum(near, k))
                 found_b.append(np.maximum(near, k))
         a, b = np.concatenate(found_a), np.concatenate(found_b)
-        keep = ~(step.fixed[a] & step.fixed[b])
+        keep = ~(step.fixed[a] & step.fixed[b]) & step.valid[a] & step.valid[b]
         key = np.unique(a[keep] * len(self.specs) + b[keep])
         return key // len(self.specs), key % len(self.specs)
 
@@ -232,9 +242,10 @@ class CollisionWorld:
         rows = np.flatnonzero(reused[stored.row_pair])
         pair = stored.row_pair[rows]
         ra, rb = stored.key[pair] // len(self.specs), stored.key[pair] % len(self.specs)
-        on_a = np.einsum('nij,nj->ni', step.r1[ra], stored.local_a[rows]) + step.p1[ra]
+        turn_a = step.r1[ra]
+        on_a = np.einsum('nij,nj->ni', turn_a, stored.local_a[rows]) + step.p1[ra]
         on_b = np.einsum('nij,nj->ni', step.r1[rb], stored.local_b[rows]) + step.p1[rb]
-        normal = np.einsum('nij,nj->ni', step.r1[ra], stored.normal_a[rows])
+        normal = np.einsum('nij,nj->ni', turn_a, stored.normal_a[rows])
         separation = np.einsum('ni,ni->n', on_b - on_a, normal)
         # a pair whose every point left the margin is no longer in contact
         starts = np.flatnonzero(np.r_[True, pair[1:] != pair[:-1]])
@@ -270,11 +281,13 @@ class CollisionWorld:
         maybe_hit = settings.ccd & (relative > distance)
         raw = _Raw()
         single = persistent & (self._round[a] | self._round[b])   # a sphere touches at a point
-        for k in np.flatnonzero(single):
-            raw.add(al[k], bl[k], on_a[k:k + 1], on_b[k:k + 1], normal[k], 0.0,
-                    ContactKind.PERSISTENT)
-        for k in np.flatnonzero(persistent & ~single):
-            self._current_manifold(al[k], bl[k], raw)
+        raw.singles = (a[single], b[single], on_a[single], on_b[single], normal[single])
+        for k in np.flatnonzero(persistent & ~single).tolist():
+            self._narrow.load(k)
+            a_k, b_k = al[k], bl[k]
+            on_a_k, on_b_k, normal_k = self._narrow.manifold(geoms[a_k], tfs[a_k], geoms[b_k],
+                                                             tfs[b_k])
+            raw.add(a_k, b_k, on_a_k, on_b_k, normal_k, 0.0, ContactKind.PERSISTENT)
         for k in np.flatnonzero(~persistent & (near | maybe_hit)):
             self._classify(step, al[k], bl[k], float(distance[k]), float(relative[k]),
                            bool(near[k]), raw)
@@ -346,27 +359,33 @@ class CollisionWorld:
 
     def _finish(self, step: _Step, raw: '_Raw', out: '_Rows') -> None:
         """Turn the raw coal points into contact rows, all pairs at once."""
-        if not raw.a:
+        s_a, s_b, s_on_a, s_on_b, s_normal = raw.singles
+        m = s_a.shape[0]
+        if m + len(raw.a) == 0:
             return
-        a, b = np.array(raw.a, np.int64), np.array(raw.b, np.int64)
-        count = np.array(raw.count)
+        a = np.concatenate((s_a, np.array(raw.a, np.int64))).astype(np.int64)
+        b = np.concatenate((s_b, np.array(raw.b, np.int64))).astype(np.int64)
+        count = np.concatenate((np.ones(m, np.int64), np.array(raw.count, np.int64)))
         ra, pa, rb, pb = step.r1[a], step.p1[a], step.r1[b], step.p1[b]
         for k, (r_a, p_a, r_b, p_b) in raw.poses.items():   # contacts at a time of impact
-            ra[k], pa[k], rb[k], pb[k] = r_a, p_a, r_b, p_b
-        normal = np.array(raw.normal, dtype=float)
+            ra[m + k], pa[m + k], rb[m + k], pb[m + k] = r_a, p_a, r_b, p_b
+        normal = np.concatenate((s_normal, np.array(raw.normal, dtype=float).reshape(-1, 3)))
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         row = np.repeat(np.arange(a.shape[0]), count)
-        on_a, on_b = np.concatenate(raw.on_a), np.concatenate(raw.on_b)
+        on_a, on_b = np.concatenate([s_on_a] + raw.on_a), np.concatenate([s_on_b] + raw.on_b)
         normal_rows = normal[row]
         separation = np.einsum('ni,ni->n', on_b - on_a, normal_rows)
-        separation = np.fmin(separation, np.array(raw.cap)[row])   # nan: no cap
+        cap = np.concatenate((np.full(m, np.nan), raw.cap))   # nan: no cap
+        separation = np.fmin(separation, cap[row])
         local_a = np.einsum('nji,nj->ni', ra[row], on_a - pa[row])
         local_b = np.einsum('nji,nj->ni', rb[row], on_b - pb[row])
         feature = _features(row, local_a, local_b, self._half[a[row]], self._half[b[row]])
         rel_p, rel_q = _relative(step, a, b)
-        kind = np.array(raw.kind, np.int8)
+        kind = np.concatenate((np.full(m, ContactKind.PERSISTENT, np.int8),
+                               np.array(raw.kind, np.int8)))
+        toi = np.concatenate((np.zeros(m), raw.toi))
         out.add_block(a[row], b[row], on_a, on_b, normal_rows, separation,
-                      np.array(raw.toi)[row], kind[row], feature, local_a, local_b,
+                      toi[row], kind[row], feature, local_a, local_b,
                       np.einsum('nji,nj->ni', ra[row], normal_rows), rel_p[row], rel_q[row],
                       cache=(kind == ContactKind.PERSISTENT)[row])
 
@@ -438,6 +457,10 @@ class _Raw:
         self.kind: list[int] = []
         self.cap: list[float] = []
         self.poses: dict[int, tuple[np.ndarray, ...]] = {}
+        z3 = np.zeros((0, 3))
+        # single-point persistent pairs straight from the batch: (a, b, on_a, on_b, normal)
+        self.singles: tuple[np.ndarray, ...] = (np.zeros(0, np.int64), np.zeros(0, np.int64),
+                                                z3, z3, z3)
 
     def add(self, a: int, b: int, on_a: np.ndarray, on_b: np.ndarray, normal: np.ndarray,
             toi: float, kind: ContactKind, cap: float | None = None,
@@ -484,11 +507,10 @@ class _Rows:
         if not self.blocks:
             return ContactSet.empty()
         a, b, on_a, on_b, normal, separation, toi, kind, feature = self._columns()[:9]
-        order = np.lexsort((feature, b, a))
-        return ContactSet(a[order].astype(np.int64), b[order].astype(np.int64),
-                          0.5 * (on_a[order] + on_b[order]), normal[order],
-                          separation[order].astype(float), toi[order].astype(float),
-                          kind[order].astype(np.int8), feature[order].astype(np.int64))
+        # rows come grouped by pair: stored manifolds in pair order, then new pairs
+        return ContactSet(a.astype(np.int64), b.astype(np.int64), 0.5 * (on_a + on_b),
+                          normal, separation.astype(float), toi.astype(float),
+                          kind.astype(np.int8), feature.astype(np.int64))
 
     def manifolds(self, count: int) -> _Manifolds:
         """The persistent rows, grouped by pair, stored for reuse next step."""

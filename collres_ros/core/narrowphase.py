@@ -145,6 +145,12 @@ class NarrowPhase:
         c = self._result.getContact(0)
         return c.penetration_depth, c.normal, c.getNearestPoint1(), c.getNearestPoint2()
 
+    def load(self, index: int) -> None:
+        """Make contact ``index`` of the last ``batch`` the one ``manifold`` works on
+        (instead of querying the pair again)."""
+        self._result.clear()
+        self._result.addContact(self._batch_result.getContact(index))
+
     def overlaps(self, ga: coal.CollisionGeometry, ta: coal.Transform3s,
                  gb: coal.CollisionGeometry, tb: coal.Transform3s) -> bool:
         """True when the shapes interpenetrate (distance < 0)."""
@@ -175,8 +181,10 @@ class NarrowPhase:
             patch = self._patch_result.getContactPatch(0)
             size = patch.size()
             if size > 1:
-                on_a = np.array([patch.getPointShape1(k) for k in range(size)])
-                on_b = np.array([patch.getPointShape2(k) for k in range(size)])
-                return on_a, on_b, normal
+                # the patch is a polygon on the separating plane, at one signed depth:
+                # each body's point is half of it along the normal from there
+                middle = np.array([patch.getPoint(k) for k in range(size)])
+                half = 0.5 * patch.penetration_depth * np.asarray(patch.getNormal())
+                return middle - half, middle + half, normal
         return (np.asarray(c.getNearestPoint1(), dtype=float)[None, :],
                 np.asarray(c.getNearestPoint2(), dtype=float)[None, :], normal)

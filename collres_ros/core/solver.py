@@ -33,24 +33,50 @@ import numpy as np
 from collres_ros.core.types import ContactState
 
 _TINY = 1e-12
+MAX_COLOURS = 8   # more colours are merged (mass splitting); bounds the batches per iteration
+
+
+@dataclass
+class Batch:
+    """One colour: its P distinct pairs, each padded to K rows (padding rows do nothing).
+
+    Per-row constants are copied into (P, K, ...) arrays so that one numpy call
+    handles every point of every pair of the colour; the accumulated impulses
+    of the colour live here while iterating.
+    """
+
+    pairs: np.ndarray          # (P, 2) body indices A, B
+    slot: np.ndarray           # (P, K) row index (colour order), M for padding
+    unique: bool               # no movable body twice: scatter by direct assignment
+    jacobian: np.ndarray       # (P, K * 3, 12) rows n, t1, t2 of each point
+    response: np.ndarray       # (P, 12, K * 3) pair velocity change per row impulse
+    normal_jacobian: np.ndarray  # (P, K, 12) the normal rows only
+    normal_response: np.ndarray  # (P, 12, K)
+    normal_mass: np.ndarray    # (P, K) kg (split)
+    tangent_quad: np.ndarray   # (3, P, K) 1/kg, K_t11, K_t12 + K_t21, K_t22 (split)
+    coupling: np.ndarray       # (P, K, 2)
+    allowance: np.ndarray      # (P, K) m/s
+    mu: np.ndarray             # (P, K)
+    normal: np.ndarray         # (P, K) N s, accumulated
+    tangent: np.ndarray        # (P, K, 2) N s, accumulated
 
 
 @dataclass
 class ContactRows:
-    """Per-contact constants of one step, rows sorted by colour (see ``order``).
+    """Per-contact constants of one step, rows sorted by colour then pair (see ``order``).
 
-    Every per-contact array is in colour order; ``order[k]`` is the index of
+    Every per-contact array is in that order; ``order[k]`` is the index of
     row k in the caller's contact arrays.
     """
 
     order: np.ndarray          # (M,) int, caller index of each row
-    batches: list[slice]       # one slice per colour
+    batches: list[Batch]       # one per colour
     pair: np.ndarray           # (M, 2) int, body indices A, B
     basis: np.ndarray          # (M, 3, 3) rows n, t1, t2, unit, world
     jacobian: np.ndarray       # (M, 3, 12) relative velocity of each row = J . [vA wA vB wB]
     response: np.ndarray       # (M, 12, 3) velocity change per unit row impulse, M^-1 J^T
-    normal_mass: np.ndarray    # (M,) kg, 1 / (J_n M^-1 J_n^T); 0 when both are immovable
-    tangent_block: np.ndarray  # (M, 2, 2) 1/kg, tangential Delassus block J_t M^-1 J_t^T
+    normal_mass: np.ndarray    # (M,) kg, 1 / (k J_n M^-1 J_n^T) (mass split over k rows)
+    tangent_block: np.ndarray  # (M, 2, 2) 1/kg, tangential Delassus block (split)
     coupling: np.ndarray       # (M, 2) m/s per N s: tangential velocity per normal impulse
     approach: np.ndarray       # (M,) m/s, pre-solve normal relative velocity (< 0 approaching)
     allowance: np.ndarray      # (M,) m/s >= 0, approach speed allowed without impulse
@@ -67,7 +93,7 @@ class ContactRows:
 
 @dataclass
 class Impulses:
-    """Accumulated impulses of the rows (N s), in colour order."""
+    """Accumulated impulses of the rows (N s), in row order."""
 
     normal: np.ndarray        # (M,) >= 0, from the iterations (what is warm started)
     tangent: np.ndarray       # (M, 2) along t1, t2, |.| <= mu * normal
@@ -86,10 +112,13 @@ def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, np.cross(normal, t1)
 
 
-def colour_pairs(pair: np.ndarray, movable: np.ndarray) -> np.ndarray:
+def colour_pairs(pair: np.ndarray, movable: np.ndarray,
+                 max_colours: int = MAX_COLOURS) -> np.ndarray:
     """Colour per contact: no movable body in two different pairs of one colour.
 
-    Greedy over the distinct pairs with one bitmask of used colours per body.
+    Greedy over the distinct pairs with one bitmask of used colours per body;
+    a pair that finds no free colour below ``max_colours`` shares one (mass
+    splitting keeps such a colour correct, only less Gauss-Seidel-like).
     """
     count = movable.shape[0]
     key = pair[:, 0] * count + pair[:, 1]
@@ -101,7 +130,11 @@ def colour_pairs(pair: np.ndarray, movable: np.ndarray) -> np.ndarray:
         a, b = divmod(k, count)
         used = (masks[a] if move[a] else 0) | (masks[b] if move[b] else 0)
         bit = ~used & (used + 1)            # lowest free colour
-        colours.append(bit.bit_length() - 1)
+        colour = bit.bit_length() - 1
+        if colour >= max_colours:
+            colour = len(colours) % max_colours
+            bit = 1 << colour
+        colours.append(colour)
         if move[a]:
             masks[a] |= bit
         if move[b]:
@@ -114,7 +147,7 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
             allowance: np.ndarray, restitution: tuple[np.ndarray, np.ndarray],
             friction: tuple[np.ndarray, np.ndarray], threshold: float,
             sticking_speed: float, sticking_velocity: np.ndarray | None = None,
-            jacobi: bool = False) -> ContactRows:
+            max_colours: int = MAX_COLOURS) -> ContactRows:
     """Constraint rows of M contacts.
 
     pair (M, 2) body indices; normal (M, 3) unit, A to B; r_a, r_b (M, 3) m,
@@ -125,26 +158,25 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
     threshold m/s (restitution above it); a contact whose tangential speed is
     below ``sticking_speed`` (m/s) may stick: that speed is measured with
     ``sticking_velocity`` (N, 6), e.g. the velocities before this step's
-    external forces, default ``velocity``. ``jacobi``: one batch for all
-    rows (Jacobi with mass splitting) instead of coloured pairs.
+    external forces, default ``velocity``. ``max_colours`` = 1 is Jacobi
+    with mass splitting over all rows.
     """
     pair = np.asarray(pair, np.int64).reshape(-1, 2)
     count = inv_mass.shape[0]
-    if jacobi:
-        colour = np.zeros(pair.shape[0], np.int64)
-    else:
-        colour = colour_pairs(pair, inv_mass > 0.0)
-    order = np.argsort(colour, kind='stable')
-    edges = np.searchsorted(colour[order], np.arange(colour.max() + 2 if colour.size else 1))
-    batches = [slice(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:]) if hi > lo]
-    # mass splitting: rows of a batch that act on each body (k), per side of each row
-    share = np.empty((pair.shape[0], 2))
-    for batch in batches:
-        sub = pair[order[batch]]
-        rows_of = np.bincount(sub.ravel(), minlength=count)
-        share[order[batch]] = rows_of[sub]
-
+    movable = inv_mass > 0.0
+    colour = colour_pairs(pair, movable, max_colours)
+    key = pair[:, 0] * count + pair[:, 1]
+    order = np.lexsort((key, colour))
     pair, normal, r_a, r_b = pair[order], normal[order], r_a[order], r_b[order]
+    colour, key = colour[order], key[order]
+    edges = np.flatnonzero(np.diff(colour)) + 1
+    spans = list(zip(np.r_[0, edges].tolist(), np.r_[edges, colour.shape[0]].tolist()))
+    # mass splitting: rows of the colour that act on each body (k), per side of each row
+    share = np.ones((pair.shape[0], 2))
+    for lo, hi in spans:
+        rows_of = np.bincount(pair[lo:hi].ravel(), minlength=count)
+        share[lo:hi] = rows_of[pair[lo:hi]]
+
     t1, t2 = tangent_basis(normal)
     basis = np.stack((normal, t1, t2), axis=1)                 # (M, 3, 3)
     arm_a = np.cross(r_a[:, None, :], basis)                   # r_A x d per row
@@ -155,8 +187,7 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
     response = np.concatenate((
         -ma[:, None, None] * basis.transpose(0, 2, 1), -ia @ arm_a.transpose(0, 2, 1),
         mb[:, None, None] * basis.transpose(0, 2, 1), ib @ arm_b.transpose(0, 2, 1)), axis=1)
-    # Delassus block of each row, each body's mass split over the rows of the batch on it
-    share = share[order]
+    # Delassus block of each row, each body's mass split over the rows of the colour on it
     delassus = (jacobian[:, :, :6] @ response[:, :6, :]) * share[:, 0, None, None] \
         + (jacobian[:, :, 6:] @ response[:, 6:, :]) * share[:, 1, None, None]
     k_n = delassus[:, 0, 0]
@@ -166,8 +197,8 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
         _row_velocity(jacobian, sticking_velocity, pair)
     approach = relative[:, 0]
     sticking = np.hypot(slow[:, 1], slow[:, 2]) < sticking_speed
-    return ContactRows(
-        order=order, batches=batches, pair=pair, basis=basis, jacobian=jacobian,
+    rows = ContactRows(
+        order=order, batches=[], pair=pair, basis=basis, jacobian=jacobian,
         response=response, normal_mass=normal_mass, tangent_block=delassus[:, 1:, 1:],
         coupling=delassus[:, 1:, 0], approach=approach,
         allowance=np.asarray(allowance, float)[order],
@@ -177,6 +208,44 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
         mu=np.where(sticking, np.asarray(friction[0], float)[order],
                     np.asarray(friction[1], float)[order]),
         sticking=sticking)
+    rows.batches = [_batch(rows, key, lo, hi, movable) for lo, hi in spans]
+    return rows
+
+
+def _padded(array: np.ndarray) -> np.ndarray:
+    """The array with one zero row appended (the padding row, index M)."""
+    return np.concatenate((array, np.zeros((1,) + array.shape[1:], array.dtype)))
+
+
+def _batch(rows: ContactRows, key: np.ndarray, lo: int, hi: int,
+           movable: np.ndarray) -> Batch:
+    """The padded (P, K) layout of rows lo..hi (sorted by pair)."""
+    starts = np.r_[lo, lo + np.flatnonzero(np.diff(key[lo:hi])) + 1]
+    sizes = np.diff(np.r_[starts, hi])
+    width = int(sizes.max())
+    slot = np.full((starts.shape[0], width), rows.count, np.int64)
+    within = np.arange(width)
+    valid = within[None, :] < sizes[:, None]
+    slot[valid] = np.arange(lo, hi)
+    pairs = rows.pair[starts]
+    bodies = pairs[movable[pairs]]
+    unique = bool(np.unique(bodies).shape[0] == bodies.shape[0])
+    p, k = slot.shape
+    jacobian = _padded(rows.jacobian)[slot]                    # (P, K, 3, 12)
+    response = _padded(rows.response)[slot]                    # (P, K, 12, 3)
+    block = _padded(rows.tangent_block)[slot]
+    return Batch(
+        pairs=pairs, slot=slot, unique=unique,
+        jacobian=jacobian.reshape(p, k * 3, 12),
+        response=np.ascontiguousarray(response.transpose(0, 2, 1, 3).reshape(p, 12, k * 3)),
+        normal_jacobian=np.ascontiguousarray(jacobian[:, :, 0, :]),
+        normal_response=np.ascontiguousarray(response[:, :, :, 0].transpose(0, 2, 1)),
+        normal_mass=_padded(rows.normal_mass)[slot],
+        tangent_quad=np.stack((block[..., 0, 0], block[..., 0, 1] + block[..., 1, 0],
+                               block[..., 1, 1])),
+        coupling=_padded(rows.coupling)[slot], allowance=_padded(rows.allowance)[slot],
+        mu=_padded(rows.mu)[slot], normal=np.zeros(slot.shape),
+        tangent=np.zeros(slot.shape + (2,)))
 
 
 def _row_velocity(jacobian: np.ndarray, velocity: np.ndarray, pair: np.ndarray) -> np.ndarray:
@@ -185,58 +254,60 @@ def _row_velocity(jacobian: np.ndarray, velocity: np.ndarray, pair: np.ndarray) 
     return np.einsum('mdj,mj->md', jacobian, stacked)
 
 
-def _apply(rows: ContactRows, velocity: np.ndarray, rows_slice: slice,
-           delta: np.ndarray) -> None:
-    """Add the velocity change of row impulses ``delta`` (m, 3) to the bodies (summed)."""
-    change = np.einsum('mjd,md->mj', rows.response[rows_slice], delta)
-    np.add.at(velocity, rows.pair[rows_slice].ravel(), change.reshape(-1, 6))
+def _scatter(batch: Batch, velocity: np.ndarray, gathered: np.ndarray,
+             change: np.ndarray) -> None:
+    """Add per-pair velocity changes (P, 12) to the bodies of a colour."""
+    if batch.unique:   # movable bodies once each; immovable ones get a zero change
+        velocity[batch.pairs] = (gathered + change).reshape(-1, 2, 6)
+    else:
+        np.add.at(velocity, batch.pairs.ravel(), change.reshape(-1, 6))
 
 
 def warm_start(rows: ContactRows, impulses: Impulses, velocity: np.ndarray) -> None:
     """Apply last step's accumulated impulses (already projected on this step's rows)."""
     if rows.count:
         delta = np.concatenate((impulses.normal[:, None], impulses.tangent), axis=1)
-        _apply(rows, velocity, slice(None), delta)
+        change = np.einsum('mjd,md->mj', rows.response, delta)
+        np.add.at(velocity, rows.pair.ravel(), change.reshape(-1, 6))
 
 
 def solve_velocities(rows: ContactRows, impulses: Impulses, velocity: np.ndarray,
                      iterations: int) -> None:
     """Sequential impulses: normal clamped >= 0, friction clamped to the circular cone."""
+    normal, tangent = _padded(impulses.normal), _padded(impulses.tangent)
+    for batch in rows.batches:
+        batch.normal, batch.tangent = normal[batch.slot], tangent[batch.slot]
     for _ in range(iterations):
         for batch in rows.batches:
-            _solve_batch(rows, impulses, velocity, batch)
+            _solve_batch(batch, velocity)
+    for batch in rows.batches:
+        valid = batch.slot < rows.count
+        impulses.normal[batch.slot[valid]] = batch.normal[valid]
+        impulses.tangent[batch.slot[valid]] = batch.tangent[valid]
 
 
-def _solve_batch(rows: ContactRows, impulses: Impulses, velocity: np.ndarray,
-                 s: slice) -> None:
-    stacked = velocity[rows.pair[s]].reshape(-1, 12)
-    rel = np.einsum('mdj,mj->md', rows.jacobian[s], stacked)
+def _solve_batch(b: Batch, velocity: np.ndarray) -> None:
+    gathered = velocity[b.pairs].reshape(-1, 12)
+    rel = (b.jacobian @ gathered[:, :, None]).reshape(b.slot.shape + (3,))
     # normal: approach no faster than the speculative allowance, accumulated impulse >= 0
-    old_n = impulses.normal[s]
-    new_n = np.maximum(old_n - rows.normal_mass[s] * (rel[:, 0] + rows.allowance[s]), 0.0)
-    d_n = new_n - old_n
+    new_n = np.maximum(b.normal - b.normal_mass * (rel[:, :, 0] + b.allowance), 0.0)
+    d_n = new_n - b.normal
     # friction: oppose the tangential slip left after the normal change (the lecture's
     # tangent, v_t / |v_t|), as much as stops it along that direction, within mu * j_n
-    v_t = rel[:, 1:] + rows.coupling[s] * d_n[:, None]
-    old_t = impulses.tangent[s]
-    trial = old_t - v_t * _slip_mass(rows.tangent_block[s], v_t)[:, None]
-    limit = rows.mu[s] * new_n
-    size = np.hypot(trial[:, 0], trial[:, 1])
-    over = size > limit
-    scale = np.where(over, limit / np.where(over, size, 1.0), 1.0)
-    new_t = trial * scale[:, None]
-    delta = np.concatenate((d_n[:, None], new_t - old_t), axis=1)   # before old_* (views) change
-    impulses.normal[s] = new_n
-    impulses.tangent[s] = new_t
-    _apply(rows, velocity, s, delta)
-
-
-def _slip_mass(block: np.ndarray, v_t: np.ndarray) -> np.ndarray:
-    """|v_t|^2 / (v_t^T K_t v_t): impulse per unit slip speed along -v_t; 0 when v_t = 0."""
-    speed2 = np.einsum('mi,mi->m', v_t, v_t)
-    k = np.einsum('mi,mij,mj->m', v_t, block, v_t)
-    ok = k > _TINY * np.maximum(speed2, _TINY)
-    return np.where(ok, speed2 / np.where(ok, k, 1.0), 0.0)
+    v_t = rel[:, :, 1:] + b.coupling * d_n[:, :, None]
+    x, y = v_t[:, :, 0], v_t[:, :, 1]
+    speed2 = x * x + y * y
+    quad = b.tangent_quad
+    stiffness = quad[0] * x * x + quad[1] * x * y + quad[2] * y * y
+    slip = speed2 / np.maximum(stiffness, _TINY * speed2 + 1e-300)   # 0 when v_t = 0
+    trial = b.tangent - v_t * slip[:, :, None]
+    size = np.hypot(trial[:, :, 0], trial[:, :, 1])
+    scale = np.minimum(1.0, b.mu * new_n / np.maximum(size, 1e-300))
+    new_t = trial * scale[:, :, None]
+    delta = np.concatenate((d_n[:, :, None], new_t - b.tangent), axis=2)
+    b.normal, b.tangent = new_n, new_t
+    change = (b.response @ delta.reshape(delta.shape[0], -1, 1))[:, :, 0]
+    _scatter(b, velocity, gathered, change)
 
 
 def apply_restitution(rows: ContactRows, impulses: Impulses, velocity: np.ndarray) -> None:
@@ -246,24 +317,25 @@ def apply_restitution(rows: ContactRows, impulses: Impulses, velocity: np.ndarra
     normal impulse bounce; A's and B's extra impulses use their own e (equal
     unless the per_object rule is chosen), each keeping the total >= 0.
     """
-    for s in rows.batches:
-        active = rows.bounce[s] & (impulses.normal[s] > 0.0)
+    total, bounce = _padded(impulses.normal), _padded(rows.bounce)
+    approach = _padded(rows.approach)
+    e_a, e_b = _padded(rows.restitution_a), _padded(rows.restitution_b)
+    extra = np.zeros((rows.count + 1, 2))
+    for b in rows.batches:
+        slot = b.slot
+        active = bounce[slot] & (total[slot] > 0.0)
         if not active.any():
             continue
-        stacked = velocity[rows.pair[s]].reshape(-1, 12)
-        v_n = np.einsum('mj,mj->m', rows.jacobian[s, 0, :], stacked)
-        total = impulses.normal[s]
-        mass = rows.normal_mass[s]
-        pre = rows.approach[s]
-        d_a = np.where(active, np.maximum(-mass * (v_n + rows.restitution_a[s] * pre), -total),
-                       0.0)
-        d_b = np.where(active, np.maximum(-mass * (v_n + rows.restitution_b[s] * pre), -total),
-                       0.0)
-        impulses.restitution[s] = np.stack((d_a, d_b), axis=1)
-        response = rows.response[s, :, 0]                      # (m, 12)
-        change = np.concatenate((response[:, :6] * d_a[:, None],
-                                 response[:, 6:] * d_b[:, None]), axis=1)
-        np.add.at(velocity, rows.pair[s].ravel(), change.reshape(-1, 6))
+        gathered = velocity[b.pairs].reshape(-1, 12)
+        v_n = (b.normal_jacobian @ gathered[:, :, None])[:, :, 0]
+        pre, mass = approach[slot], b.normal_mass
+        d_a = np.where(active, np.maximum(-mass * (v_n + e_a[slot] * pre), -total[slot]), 0.0)
+        d_b = np.where(active, np.maximum(-mass * (v_n + e_b[slot] * pre), -total[slot]), 0.0)
+        extra[slot] = np.stack((d_a, d_b), axis=2)
+        change = np.concatenate(((b.normal_response[:, :6] @ d_a[:, :, None])[:, :, 0],
+                                 (b.normal_response[:, 6:] @ d_b[:, :, None])[:, :, 0]), axis=1)
+        _scatter(b, velocity, gathered, change)
+    impulses.restitution[:] = extra[:-1]
 
 
 def solve_positions(rows: ContactRows, push: np.ndarray, count: int,
@@ -277,16 +349,16 @@ def solve_positions(rows: ContactRows, push: np.ndarray, count: int,
     pseudo = np.zeros((count, 6))
     if not rows.count or not np.any(push > 0.0):
         return pseudo
-    accumulated = np.zeros(rows.count)
+    push = _padded(push)
+    accumulated = [np.zeros(b.slot.shape) for b in rows.batches]
     for _ in range(iterations):
-        for s in rows.batches:
-            stacked = pseudo[rows.pair[s]].reshape(-1, 12)
-            v_n = np.einsum('mj,mj->m', rows.jacobian[s, 0, :], stacked)
-            old = accumulated[s]
-            new = np.maximum(old + rows.normal_mass[s] * (push[s] - v_n), 0.0)
-            change = rows.response[s, :, 0] * (new - old)[:, None]
-            accumulated[s] = new
-            np.add.at(pseudo, rows.pair[s].ravel(), change.reshape(-1, 6))
+        for b, old in zip(rows.batches, accumulated):
+            gathered = pseudo[b.pairs].reshape(-1, 12)
+            v_n = (b.normal_jacobian @ gathered[:, :, None])[:, :, 0]
+            new = np.maximum(old + b.normal_mass * (push[b.slot] - v_n), 0.0)
+            change = (b.normal_response @ (new - old)[:, :, None])[:, :, 0]
+            old[...] = new
+            _scatter(b, pseudo, gathered, change)
     return pseudo
 
 

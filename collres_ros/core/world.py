@@ -43,7 +43,8 @@ from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactRe
                                     ContactSet, Rejection, StepResult)
 
 POSITION_ITERATIONS = 4   # split-impulse iterations when some contact needs a push-out
-JACOBI = False
+COLD_EXTRA = 2.0          # extra iterations (times velocity_iterations) when all resting
+                          # contacts are new: no warm start, e.g. a stack at its first step
 
 
 class Detector(Protocol):
@@ -135,22 +136,22 @@ class World:
         rows = solver.prepare(frame.pair, contacts.normal, frame.r_a, frame.r_b, inv_mass,
                               inv_inertia, frame.velocity, frame.allowance, (e_a, e_b),
                               (mu_s, mu_k), s.restitution_threshold, s.sticking_speed,
-                              frame.sticking_velocity, JACOBI)
+                              frame.sticking_velocity)
         # warm start from last step's impulses of the same pair and feature
         impulses = solver.Impulses.zeros(rows.count)
-        if s.warm_start and not fresh:
-            self._warm(rows, impulses, contacts, dt)
+        cold = self._warm(rows, impulses, contacts, dt, s.warm_start and not fresh)
         velocity = frame.velocity.copy()
         solver.warm_start(rows, impulses, velocity)
-        # iterate: sequential impulses over the colours
-        solver.solve_velocities(rows, impulses, velocity, s.velocity_iterations)
+        # iterate: sequential impulses over the colours (more while resting contacts are new)
+        iterations = int(round(s.velocity_iterations * (1.0 + COLD_EXTRA * cold)))
+        solver.solve_velocities(rows, impulses, velocity, iterations)
         # restitution from the pre-solve approach speed, above the threshold only
         solver.apply_restitution(rows, impulses, velocity)
         # store impulses for next step's warm start (without the restitution part)
         friction = solver.friction_world(rows, impulses)
         back = np.argsort(rows.order)
         self._cache.store(contacts.body_a, contacts.body_b, contacts.feature,
-                          impulses.normal[back], friction[back])
+                          impulses.normal[back], friction[back], contacts.point)
         self._last_dt = dt
         # correct poses: rewind/advance, then split-impulse push-out without velocity
         states = frame.advance(velocity, movable)
@@ -167,9 +168,16 @@ class World:
         return StepResult(states, report, rejected)
 
     def _warm(self, rows: solver.ContactRows, impulses: solver.Impulses,
-              contacts: ContactSet, dt: float) -> None:
-        """Fill ``impulses`` with the cached ones, scaled to this dt, inside the static cone."""
-        normal, friction = self._cache.lookup(contacts.body_a, contacts.body_b, contacts.feature)
+              contacts: ContactSet, dt: float, enabled: bool) -> float:
+        """Fill ``impulses`` with the cached ones, scaled to this dt, inside the cone.
+
+        Returns the fraction of persistent contacts that found no cached impulse.
+        """
+        persistent = contacts.kind[rows.order] == ContactKind.PERSISTENT
+        if not enabled:
+            return 1.0 if persistent.any() else 0.0
+        normal, friction, found = self._cache.lookup(contacts.body_a, contacts.body_b, contacts.feature,
+                                              contacts.point)
         scale = dt / self._last_dt if self._last_dt > 0.0 else 0.0
         impulses.normal[:] = normal[rows.order] * scale
         tangent = solver.project_friction(rows, friction[rows.order] * scale)
@@ -178,6 +186,8 @@ class World:
         over = size > limit
         tangent[over] *= (limit[over] / size[over])[:, None]
         impulses.tangent[:] = tangent
+        cold = persistent & ~found[rows.order]
+        return float(cold.sum()) / max(1, int(persistent.sum()))
 
     def _guard(self, states: BodyStates, current: BodyStates) -> list[Rejection]:
         """Bodies with a non-finite result keep their current input state; report them."""

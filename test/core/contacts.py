@@ -27,6 +27,7 @@ def contact_set(a, b, point, normal, separation, toi=0.0, kind=ContactKind.IMPAC
     normal = np.atleast_2d(np.asarray(normal, float))
     normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
     count = point.shape[0]
+    normal = np.broadcast_to(normal, (count, 3)).copy()
     full = (lambda v, dtype: np.broadcast_to(np.asarray(v, dtype), (count,)).copy())
     return ContactSet(full(a, np.int64), full(b, np.int64), point, normal,
                       full(separation, float), full(toi, float), full(int(kind), np.int8),

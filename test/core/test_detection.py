@@ -3,7 +3,6 @@ frozen bodies. (Translational time of impact, tunnelling and manifolds: test_col
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -27,8 +26,11 @@ def states(positions, orientations=None) -> BodyStates:
 
 
 def brute_pairs(lo: np.ndarray, hi: np.ndarray) -> set[tuple[int, int]]:
-    return {(i, j) for i, j in itertools.combinations(range(lo.shape[0]), 2)
-            if np.all(lo[i] <= hi[j]) and np.all(lo[j] <= hi[i])}
+    """All pairs i < j of overlapping boxes, by testing every pair."""
+    touch = np.all((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :]),
+                   axis=2)
+    i, j = np.nonzero(np.triu(touch, k=1))
+    return set(zip(i.tolist(), j.tolist()))
 
 
 def test_broad_phase_backends_agree_with_all_pairs_over_moving_boxes() -> None:
@@ -160,3 +162,20 @@ def test_no_contacts_between_two_fixed_bodies_and_none_when_far() -> None:
                             BodySpec('ball', 'sphere', (0.1,))], SETTINGS)
     state = states([[0, 0, 0], [0, 0, 0.4], [3, 0, 1.0]])
     assert world.detect(state, state).count == 0
+
+
+def test_non_finite_or_zero_poses_give_no_contacts_and_no_nan() -> None:
+    world = CollisionWorld([BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
+                            BodySpec('good', 'sphere', (0.1,)), BodySpec('bad', 'box', (1, 1, 1))],
+                           SETTINGS)
+    state = states([[0, 0, 0], [0, 0, 0.09], [0, 0, 0.4]])
+    for broken in ('nan', 'zero'):
+        after = state.copy()
+        if broken == 'nan':
+            after.position[2, 0] = np.nan
+        else:
+            after.orientation[2] = 0.0
+        contacts = world.detect(state, after)
+        assert list(zip(contacts.body_a, contacts.body_b)) == [(0, 1)], broken
+        for field in ('point', 'normal', 'separation', 'toi'):
+            assert np.all(np.isfinite(getattr(contacts, field))), (broken, field)

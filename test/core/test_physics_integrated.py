@@ -68,8 +68,8 @@ def slope(mu_s: float, mu_k: float, duration: float, angle_deg: float = 20.0):
     th = np.radians(angle_deg)
     normal = np.array([-np.sin(th), 0.0, np.cos(th)])
     q = [0.0, np.sin(-th / 2), 0.0, np.cos(-th / 2)]
-    bodies = [floor(mu_s, mu_k, normal=normal), box('box', (0.2, 0.2, 0.2), 1.0, mu_s=mu_s,
-                                                      mu_k=mu_k)]
+    bodies = [floor(mu_s, mu_k, normal=normal),
+              box('box', (0.2, 0.2, 0.2), 1.0, mu_s=mu_s, mu_k=mu_k)]
     sim = Simulation(bodies, states([[0, 0, 0], 0.1 * normal], np.zeros((2, 3)),
                                     orientation=[[0, 0, 0, 1], q]), 120.0)
     trace = sim.run(duration)

@@ -107,3 +107,48 @@ def test_pile_scene_is_what_its_generator_writes(tmp_path: Path) -> None:
     subprocess.run([sys.executable, str(tool), str(tmp_path / 'pile.yaml')], check=True,
                    capture_output=True)
     assert (tmp_path / 'pile.yaml').read_text() == (SCENES / 'pile.yaml').read_text()
+
+
+@pytest.mark.slow
+def test_live_sim_counts_unanswered_steps_as_dropped(tmp_path: Path) -> None:
+    """A responder that ignores every 5th state: the sim waits its deadline, drops, goes on."""
+    pytest.importorskip('rclpy')
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from collres_ros import processes
+    from collres_ros.msg import BodyStateArray
+    from conftest import next_domain_id
+    domain = next_domain_id()
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=domain)
+    received: list[int] = []
+    try:
+        node = rclpy.create_node('fake_collres_node', context=context)
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        answer = node.create_publisher(BodyStateArray, 'body_states/corrected', qos)
+
+        def respond(msg: BodyStateArray) -> None:
+            received.append(msg.header.stamp.nanosec)
+            if len(received) % 5 != 0:
+                answer.publish(msg)
+
+        node.create_subscription(BodyStateArray, 'body_states', respond, qos)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        sim = processes.start('collres_sim', ['--params', str(SCENES / 'bouncing_ball.yaml'),
+                                              '--duration', '0.1', '--step-timeout', '0.2',
+                                              '--realtime'],
+                              env=processes.ros_env(domain), log=tmp_path / 'sim.log')
+        deadline = 60.0
+        assert processes.wait_for(lambda: executor.spin_once(timeout_sec=0.01) or
+                                  sim.poll() is not None, deadline), 'sim did not finish'
+        code = sim.wait()
+    finally:
+        rclpy.try_shutdown(context=context)
+    log = sim.output()
+    print(log[-300:])
+    assert code == 0
+    assert len(received) == 25            # 0.1 s at 240 Hz: 25 states, each published once
+    assert 'done: 25 steps, 5 dropped' in log

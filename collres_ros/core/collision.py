@@ -266,15 +266,23 @@ class CollisionWorld:
             return
         settings = self.settings
         margin = settings.speculative_margin
+        relative = (np.linalg.norm((step.p1[b] - step.p0[b]) - (step.p1[a] - step.p0[a]), axis=1)
+                    + step.turn[a] * self._radius_or_zero(a)
+                    + step.turn[b] * self._radius_or_zero(b))
+        # bounding spheres: farther apart than the margin and than the relative motion,
+        # the pair can neither touch now nor have met during the step
+        bound = (np.linalg.norm(step.p1[b] - step.p1[a], axis=1)
+                 - self._radius[a] - self._radius[b])
+        keep = ~((bound > margin) & (bound >= relative))
+        a, b, relative = a[keep], b[keep], relative[keep]
+        if a.shape[0] == 0:
+            return
         self._push(step, np.unique(np.concatenate((a, b))))
         geoms, tfs = self._geoms, self._transforms
         al, bl = a.tolist(), b.tolist()
         distance, normal, on_a, on_b = self._narrow.batch(
             [geoms[i] for i in al], [tfs[i] for i in al],
             [geoms[j] for j in bl], [tfs[j] for j in bl])
-        relative = (np.linalg.norm((step.p1[b] - step.p0[b]) - (step.p1[a] - step.p0[a]), axis=1)
-                    + step.turn[a] * self._radius_or_zero(a)
-                    + step.turn[b] * self._radius_or_zero(b))
         near = distance <= margin
         # touching at the previous state for sure: it cannot have been farther than this
         persistent = near & (distance + relative <= margin)
@@ -401,7 +409,7 @@ class CollisionWorld:
 
     def _motion(self, step: _Step, body: int) -> Motion:
         return Motion(step.p0[body], step.p1[body], step.q0[body], step.q1[body],
-                      self._offset[body])
+                      self._offset[body], step.r0[body], step.r1[body])
 
     def _radius_or_zero(self, bodies: np.ndarray) -> np.ndarray:
         return np.where(np.isfinite(self._radius[bodies]), self._radius[bodies], 0.0)

@@ -8,6 +8,7 @@ s, so they are pure and testable without coal.
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import coal
@@ -19,25 +20,45 @@ from collres_ros.core import rotation
 class Motion:
     """Interpolated pose of one body over the step, as a reusable coal transform."""
 
-    __slots__ = ('p0', 'p1', 'q0', 'q1', 'offset', 'transform')
+    __slots__ = ('p0', 'p1', 'q0', 'q1', 'r0', 'r1', 'offset', 'transform', '_theta')
 
     def __init__(self, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray,
-                 offset: np.ndarray) -> None:
-        self.p0, self.p1, self.q0, self.q1, self.offset = p0, p1, q0, q1, offset
+                 offset: np.ndarray, r0: np.ndarray | None = None,
+                 r1: np.ndarray | None = None) -> None:
+        """Positions (3,) m, unit quaternions (4,) x, y, z, w at s = 0 and s = 1; the coal
+        geometry's origin at ``offset`` (3,) m in the body frame; rotations if known."""
+        self.p0, self.p1, self.offset = p0, p1, offset
+        self.q0 = q0
+        self.q1 = -q1 if float(np.dot(q0, q1)) < 0.0 else q1   # the shorter arc
+        self.r0 = rotation.to_matrix(q0) if r0 is None else r0
+        self.r1 = rotation.to_matrix(q1) if r1 is None else r1
+        self._theta = math.acos(min(1.0, abs(float(np.dot(q0, q1)))))
         self.transform = coal.Transform3s()
+
+    def rotation_at(self, s: float) -> np.ndarray:
+        """Rotation (3, 3) at fraction ``s`` of the step (slerp)."""
+        if s <= 0.0 or self._theta < 1e-12:
+            return self.r0 if s < 1.0 or self._theta < 1e-12 else self.r1
+        if s >= 1.0:
+            return self.r1
+        theta = self._theta
+        if theta < 1e-6:
+            w0, w1 = 1.0 - s, s
+        else:
+            w0 = math.sin((1.0 - s) * theta) / math.sin(theta)
+            w1 = math.sin(s * theta) / math.sin(theta)
+        q = w0 * self.q0 + w1 * self.q1
+        return rotation.to_matrix(q / np.linalg.norm(q))
+
+    def position_at(self, s: float) -> np.ndarray:
+        """Position (3,) m of the body origin at fraction ``s`` (lerp)."""
+        return self.p0 + s * (self.p1 - self.p0)
 
     def at(self, s: float) -> coal.Transform3s:
         """Pose of the body's coal geometry at fraction ``s`` (world frame)."""
-        r = rotation.to_matrix(rotation.slerp(self.q0, self.q1, s))
-        self.transform.setRotation(r)
-        self.transform.setTranslation(self.p0 + s * (self.p1 - self.p0) + r @ self.offset)
+        r = self.rotation_at(s)
+        self.transform.setTransform(r, self.position_at(s) + r @ self.offset)
         return self.transform
-
-    def rotation_at(self, s: float) -> np.ndarray:
-        return rotation.to_matrix(rotation.slerp(self.q0, self.q1, s))
-
-    def position_at(self, s: float) -> np.ndarray:
-        return self.p0 + s * (self.p1 - self.p0)
 
 
 def bisect(overlaps: Callable[[float], bool], s0: float, s1: float, tolerance: float,

@@ -1,0 +1,148 @@
+"""Unit tests of the solver pieces: combine rules, colouring, warm-start cache, guards."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from collres_ros.core.combine import combine_friction, combine_restitution, restitution_per_side
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.contact_cache import ContactCache
+from collres_ros.core.solver import colour_pairs, tangent_basis
+from collres_ros.core.types import ContactKind, ContactState
+from collres_ros.core.world import World
+
+from contacts import box, contact_set, FixedContacts, sphere, states  # noqa: I100
+
+
+def test_combine_rules():
+    ea, eb = np.array([0.2, 0.9]), np.array([0.8, 0.1])
+    assert np.allclose(combine_restitution(ea, eb, 'average'), [0.5, 0.5])
+    assert np.allclose(combine_restitution(ea, eb, 'min'), [0.2, 0.1])
+    assert np.allclose(combine_restitution(ea, eb, 'max'), [0.8, 0.9])
+    assert np.allclose(combine_restitution(ea, eb, 'multiply'), [0.16, 0.09])
+    a_side, b_side = restitution_per_side(ea, eb, 'per_object')
+    assert np.allclose(a_side, ea) and np.allclose(b_side, eb)
+    assert np.allclose(combine_friction(np.array([0.5]), np.array([0.5]), 'geometric'), 0.5)
+    assert np.allclose(combine_friction(np.array([0.1]), np.array([0.9]), 'geometric'), 0.3)
+    with pytest.raises(ValueError):
+        combine_friction(ea, eb, 'bogus')
+
+
+def test_colouring_never_puts_a_movable_body_in_two_pairs_of_a_colour():
+    rng = np.random.default_rng(3)
+    pair = np.sort(rng.integers(0, 40, (300, 2)), axis=1)
+    pair = pair[pair[:, 0] != pair[:, 1]]
+    movable = np.ones(40, bool)
+    movable[:3] = False                      # immovable bodies may repeat freely
+    colour = colour_pairs(pair, movable, max_colours=1000)
+    for c in np.unique(colour):
+        pairs = {tuple(p) for p in pair[colour == c]}
+        bodies = [b for p in pairs for b in p if movable[b]]
+        assert len(bodies) == len(set(bodies))
+    # the rows of one pair always share a colour
+    for p in {tuple(p) for p in pair}:
+        assert np.unique(colour[(pair[:, 0] == p[0]) & (pair[:, 1] == p[1])]).size == 1
+    assert colour_pairs(pair, movable, max_colours=4).max() < 4
+
+
+def test_tangent_basis_is_orthonormal_for_any_normal():
+    n = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, -1.0, 0], [1, 1, 1]]) / \
+        np.linalg.norm([[0, 0, 1.0], [1.0, 0, 0], [0, -1.0, 0], [1, 1, 1]], axis=1)[:, None]
+    t1, t2 = tangent_basis(n)
+    for v in (t1, t2):
+        assert np.allclose(np.linalg.norm(v, axis=1), 1.0)
+    assert np.allclose(np.sum(n * t1, axis=1), 0) and np.allclose(np.sum(t1 * t2, axis=1), 0)
+    assert np.allclose(np.cross(t1, t2), n)
+
+
+def test_cache_exact_nearest_and_forget():
+    cache = ContactCache()
+    cache.store([0, 0, 1], [2, 2, 3], [7, 8, 1], [1.0, 2.0, 3.0], np.eye(3),
+                [[0, 0, 0], [0.1, 0, 0], [1, 1, 1]])
+    normal, friction, found = cache.lookup(np.array([0, 0, 1, 4]), np.array([2, 2, 3, 5]),
+                                           np.array([8, 99, 1, 0]),
+                                           np.array([[9, 9, 9], [0.005, 0, 0], [0, 0, 0],
+                                                     [0, 0, 0]]))
+    assert normal.tolist() == [2.0, 1.0, 3.0, 0.0]      # exact, nearest point, exact, absent
+    assert found.tolist() == [True, True, True, False]
+    assert np.allclose(friction[1], [1, 0, 0])
+    cache.forget(np.array([3]))
+    assert len(cache) == 2
+    assert cache.lookup(np.array([1]), np.array([3]), np.array([1]))[0][0] == 0.0
+
+
+def test_degenerate_tangent_never_nan_and_no_friction_at_rest():
+    """Normal parallel to the relative velocity (head-on, friction 1): no tangential impulse."""
+    bodies = [sphere('a', 0.1, 1.0, e=0.5, mu_s=1.0, mu_k=1.0),
+              sphere('b', 0.1, 1.0, e=0.5, mu_s=1.0, mu_k=1.0)]
+    contacts = contact_set(0, 1, [0, 0, 0], [0, 0, 1], -0.001, kind=ContactKind.PERSISTENT)
+    world = World(bodies, SolverSettings(), FixedContacts(contacts))
+    before = states([[0, 0, -0.1], [0, 0, 0.1]], [[0, 0, 1.0], [0, 0, -1.0]])
+    result = world.step(before, before.copy(), 0.01)
+    assert result.report.normal_impulse[0] > 0.0
+    assert np.all(np.isfinite(result.states.linear))
+    assert np.allclose(result.report.friction_impulse, 0.0)
+    assert np.allclose(result.states.linear[:, :2], 0.0)
+
+
+def test_non_finite_contacts_are_dropped_and_output_stays_finite():
+    bodies = [sphere('a', 0.1, 1.0), sphere('b', 0.1, 1.0)]
+    contacts = contact_set(0, 1, [[0, 0, 0], [np.nan, 0, 0]], [[1, 0, 0], [1, 0, 0]],
+                           [-0.001, -0.001], kind=ContactKind.PERSISTENT)
+    world = World(bodies, SolverSettings(), FixedContacts(contacts))
+    before = states([[-0.1, 0, 0], [0.1, 0, 0]], [[1.0, 0, 0], [-1.0, 0, 0]])
+    result = world.step(before, before.copy(), 0.01)
+    assert result.report.contacts.count == 1
+    assert all(np.all(np.isfinite(a)) for a in (result.states.position, result.states.linear))
+
+
+def test_inactive_body_with_nan_twist_is_held_and_others_resolved():
+    bodies = [sphere('a', 0.1, 1.0, e=0.0), sphere('b', 0.1, 1.0, e=0.0)]
+    contacts = contact_set(0, 1, [0, 0, 0], [1, 0, 0], -0.001, kind=ContactKind.PERSISTENT)
+    world = World(bodies, SolverSettings(), FixedContacts(contacts))
+    before = states([[-0.1, 0, 0], [0.1, 0, 0]], [[1.0, 0, 0], [np.nan, 0, 0]])
+    result = world.step(before, before.copy(), 0.01, active=np.array([True, False]))
+    assert np.all(np.isfinite(result.states.linear[0]))
+    assert result.states.linear[0, 0] == pytest.approx(0.0, abs=1e-12)   # stopped by a wall
+
+
+def test_settings_and_materials_take_effect_next_step():
+    bodies = [sphere('a', 0.1, 1.0, e=1.0), sphere('b', 0.1, 1.0, e=1.0)]
+    contacts = contact_set(0, 1, [0, 0, 0], [1, 0, 0], -0.01, toi=0.5)
+    world = World(bodies, SolverSettings(), FixedContacts(contacts))
+    before = states([[-0.11, 0, 0], [0.11, 0, 0]], [[1.0, 0, 0], [-1.0, 0, 0]])
+    after = before.copy()
+    after.position += after.linear * 0.02
+    assert world.step(before, after, 0.02).states.linear[0, 0] == pytest.approx(-1.0)
+    world.set_material(0, restitution=0.0)
+    world.set_material(1, restitution=0.0)
+    assert world.step(before, after, 0.02).states.linear[0, 0] == pytest.approx(0.0, abs=1e-12)
+    world.settings = SolverSettings(restitution_threshold=5.0)
+    world.set_material(0, restitution=1.0)
+    world.set_material(1, restitution=1.0)
+    result = world.step(before, after, 0.02)     # 2 m/s approach is below the threshold
+    assert result.report.state[0] == ContactState.RESTING
+    assert result.states.linear[0, 0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_warm_start_reuses_impulses_and_forget_drops_them():
+    floor = box('floor', (2.0, 2.0, 0.2), 1.0, static=True)
+    cube = box('cube', (0.2, 0.2, 0.2), 1.0, mu_s=0.5, mu_k=0.5)
+    corners = [[x, y, 0.0] for x in (-0.1, 0.1) for y in (-0.1, 0.1)]
+    # at rest on the floor before the step; gravity moved it g dt^2 into the floor since
+    contacts = contact_set(0, 1, corners, [0, 0, 1], -9.81 / 120 ** 2,
+                           kind=ContactKind.PERSISTENT)
+    world = World([floor, cube], SolverSettings(velocity_iterations=1),
+                  FixedContacts(contacts))
+    rest = states([[0, 0, -0.1], [0, 0, 0.1]], np.zeros((2, 3)))
+    fall = rest.copy()
+    fall.linear[1, 2] = -9.81 / 120
+    fall.position[1, 2] += fall.linear[1, 2] / 120
+    first = world.step(rest, fall, 1 / 120).report.normal_impulse.sum()
+    second = world.step(rest, fall, 1 / 120)
+    print('support impulse, step 1 and 2:', first, second.report.normal_impulse.sum())
+    assert second.report.normal_impulse.sum() == pytest.approx(9.81 / 120, rel=1e-9)
+    assert abs(second.states.linear[1, 2]) < 1e-12
+    world.forget(np.array([1]))
+    assert len(world._cache) == 0

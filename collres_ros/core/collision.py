@@ -15,7 +15,9 @@ The one place that talks to coal for queries; it returns our own ContactSet
    two body frames, and only their gaps are recomputed (numpy, no coal call):
    a settled pile costs almost nothing.
 4. Narrow phase of the other pairs (``narrowphase``, one batched coal call per
-   pair at the current state), then per pair (DESIGN.md, "one step"):
+   pair at the current state, after dropping pairs whose bounding spheres are
+   farther apart than both the margin and their relative motion), then per
+   pair (DESIGN.md, "one step"):
    PERSISTENT when within the margin at the previous state too (or within it
    now and apart before without a hit: a speculative contact); IMPACT when
    apart before and overlapping now: bisection for the time of impact
@@ -293,8 +295,8 @@ class CollisionWorld:
         for k in np.flatnonzero(persistent & ~single).tolist():
             self._narrow.load(k)
             a_k, b_k = al[k], bl[k]
-            on_a_k, on_b_k, normal_k = self._narrow.manifold(geoms[a_k], tfs[a_k], geoms[b_k],
-                                                             tfs[b_k])
+            on_a_k, on_b_k, normal_k = self._narrow.manifold(
+                geoms[a_k], tfs[a_k], geoms[b_k], tfs[b_k], (normal[k], on_a[k], on_b[k]))
             raw.add(a_k, b_k, on_a_k, on_b_k, normal_k, 0.0, ContactKind.PERSISTENT)
         for k in np.flatnonzero(~persistent & (near | maybe_hit)):
             self._classify(step, al[k], bl[k], float(distance[k]), float(relative[k]),

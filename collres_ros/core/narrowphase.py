@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import weakref
 
 import coal
 import numpy as np
@@ -27,6 +28,13 @@ _RECORD = np.dtype([('b', '<i4', (2,)), ('normal', '<f8', (3,)), ('count', '<u8'
                     ('distance', '<f8')])
 _TAIL = 8 + 8 + 48 + 24  # distance_lower_bound, nearest_points (count + 2 points), normal
 _BIG = 1e300             # security margin that makes every queried pair report a contact
+
+
+def _remove(path: str) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
 
 
 class NarrowPhase:
@@ -47,13 +55,8 @@ class NarrowPhase:
         fd, self._dump = tempfile.mkstemp(prefix='collres_', suffix='.bin',
                                           dir='/dev/shm' if os.path.isdir('/dev/shm') else None)
         os.close(fd)
+        weakref.finalize(self, _remove, self._dump)   # when collected, or at exit
         self._binary_ok: bool | None = None
-
-    def __del__(self) -> None:
-        try:
-            os.unlink(self._dump)
-        except (OSError, AttributeError):
-            pass
 
     def batch(self, geom_a: list, tf_a: list, geom_b: list, tf_b: list
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -168,23 +171,28 @@ class NarrowPhase:
         return max(0.0, float(gap)), result.getNearestPoint1(), result.getNearestPoint2()
 
     def manifold(self, ga: coal.CollisionGeometry, ta: coal.Transform3s,
-                 gb: coal.CollisionGeometry, tb: coal.Transform3s
+                 gb: coal.CollisionGeometry, tb: coal.Transform3s,
+                 known: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Points on A (k, 3), on B (k, 3) and the normal A->B of the contact last found
-        by ``contact`` on the same pair: several points where faces touch (coal patch)."""
-        c = self._result.getContact(0)
-        normal = np.asarray(c.normal, dtype=float)
-        self._patch_result.clear()
-        coal.computeContactPatch(ga, ta, gb, tb, self._result, self._patch_request,
-                                 self._patch_result)
-        if self._patch_result.numContactPatches() > 0:
-            patch = self._patch_result.getContactPatch(0)
+        by ``contact`` (or ``load``) on the same pair: several points where faces touch
+        (coal patch). ``known``: that contact's (normal, point on A, point on B), if read."""
+        if known is None:
+            c = self._result.getContact(0)
+            known = (np.asarray(c.normal, dtype=float),
+                     np.asarray(c.getNearestPoint1(), dtype=float),
+                     np.asarray(c.getNearestPoint2(), dtype=float))
+        normal = known[0]
+        patches = self._patch_result
+        patches.clear()
+        coal.computeContactPatch(ga, ta, gb, tb, self._result, self._patch_request, patches)
+        if patches.numContactPatches() > 0:
+            patch = patches.getContactPatch(0)
             size = patch.size()
             if size > 1:
                 # the patch is a polygon on the separating plane, at one signed depth:
                 # each body's point is half of it along the normal from there
                 middle = np.array([patch.getPoint(k) for k in range(size)])
-                half = 0.5 * patch.penetration_depth * np.asarray(patch.getNormal())
+                half = 0.5 * patch.penetration_depth * normal
                 return middle - half, middle + half, normal
-        return (np.asarray(c.getNearestPoint1(), dtype=float)[None, :],
-                np.asarray(c.getNearestPoint2(), dtype=float)[None, :], normal)
+        return known[1][None, :], known[2][None, :], normal

@@ -11,13 +11,16 @@ Relative velocity of a row: ``(v_B + w_B x r_B - v_A - w_A x r_A) . d``
 (negative normal component = approaching), ``r`` the contact point minus the
 body's centre of mass.
 
-Contacts are grouped by body pair (a manifold: up to a few points of one
-face contact). The pairs are greedily coloured so that no movable body is in
-two pairs of one colour; rows are sorted by colour, and each colour is solved
-at once with numpy: Gauss-Seidel across colours, and within a manifold
-Jacobi with mass splitting (each of the k points of a pair acts on 1/k of
-each body's mass, and the k impulses are summed: Tonge et al. 2012), which is
-exact for one point and converges for face contacts without a loop per point.
+Contacts are grouped by body pair (a manifold: the points of one face
+contact). The pairs are greedily coloured so that no movable body is in two
+pairs of one colour (beyond MAX_COLOURS colours, pairs share a colour and
+their bodies' masses are split between them: Tonge et al. 2012); rows are
+sorted by colour and pair, padded to K points per pair, and each colour is
+solved at once with numpy: Gauss-Seidel across colours, Jacobi over the K
+points of a pair with a step factor 1 / lambda_max of the pair's normalised
+Delassus matrix, so the joint step never overshoots (a box face's support is
+found in one iteration). Friction of a point acts along minus its slip
+velocity (the lecture's tangent), clamped to the circular cone mu * j_n.
 Immovable bodies (static or inactive) have zero inverse mass and inertia and
 may appear in any number of pairs of a colour: their velocity never
 changes. Stages, as in Box2D v3: prepare, warm start, solve (iterate),
@@ -52,9 +55,9 @@ class Batch:
     response: np.ndarray       # (P, 12, K * 3) pair velocity change per row impulse
     normal_jacobian: np.ndarray  # (P, K, 12) the normal rows only
     normal_response: np.ndarray  # (P, 12, K)
-    normal_mass: np.ndarray    # (P, K) kg (split)
-    tangent_quad: np.ndarray   # (3, P, K) 1/kg, K_t11, K_t12 + K_t21, K_t22 (split)
-    coupling: np.ndarray       # (P, K, 2)
+    normal_mass: np.ndarray    # (P, K) kg, step factor / A_ii
+    tangent_quad: np.ndarray   # (3, P, K) 1/kg, K_t11, K_t12 + K_t21, K_t22 / step factor
+    coupling: np.ndarray       # (P, K, 2) m/s per N s: tangential velocity per normal impulse
     allowance: np.ndarray      # (P, K) m/s
     mu: np.ndarray             # (P, K)
     normal: np.ndarray         # (P, K) N s, accumulated
@@ -171,11 +174,12 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
     colour, key = colour[order], key[order]
     edges = np.flatnonzero(np.diff(colour)) + 1
     spans = list(zip(np.r_[0, edges].tolist(), np.r_[edges, colour.shape[0]].tolist()))
-    # mass splitting: rows of the colour that act on each body (k), per side of each row
+    # mass splitting across pairs: pairs of the colour that act on each body (k), per side
     share = np.ones((pair.shape[0], 2))
     for lo, hi in spans:
-        rows_of = np.bincount(pair[lo:hi].ravel(), minlength=count)
-        share[lo:hi] = rows_of[pair[lo:hi]]
+        first = np.r_[True, key[lo + 1:hi] != key[lo:hi - 1]]
+        pairs_of = np.bincount(pair[lo:hi][first].ravel(), minlength=count)
+        share[lo:hi] = pairs_of[pair[lo:hi]]
 
     t1, t2 = tangent_basis(normal)
     basis = np.stack((normal, t1, t2), axis=1)                 # (M, 3, 3)
@@ -208,7 +212,9 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
         mu=np.where(sticking, np.asarray(friction[0], float)[order],
                     np.asarray(friction[1], float)[order]),
         sticking=sticking)
-    rows.batches = [_batch(rows, key, lo, hi, movable) for lo, hi in spans]
+    padded = {name: _padded(getattr(rows, name)) for name in ('jacobian', 'response',
+                                                              'allowance', 'mu')}
+    rows.batches = _batches(rows, padded, key, colour, movable, share)
     return rows
 
 
@@ -217,35 +223,74 @@ def _padded(array: np.ndarray) -> np.ndarray:
     return np.concatenate((array, np.zeros((1,) + array.shape[1:], array.dtype)))
 
 
-def _batch(rows: ContactRows, key: np.ndarray, lo: int, hi: int,
-           movable: np.ndarray) -> Batch:
-    """The padded (P, K) layout of rows lo..hi (sorted by pair)."""
-    starts = np.r_[lo, lo + np.flatnonzero(np.diff(key[lo:hi])) + 1]
-    sizes = np.diff(np.r_[starts, hi])
-    width = int(sizes.max())
-    slot = np.full((starts.shape[0], width), rows.count, np.int64)
-    within = np.arange(width)
-    valid = within[None, :] < sizes[:, None]
-    slot[valid] = np.arange(lo, hi)
+def _batches(rows: ContactRows, padded: dict[str, np.ndarray], key: np.ndarray,
+             colour: np.ndarray, movable: np.ndarray, share: np.ndarray) -> list[Batch]:
+    """The padded (P, K) layout of all pairs, cut into one Batch (views) per colour.
+
+    The K points of a pair are solved together (Jacobi), each row's step
+    scaled by ``_step_factor`` of the pair's normal Delassus matrix (by the
+    Gershgorin bound for the tangent rows), so the joint step never overshoots.
+    """
+    total = rows.count
+    starts = np.r_[0, np.flatnonzero(np.diff(key)) + 1]        # rows sorted by colour, pair
+    sizes = np.diff(np.r_[starts, total])
+    p, k = starts.shape[0], int(sizes.max())
+    slot = np.full((p, k), total, np.int64)
+    slot[np.arange(k)[None, :] < sizes[:, None]] = np.arange(total)
     pairs = rows.pair[starts]
-    bodies = pairs[movable[pairs]]
-    unique = bool(np.unique(bodies).shape[0] == bodies.shape[0])
-    p, k = slot.shape
-    jacobian = _padded(rows.jacobian)[slot]                    # (P, K, 3, 12)
-    response = _padded(rows.response)[slot]                    # (P, K, 12, 3)
-    block = _padded(rows.tangent_block)[slot]
-    return Batch(
-        pairs=pairs, slot=slot, unique=unique,
-        jacobian=jacobian.reshape(p, k * 3, 12),
-        response=np.ascontiguousarray(response.transpose(0, 2, 1, 3).reshape(p, 12, k * 3)),
-        normal_jacobian=np.ascontiguousarray(jacobian[:, :, 0, :]),
-        normal_response=np.ascontiguousarray(response[:, :, :, 0].transpose(0, 2, 1)),
-        normal_mass=_padded(rows.normal_mass)[slot],
-        tangent_quad=np.stack((block[..., 0, 0], block[..., 0, 1] + block[..., 1, 0],
-                               block[..., 1, 1])),
-        coupling=_padded(rows.coupling)[slot], allowance=_padded(rows.allowance)[slot],
-        mu=_padded(rows.mu)[slot], normal=np.zeros(slot.shape),
-        tangent=np.zeros(slot.shape + (2,)))
+    jacobian = padded['jacobian'][slot]                        # (P, K, 3, 12)
+    response = padded['response'][slot]                        # (P, K, 12, 3)
+    side = np.repeat(share[starts], 6, axis=1)                 # (P, 12) split factors
+    flat_response = np.ascontiguousarray(response.transpose(0, 2, 1, 3).reshape(p, 12, k * 3))
+    full = jacobian.reshape(p, k * 3, 12) @ (flat_response * side[:, :, None])
+    normal = full[:, 0::3, 0::3]                               # (P, K, K) Delassus
+    tangent = full.reshape(p, k, 3, k, 3)[:, :, 1:, :, 1:].reshape(p, 2 * k, 2 * k)
+    omega_n, omega_t = _step_factor(normal), _gershgorin(tangent)
+    diag = np.einsum('pkk->pk', normal)
+    normal_mass = np.where(diag > _TINY, omega_n[:, None] / np.where(diag > _TINY, diag, 1.0),
+                           0.0)
+    own = full.reshape(p, k, 3, k, 3)[:, np.arange(k), :, np.arange(k), :]   # (K, P, 3, 3)
+    block = own[:, :, 1:, 1:].transpose(1, 0, 2, 3) / omega_t[:, None, None, None]
+    quad = np.stack((block[..., 0, 0], block[..., 0, 1] + block[..., 1, 0], block[..., 1, 1]))
+    coupling = own[:, :, 1:, 0].transpose(1, 0, 2)
+    normal_jacobian = np.ascontiguousarray(jacobian[:, :, 0, :])
+    normal_response = np.ascontiguousarray(response[:, :, :, 0].transpose(0, 2, 1))
+    jacobian = jacobian.reshape(p, k * 3, 12)
+    allowance, mu = padded['allowance'][slot], padded['mu'][slot]
+    pair_colour = colour[starts]
+    cuts = np.r_[0, np.flatnonzero(np.diff(pair_colour)) + 1, p].tolist()
+    batches = []
+    for lo, hi in zip(cuts[:-1], cuts[1:]):
+        bodies = pairs[lo:hi][movable[pairs[lo:hi]]]
+        batches.append(Batch(
+            pairs=pairs[lo:hi], slot=slot[lo:hi],
+            unique=bool(np.unique(bodies).shape[0] == bodies.shape[0]),
+            jacobian=jacobian[lo:hi], response=flat_response[lo:hi],
+            normal_jacobian=normal_jacobian[lo:hi], normal_response=normal_response[lo:hi],
+            normal_mass=normal_mass[lo:hi], tangent_quad=quad[:, lo:hi],
+            coupling=coupling[lo:hi], allowance=allowance[lo:hi], mu=mu[lo:hi],
+            normal=np.zeros((hi - lo, k)), tangent=np.zeros((hi - lo, k, 2))))
+    return batches
+
+
+def _step_factor(matrix: np.ndarray) -> np.ndarray:
+    """Jacobi step factor (P,) in (0, 1]: 1 / largest eigenvalue of D^-1/2 A D^-1/2.
+
+    With it the joint Jacobi step of a pair's rows never overshoots (A is the
+    pair's Delassus matrix, D its diagonal; padding rows have A_ii = 0).
+    """
+    diag = np.einsum('pkk->pk', matrix)
+    inv_sqrt = np.where(diag > _TINY, 1.0 / np.sqrt(np.where(diag > _TINY, diag, 1.0)), 0.0)
+    scaled = matrix * inv_sqrt[:, :, None] * inv_sqrt[:, None, :]
+    largest = np.linalg.eigvalsh(0.5 * (scaled + scaled.transpose(0, 2, 1)))[:, -1]
+    return 1.0 / np.maximum(largest, 1.0)
+
+
+def _gershgorin(matrix: np.ndarray) -> np.ndarray:
+    """A cheaper, smaller safe step factor (P,): 1 / max_i sum_j |A_ij| / A_ii."""
+    diag = np.einsum('pkk->pk', matrix)
+    ratio = np.abs(matrix).sum(axis=2) / np.where(diag > _TINY, diag, np.inf)
+    return 1.0 / np.maximum(ratio.max(axis=1), 1.0)
 
 
 def _row_velocity(jacobian: np.ndarray, velocity: np.ndarray, pair: np.ndarray) -> np.ndarray:

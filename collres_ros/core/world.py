@@ -43,8 +43,9 @@ from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactRe
                                     ContactSet, Rejection, StepResult)
 
 POSITION_ITERATIONS = 4   # split-impulse iterations when some contact needs a push-out
-COLD_EXTRA = 2.0          # extra iterations (times velocity_iterations) when all resting
-                          # contacts are new: no warm start, e.g. a stack at its first step
+# extra iterations (times velocity_iterations) when all resting contacts are new
+# (nothing to warm start from, e.g. a stack at its first step); scaled by their share
+COLD_EXTRA = 1.0
 
 
 class Detector(Protocol):
@@ -104,7 +105,15 @@ class World:
 
     def step(self, previous: BodyStates, current: BodyStates, dt: float,
              active: np.ndarray | None = None) -> StepResult:
-        """Resolve the contacts of the step previous -> current (dt > 0, s)."""
+        """Resolve the contacts of the step previous -> current (dt > 0, s).
+
+        ``previous``/``current``: all N bodies, world frame, before resolution
+        (validated by the caller). ``active`` (N,) bool, False = quarantined:
+        held at ``current`` with zero twist and infinite mass this step, its
+        output state is ``current`` unchanged. Returns corrected states of all
+        bodies, the solved contacts and non-finite results that were refused.
+        A step longer than ``settings.max_dt`` is not warm started.
+        """
         s = self._settings
         n = current.count
         active = np.ones(n, bool) if active is None else np.asarray(active, bool)
@@ -126,16 +135,10 @@ class World:
         frame = _Frame(previous, current, contacts, dt, movable, ~active,
                        s.restitution_threshold)
         # prepare: constraint rows, coloured batches, combined materials
-        e_a, e_b = restitution_per_side(self.restitution[contacts.body_a],
-                                        self.restitution[contacts.body_b], s.restitution_rule)
-        mu_s = combine_friction(self.static_friction[contacts.body_a],
-                                self.static_friction[contacts.body_b], s.friction_rule)
-        mu_k = np.minimum(mu_s, combine_friction(self.kinetic_friction[contacts.body_a],
-                                                 self.kinetic_friction[contacts.body_b],
-                                                 s.friction_rule))
+        restitution, friction = self._materials(contacts.body_a, contacts.body_b)
         rows = solver.prepare(frame.pair, contacts.normal, frame.r_a, frame.r_b, inv_mass,
-                              inv_inertia, frame.velocity, frame.allowance, (e_a, e_b),
-                              (mu_s, mu_k), s.restitution_threshold, s.sticking_speed,
+                              inv_inertia, frame.velocity, frame.allowance, restitution,
+                              friction, s.restitution_threshold, s.sticking_speed,
                               frame.sticking_velocity)
         # warm start from last step's impulses of the same pair and feature
         impulses = solver.Impulses.zeros(rows.count)
@@ -167,6 +170,21 @@ class World:
         self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected}
         return StepResult(states, report, rejected)
 
+    def _materials(self, a: np.ndarray, b: np.ndarray
+                   ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """((e on A, e on B), (mu_static, mu_kinetic)) per contact, by the settings' rules.
+
+        The kinetic coefficient never exceeds the static one of the same contact.
+        """
+        s = self._settings
+        restitution = restitution_per_side(self.restitution[a], self.restitution[b],
+                                           s.restitution_rule)
+        mu_s = combine_friction(self.static_friction[a], self.static_friction[b],
+                                s.friction_rule)
+        mu_k = combine_friction(self.kinetic_friction[a], self.kinetic_friction[b],
+                                s.friction_rule)
+        return restitution, (mu_s, np.minimum(mu_s, mu_k))
+
     def _warm(self, rows: solver.ContactRows, impulses: solver.Impulses,
               contacts: ContactSet, dt: float, enabled: bool) -> float:
         """Fill ``impulses`` with the cached ones, scaled to this dt, inside the cone.
@@ -176,8 +194,8 @@ class World:
         persistent = contacts.kind[rows.order] == ContactKind.PERSISTENT
         if not enabled:
             return 1.0 if persistent.any() else 0.0
-        normal, friction, found = self._cache.lookup(contacts.body_a, contacts.body_b, contacts.feature,
-                                              contacts.point)
+        normal, friction, found = self._cache.lookup(contacts.body_a, contacts.body_b,
+                                                     contacts.feature, contacts.point)
         scale = dt / self._last_dt if self._last_dt > 0.0 else 0.0
         impulses.normal[:] = normal[rows.order] * scale
         tangent = solver.project_friction(rows, friction[rows.order] * scale)

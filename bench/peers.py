@@ -41,7 +41,7 @@ def mujoco_ms(scene: dict, dt: float, warmup: int, steps: int) -> float | None:
         import mujoco
     except ImportError:
         return None
-    parts = [f'<mujoco><option timestep="{dt}" gravity="0 0 -9.81"/><worldbody>']
+    parts = [f'<mujoco><option timestep="{dt}" gravity="0 0 -9.81" solver="CG"/><worldbody>']
     for centre, half in _walls(scene):
         parts.append('<geom type="box" pos="{} {} {}" size="{} {} {}"/>'.format(*centre, *half))
     for i, body in enumerate(scene['bodies']):

@@ -18,7 +18,7 @@ with ``rclpy.serialization``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any, Container, Mapping, Optional, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
@@ -262,3 +262,22 @@ def build_outputs(step: ResolvedStep, world_frame: str, per_body: bool = False,
     if diagnostics is not None:
         out.append((DIAGNOSTICS, diagnostics_array(diagnostics)))
     return out
+
+
+def inputs_from_group(parts: Mapping[str, Mapping[str, Any]], dynamic: Container[str]
+                      ) -> list[BodyInput]:
+    """BodyInputs of one synchronised per-body group ({name: {'pose': .., 'twist': ..}}).
+
+    A dynamic body needs both its pose and its twist; a static body may publish
+    its pose only (zero twist, in the pose's frame).
+    """
+    inputs = []
+    for name, found in parts.items():
+        pose, twist = found.get('pose'), found.get('twist')
+        if pose is None or (twist is None and name in dynamic):
+            continue
+        if twist is None:
+            twist = TwistStamped()
+            twist.header.frame_id = pose.header.frame_id
+        inputs.append(input_from_pose_twist(name, pose, twist))
+    return inputs

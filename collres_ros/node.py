@@ -55,7 +55,7 @@ from collres_ros import messages, params
 from collres_ros.core.config import ParamSpec, range_text
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
-from collres_ros.sync import Group, StampSync
+from collres_ros.sync import StampSync
 
 NAME = 'collres_node'
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
@@ -207,19 +207,8 @@ class CollresNode(Node):
 
     def _on_part(self, name: str, kind: str, msg: Any) -> None:
         for group in self.sync.add(name, kind, messages.stamp_ns(msg.header.stamp), msg):
-            self._step(group.stamp_ns, self._group_inputs(group), True)
-
-    def _group_inputs(self, group: Group) -> list[Any]:
-        inputs = []
-        for name, parts in group.parts.items():
-            pose, twist = parts.get('pose'), parts.get('twist')
-            if pose is None or (twist is None and name in self.dynamic):
-                continue
-            if twist is None:   # a static body may publish its pose only
-                twist = TwistStamped()
-                twist.header.frame_id = pose.header.frame_id
-            inputs.append(messages.input_from_pose_twist(name, pose, twist))
-        return inputs
+            self._step(group.stamp_ns, messages.inputs_from_group(group.parts, self.dynamic),
+                       True)
 
     # --- one step ---------------------------------------------------------------------------
 

@@ -238,27 +238,13 @@ class PerBodyGrouper:
         return int(self.sync.dropped)
 
     def steps(self, reader: Any) -> Iterator[Step]:
+        from collres_ros import messages
         for m in reader.messages(list(self.wanted)):
             name, kind = self.wanted[m.topic]
             for group in self.sync.add(name, kind, _stamp_ns(m.msg.header.stamp), m.msg):
-                yield Step(group.stamp_ns, m.log_time, self._inputs(group), True)
+                yield Step(group.stamp_ns, m.log_time,
+                           messages.inputs_from_group(group.parts, self.dynamic), True)
         self.incomplete = self.sync.dropped + len(self.sync.pending)
-
-    def _inputs(self, group: Any) -> list[Any]:
-        """Convert a complete group to BodyInputs (as collres_node's ``_group_inputs``)."""
-        from geometry_msgs.msg import TwistStamped
-
-        from collres_ros import messages
-        inputs = []
-        for name, parts in group.parts.items():
-            pose, twist = parts.get('pose'), parts.get('twist')
-            if pose is None or (twist is None and name in self.dynamic):
-                continue
-            if twist is None:   # a static body may publish its pose only
-                twist = TwistStamped()
-                twist.header.frame_id = pose.header.frame_id
-            inputs.append(messages.input_from_pose_twist(name, pose, twist))
-        return inputs
 
 
 def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None,

@@ -1,4 +1,4 @@
-"""The package's interfaces: import next to the hand-written modules, serialise, travel over DDS."""
+"""The package's interfaces: import next to the hand-written modules, serialise, cross DDS."""
 
 from __future__ import annotations
 

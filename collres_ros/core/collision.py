@@ -182,8 +182,8 @@ class CollisionWorld:
             q0 = np.where(frozen[:, None], q1, q0)
             fixed |= frozen
         turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q0 * q1, axis=1)), 0.0, 1.0))
-        moved = np.linalg.norm(p1 - p0, axis=1) + turn * np.where(self._static, 0.0,
-                                                                   self._radius)
+        moved = (np.linalg.norm(p1 - p0, axis=1)
+                 + turn * np.where(self._static, 0.0, self._radius))
         moved = np.where(np.isfinite(moved), moved, 0.0)
         return _Step(p0, p1, q0, q1, rotation.to_matrix(q0), rotation.to_matrix(q1),
                      turn, moved, fixed, valid)
@@ -252,8 +252,8 @@ class CollisionWorld:
         # a pair whose every point left the margin is no longer in contact
         starts = np.flatnonzero(np.r_[True, pair[1:] != pair[:-1]])
         gap = np.minimum.reduceat(separation, starts)
-        alive = np.repeat(gap <= self.settings.speculative_margin, np.diff(np.r_[starts,
-                                                                              pair.shape[0]]))
+        counts = np.diff(np.r_[starts, pair.shape[0]])
+        alive = np.repeat(gap <= self.settings.speculative_margin, counts)
         rows, pair = rows[alive], pair[alive]
         out.add_block(ra[alive], rb[alive], on_a[alive], on_b[alive], normal[alive],
                       separation[alive], np.zeros(rows.shape[0]), ContactKind.PERSISTENT,

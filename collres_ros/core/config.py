@@ -16,7 +16,8 @@ class ParamSpec:
     """One parameter: name (dotted below its namespace), type, default, range, docs."""
 
     name: str
-    type: str                       # 'double' | 'integer' | 'bool' | 'string' | 'double_array' | 'string_array'
+    # 'double' | 'integer' | 'bool' | 'string' | 'double_array' | 'string_array'
+    type: str
     default: Any
     description: str
     minimum: Optional[float] = None  # inclusive, numbers only
@@ -59,7 +60,8 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               reason='bounds the push-out of a deep overlap (Box2D: 0.2 m)'),
     ParamSpec('speculative_margin', 'double', 0.02,
               'Pairs closer than this at the previous state are treated as persistent contacts',
-              0.0, 10.0, unit='m', reason='keeps resting and stacked contacts alive between steps'),
+              0.0, 10.0, unit='m',
+              reason='keeps resting and stacked contacts alive between steps'),
     ParamSpec('restitution_rule', 'string', 'max',
               'How two bodies\' restitution combine', choices=RESTITUTION_RULES,
               reason='one e per contact conserves momentum; max (Box2D) lets a bouncy ball '

@@ -37,6 +37,8 @@ from collres_ros.core.types import ContactState
 
 _TINY = 1e-12
 MAX_COLOURS = 8   # more colours are merged (mass splitting); bounds the batches per iteration
+MAX_POINTS = 4    # rows of one pair solved jointly; bigger manifolds are cut into chunks
+CONVERGED = 1e-6  # a sweep that changes every impulse by less than this (relative) ends iterating
 
 
 @dataclass
@@ -115,22 +117,23 @@ def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, np.cross(normal, t1)
 
 
-def colour_pairs(pair: np.ndarray, movable: np.ndarray,
-                 max_colours: int = MAX_COLOURS) -> np.ndarray:
-    """Colour per contact: no movable body in two different pairs of one colour.
+def colour_pairs(pair: np.ndarray, movable: np.ndarray, max_colours: int = MAX_COLOURS,
+                 key: np.ndarray | None = None) -> np.ndarray:
+    """Colour per contact: no movable body in two different groups of one colour.
 
-    Greedy over the distinct pairs with one bitmask of used colours per body;
-    a pair that finds no free colour below ``max_colours`` shares one (mass
-    splitting keeps such a colour correct, only less Gauss-Seidel-like).
+    A group is a pair, or the rows sharing ``key`` (e.g. chunks of a big
+    manifold). Greedy over the groups with one bitmask of used colours per
+    body; a group that finds no free colour below ``max_colours`` shares one
+    (mass splitting keeps such a colour correct, only less Gauss-Seidel-like).
     """
     count = movable.shape[0]
-    key = pair[:, 0] * count + pair[:, 1]
-    keys, which = np.unique(key, return_inverse=True)
+    if key is None:
+        key = pair[:, 0] * count + pair[:, 1]
+    _, first, which = np.unique(key, return_index=True, return_inverse=True)
     masks = [0] * count
     move = movable.tolist()
     colours = []
-    for k in keys.tolist():
-        a, b = divmod(k, count)
+    for a, b in pair[first].tolist():
         used = (masks[a] if move[a] else 0) | (masks[b] if move[b] else 0)
         bit = ~used & (used + 1)            # lowest free colour
         colour = bit.bit_length() - 1
@@ -167,8 +170,8 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
     pair = np.asarray(pair, np.int64).reshape(-1, 2)
     count = inv_mass.shape[0]
     movable = inv_mass > 0.0
-    colour = colour_pairs(pair, movable, max_colours)
-    key = pair[:, 0] * count + pair[:, 1]
+    key = _chunk_keys(pair[:, 0] * count + pair[:, 1])
+    colour = colour_pairs(pair, movable, max_colours, key)
     order = np.lexsort((key, colour))
     pair, normal, r_a, r_b = pair[order], normal[order], r_a[order], r_b[order]
     colour, key = colour[order], key[order]
@@ -212,10 +215,25 @@ def prepare(pair: np.ndarray, normal: np.ndarray, r_a: np.ndarray, r_b: np.ndarr
         mu=np.where(sticking, np.asarray(friction[0], float)[order],
                     np.asarray(friction[1], float)[order]),
         sticking=sticking)
-    padded = {name: _padded(getattr(rows, name)) for name in ('jacobian', 'response',
-                                                              'allowance', 'mu')}
+    padded = {name: _padded(getattr(rows, name)) for name in (
+        'jacobian', 'response', 'allowance', 'mu', 'tangent_block', 'coupling')}
     rows.batches = _batches(rows, padded, key, colour, movable, share)
     return rows
+
+
+def _chunk_keys(pair_key: np.ndarray) -> np.ndarray:
+    """Group key per row: its pair, cut into chunks of at most MAX_POINTS rows.
+
+    Chunks of one pair share bodies, so they get different colours
+    (Gauss-Seidel between them) and the padded width K stays small.
+    """
+    order = np.argsort(pair_key, kind='stable')
+    ordered = pair_key[order]
+    index = np.arange(ordered.shape[0])
+    start = np.r_[True, ordered[1:] != ordered[:-1]]
+    rank = np.empty_like(index)
+    rank[order] = index - np.maximum.accumulate(np.where(start, index, 0))
+    return pair_key * 64 + np.minimum(rank // MAX_POINTS, 63)
 
 
 def _padded(array: np.ndarray) -> np.ndarray:
@@ -242,19 +260,18 @@ def _batches(rows: ContactRows, padded: dict[str, np.ndarray], key: np.ndarray,
     response = padded['response'][slot]                        # (P, K, 12, 3)
     side = np.repeat(share[starts], 6, axis=1)                 # (P, 12) split factors
     flat_response = np.ascontiguousarray(response.transpose(0, 2, 1, 3).reshape(p, 12, k * 3))
-    full = jacobian.reshape(p, k * 3, 12) @ (flat_response * side[:, :, None])
-    normal = full[:, 0::3, 0::3]                               # (P, K, K) Delassus
-    tangent = full.reshape(p, k, 3, k, 3)[:, :, 1:, :, 1:].reshape(p, 2 * k, 2 * k)
+    normal_jacobian = np.ascontiguousarray(jacobian[:, :, 0, :])              # (P, K, 12)
+    normal_response = np.ascontiguousarray(response[:, :, :, 0].transpose(0, 2, 1))
+    normal = normal_jacobian @ (normal_response * side[:, :, None])            # (P, K, K)
+    tangent = jacobian[:, :, 1:, :].reshape(p, 2 * k, 12) @ (
+        response[:, :, :, 1:].transpose(0, 2, 1, 3).reshape(p, 12, 2 * k) * side[:, :, None])
     omega_n, omega_t = _step_factor(normal), _gershgorin(tangent)
     diag = np.einsum('pkk->pk', normal)
     normal_mass = np.where(diag > _TINY, omega_n[:, None] / np.where(diag > _TINY, diag, 1.0),
                            0.0)
-    own = full.reshape(p, k, 3, k, 3)[:, np.arange(k), :, np.arange(k), :]   # (K, P, 3, 3)
-    block = own[:, :, 1:, 1:].transpose(1, 0, 2, 3) / omega_t[:, None, None, None]
+    block = padded['tangent_block'][slot] / omega_t[:, None, None, None]       # (P, K, 2, 2)
     quad = np.stack((block[..., 0, 0], block[..., 0, 1] + block[..., 1, 0], block[..., 1, 1]))
-    coupling = own[:, :, 1:, 0].transpose(1, 0, 2)
-    normal_jacobian = np.ascontiguousarray(jacobian[:, :, 0, :])
-    normal_response = np.ascontiguousarray(response[:, :, :, 0].transpose(0, 2, 1))
+    coupling = padded['coupling'][slot]
     jacobian = jacobian.reshape(p, k * 3, 12)
     allowance, mu = padded['allowance'][slot], padded['mu'][slot]
     pair_colour = colour[starts]
@@ -317,21 +334,33 @@ def warm_start(rows: ContactRows, impulses: Impulses, velocity: np.ndarray) -> N
 
 
 def solve_velocities(rows: ContactRows, impulses: Impulses, velocity: np.ndarray,
-                     iterations: int) -> None:
-    """Sequential impulses: normal clamped >= 0, friction clamped to the circular cone."""
+                     iterations: int) -> int:
+    """Sequential impulses: normal clamped >= 0, friction clamped to the circular cone.
+
+    Stops early once a whole sweep changes no impulse by more than
+    CONVERGED times the largest normal impulse; returns the sweeps done.
+    """
     normal, tangent = _padded(impulses.normal), _padded(impulses.tangent)
     for batch in rows.batches:
         batch.normal, batch.tangent = normal[batch.slot], tangent[batch.slot]
-    for _ in range(iterations):
+    done = 0
+    while done < iterations:
+        done += 1
+        change, largest = 0.0, 0.0
         for batch in rows.batches:
-            _solve_batch(batch, velocity)
+            step, top = _solve_batch(batch, velocity)
+            change, largest = max(change, step), max(largest, top)
+        if change <= CONVERGED * largest:
+            break
     for batch in rows.batches:
         valid = batch.slot < rows.count
         impulses.normal[batch.slot[valid]] = batch.normal[valid]
         impulses.tangent[batch.slot[valid]] = batch.tangent[valid]
+    return done
 
 
-def _solve_batch(b: Batch, velocity: np.ndarray) -> None:
+def _solve_batch(b: Batch, velocity: np.ndarray) -> tuple[float, float]:
+    """One Jacobi step of a colour; returns (largest impulse change, largest normal impulse)."""
     gathered = velocity[b.pairs].reshape(-1, 12)
     rel = (b.jacobian @ gathered[:, :, None]).reshape(b.slot.shape + (3,))
     # normal: approach no faster than the speculative allowance, accumulated impulse >= 0
@@ -353,6 +382,7 @@ def _solve_batch(b: Batch, velocity: np.ndarray) -> None:
     b.normal, b.tangent = new_n, new_t
     change = (b.response @ delta.reshape(delta.shape[0], -1, 1))[:, :, 0]
     _scatter(b, velocity, gathered, change)
+    return float(np.abs(delta).max()), float(new_n.max())
 
 
 def apply_restitution(rows: ContactRows, impulses: Impulses, velocity: np.ndarray) -> None:

@@ -109,7 +109,8 @@ class ContactReport:
 
     contacts: ContactSet
     normal_impulse: np.ndarray    # (M,) N s, >= 0, applied to B along +normal (to A along -normal)
-    friction_impulse: np.ndarray  # (M, 3) N s, world, applied to B (opposite on A), normal to `normal`
+    # (M, 3) N s, world, applied to B (opposite on A), perpendicular to `normal`
+    friction_impulse: np.ndarray
     state: np.ndarray             # (M,) uint8, ContactState
 
     @staticmethod

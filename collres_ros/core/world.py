@@ -76,7 +76,8 @@ class World:
         self.kinetic_friction = np.array([s.kinetic_friction for s in self.specs], dtype=float)
         self._cache = ContactCache()
         self._last_dt = 0.0
-        self.timing = {'detect': 0.0, 'solve': 0.0}   # s, phases of the last step
+        # last step: detection and solve time (s), velocity sweeps done
+        self.timing: dict[str, float] = {'detect': 0.0, 'solve': 0.0, 'iterations': 0}
 
     @property
     def settings(self) -> SolverSettings:
@@ -125,7 +126,7 @@ class World:
         contacts = _finite(self._collision.detect(previous, current, active))
         detected = time.perf_counter()
         if contacts.count == 0:
-            self.timing = {'detect': detected - started, 'solve': 0.0}
+            self.timing = {'detect': detected - started, 'solve': 0.0, 'iterations': 0}
             self._cache.clear()
             return StepResult(current.copy(), ContactReport.empty(), [])
         # manifolds: reference time of each contact and body, pre-solve velocities
@@ -147,7 +148,7 @@ class World:
         solver.warm_start(rows, impulses, velocity)
         # iterate: sequential impulses over the colours (more while resting contacts are new)
         iterations = int(round(s.velocity_iterations * (1.0 + COLD_EXTRA * cold)))
-        solver.solve_velocities(rows, impulses, velocity, iterations)
+        sweeps = solver.solve_velocities(rows, impulses, velocity, iterations)
         # restitution from the pre-solve approach speed, above the threshold only
         solver.apply_restitution(rows, impulses, velocity)
         # store impulses for next step's warm start (without the restitution part)
@@ -167,7 +168,8 @@ class World:
         report = ContactReport(frame.reported, normal_impulse[back], friction[back],
                                state[back])
         rejected = self._guard(states, current)
-        self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected}
+        self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
+                       'iterations': sweeps}
         return StepResult(states, report, rejected)
 
     def _materials(self, a: np.ndarray, b: np.ndarray

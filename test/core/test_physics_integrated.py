@@ -127,3 +127,19 @@ def test_stack_of_five_boxes_stands_10s():
     assert trace.contacts >= 4 * count_boxes * len(trace.time) * 0.99
     assert drift.max() < 0.01
     assert max(trace.energy) <= e0 + 1e-9
+
+
+def test_penetration_is_pushed_out_without_velocity():
+    """A box started 2 cm into the floor: overlap never grows, the push adds no velocity."""
+    sim = Simulation([floor(), box('box', (0.2, 0.2, 0.2), 1.0, mu_s=0.5, mu_k=0.3)],
+                     states([[0, 0, 0], [0, 0, 0.08]], np.zeros((2, 3))), 120.0)
+    depth, speed = [0.02], []
+    for _ in range(60):
+        sim.step()
+        depth.append(0.1 - sim.state.position[1, 2])
+        speed.append(np.linalg.norm(sim.state.linear[1]))
+    print(f'overlap {depth[0] * 1000:.2f} mm -> {depth[-1] * 1000:.2f} mm in 0.5 s; '
+          f'largest speed {max(speed):.2e} m/s')
+    assert depth[-1] < 0.006                        # back within the slop (5 mm) + margin
+    assert np.all(np.diff(depth) <= 1e-9)
+    assert max(speed) < 1e-3

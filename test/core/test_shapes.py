@@ -117,8 +117,8 @@ def test_bad_sizes_are_refused_with_the_body_name() -> None:
     with pytest.raises(ValueError, match='wheel'):
         make_geometry(BodySpec('wheel', 'cylinder', (0.1,)))
     with pytest.raises(ValueError, match='flat'):
-        make_geometry(BodySpec('flat', 'convex', points=((0, 0, 0), (1, 0, 0), (0, 1, 0),
-                                                          (1, 1, 0))))
+        make_geometry(BodySpec('flat', 'convex',
+                               points=((0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0))))
     with pytest.raises(ValueError, match='ground'):
         make_geometry(BodySpec('ground', 'plane', (0, 0, 0, 1), static=True))
 

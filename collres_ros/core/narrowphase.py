@@ -27,6 +27,7 @@ _RECORD = np.dtype([('b', '<i4', (2,)), ('normal', '<f8', (3,)), ('count', '<u8'
                     ('p1', '<f8', (3,)), ('p2', '<f8', (3,)), ('pos', '<f8', (3,)),
                     ('distance', '<f8')])
 _TAIL = 8 + 8 + 48 + 24  # distance_lower_bound, nearest_points (count + 2 points), normal
+PATCH_TOLERANCE = 0.01  # m, points within this of the separating plane join a patch
 _BIG = 1e300             # security margin that makes every queried pair report a contact
 
 
@@ -51,6 +52,9 @@ class NarrowPhase:
         self._distance_request = coal.DistanceRequest()
         self._distance_result = coal.DistanceResult()
         self._patch_request = coal.ContactPatchRequest()
+        # coal's default 1 mm keeps a single point for box faces tilted a few degrees,
+        # so tilted piles rock and lose their warm starts; 1 cm keeps the face manifold
+        self._patch_request.setPatchTolerance(PATCH_TOLERANCE)
         self._patch_result = coal.ContactPatchResult()
         fd, self._dump = tempfile.mkstemp(prefix='collres_', suffix='.bin',
                                           dir='/dev/shm' if os.path.isdir('/dev/shm') else None)

@@ -40,11 +40,12 @@ from collres_ros.core.config import SolverSettings
 from collres_ros.core.contact_cache import ContactCache
 from collres_ros.core.shapes import mass_properties
 from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactReport,
-                                    ContactSet, Rejection, StepResult)
+                                    ContactSet, ContactState, Rejection, StepResult)
 
 POSITION_ITERATIONS = 4   # split-impulse iterations when some contact needs a push-out
 # extra iterations (times velocity_iterations) when all resting contacts are new
 # (nothing to warm start from, e.g. a stack at its first step); scaled by their share
+BALANCED_FRICTION = 1e-6  # net friction / net normal impulse of a pair below which it rests
 COLD_EXTRA = 1.0
 
 
@@ -165,8 +166,9 @@ class World:
         # report: impulses, states, and the final guard against non-finite output
         normal_impulse = impulses.normal + impulses.restitution.mean(axis=1)
         state = solver.contact_states(rows, impulses, velocity, s.sticking_speed)
-        report = ContactReport(frame.reported, normal_impulse[back], friction[back],
-                               state[back])
+        state = _resting_when_friction_balances(frame.reported, state[back], friction[back],
+                                                normal_impulse[back])
+        report = ContactReport(frame.reported, normal_impulse[back], friction[back], state)
         rejected = self._guard(states, current)
         self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
                        'iterations': sweeps}
@@ -360,3 +362,26 @@ def _displace(states: BodyStates, pseudo: np.ndarray, dt: float,
         states.orientation[move] = rotation.integrate(states.orientation[move],
                                                       pseudo[move, 3:], dt)
     return states
+
+
+def _resting_when_friction_balances(contacts: ContactSet, state: np.ndarray,
+                                    friction: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """STICKING -> RESTING where a pair's friction impulses sum to nothing.
+
+    A box at rest on a flat floor may carry equal and opposite friction
+    impulses at its corners (a statically indeterminate manifold); no net
+    friction holds it, so users read it as RESTING. Caller order, (M,) uint8.
+    """
+    sticking = state == ContactState.STICKING
+    if not sticking.any():
+        return state
+    _, pair = np.unique(np.stack((contacts.body_a, contacts.body_b), axis=1), axis=0,
+                        return_inverse=True)
+    pair = pair.reshape(-1)
+    net_friction = np.zeros((pair.max() + 1, 3))
+    np.add.at(net_friction, pair, friction)
+    net_normal = np.bincount(pair, weights=normal)
+    balanced = np.linalg.norm(net_friction, axis=1) <= BALANCED_FRICTION * net_normal + 1e-15
+    out = state.copy()
+    out[sticking & balanced[pair]] = ContactState.RESTING
+    return out

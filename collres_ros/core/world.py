@@ -43,9 +43,10 @@ from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactRe
                                     ContactSet, ContactState, Rejection, StepResult)
 
 POSITION_ITERATIONS = 4   # split-impulse iterations when some contact needs a push-out
+BALANCED_FRICTION = 1e-3  # net friction / net normal impulse of a pair below which it rests
+#                           (the solver converges to ~1e-4 relative: residual, not friction)
 # extra iterations (times velocity_iterations) when all resting contacts are new
 # (nothing to warm start from, e.g. a stack at its first step); scaled by their share
-BALANCED_FRICTION = 1e-6  # net friction / net normal impulse of a pair below which it rests
 COLD_EXTRA = 1.0
 
 

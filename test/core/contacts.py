@@ -69,3 +69,12 @@ def box_inertia(size, mass: float) -> np.ndarray:
 
 def sphere_inertia(radius: float, mass: float) -> np.ndarray:
     return np.full(3, 0.4 * mass * radius * radius)
+
+
+def at_rest(positions, orientations=None) -> BodyStates:
+    """States of bodies at ``positions`` (and ``orientations``, x y z w), zero twist."""
+    out = BodyStates.zeros(len(positions))
+    out.position[:] = positions
+    if orientations is not None:
+        out.orientation[:] = orientations
+    return out

@@ -11,17 +11,11 @@ import pytest
 from collres_ros.core import rotation
 from collres_ros.core.collision import CollisionWorld
 from collres_ros.core.config import SolverSettings
-from collres_ros.core.types import BodySpec, BodyStates, ContactKind
+from collres_ros.core.types import BodySpec, ContactKind
+from contacts import at_rest
 
 SETTINGS = SolverSettings()
-
-
-def states(positions, orientations=None) -> BodyStates:
-    out = BodyStates.zeros(len(positions))
-    out.position[:] = positions
-    if orientations is not None:
-        out.orientation[:] = orientations
-    return out
+states = at_rest
 
 
 def test_time_of_impact_of_two_approaching_spheres_matches_the_analytic_time() -> None:

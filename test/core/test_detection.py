@@ -13,16 +13,10 @@ from collres_ros.core.broadphase import FatPairs, TreeBroadPhase, overlapping_pa
 from collres_ros.core.collision import REUSE_TRANSLATION, CollisionWorld
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import BodySpec, BodyStates, ContactKind
+from contacts import at_rest
 
 SETTINGS = SolverSettings()
-
-
-def states(positions, orientations=None) -> BodyStates:
-    out = BodyStates.zeros(len(positions))
-    out.position[:] = positions
-    if orientations is not None:
-        out.orientation[:] = orientations
-    return out
+states = at_rest
 
 
 def brute_pairs(lo: np.ndarray, hi: np.ndarray) -> set[tuple[int, int]]:

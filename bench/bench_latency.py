@@ -27,8 +27,8 @@ from ros_harness import Peer  # noqa: E402
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 
-from collres_ros import processes  # noqa: E402
-from collres_ros.messages import stamp_ns, to_stamp  # noqa: E402
+from collres_ros.ros import processes  # noqa: E402
+from collres_ros.ros.messages import stamp_ns, to_stamp  # noqa: E402
 from collres_ros.msg import BodyState, BodyStateArray  # noqa: E402
 
 

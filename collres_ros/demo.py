@@ -7,7 +7,7 @@ The README's main command (``make demo``)::
 starts ``collres_node`` and ``collres_sim`` as separate processes on the
 default scene (config/collres.yaml) over DDS on localhost, in a private
 ``ROS_DOMAIN_ID``, records every topic to a rosbag2 bag from this process
-(an rclpy recorder writing with ``collres_ros.bag``), shows progress, and
+(an rclpy recorder writing with ``collres_ros.ros.bag``), shows progress, and
 ends with a short report: contacts per state, the ball's apex heights
 against the e^2 law, energy, momentum drift, dropped steps (must be zero),
 the bag and a PNG plot. Exit code 0 when both processes ended cleanly and no
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
-from collres_ros.analysis import RunReport, analyse, plot
+from collres_ros.ros.analysis import RunReport, analyse, plot
 
 DEMO_DURATION = 2.5  # s of simulated time by default: four bounces of the default ball
 OUTPUT_TOPICS = ('/body_states/corrected', '/contacts', '/contact_markers', '/diagnostics')
@@ -71,10 +71,10 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from collres_ros import processes
-    from collres_ros.bag import BagError, read_messages
-    from collres_ros.recorder import Recorder
-    from collres_ros.resources import config_path
+    from collres_ros.ros import processes
+    from collres_ros.ros.bag import BagError, read_messages
+    from collres_ros.ros.recorder import Recorder
+    from collres_ros.ros.resources import config_path
     from collres_ros.sim import load_sim_scene
 
     params = Path(params) if params is not None else config_path('collres.yaml')

@@ -51,11 +51,11 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from visualization_msgs.msg import MarkerArray
 
-from collres_ros import messages, params
+from collres_ros.ros import messages, params
 from collres_ros.core.config import ParamSpec, range_text
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
-from collres_ros.sync import StampSync
+from collres_ros.ros.sync import StampSync
 
 NAME = 'collres_node'
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
@@ -106,7 +106,7 @@ def params_file_dir(argv: Sequence[str]) -> Optional[Path]:
 
 
 def default_params_file() -> Optional[Path]:
-    from collres_ros.resources import config_path
+    from collres_ros.ros.resources import config_path
     try:
         return config_path('collres.yaml')
     except FileNotFoundError:
@@ -300,7 +300,7 @@ def _print_help_if_asked(argv: Sequence[str]) -> bool:
         prog=NAME, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f'{NAME} [-h] [--ros-args --params-file FILE [-p NAME:=VALUE ...]]',
         description=__doc__, epilog='Parameters: see README.md, or print them with '
-        '`python -m collres_ros.params`.')
+        '`python -m collres_ros.ros.params`.')
     parser.print_help()
     return True
 

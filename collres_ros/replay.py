@@ -93,7 +93,7 @@ class OfflineDiagnostics:
 
     def update(self, resolved: Any, resolver: Any, sync_dropped: int = 0) -> Any | None:
         """Account for one ResolvedStep; a DiagnosticsSnapshot when one is due, else None."""
-        from collres_ros.messages import DiagnosticsSnapshot
+        from collres_ros.ros.messages import DiagnosticsSnapshot
         self.steps += 1
         self._times.append(float(getattr(resolved, 'step_time_s', 0.0)))
         stamp = int(resolved.stamp_ns)
@@ -176,7 +176,7 @@ class BatchedSource:
     def steps(self, reader: Any) -> Iterator[Step]:
         from rclpy.serialization import deserialize_message
 
-        from collres_ros import messages
+        from collres_ros.ros import messages
         from collres_ros.msg import BodyStateArray
         for _, _, log_time, data in reader.raw([self.topic]):
             try:
@@ -224,7 +224,7 @@ class PerBodyGrouper:
     """
 
     def __init__(self, wanted: dict[str, tuple[str, str]], scene: Any) -> None:
-        from collres_ros.sync import StampSync
+        from collres_ros.ros.sync import StampSync
         self.wanted = wanted
         self.dynamic = [b.name for b in scene.bodies if not b.static]
         node = scene.node
@@ -238,7 +238,7 @@ class PerBodyGrouper:
         return int(self.sync.dropped)
 
     def steps(self, reader: Any) -> Iterator[Step]:
-        from collres_ros import messages
+        from collres_ros.ros import messages
         for m in reader.messages(list(self.wanted)):
             name, kind = self.wanted[m.topic]
             for group in self.sync.add(name, kind, _stamp_ns(m.msg.header.stamp), m.msg):
@@ -255,8 +255,8 @@ def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None
     ``topics``: write only these output topics (relative names; default all).
     ``compress``: zstd mcap chunks (see ``BagWriter``).
     """
-    from collres_ros import messages, params as params_module
-    from collres_ros.bag import STORAGES, BagReader, BagWriter
+    from collres_ros.ros import messages, params as params_module
+    from collres_ros.ros.bag import STORAGES, BagReader, BagWriter
     from collres_ros.core.pipeline import Resolver
 
     if storage is not None and storage not in STORAGES:
@@ -346,7 +346,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    from collres_ros.bag import BagError
+    from collres_ros.ros.bag import BagError
     try:
         topics = None if args.topics is None else \
             tuple(t.strip() for t in args.topics.split(',') if t.strip())

@@ -5,7 +5,7 @@ Live (default)::
     collres_sim --ros-args --params-file config/scenes/bouncing_ball.yaml
 
 integrates the scene of the params file (semi-implicit Euler with gravity,
-``collres_ros.integrator``) at ``rate_hz`` for ``duration`` s of simulated time.
+``collres_ros.ros.integrator``) at ``rate_hz`` for ``duration`` s of simulated time.
 Each step it publishes ``body_states`` (BodyStateArray of the dynamic bodies,
 stamped with simulated time; or, with ``--per-body``/``publish_per_body``,
 ``bodies/<name>/pose`` and ``bodies/<name>/twist`` instead) and ``/clock``,
@@ -37,7 +37,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from collres_ros.core.types import BodyStates
-from collres_ros.integrator import euler_step
+from collres_ros.ros.integrator import euler_step
 
 START_NS = 1_000_000_000  # stamp of the first state: t = 1 s of simulated time (never 0)
 STATES_TOPIC = 'body_states'
@@ -99,7 +99,7 @@ def stamp_ns(stamp: Any) -> int:
 class SimScene:
     """What the sim needs from a Scene (params.py): bodies, initial state, sim settings."""
 
-    scene: Any                  # collres_ros.params.Scene
+    scene: Any                  # collres_ros.ros.params.Scene
     names: list[str]
     dynamic: np.ndarray         # (N,) bool
     initial: BodyStates
@@ -118,7 +118,7 @@ class SimScene:
 def load_sim_scene(path: str | Path, duration: float | None = None,
                    rate_hz: float | None = None) -> SimScene:
     """Load a params file (ValueError/OSError with a one-line reason when bad)."""
-    from collres_ros import params
+    from collres_ros.ros import params
     scene = params.load_scene(path)
     sim = scene.sim
     return SimScene(
@@ -179,7 +179,7 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
     topic names, as the node publishes them). ``markers`` False skips
     building contact_markers (they dominate the cost with many contacts).
     """
-    from collres_ros import messages
+    from collres_ros.ros import messages
     from collres_ros.core.pipeline import Resolver
     from collres_ros.replay import OfflineDiagnostics
     resolver = Resolver(sim.scene)
@@ -206,7 +206,7 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
     ``topics``: record only these (relative names; default: all). ``compress``:
     zstd mcap chunks.
     """
-    from collres_ros.bag import BagWriter
+    from collres_ros.ros.bag import BagWriter
     contacts: dict[str, int] = {}
     start = time.perf_counter()
 
@@ -381,7 +381,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(own)
     path = args.params or _params_file_from_ros_args(ros_args)
     if path is None:
-        from collres_ros.resources import config_path
+        from collres_ros.ros.resources import config_path
         path = str(config_path())
     try:
         if not Path(path).is_file():
@@ -392,7 +392,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.offline:
             if not args.record:
                 raise ValueError('--offline needs --record BAG')
-            from collres_ros.bag import STORAGES
+            from collres_ros.ros.bag import STORAGES
             if args.storage not in STORAGES:
                 raise ValueError(f'unknown storage {args.storage!r} '
                                  f'(supported: {", ".join(STORAGES)})')

@@ -11,7 +11,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from collres_ros import processes
+from collres_ros.ros import processes
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -59,7 +59,7 @@ def test_resting_box_stays_within_1_mm(demo) -> None:
 
 
 def test_plot_and_bag_are_written(demo) -> None:
-    from collres_ros.bag import BagReader
+    from collres_ros.ros.bag import BagReader
     assert demo.plot.is_file() and demo.plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     with BagReader(demo.bag) as reader:
         for topic in ('/body_states', '/body_states/corrected', '/contacts',
@@ -69,9 +69,9 @@ def test_plot_and_bag_are_written(demo) -> None:
 
 def _largest_replay_difference(bag: Path, out: Path) -> float:
     """Replay a live bag offline; the largest |live - offline| over all corrected states."""
-    from collres_ros.bag import read_messages
+    from collres_ros.ros.bag import read_messages
     from collres_ros.replay import replay
-    from collres_ros.resources import config_path
+    from collres_ros.ros.resources import config_path
     replay(bag, out, config_path('collres.yaml'), topics=('body_states/corrected',))
 
     def by_stamp(path: Path) -> dict:
@@ -104,7 +104,7 @@ def test_live_bag_replayed_offline_gives_the_live_corrected_states(demo, tmp_pat
 def test_per_body_live_run_replays_to_the_same_states(tmp_path: Path) -> None:
     """The sim on per-body topics over DDS; replay groups them by stamp like the node."""
     from conftest import next_domain_id
-    from collres_ros.bag import BagReader
+    from collres_ros.ros.bag import BagReader
     from collres_ros.demo import run_demo
     result = run_demo(tmp_path / 'demo', duration=1.0, domain_id=next_domain_id(),
                       progress=False, per_body=True)

@@ -10,8 +10,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from ros_harness import Peer, write_scene
 
-from collres_ros import processes
-from collres_ros.messages import stamp_ns, to_stamp
+from collres_ros.ros import processes
+from collres_ros.ros.messages import stamp_ns, to_stamp
 from collres_ros.msg import BodyState, BodyStateArray, ContactArray
 
 pytestmark = pytest.mark.slow

@@ -1,8 +1,8 @@
-"""Per-body stamp synchronisation (collres_ros/sync.py)."""
+"""Per-body stamp synchronisation (collres_ros/ros/sync.py)."""
 
 from __future__ import annotations
 
-from collres_ros.sync import StampSync
+from collres_ros.ros.sync import StampSync
 
 MS = 1_000_000
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from collres_ros import params
+from collres_ros.ros import params
 from collres_ros.core.config import NODE_PARAMS, SIM_PARAMS, SOLVER_PARAMS, BODY_PARAMS
 
 ROOT = Path(__file__).resolve().parents[1]

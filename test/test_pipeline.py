@@ -10,7 +10,7 @@ from fake_world import FakeWorld, one_contact
 
 from collres_ros.core.pipeline import FRESH_DT, Resolver
 from collres_ros.core.types import BodyInput
-from collres_ros.params import scene_from_values
+from collres_ros.ros.params import scene_from_values
 
 MS = 1_000_000  # ns
 T0 = 5_000 * MS

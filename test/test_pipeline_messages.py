@@ -1,4 +1,4 @@
-"""Message conversion and the output builder (collres_ros/messages.py)."""
+"""Message conversion and the output builder (collres_ros/ros/messages.py)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pytest
 from fake_world import FakeWorld, one_contact
 from rclpy.serialization import deserialize_message, serialize_message
 
-from collres_ros import messages
+from collres_ros.ros import messages
 from collres_ros.core.pipeline import Resolver
 from collres_ros.msg import BodyState, BodyStateArray, ContactArray
-from collres_ros.params import scene_from_values
+from collres_ros.ros.params import scene_from_values
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from visualization_msgs.msg import Marker, MarkerArray
 

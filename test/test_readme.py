@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from collres_ros.params import markdown_table
+from collres_ros.ros.params import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = '<!-- parameters:begin -->', '<!-- parameters:end -->'

@@ -84,7 +84,7 @@ def _diff_contacts(got: Any, want: Any) -> str | None:
 
 def first_difference(got: list, want: list) -> str | None:
     """A description of the first differing message of two output bags, or None."""
-    from collres_ros.bag import message_fields
+    from collres_ros.ros.bag import message_fields
     for topic, differ in (('/body_states/corrected', _diff_states),
                           ('/contacts', _diff_contacts)):
         g = [m for m in got if m.topic == topic]
@@ -118,7 +118,7 @@ def test_goldens_are_small() -> None:
 
 @pytest.mark.parametrize('scene', SHIPPED)
 def test_replay_matches_golden(tmp_path: Path, scene: str) -> None:
-    from collres_ros.bag import read_messages
+    from collres_ros.ros.bag import read_messages
     from collres_ros.replay import replay
     summary = replay(DATA / scene / 'input', tmp_path / 'out', SCENES / f'{scene}.yaml',
                      topics=('body_states/corrected', 'contacts'))
@@ -134,7 +134,7 @@ def test_a_difference_is_reported_with_both_values() -> None:
     """The regression check is not vacuous: a 1e-5 m change is caught and shown."""
     import copy
 
-    from collres_ros.bag import read_messages
+    from collres_ros.ros.bag import read_messages
     scene = 'bouncing_ball' if 'bouncing_ball' in SHIPPED else SHIPPED[0]
     golden = read_messages(DATA / scene / 'golden')
     assert first_difference(golden, golden) is None

@@ -8,7 +8,7 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from collres_ros.bag import BagReader, BagWriter, message_fields, read_messages  # noqa: E402
+from collres_ros.ros.bag import BagReader, BagWriter, message_fields, read_messages  # noqa: E402
 from collres_ros.replay import main, replay  # noqa: E402
 from collres_ros.sim import load_sim_scene, run_offline  # noqa: E402
 
@@ -151,7 +151,7 @@ def test_fast_decoder_equals_rclpy_deserialization() -> None:
     """Replay's CDR fast path gives exactly the BodyInputs of the rclpy path."""
     from rclpy.serialization import deserialize_message, serialize_message
 
-    from collres_ros import messages
+    from collres_ros.ros import messages
     from collres_ros.msg import BodyState, BodyStateArray
     from collres_ros.replay import decode_body_state_array
     msg = BodyStateArray()

@@ -1,4 +1,4 @@
-"""collres_ros.bag: round trips through mcap and sqlite3 bags, independent readers."""
+"""collres_ros.ros.bag: round trips through mcap and sqlite3 bags, independent readers."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from collres_ros.bag import (BagError, BagReader, BagWriter, message_fields,  # noqa: E402
-                             read_messages, storage_of, typestore)
+from collres_ros.ros.bag import (BagError, BagReader, BagWriter, message_fields,  # noqa: E402
+                                 read_messages, storage_of, typestore)
 
 
 def _body_states(stamp_ns: int, z: float):

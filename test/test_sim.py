@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from collres_ros.core.types import BodyStates
-from collres_ros.integrator import euler_step
+from collres_ros.ros.integrator import euler_step
 
 SCENES = Path(__file__).resolve().parent.parent / 'config' / 'scenes'
 
@@ -52,7 +52,7 @@ def test_every_scene_loads_and_its_stamps_cover_the_duration() -> None:
 
 def test_offline_records_inputs_and_every_output(tmp_path: Path) -> None:
     pytest.importorskip('rclpy')
-    from collres_ros.bag import BagReader
+    from collres_ros.ros.bag import BagReader
     from collres_ros.sim import main
     bag = tmp_path / 'ball'
     assert main(['--offline', '--params', str(SCENES / 'bouncing_ball.yaml'),
@@ -69,7 +69,7 @@ def test_offline_records_inputs_and_every_output(tmp_path: Path) -> None:
 def test_offline_closes_the_loop_and_replay_reproduces_it(tmp_path: Path) -> None:
     """The sim adopts the corrected state: the ball bounces (and replay gives the same outputs)."""
     pytest.importorskip('rclpy')
-    from collres_ros.bag import message_fields, read_messages
+    from collres_ros.ros.bag import message_fields, read_messages
     from collres_ros.replay import replay
     from collres_ros.sim import load_sim_scene, run_offline
     params = SCENES / 'bouncing_ball.yaml'
@@ -117,7 +117,7 @@ def test_live_sim_counts_unanswered_steps_as_dropped(tmp_path: Path) -> None:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-    from collres_ros import processes
+    from collres_ros.ros import processes
     from collres_ros.msg import BodyStateArray
     from conftest import next_domain_id
     domain = next_domain_id()

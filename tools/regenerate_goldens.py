@@ -37,8 +37,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from collres_ros import analysis  # noqa: E402
-from collres_ros.bag import read_messages  # noqa: E402
+from collres_ros.ros import analysis  # noqa: E402
+from collres_ros.ros.bag import read_messages  # noqa: E402
 from collres_ros.replay import replay  # noqa: E402
 from collres_ros.sim import load_sim_scene, run_offline  # noqa: E402
 

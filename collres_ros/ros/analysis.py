@@ -205,7 +205,7 @@ def _stamp(msg: Any) -> int:
 def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequence[float],
             restitution_rule: str = 'max', namespace: str = '/',
             initial: Any = None) -> RunReport:
-    """Measure a run from its bag messages (``collres_ros.bag.BagMessage`` list).
+    """Measure a run from its bag messages (``collres_ros.ros.bag.BagMessage`` list).
 
     ``initial``: the scene's BodyStates (``Scene.initial``), for the static
     bodies' poses (the floor's top face is the bounce law's reference height).

@@ -11,7 +11,7 @@ import os
 from pathlib import Path
 
 PACKAGE = 'collres_ros'
-_HERE = Path(__file__).resolve().parent
+_PACKAGE_DIR = Path(__file__).resolve().parent.parent   # collres_ros/
 
 
 def _share_dir() -> Path | None:
@@ -23,7 +23,7 @@ def _share_dir() -> Path | None:
 
 
 def _candidates(*parts: str) -> list[Path]:
-    roots = [_HERE, _HERE.parent]
+    roots = [_PACKAGE_DIR, _PACKAGE_DIR.parent]
     share = _share_dir()
     if share is not None:
         roots.append(share)

@@ -29,7 +29,7 @@ from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlu
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from collres_ros.resources import MESSAGE_NAMES, message_definition
+from collres_ros.ros.resources import MESSAGE_NAMES, message_definition
 
 STORAGES = ('mcap', 'sqlite3')
 PACKAGE = 'collres_ros'

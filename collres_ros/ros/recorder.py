@@ -2,7 +2,7 @@
 
 It subscribes to each topic it discovers (re-scanning the graph periodically),
 takes the serialized CDR bytes as rclpy receives them (``raw=True``) and
-writes them with ``collres_ros.bag`` at the receive time (ns since the epoch),
+writes them with ``collres_ros.ros.bag`` at the receive time (ns since the epoch),
 as ``ros2 bag record`` does. Run it in an executor of the caller's choosing;
 all writes happen in subscription callbacks of that one executor.
 """
@@ -16,7 +16,7 @@ from typing import Any, Iterable
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from collres_ros.bag import BagError, BagWriter, message_class
+from collres_ros.ros.bag import BagError, BagWriter, message_class
 
 IGNORED = frozenset({'/rosout', '/parameter_events'})
 

@@ -24,8 +24,8 @@ pending group and every body's history is forgotten. Confirmed forwards (a
 pause, or messages lost upstream), nothing is forgotten: bodies left behind
 turn stale. Either way ``time_jumps`` counts it and ``take_jump`` reports it
 once so the caller can reset its own history. A suspect that is contradicted
-(its body sends a normal stamp again) or never confirmed is refused and counted in ``refused`` (``future_stamp`` or
-``past_stamp``).
+(its body sends a normal stamp again) or never confirmed is refused and
+counted in ``refused`` (``future_stamp`` or ``past_stamp``).
 
 When a group completes, older pending groups can no longer be used and are
 dropped (counted in ``dropped``), as are the oldest groups beyond

@@ -24,6 +24,7 @@ import numpy as np
 from collres_ros.core.config import (
     BODY_PARAMS, NODE_PARAMS, SCENE_PARAMS, SIM_PARAMS, SOLVER_PARAMS, NodeSettings,
     ParamSpec, SimSettings, SolverSettings, check_value, range_text)
+from collres_ros.core.shapes import load_mesh_points
 from collres_ros.core.types import BodySpec, BodyStates
 
 NODE_NAME = 'collres_node'
@@ -201,27 +202,13 @@ def _vector(name: str, value: list[float], count: int, what: str) -> tuple[float
     return tuple(value)
 
 
-def _read_mesh(path: Path) -> np.ndarray:
-    """Vertices (K, 3) of an OBJ or STL (ASCII or binary) file."""
-    data = path.read_bytes()
-    if path.suffix.lower() == '.stl' and not data.lstrip().startswith(b'solid'):
-        count = struct.unpack_from('<I', data, 80)[0]
-        raw = np.frombuffer(data, np.dtype([('n', '<f4', 3), ('v', '<f4', (3, 3)),
-                                            ('a', '<u2')]), count, 84)
-        return raw['v'].reshape(-1, 3).astype(float)
-    keyword = 'vertex' if path.suffix.lower() == '.stl' else 'v'
-    rows = [line.split()[1:4] for line in data.decode(errors='replace').splitlines()
-            if line.split()[:1] == [keyword]]
-    return np.array(rows, float).reshape(-1, 3)
-
-
 def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
                    ) -> tuple[tuple[float, float, float], ...]:
     mesh, flat = values[f'{name}.mesh'], values[f'{name}.points']
     if mesh:
         path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
         try:
-            points = _read_mesh(path)
+            points = load_mesh_points(str(path))
         except (OSError, ValueError, struct.error) as error:
             _fail(f'{name}.mesh', f'cannot read mesh {path} ({error})', mesh)
     else:

@@ -27,6 +27,7 @@ from collres_ros.core.config import (
     BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, POSITION_LIMIT, SCENE_PARAMS,
     SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
+from collres_ros.core.shapes import mesh_points
 from collres_ros.core.types import BodySpec, BodyStates
 
 NODE_NAME = 'collres_node'
@@ -253,23 +254,8 @@ def _mesh_bytes(path: Path) -> bytes:
 
 
 def _read_mesh(path: Path) -> np.ndarray:
-    """Vertices (K, 3) of an OBJ or STL (ASCII or binary) file.
-
-    An STL is binary when its size is exactly 84 + 50 * (triangle count in the
-    header), whatever its first bytes say: CAD tools often write ``solid`` in
-    the 80-byte header of a binary file.
-    """
-    data = _mesh_bytes(path)
-    if path.suffix.lower() == '.stl' and len(data) >= 84 \
-            and len(data) == 84 + 50 * struct.unpack_from('<I', data, 80)[0]:
-        count = struct.unpack_from('<I', data, 80)[0]
-        raw = np.frombuffer(data, np.dtype([('n', '<f4', 3), ('v', '<f4', (3, 3)),
-                                            ('a', '<u2')]), count, 84)
-        return raw['v'].reshape(-1, 3).astype(float)
-    keyword = 'vertex' if path.suffix.lower() == '.stl' else 'v'
-    rows = [line.split()[1:4] for line in data.decode(errors='replace').splitlines()
-            if line.split()[:1] == [keyword]]
-    return np.array(rows, float).reshape(-1, 3)
+    """Vertices (K, 3) of an OBJ or STL file, read safely, parsed by the core's mesh reader."""
+    return mesh_points(_mesh_bytes(path), path.suffix)
 
 
 def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path]

@@ -6,7 +6,11 @@ Live (default)::
 
 integrates the scene of the params file (semi-implicit Euler with gravity,
 ``collres_ros.ros.integrator``) at ``rate_hz`` for ``duration`` s of simulated time.
-Each step it publishes ``body_states`` (BodyStateArray of the dynamic bodies,
+Kinematic bodies (``body.<n>.kinematic: true``: static, infinite mass) move at
+their prescribed ``linear_velocity`` / ``angular_velocity`` and are published
+with it, so the node sees a conveyor or a turntable move; the sim never adopts
+a corrected state for them.
+Each step it publishes ``body_states`` (BodyStateArray of the dynamic and kinematic bodies,
 stamped with simulated time; or, with ``--per-body``/``publish_per_body``,
 ``bodies/<name>/pose`` and ``bodies/<name>/twist`` instead) and ``/clock``,
 waits for ``body_states/corrected`` of the same stamp and adopts it
@@ -74,9 +78,13 @@ def states_to_msg(names: Sequence[str], states: BodyStates, rows: Sequence[int],
     return msg
 
 
-def adopt(states: BodyStates, names: Sequence[str], msg: Any) -> BodyStates:
-    """``states`` with the bodies named in a BodyStateArray replaced by its values."""
-    index = {name: i for i, name in enumerate(names)}
+def adopt(states: BodyStates, names: Sequence[str], msg: Any,
+          only: np.ndarray | None = None) -> BodyStates:
+    """``states`` with the bodies named in a BodyStateArray replaced by its values.
+
+    ``only``: (N,) bool, adopt only these bodies (the others keep their state).
+    """
+    index = {name: i for i, name in enumerate(names) if only is None or only[i]}
     out = states.copy()
     for body in msg.bodies:
         i = index.get(body.name)
@@ -108,11 +116,17 @@ class SimScene:
     duration: float             # s of simulated time
     world_frame: str
     per_body: bool = False
+    kinematic: np.ndarray | None = None   # (N,) bool: static bodies moved at their twist
+
+    @property
+    def driven(self) -> np.ndarray:
+        """(N,) bool: the kinematic bodies (all False when there are none)."""
+        return np.zeros_like(self.dynamic) if self.kinematic is None else self.kinematic
 
     @property
     def rows(self) -> list[int]:
-        """Indices of the bodies the sim publishes (the dynamic ones)."""
-        return [i for i in range(len(self.names)) if self.dynamic[i]]
+        """Indices of the bodies the sim publishes (dynamic and kinematic ones)."""
+        return [i for i in range(len(self.names)) if self.dynamic[i] or self.driven[i]]
 
 
 def load_sim_scene(path: str | Path, duration: float | None = None,
@@ -130,7 +144,8 @@ def load_sim_scene(path: str | Path, duration: float | None = None,
         rate_hz=float(rate_hz if rate_hz is not None else sim.rate_hz),
         duration=float(duration if duration is not None else sim.duration),
         world_frame=scene.world_frame,
-        per_body=bool(getattr(sim, 'publish_per_body', False)))
+        per_body=bool(getattr(sim, 'publish_per_body', False)),
+        kinematic=scene.kinematic)
 
 
 def run_loop(sim: SimScene, exchange: Callable[[int, Any], Any | None],
@@ -146,13 +161,13 @@ def run_loop(sim: SimScene, exchange: Callable[[int, Any], Any | None],
     for k, stamp in enumerate(all_stamps):
         if k > 0:
             states = euler_step(states, sim.dynamic, sim.gravity,
-                                (stamp - all_stamps[k - 1]) * 1e-9)
+                                (stamp - all_stamps[k - 1]) * 1e-9, sim.driven)
         corrected = exchange(stamp, states_to_msg(sim.names, states, sim.rows, stamp,
                                                   sim.world_frame))
         if corrected is None:
             dropped += 1
-        else:
-            states = adopt(states, sim.names, corrected)
+        else:   # kinematic bodies keep their prescribed motion
+            states = adopt(states, sim.names, corrected, sim.dynamic)
         if on_step is not None:
             on_step(k + 1, len(all_stamps))
     return len(all_stamps), dropped

@@ -70,6 +70,12 @@ class Scene:
     def names(self) -> list[str]:
         return [b.name for b in self.bodies]
 
+    @property
+    def kinematic(self) -> np.ndarray:
+        """(N,) bool: bodies moved by collres_sim at their prescribed twist (also static)."""
+        return np.array([bool(self.values.get(f'body.{b.name}.kinematic', False))
+                         for b in self.bodies], bool)
+
     def index(self, name: str) -> int:
         """Index of a body by name (ValueError when unknown)."""
         return self.names.index(name)
@@ -301,7 +307,7 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
     key = f'body.{name}'
     shape = values[f'{key}.shape']
     size = values[f'{key}.size']
-    static = values[f'{key}.static']
+    static = values[f'{key}.static'] or values[f'{key}.kinematic']   # kinematic: static too
     points: tuple[tuple[float, float, float], ...] = ()
     if shape == 'convex':
         points = _convex_points(key, values, base_dir)

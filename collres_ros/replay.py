@@ -2,7 +2,7 @@
 
 ::
 
-    collres_replay IN_BAG OUT_BAG --params FILE [--storage mcap|sqlite3] [--namespace NS]
+    collres_replay IN_BAG OUT_BAG [--params FILE] [--storage mcap|sqlite3] [--namespace NS]
 
 Reads the node's input topics from IN_BAG (mcap or sqlite3): the batched
 ``body_states`` (one step per message), or else the per-body
@@ -247,32 +247,39 @@ class PerBodyGrouper:
         self.incomplete = self.sync.dropped + len(self.sync.pending)
 
 
-def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None,
+def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None = None,
            namespace: str = '/', progress: Callable[[int, int], None] | None = None,
            topics: Sequence[str] | None = None, compress: bool = False) -> ReplaySummary:
     """Replay ``in_bag`` into a new ``out_bag``; ReplayError/BagError/ValueError on bad input.
 
+    ``params``: the scene's params file; None: the params recorded in the bag
+    (custom_data ``collres_ros.params``, written by collres_sim, collres_replay
+    and collres_demo).
+
     ``topics``: write only these output topics (relative names; default all).
     ``compress``: zstd mcap chunks (see ``BagWriter``).
     """
-    from collres_ros.ros import messages, params as params_module
-    from collres_ros.ros.bag import STORAGES, BagReader, BagWriter
+    from collres_ros.ros import messages, qos
+    from collres_ros.ros.bag import STORAGES, BagReader, BagWriter, describe
     from collres_ros.core.pipeline import Resolver
 
     if storage is not None and storage not in STORAGES:
         raise ReplayError(f'unknown storage {storage!r} (supported: {", ".join(STORAGES)})')
-    if not params.is_file():
+    if params is not None and not params.is_file():
         raise ReplayError(f'params file not found: {params}')
-    scene = params_module.load_scene(params)
     summary = ReplaySummary()
     start = time.perf_counter()
     with BagReader(in_bag) as reader:
+        scene = _scene(params, reader, namespace)
         if out_bag.exists():
             raise ReplayError(f'output bag already exists: {out_bag}')
         source, total = read_steps(reader, scene, namespace)
         resolver = Resolver(scene)
         diagnostics = OfflineDiagnostics(scene.node.diagnostics_period)
-        with BagWriter(out_bag, storage or reader.storage, compress) as writer:
+        depth = scene.node.queue_depth
+        with BagWriter(out_bag, storage or reader.storage, compress,
+                       qos=lambda topic: [qos.offered(topic, depth)],
+                       custom_data=describe(scene)) as writer:
             for step in source.steps(reader):
                 resolved = resolver.resolve(step.stamp, step.inputs)
                 outputs = messages.build_outputs(
@@ -301,6 +308,24 @@ def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None
         summary.incomplete = source.incomplete
     summary.wall_s = time.perf_counter() - start
     return summary
+
+
+def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
+    """The scene of ``params``, or else the params recorded in the bag's custom_data."""
+    import tempfile
+
+    from collres_ros.ros import params as params_module
+    from collres_ros.ros.bag import PARAMS_KEY
+    if params is not None:
+        return params_module.load_scene(params)
+    text = reader.custom_data.get(PARAMS_KEY)
+    if not text:
+        raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '
+                          'give --params FILE')
+    with tempfile.TemporaryDirectory(prefix='collres_replay-') as scratch:
+        path = Path(scratch) / 'params.yaml'
+        path.write_text(text)
+        return params_module.load_scene(path)
 
 
 def _rejections(resolved: Any) -> list[Any]:
@@ -334,7 +359,9 @@ def parser() -> argparse.ArgumentParser:
                     'every output topic of collres_node to a new bag.')
     p.add_argument('in_bag', help='input bag directory (mcap or sqlite3)')
     p.add_argument('out_bag', help='output bag directory (must not exist)')
-    p.add_argument('--params', required=True, help='params file of the scene (as the node)')
+    p.add_argument('--params', help='params file of the scene, read as collres_node in '
+                                    '--namespace reads it (default: the params recorded in '
+                                    'IN_BAG by collres_sim, collres_replay or collres_demo)')
     p.add_argument('--storage', help='output storage: mcap or sqlite3 (default: as the input)')
     p.add_argument('--namespace', default='/', help='namespace of the node\'s topics (/)')
     p.add_argument('--topics', help='write only these output topics, comma separated '
@@ -350,7 +377,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         topics = None if args.topics is None else \
             tuple(t.strip() for t in args.topics.split(',') if t.strip())
-        summary = replay(Path(args.in_bag), Path(args.out_bag), Path(args.params),
+        summary = replay(Path(args.in_bag), Path(args.out_bag),
+                         Path(args.params) if args.params else None,
                          args.storage, args.namespace,
                          None if args.quiet else _progress_printer(), topics)
     except (ReplayError, BagError, ValueError, OSError) as error:

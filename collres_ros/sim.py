@@ -221,7 +221,8 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
     ``topics``: record only these (relative names; default: all). ``compress``:
     zstd mcap chunks.
     """
-    from collres_ros.ros.bag import BagWriter
+    from collres_ros.ros import qos
+    from collres_ros.ros.bag import BagWriter, describe
     contacts: dict[str, int] = {}
     start = time.perf_counter()
 
@@ -229,7 +230,9 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
         if progress and (step % 200 == 0 or step == total):
             print(f'\rstep {step}/{total}', end='', file=sys.stderr, flush=True)
 
-    with BagWriter(record, storage, compress) as writer:
+    depth = sim.scene.node.queue_depth
+    with BagWriter(record, storage, compress, qos=lambda topic: [qos.offered(topic, depth)],
+                   custom_data=describe(sim.scene)) as writer:
         def sink(stamp: int, outputs: list[tuple[str, Any]]) -> None:
             for topic, msg in outputs:
                 if topics is None or topic in topics:

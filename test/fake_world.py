@@ -8,7 +8,7 @@ import numpy as np
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import (
-    BodySpec, BodyStates, ContactReport, ContactSet, StepResult)
+    BodySpec, BodyStates, ContactReport, ContactSet, Rejection, StepResult)
 
 
 class FakeWorld:
@@ -48,3 +48,20 @@ def one_contact(a: int, b: int, toi: float) -> ContactReport:
                           np.array([1], np.int8), np.array([0]))
     return ContactReport(contacts, np.array([0.5]), np.array([[0.1, 0.0, 0.0]]),
                          np.array([1], np.uint8))
+
+
+class GuardingWorld(FakeWorld):
+    """A FakeWorld that guards its output as ``World`` does: a non-finite body is repaired
+    (it keeps ``current``) and reported once as ``non_finite_result``."""
+
+    def step(self, previous: BodyStates, current: BodyStates, dt: float,
+             active: Optional[np.ndarray] = None) -> StepResult:
+        result = super().step(previous, current, dt, active)
+        out = result.states
+        rows = np.concatenate([out.position, out.orientation, out.linear, out.angular], axis=1)
+        rejected = []
+        for i in np.flatnonzero(~np.isfinite(rows).all(axis=1)):
+            for name in ('position', 'orientation', 'linear', 'angular'):
+                getattr(out, name)[i] = getattr(current, name)[i]
+            rejected.append(Rejection(self.bodies[i].name, 'non_finite_result', 'input kept'))
+        return StepResult(out, result.report, rejected)

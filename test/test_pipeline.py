@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from fake_world import FakeWorld, one_contact
+from fake_world import FakeWorld, GuardingWorld, one_contact
 
 from collres_ros.core.pipeline import FRESH_DT, Resolver
 from collres_ros.core.types import BodyInput
@@ -218,3 +218,36 @@ def test_real_world_is_deterministic_bit_for_bit():
     print('steps with contacts', impacts)
     assert impacts > 0
     assert runs[0] == runs[1]
+
+
+def test_a_non_finite_result_the_world_repaired_is_reported_once():
+    s = scene()
+    resolver, world = make(GuardingWorld(s.bodies, s.solver))
+    resolver.resolve(T0, [body('ball', 1.0)])
+    world.hook = lambda states: states.linear.__setitem__((1, 0), math.nan)
+    out = resolver.resolve(T0 + 4 * MS, [body('ball', 0.9, -1.0)])
+    print([(r.body, r.reason) for r in out.rejected], dict(resolver.totals))
+    assert [(r.body, r.reason) for r in out.rejected] == [('ball', 'non_finite_result')]
+    assert resolver.totals['non_finite_result'] == 1
+    assert out.states.position[0, 2] == 0.9 and np.isfinite(out.states.linear).all()
+
+
+def test_the_real_world_guard_is_counted(monkeypatch):
+    from collres_ros.core import world as world_module
+    if not hasattr(world_module, '_displace'):
+        pytest.skip('the Python world is replaced: its stages cannot be patched')
+    real = world_module._displace
+
+    def poisoned(states, *args):
+        out = real(states, *args)
+        out.linear[:] = math.nan
+        return out
+    resolver = Resolver(scene())
+    resolver.resolve(T0, [body('ball', 0.09)])      # resting in the floor: a contact
+    monkeypatch.setattr(world_module, '_displace', poisoned)
+    out = resolver.resolve(T0 + 4 * MS, [body('ball', 0.09)])
+    assert out.report.contacts.count > 0, 'no contact: the guard was not exercised'
+    print([(r.body, r.reason) for r in out.rejected], dict(resolver.totals))
+    assert [(r.body, r.reason) for r in out.rejected] == [('ball', 'non_finite_result')]
+    assert resolver.totals['non_finite_result'] == 1
+    assert np.isfinite(out.states.linear).all()

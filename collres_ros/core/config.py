@@ -150,13 +150,24 @@ __all__: Sequence[str] = ('ParamSpec', 'SOLVER_PARAMS', 'SolverSettings', 'check
                           'range_text', 'RESTITUTION_RULES', 'FRICTION_RULES')
 
 
+# Generous physical ranges: wider than any scene we know of, narrow enough that no product of
+# two of them overflows a double (so no overflow warning can reach stderr). Inputs over the
+# topics are held to the same position and velocity limits (core/validation.py).
+SIZE_RANGE = (1e-6, 1e6)       # m: sphere radius, box edge, lengths; 1 um to 1000 km
+POSITION_LIMIT = 1e9           # m, |coordinate|: well beyond the Moon
+VELOCITY_LIMIT = 1e9           # m/s and rad/s, |component|
+INERTIA_RANGE = (1e-30, 1e30)  # kg m^2: a 1e-9 kg body of 1 um to a 1e9 kg body of 1000 km
+MESH_MAX_BYTES = 64 * 1024 * 1024   # a larger vertex file is not a collision hull
+MESH_SUFFIXES = ('.obj', '.stl')
+
 # Per-body parameters: `body.<name>.<param>` in the shared `/**` section.
 BODY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('shape', 'string', 'sphere', 'Collision shape',
               choices=('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')),
     ParamSpec('size', 'double_array', [0.1],
               'sphere [r]; box [x, y, z] full edges; capsule, cylinder, cone [r, length] along z; '
-              'plane [nx, ny, nz, d]', unit='m'),
+              'plane [nx, ny, nz, d] (|d| up to the position limit)', *SIZE_RANGE, unit='m',
+              reason='1 um to 1000 km: beyond that the solver loses every digit'),
     ParamSpec('static', 'bool', False, 'Infinite mass; the pose may still be set or published'),
     ParamSpec('kinematic', 'bool', False,
               'Static (infinite mass) and moved by collres_sim at its linear_velocity and '
@@ -165,25 +176,29 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('mass', 'double', 1.0, 'Mass (dynamic bodies)', 1e-9, 1e9, unit='kg'),
     ParamSpec('inertia', 'double_array', [],
               'Principal inertia [ixx, iyy, izz] about the origin; empty: from shape and mass',
-              unit='kg m^2'),
+              *INERTIA_RANGE, unit='kg m^2'),
     ParamSpec('restitution', 'double', 0.5, 'Coefficient of restitution', 0.0, 1.0),
     ParamSpec('static_friction', 'double', 0.5, 'Static friction coefficient', 0.0, 10.0),
     ParamSpec('kinetic_friction', 'double', 0.3,
               'Kinetic friction coefficient (<= static_friction)', 0.0, 10.0),
     ParamSpec('position', 'double_array', [0.0, 0.0, 0.0],
-              'Initial position (sim); pose of a static body (node)', unit='m'),
+              'Initial position (sim); pose of a static body (node)', -POSITION_LIMIT,
+              POSITION_LIMIT, unit='m'),
     ParamSpec('orientation', 'double_array', [0.0, 0.0, 0.0, 1.0],
               'Initial orientation, quaternion x, y, z, w'),
     ParamSpec('linear_velocity', 'double_array', [0.0, 0.0, 0.0],
               'Initial linear velocity, world frame (sim); kinematic: its constant velocity',
-              unit='m/s'),
+              -VELOCITY_LIMIT, VELOCITY_LIMIT, unit='m/s'),
     ParamSpec('angular_velocity', 'double_array', [0.0, 0.0, 0.0],
               'Initial angular velocity, world frame (sim); kinematic: its constant velocity',
+              -VELOCITY_LIMIT, VELOCITY_LIMIT,
               unit='rad/s'),
     ParamSpec('mesh', 'string', '',
-              'convex: mesh file (OBJ/STL vertices), relative to the params file'),
+              'convex: mesh file (OBJ/STL vertices), relative to the params file or absolute; '
+              f'a regular .obj or .stl file of at most {MESH_MAX_BYTES // 2**20} MiB'),
     ParamSpec('points', 'double_array', [],
-              'convex: vertices [x0, y0, z0, x1, ...] in the body frame', unit='m'),
+              'convex: vertices [x0, y0, z0, x1, ...] in the body frame', -SIZE_RANGE[1],
+              SIZE_RANGE[1], unit='m'),
 )
 
 

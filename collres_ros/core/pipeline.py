@@ -172,10 +172,14 @@ class Resolver:
         dt = step_ns * 1e-9 if usable else FRESH_DT
 
         # 3. the world step
-        result = self.world.step(previous, current, dt, active)
+        with np.errstate(over='ignore', invalid='ignore'):   # the guard below reports it
+            result = self.world.step(previous, current, dt, active)
         out = result.states
+        # one guard, one report: a body the world repaired or that is still non-finite
         rows = np.concatenate([out.position, out.orientation, out.linear, out.angular], axis=1)
-        bad = ~np.isfinite(rows[index]).all(axis=1)
+        repaired = {r.body for r in result.rejected if r.reason == 'non_finite_result'}
+        bad = ~np.isfinite(rows[index]).all(axis=1) | np.isin(
+            np.array([self.names[i] for i in index], dtype=object), list(repaired))
         for i in index[bad]:
             rejected.append(Rejection(self.names[i], 'non_finite_result',
                                       f'{self.names[i]}: the solver produced a non-finite '

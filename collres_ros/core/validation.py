@@ -10,6 +10,9 @@ in /diagnostics and in replay summaries):
   in the world frame nor in the body's own frame (frame_id = the body name).
   An empty frame_id counts as the world frame.
 * ``non_finite``: NaN or Inf anywhere in the pose or twist.
+* ``out_of_range``: a position coordinate beyond ``POSITION_LIMIT`` (1e9 m) or a
+  velocity component beyond ``VELOCITY_LIMIT`` (1e9 m/s, rad/s): far outside any
+  scene, and products of such numbers would overflow.
 * ``zero_quaternion``: orientation norm below ``ZERO_NORM``.
 * ``non_unit_quaternion``: norm off 1 by more than the tolerance (within it the
   quaternion is normalised silently).
@@ -31,6 +34,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from collres_ros.core.config import POSITION_LIMIT, VELOCITY_LIMIT
 from collres_ros.core.rotation import to_matrix
 from collres_ros.core.types import BodyInput, Rejection
 
@@ -64,6 +68,9 @@ def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world
     twist_in_body = np.array([i.twist_frame_id == i.name and i.name not in world
                               for i in inputs], bool)
     finite = np.isfinite(numbers).all(axis=1)
+    magnitude = np.abs(np.where(np.isfinite(numbers), numbers, 0.0))
+    too_far = magnitude[:, 0:3].max(axis=1, initial=0.0) > POSITION_LIMIT
+    too_fast = magnitude[:, 7:13].max(axis=1, initial=0.0) > VELOCITY_LIMIT
     norm = np.linalg.norm(np.where(np.isfinite(numbers[:, 3:7]), numbers[:, 3:7], 0.0), axis=1)
 
     rejected: list[Rejection] = []
@@ -82,6 +89,10 @@ def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world
                                              f'{world_frame!r} nor the body frame {item.name!r}')
         elif not finite[k]:
             reason, detail = 'non_finite', 'NaN or Inf in pose or twist'
+        elif too_far[k] or too_fast[k]:
+            reason, detail = 'out_of_range', (
+                f'position beyond {POSITION_LIMIT:g} m' if too_far[k] else
+                f'velocity beyond {VELOCITY_LIMIT:g} m/s or rad/s')
         elif norm[k] < ZERO_NORM:
             reason, detail = 'zero_quaternion', 'orientation has zero norm'
         elif abs(norm[k] - 1.0) > quaternion_tolerance:

@@ -13,7 +13,9 @@ defaults, units and ranges come from ``collres_ros.core.config``. No ROS import.
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 import struct
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -22,13 +24,19 @@ from typing import Any, Iterable, Mapping, Optional
 import numpy as np
 
 from collres_ros.core.config import (
-    BODY_PARAMS, NODE_PARAMS, SCENE_PARAMS, SIM_PARAMS, SOLVER_PARAMS, NodeSettings,
-    ParamSpec, SimSettings, SolverSettings, check_value, range_text)
+    BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, POSITION_LIMIT, SCENE_PARAMS,
+    SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
+    SolverSettings, check_value, range_text)
 from collres_ros.core.types import BodySpec, BodyStates
 
 NODE_NAME = 'collres_node'
 SIM_NAME = 'collres_sim'
 NAME_PATTERN = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+# rmw's limit on a full topic name (RMW_TOPIC_MAX_NAME_LENGTH = 255 - 8), and the longest
+# topic a body name goes into, in the root namespace: /bodies/<name>/twist/corrected
+TOPIC_MAX_LENGTH = 247
+LONGEST_BODY_TOPIC = '/bodies/{}/twist/corrected'
+NAME_MAX_LENGTH = TOPIC_MAX_LENGTH - len(LONGEST_BODY_TOPIC.format(''))
 # Parameters every rclpy node has; accepted and ignored here.
 ROS_BUILTIN = ('use_sim_time', 'start_type_description_service')
 
@@ -162,11 +170,18 @@ def _fail(name: str, why: str, value: Any) -> None:
     raise ValueError(f'{name}: {why} (got {_show(value)})')
 
 
-def _show(value: Any) -> str:
+def _short(text: str, limit: int = 40) -> str:
+    """A name cut to ``limit`` characters for an error line."""
+    return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
+def _show(value: Any, limit: int = 12) -> str:
+    """A value as written in an error line (long lists and strings are cut)."""
     if isinstance(value, str):
-        return repr(value)
+        return repr(_short(value, 80))
     if isinstance(value, (list, tuple)):
-        return '[' + ', '.join(_show(v) for v in value) + ']'
+        more = f', ... ({len(value)} values)' if len(value) > limit else ''
+        return '[' + ', '.join(_show(v) for v in value[:limit]) + more + ']'
     if isinstance(value, bool):
         return 'true' if value else 'false'
     return str(value)
@@ -179,8 +194,10 @@ def _typed(spec: ParamSpec, value: Any) -> Any:
     kind = spec.type
     if kind == 'double' and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
-    if kind == 'integer' and isinstance(value, float) and value.is_integer():
-        value = int(value)
+    if kind == 'integer' and isinstance(value, float):
+        # a running node refuses a double for an integer parameter: so does the file
+        _fail(spec.name, 'must be an integer' + (f', write {int(value)}' if value.is_integer()
+                                                 and math.isfinite(value) else ''), value)
     if kind in ('double_array', 'string_array'):
         if isinstance(value, tuple):
             value = list(value)
@@ -192,6 +209,11 @@ def _typed(spec: ParamSpec, value: Any) -> Any:
             value = [float(v) for v in value]
             if not all(math.isfinite(v) for v in value):
                 _fail(spec.name, 'values must be finite', value)
+            lo, hi = spec.minimum, spec.maximum
+            if spec.name.split('.')[-1] != 'size' and lo is not None and hi is not None \
+                    and not all(lo <= v <= hi for v in value):
+                _fail(spec.name, f'values must be in [{lo:g}, {hi:g}]' + (
+                    f' {spec.unit}' if spec.unit else ''), value)
         elif not all(isinstance(v, str) for v in value):
             _fail(spec.name, 'must be a list of strings', value)
         return value
@@ -207,10 +229,39 @@ def _vector(name: str, value: list[float], count: int, what: str) -> tuple[float
     return tuple(value)
 
 
+def _mesh_bytes(path: Path) -> bytes:
+    """The bytes of a mesh file: a regular .obj/.stl file below ``MESH_MAX_BYTES`` only.
+
+    Opened without blocking and checked on the open file, so a FIFO, a device
+    (``/dev/zero``) or a file swapped in after a check is never read. OSError
+    or ValueError with the reason.
+    """
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise ValueError(f'unsupported mesh format {path.suffix or "(none)"!r} '
+                         f'(use {" or ".join(MESH_SUFFIXES)})')
+    handle = os.open(path, os.O_RDONLY | getattr(os, 'O_NONBLOCK', 0))
+    with os.fdopen(handle, 'rb') as file:
+        info = os.fstat(file.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise ValueError('not a regular file')
+        if info.st_size > MESH_MAX_BYTES:
+            raise ValueError(f'{info.st_size} bytes, more than the limit of {MESH_MAX_BYTES}')
+        data = file.read(MESH_MAX_BYTES + 1)
+    if len(data) > MESH_MAX_BYTES:
+        raise ValueError(f'more than the limit of {MESH_MAX_BYTES} bytes')
+    return data
+
+
 def _read_mesh(path: Path) -> np.ndarray:
-    """Vertices (K, 3) of an OBJ or STL (ASCII or binary) file."""
-    data = path.read_bytes()
-    if path.suffix.lower() == '.stl' and not data.lstrip().startswith(b'solid'):
+    """Vertices (K, 3) of an OBJ or STL (ASCII or binary) file.
+
+    An STL is binary when its size is exactly 84 + 50 * (triangle count in the
+    header), whatever its first bytes say: CAD tools often write ``solid`` in
+    the 80-byte header of a binary file.
+    """
+    data = _mesh_bytes(path)
+    if path.suffix.lower() == '.stl' and len(data) >= 84 \
+            and len(data) == 84 + 50 * struct.unpack_from('<I', data, 80)[0]:
         count = struct.unpack_from('<I', data, 80)[0]
         raw = np.frombuffer(data, np.dtype([('n', '<f4', 3), ('v', '<f4', (3, 3)),
                                             ('a', '<u2')]), count, 84)
@@ -229,7 +280,16 @@ def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path
         try:
             points = _read_mesh(path)
         except (OSError, ValueError, struct.error) as error:
-            _fail(f'{name}.mesh', f'cannot read mesh {path} ({error})', mesh)
+            reason = error.strerror if isinstance(error, OSError) and error.strerror \
+                else str(error)
+            _fail(f'{name}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+        if not np.isfinite(points).all():
+            row = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
+            _fail(f'{name}.mesh', f'vertex {row} of {path} is not finite '
+                  f'({", ".join(str(c) for c in points[row])})', mesh)
+        if np.abs(points).max(initial=0.0) > SIZE_RANGE[1]:
+            _fail(f'{name}.mesh', f'vertices of {path} must be within {SIZE_RANGE[1]:g} m '
+                  'of the body origin', mesh)
     else:
         if len(flat) % 3:
             _fail(f'{name}.points', 'needs x, y, z triples', flat)
@@ -261,6 +321,13 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
                 _fail(f'{key}.static', 'a plane must be static', static)
         elif min(size) <= 0.0:
             _fail(f'{key}.size', f'{shape} needs {count} values {what} > 0', size)
+        elif not all(SIZE_RANGE[0] <= v <= SIZE_RANGE[1] for v in size):
+            _fail(f'{key}.size', f'{shape} sizes must be in [{SIZE_RANGE[0]:g}, '
+                  f'{SIZE_RANGE[1]:g}] m', size)
+    if shape == 'plane' and not (abs(size[3]) <= POSITION_LIMIT
+                                 and max(abs(v) for v in size[:3]) <= SIZE_RANGE[1]):
+        _fail(f'{key}.size', f'plane needs |nx|, |ny|, |nz| <= {SIZE_RANGE[1]:g} and '
+              f'|d| <= {POSITION_LIMIT:g} m', size)
     inertia = values[f'{key}.inertia']
     if inertia and (len(inertia) != 3 or min(inertia) <= 0.0):
         _fail(f'{key}.inertia', 'needs [ixx, iyy, izz] > 0, or [] to derive it', inertia)
@@ -298,8 +365,13 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
         _fail('bodies', 'at least one body name required', bodies_value)
     for name in bodies_value:
         if not NAME_PATTERN.match(name):
-            _fail('bodies', f'name {name!r} must match {NAME_PATTERN.pattern} '
-                  '(it is part of topic names)', bodies_value)
+            raise ValueError(f'bodies: name {_short(name)!r} must match {NAME_PATTERN.pattern} '
+                             '(it is part of topic names)')
+        if len(name) > NAME_MAX_LENGTH:
+            raise ValueError(f'bodies: name {_short(name)!r} has {len(name)} characters, at '
+                             f'most {NAME_MAX_LENGTH} (its topic '
+                             f'{LONGEST_BODY_TOPIC.format("<name>")} must stay within '
+                             f'{TOPIC_MAX_LENGTH} characters)')
     duplicates = sorted({n for n in bodies_value if bodies_value.count(n) > 1})
     if duplicates:
         _fail('bodies', f'duplicate name {duplicates[0]!r}', bodies_value)

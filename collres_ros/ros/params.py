@@ -391,6 +391,29 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
                  typed, base_dir)
 
 
+def scene_to_yaml(scene: Scene) -> str:
+    """A complete params file of ``scene``: every parameter in one ``/**`` section.
+
+    Loading it gives the same scene (a test checks it) with no other file
+    needed: convex meshes are written as their vertices (``points``).
+    """
+    import yaml
+    values = dict(scene.values)
+    for body in scene.bodies:
+        if body.shape == 'convex':
+            values[f'body.{body.name}.mesh'] = ''
+            values[f'body.{body.name}.points'] = [float(c) for p in body.points for c in p]
+    nested: dict[str, Any] = {}
+    for name, value in values.items():
+        *path, leaf = name.split('.')
+        target = nested
+        for part in path:
+            target = target.setdefault(part, {})
+        target[leaf] = list(value) if isinstance(value, tuple) else value
+    return yaml.safe_dump({'/**': {'ros__parameters': nested}}, sort_keys=False,
+                          default_flow_style=None, width=99)
+
+
 def with_changes(scene: Scene, changes: Mapping[str, Any]) -> Scene:
     """The scene with some parameters changed, fully re-validated (ValueError: one line)."""
     return scene_from_values({**scene.values, **changes}, scene.base_dir)

@@ -7,8 +7,8 @@ offline: the core in-process) and the corrected states that come back are
 adopted, closing the loop. Kinematic bodies (``body.<n>.kinematic: true``:
 static, infinite mass) move at their prescribed ``linear_velocity`` /
 ``angular_velocity`` and are published with it, so the node sees a conveyor or
-a turntable move; their corrected states are never adopted. No messages are built here: the exchange does
-that with the shared builders. ROS-free.
+a turntable move; their corrected states are never adopted. No messages are
+built here: the exchange does that with the shared builders. ROS-free.
 """
 
 from __future__ import annotations

@@ -46,6 +46,25 @@ def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 
+def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
+    """Validated sizes (m) and flat convex vertices (m, body frame) the compiled detector
+    builds its coal geometry from (the same checks and messages as ``make_geometry``)."""
+    size = [float(s) for s in spec.size]
+    shape = spec.shape
+    if shape == 'sphere':
+        return _positive(spec, size, 1), []
+    if shape == 'box':
+        return _positive(spec, size, 3), []
+    if shape in ('capsule', 'cylinder', 'cone'):
+        return list(_radius_length(spec, size)), []
+    if shape == 'plane':
+        normal, offset = plane_normal_offset(spec)
+        return [*normal.tolist(), offset], []
+    if shape == 'convex':
+        return [], convex_points(spec).reshape(-1).tolist()
+    raise ValueError(f'{spec.name}: unknown shape {shape!r}')
+
+
 def shape_offset(spec: BodySpec) -> np.ndarray:
     """Position (3,) m of the coal geometry's origin in the body frame (non-zero for cones)."""
     if spec.shape == 'cone':

@@ -34,10 +34,10 @@ from typing import Protocol, Sequence
 import numpy as np
 
 from collres_ros.core import rotation, solver
-from collres_ros.core.collision import CollisionWorld
 from collres_ros.core.combine import combine_friction, restitution_per_side
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.contact_cache import ContactCache
+from collres_ros.core.detection import Detection
 from collres_ros.core.shapes import mass_properties
 from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactReport,
                                     ContactSet, ContactState, Rejection, StepResult)
@@ -51,7 +51,7 @@ COLD_EXTRA = 1.0
 
 
 class Detector(Protocol):
-    """What the world needs from detection (``CollisionWorld`` is the real one)."""
+    """What the world needs from detection (``Detection`` is the real one)."""
 
     settings: SolverSettings
 
@@ -68,7 +68,7 @@ class World:
         self.specs = list(bodies)
         self._settings = settings
         self._collision = detector if detector is not None else \
-            CollisionWorld(self.specs, settings)
+            Detection(self.specs, settings)
         props = [mass_properties(spec) for spec in self.specs]
         self.inv_mass = np.array([p[0] for p in props], dtype=float)           # (N,) 1/kg
         self.inv_inertia_body = np.array([p[1] for p in props]).reshape(-1, 3, 3)

@@ -1,4 +1,4 @@
-"""Collision shapes: coal geometries, mass properties and bounds of a BodySpec.
+"""Collision shapes: validated sizes, coal geometries, mass properties and bounds of a BodySpec.
 
 Conventions (see ``types.BodySpec``): the body frame is the shape frame and
 its origin is the centre of mass. Every shape is centred on its origin except
@@ -182,14 +182,6 @@ def bounding_radius(spec: BodySpec) -> float:
     if shape == 'convex':
         return float(np.max(np.linalg.norm(convex_points(spec), axis=1)))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
-
-
-def local_aabb(spec: BodySpec, geometry: coal.CollisionGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """(min, max) corners (3,) m of the shape's box in the body frame (cone offset included)."""
-    geometry.computeLocalAABB()
-    aabb = geometry.aabb_local
-    offset = shape_offset(spec)
-    return np.array(aabb.min_, dtype=float) + offset, np.array(aabb.max_, dtype=float) + offset
 
 
 def load_mesh_points(path: str) -> np.ndarray:

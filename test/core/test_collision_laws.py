@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import math
 
+import coal
 import numpy as np
 import pytest
 
@@ -148,3 +149,44 @@ def test_every_shape_detects_resting_on_the_floor() -> None:
         print(shape, contacts.count, contacts.separation)
         np.testing.assert_allclose(contacts.separation, -0.002, atol=2e-4, err_msg=shape)
         np.testing.assert_allclose(contacts.normal[:, 2], 1.0, atol=1e-6, err_msg=shape)
+
+
+def polygon_area(points: np.ndarray) -> float:
+    """Area (m^2) of the convex hull of points on a horizontal plane (x, y used)."""
+    xy = points[:, :2]
+    centre = xy.mean(axis=0)
+    order = np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
+    x, y = xy[order, 0], xy[order, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def test_box_on_a_turned_box_keeps_four_points_that_span_most_of_the_patch() -> None:
+    # a cube turned 0.7 rad about z on another: the faces overlap in an octagon (8 points)
+    lower = BodySpec('lower', 'box', (0.2, 0.2, 0.2))
+    upper = BodySpec('upper', 'box', (0.2, 0.2, 0.2))
+    turned = rotation.from_rotation_vector(np.array([0.0, 0.0, 0.7]))
+    state = states([[0, 0, 0], [0.02, 0, 0.199]], [[0, 0, 0, 1], turned])
+    world = Detection([lower, upper], SETTINGS)
+    contacts = world.detect(state, state)
+    # the full patch from coal itself
+    rotations = rotation.to_matrix(state.orientation)
+    poses = [coal.Transform3s(r, p) for r, p in zip(rotations, state.position)]
+    request, result = coal.CollisionRequest(), coal.CollisionResult()
+    request.security_margin = SETTINGS.speculative_margin
+    geometries = [coal.Box(0.2, 0.2, 0.2), coal.Box(0.2, 0.2, 0.2)]
+    coal.collide(geometries[0], poses[0], geometries[1], poses[1], request, result)
+    patch_request, patches = coal.ContactPatchRequest(), coal.ContactPatchResult()
+    patch_request.setPatchTolerance(0.01)
+    coal.computeContactPatch(geometries[0], poses[0], geometries[1], poses[1], result,
+                             patch_request, patches)
+    patch = patches.getContactPatch(0)
+    full = np.array([patch.getPoint(k) for k in range(patch.size())])
+    kept = polygon_area(contacts.point) / polygon_area(full)
+    print(f'{patch.size()} patch points -> {contacts.count} contacts keeping {kept:.3f} '
+          'of the patch area')
+    assert patch.size() == 8 and contacts.count == 4
+    assert kept >= 0.65   # the best quadrilateral in a regular octagon keeps 0.707
+    assert len(set(contacts.feature)) == 4
+    again = world.detect(state, state)
+    assert list(again.feature) == list(contacts.feature)
+    np.testing.assert_allclose(contacts.normal, np.tile([0, 0, 1], (4, 1)), atol=1e-9)

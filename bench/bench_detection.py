@@ -11,7 +11,9 @@ then, on the same poses:
 * ``cold``: the same on a new detector every time (no stored manifold);
 * ``coal``: coal's DynamicAABBTree ``update`` + ``collide`` with the default callback
   (C++ broad and narrow phase, one contact per pair, half-spaces in the tree), the poses
-  already pushed; ``coal+push`` adds pushing the poses from Python.
+  already pushed; ``coal+push`` adds pushing the poses from Python; ``no planes``: the
+  same without the half-spaces (each replaced by a 1 mm sphere at the origin, far below
+  the floor's bodies): no body-plane pair at all, less work than ours, a lower bound.
 
 Medians in ms, and the ratios detect / coal (same run, same machine). ``--save`` writes
 the settled poses, for timing another detector on exactly the same input.
@@ -53,12 +55,14 @@ def settle(size: int, settle_s: float, steps: int):
     return bodies, frames
 
 
-def coal_ms(bodies, frames) -> tuple[float, float, int]:
-    """Median ms of coal's collide-all without and with the pose push, and contacts."""
+def coal_ms(bodies, frames, planes: bool = True) -> tuple[float, float, int]:
+    """Median ms of coal's collide-all without and with the pose push, and contacts;
+    without ``planes`` the half-spaces are left out (no body-plane pair at all)."""
     manager = coal.DynamicAABBTreeCollisionManager()
     objects = []
     for spec in bodies:
-        obj = coal.CollisionObject(make_geometry(spec), coal.Transform3s())
+        geometry = make_geometry(spec) if planes or spec.shape != 'plane' else coal.Sphere(1e-3)
+        obj = coal.CollisionObject(geometry, coal.Transform3s())
         manager.registerObject(obj)
         objects.append(obj)
     manager.setup()
@@ -105,18 +109,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--settle', type=float, default=1.0, help='settling time, s')
     parser.add_argument('--save', default='', help='write the settled poses (npz)')
     args = parser.parse_args(argv)
-    fmt = '{:>6} {:>8} {:>9} {:>9} {:>9} {:>10} {:>13} {:>12}'
-    print(fmt.format('bodies', 'points', 'detect', 'cold', 'coal', 'coal+push',
-                     'detect/coal', 'cold/coal'))
+    fmt = '{:>6} {:>8} {:>9} {:>9} {:>9} {:>10} {:>10} {:>12} {:>10} {:>14}'
+    print(fmt.format('bodies', 'points', 'detect', 'cold', 'coal', 'coal+push', 'no planes',
+                     'detect/coal', 'cold/coal', 'detect/no pl.'))
     saved = {}
     for size in args.sizes:
         bodies, frames = settle(size, args.settle, args.steps)
         warm, points = detect_ms(bodies, frames, cold=False)
         cold, _ = detect_ms(bodies, frames, cold=True)
         bare, pushed, _ = coal_ms(bodies, frames)
+        finite, _, _ = coal_ms(bodies, frames, planes=False)
         print(fmt.format(size, points, f'{warm:.3f}', f'{cold:.3f}', f'{bare:.3f}',
-                         f'{pushed:.3f}', f'{warm / bare:.2f}', f'{cold / bare:.2f}'),
-              flush=True)
+                         f'{pushed:.3f}', f'{finite:.3f}', f'{warm / bare:.2f}',
+                         f'{cold / bare:.2f}', f'{warm / finite:.2f}'), flush=True)
         for k, (previous, current) in enumerate(frames):
             for name, state in (('previous', previous), ('current', current)):
                 saved[f'{size}_{k}_{name}_position'] = state.position

@@ -33,15 +33,47 @@ void overlapping_pairs(const std::vector<Aabb>& boxes,
     return boxes[i].lo[axis] < boxes[j].lo[axis] ||
            (boxes[i].lo[axis] == boxes[j].lo[axis] && i < j);
   });
+  // the boxes in sweep order, contiguous: the inner loop reads memory in sequence
+  struct Swept {
+    double lo, hi, lo_u, hi_u, lo_v, hi_v;
+  };
+  std::vector<Swept> sorted(count);
   for (int k = 0; k < count; ++k) {
-    const Aabb& first = boxes[order[k]];
-    for (int m = k + 1; m < count; ++m) {
-      const Aabb& second = boxes[order[m]];
-      if (second.lo[axis] > first.hi[axis]) break;
-      if (first.lo[u] <= second.hi[u] && second.lo[u] <= first.hi[u] &&
-          first.lo[v] <= second.hi[v] && second.lo[v] <= first.hi[v]) {
+    const Aabb& box = boxes[order[k]];
+    sorted[k] = {box.lo[axis], box.hi[axis], box.lo[u], box.hi[u], box.lo[v], box.hi[v]};
+  }
+  for (int k = 0; k < count; ++k) {
+    const Swept first = sorted[k];
+    for (int m = k + 1; m < count && sorted[m].lo <= first.hi; ++m) {
+      const Swept& second = sorted[m];
+      if (first.lo_u <= second.hi_u && second.lo_u <= first.hi_u && first.lo_v <= second.hi_v &&
+          second.lo_v <= first.hi_v) {
         pairs.emplace_back(std::min(order[k], order[m]), std::max(order[k], order[m]));
       }
+    }
+  }
+}
+
+void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
+                          std::vector<std::pair<int, int>>& pairs) {
+  bool inside = fat_.size() == boxes.size();
+  for (std::size_t k = 0; inside && k < boxes.size(); ++k) {
+    inside = (boxes[k].lo.array() >= fat_[k].lo.array()).all() &&
+             (boxes[k].hi.array() <= fat_[k].hi.array()).all();
+  }
+  if (!inside) {
+    fat_.resize(boxes.size());
+    const Vec3 skin = Vec3::Constant(skin_);
+    for (std::size_t k = 0; k < boxes.size(); ++k) {
+      fat_[k] = {boxes[k].lo - skin, boxes[k].hi + skin};
+    }
+    fat_pairs_.clear();
+    overlapping_pairs(fat_, fat_pairs_);
+  }
+  for (const auto& [i, j] : fat_pairs_) {
+    if ((boxes[i].lo.array() <= boxes[j].hi.array()).all() &&
+        (boxes[j].lo.array() <= boxes[i].hi.array()).all()) {
+      pairs.emplace_back(i, j);
     }
   }
 }

@@ -28,6 +28,21 @@ Aabb world_box(const Mat3& rotation, const Vec3& position, const Vec3& local_lo,
 void overlapping_pairs(const std::vector<Aabb>& boxes,
                        std::vector<std::pair<int, int>>& pairs);
 
+// Temporal coherence for `overlapping_pairs`: the pairs of boxes grown by a skin (m) are
+// kept while every box stays inside its grown ("fat") box, and each step only filters them
+// with the exact test; when a box leaves its fat box, all fat boxes are rebuilt and swept.
+// The answer is always exactly `overlapping_pairs` of the given boxes.
+class CoherentPairs {
+ public:
+  explicit CoherentPairs(double skin) : skin_(skin) {}
+  void pairs(const std::vector<Aabb>& boxes, std::vector<std::pair<int, int>>& pairs);
+
+ private:
+  double skin_;
+  std::vector<Aabb> fat_;
+  std::vector<std::pair<int, int>> fat_pairs_;
+};
+
 // True when the box reaches the half-space n.x <= offset grown by `pad` (m), n unit.
 bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad);
 

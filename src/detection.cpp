@@ -23,6 +23,17 @@ double angle_between(const Quat& a, const Quat& b) {
 
 }  // namespace
 
+void ContactRows::reserve(std::size_t rows) {
+  body_a.reserve(rows);
+  body_b.reserve(rows);
+  point.reserve(3 * rows);
+  normal.reserve(3 * rows);
+  separation.reserve(rows);
+  toi.reserve(rows);
+  kind.reserve(rows);
+  feature.reserve(rows);
+}
+
 void ContactRows::clear() {
   body_a.clear();
   body_b.clear();
@@ -34,7 +45,8 @@ void ContactRows::clear() {
   feature.clear();
 }
 
-Detector::Detector(std::vector<BodyShape> shapes) : shapes_(std::move(shapes)) {
+Detector::Detector(std::vector<BodyShape> shapes)
+    : shapes_(std::move(shapes)), sweep_(kSkin) {
   for (int k = 0; k < count(); ++k) {
     (shapes_[k].kind == ShapeKind::plane ? planes_ : finite_).push_back(k);
   }
@@ -107,7 +119,7 @@ void Detector::find_pairs() {
     boxes_[i] = {b0.lo.cwiseMin(b1.lo) - grow, b0.hi.cwiseMax(b1.hi) + grow};
   }
   pairs_.clear();
-  overlapping_pairs(boxes_, pairs_);
+  sweep_.pairs(boxes_, pairs_);
   for (auto& pair : pairs_) pair = {finite_[pair.first], finite_[pair.second]};
   for (int plane : planes_) {  // half-space n.x <= d against each swept box, both poses
     const Body& body = bodies_[plane];
@@ -128,8 +140,22 @@ void Detector::find_pairs() {
     return (a.fixed && b.fixed) || !a.valid || !b.valid;
   };
   pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), skip), pairs_.end());
-  std::sort(pairs_.begin(), pairs_.end());
-  pairs_.erase(std::unique(pairs_.begin(), pairs_.end()), pairs_.end());
+  // sorted by (a, b) in linear time: bucket by a, then sort each (short) bucket by b
+  bucket_start_.assign(count() + 1, 0);
+  for (const auto& pair : pairs_) ++bucket_start_[pair.first + 1];
+  for (int k = 0; k < count(); ++k) bucket_start_[k + 1] += bucket_start_[k];
+  bucket_fill_.assign(bucket_start_.begin(), bucket_start_.end() - 1);
+  bucket_.resize(pairs_.size());
+  for (const auto& pair : pairs_) bucket_[bucket_fill_[pair.first]++] = pair.second;
+  pairs_.clear();
+  for (int a = 0; a < count(); ++a) {
+    const auto first = bucket_.begin() + bucket_start_[a];
+    const auto last = bucket_.begin() + bucket_start_[a + 1];
+    std::sort(first, last);
+    for (auto it = first; it != last; ++it) {
+      if (it == first || *it != *(it - 1)) pairs_.emplace_back(a, *it);
+    }
+  }
 }
 
 void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {
@@ -142,6 +168,7 @@ void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int
 
 void Detector::detect(const StepPoses& poses, ContactRows& out) {
   out.clear();
+  out.reserve(last_rows_ + last_rows_ / 8 + 16);
   prepare(poses);
   find_pairs();
   next_.clear();
@@ -149,6 +176,7 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
     if (!reuse(a, b, out)) narrow_phase(a, b, out);
   }
   stored_.swap(next_);
+  last_rows_ = out.size();
 }
 
 bool Detector::reuse(int a, int b, ContactRows& out) {
@@ -161,7 +189,7 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
   const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
   const Quat rel_q = A.q1.conjugate() * B.q1;
   if ((rel_p - stored->rel_p).norm() > kReuseTranslation ||
-      angle_between(rel_q, stored->rel_q) > kReuseRotation) {
+      std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
     return false;
   }
   // a pair whose every point left the margin is no longer in contact

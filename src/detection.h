@@ -45,6 +45,8 @@ constexpr double kDeepFraction = 0.25;     // EPA's normal is not trusted deeper
 constexpr double kReuseTranslation = 1e-3; // m: a manifold is reused while its pair has
                                            // moved less than this ...
 constexpr double kReuseRotation = 1e-2;    // rad: ... and turned less than this
+constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs of boxes
+                                           // grown by this while no box leaves its own
 
 class Detector {
  public:
@@ -95,10 +97,13 @@ class Detector {
   DetectionSettings settings_;
   std::vector<Body> bodies_;
   std::vector<Aabb> boxes_;
+  CoherentPairs sweep_;
   std::vector<std::pair<int, int>> pairs_;
+  std::vector<int> bucket_, bucket_start_, bucket_fill_;
   std::vector<PointPair> points_;
   std::vector<std::int64_t> row_codes_;
   PairQuery query_;
+  std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
   ManifoldStore stored_, next_;
 };
 

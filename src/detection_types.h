@@ -55,6 +55,7 @@ struct ContactRows {
   std::vector<std::int64_t> feature;  // (M,) same corner / face of A and B, same id
 
   void clear();
+  void reserve(std::size_t rows);
   std::size_t size() const { return body_a.size(); }
 };
 

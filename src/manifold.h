@@ -8,8 +8,8 @@
 // the same every step for the same corner, edge or face of both bodies.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include <coal/collision.h>
@@ -96,41 +96,45 @@ struct StoredRow {
   std::int64_t feature;
 };
 
+// Manifolds are stored, and looked up, in increasing pair key order (a * N + b).
 class ManifoldStore {
  public:
   void clear() {
+    keys_.clear();
     pairs_.clear();
     rows_.clear();
+    cursor_ = 0;
   }
-  const StoredManifold* find(std::int64_t key) const {
-    auto it = pairs_.find(key);
-    return it == pairs_.end() ? nullptr : &it->second;
+  // The manifold of `key`, or null; keys asked in increasing order cost O(1) each.
+  const StoredManifold* find(std::int64_t key) {
+    if (cursor_ > keys_.size() || (cursor_ > 0 && keys_[cursor_ - 1] > key)) cursor_ = 0;
+    cursor_ = static_cast<std::size_t>(
+        std::lower_bound(keys_.begin() + cursor_, keys_.end(), key) - keys_.begin());
+    if (cursor_ == keys_.size() || keys_[cursor_] != key) return nullptr;
+    return &pairs_[cursor_];
   }
   const StoredRow& row(int index) const { return rows_[index]; }
-  // Starts the manifold of `key`; rows follow with `add_row`.
+  // Starts the manifold of `key` (keys in increasing order); rows follow with `add_row`.
   void begin(std::int64_t key, const Vec3& rel_p, const Quat& rel_q) {
-    StoredManifold& m = pairs_[key];
-    m.rel_p = rel_p;
-    m.rel_q = rel_q;
-    m.first = static_cast<int>(rows_.size());
-    m.count = 0;
-    current_ = &m;
+    keys_.push_back(key);
+    pairs_.push_back({rel_p, rel_q, static_cast<int>(rows_.size()), 0});
   }
   void add_row(const StoredRow& row) {
     rows_.push_back(row);
-    ++current_->count;
+    ++pairs_.back().count;
   }
   void swap(ManifoldStore& other) {
+    keys_.swap(other.keys_);
     pairs_.swap(other.pairs_);
     rows_.swap(other.rows_);
-    current_ = nullptr;
-    other.current_ = nullptr;
+    cursor_ = other.cursor_ = 0;
   }
 
  private:
-  std::unordered_map<std::int64_t, StoredManifold> pairs_;
+  std::vector<std::int64_t> keys_;
+  std::vector<StoredManifold> pairs_;
   std::vector<StoredRow> rows_;
-  StoredManifold* current_ = nullptr;
+  std::size_t cursor_ = 0;
 };
 
 }  // namespace collres

@@ -29,6 +29,36 @@ inline void apply(const ContactRow& r, double* v, int k, Vec3 d, double s) {
 
 inline Vec3 direction(const ContactRow& r, int k) { return k == 0 ? r.n : (k == 1 ? r.t1 : r.t2); }
 
+// One Gauss-Seidel update of a row; returns the largest impulse change (N s).
+double solve_row(ContactRow& r, double* v) {
+  // normal: approach no faster than the speculative allowance, accumulated >= 0
+  double v_n = relative(r, v, 0, r.n);
+  double new_n = std::max(r.normal - r.normal_mass * (v_n + r.allowance), 0.0);
+  double d_n = new_n - r.normal;
+  r.normal = new_n;
+  if (d_n != 0.0) apply(r, v, 0, r.n, d_n);
+  // friction: oppose the slip left after the normal update (the lecture's tangent,
+  // v_t / |v_t|), as much as stops it along that direction, within mu * normal
+  double x = relative(r, v, 1, r.t1), y = relative(r, v, 2, r.t2);
+  double speed2 = x * x + y * y;
+  double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
+  double slip = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
+  double tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
+  double size = std::hypot(tx, ty);
+  double limit = r.mu * new_n;
+  if (size > limit) {
+    double scale = size > 0.0 ? limit / size : 0.0;
+    tx *= scale;
+    ty *= scale;
+  }
+  double d_x = tx - r.tangent[0], d_y = ty - r.tangent[1];
+  r.tangent[0] = tx;
+  r.tangent[1] = ty;
+  if (d_x != 0.0) apply(r, v, 1, r.t1, d_x);
+  if (d_y != 0.0) apply(r, v, 2, r.t2, d_y);
+  return std::max({std::fabs(d_n), std::fabs(d_x), std::fabs(d_y)});
+}
+
 }  // namespace
 
 double combine(double a, double b, CombineRule rule) {
@@ -98,37 +128,70 @@ int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int it
     ++done;
     double change = 0.0, largest = 0.0;
     for (ContactRow& r : rows) {
-      // normal: approach no faster than the speculative allowance, accumulated >= 0
-      double v_n = relative(r, v, 0, r.n);
-      double new_n = std::max(r.normal - r.normal_mass * (v_n + r.allowance), 0.0);
-      double d_n = new_n - r.normal;
-      r.normal = new_n;
-      if (d_n != 0.0) apply(r, v, 0, r.n, d_n);
-      // friction: oppose the slip left after the normal update (the lecture's tangent,
-      // v_t / |v_t|), as much as stops it along that direction, within mu * normal
-      double x = relative(r, v, 1, r.t1), y = relative(r, v, 2, r.t2);
-      double speed2 = x * x + y * y;
-      double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
-      double slip = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
-      double tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
-      double size = std::hypot(tx, ty);
-      double limit = r.mu * new_n;
-      if (size > limit) {
-        double scale = size > 0.0 ? limit / size : 0.0;
-        tx *= scale;
-        ty *= scale;
-      }
-      double d_x = tx - r.tangent[0], d_y = ty - r.tangent[1];
-      r.tangent[0] = tx;
-      r.tangent[1] = ty;
-      if (d_x != 0.0) apply(r, v, 1, r.t1, d_x);
-      if (d_y != 0.0) apply(r, v, 2, r.t2, d_y);
-      change = std::max({change, std::fabs(d_n), std::fabs(d_x), std::fabs(d_y)});
-      largest = std::max(largest, new_n);
+      double step = solve_row(r, v);
+      change = std::max(change, step);
+      largest = std::max(largest, r.normal);
     }
     if (change <= converged * largest) break;
   }
   return done;
+}
+
+void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                     const std::vector<int32_t>& level, std::vector<int32_t>& order,
+                     int sweeps) {
+  double* v = bodies.velocity;
+  order.clear();
+  for (size_t r = 0; r < rows.size(); ++r) {
+    const ContactRow& row = rows[r];
+    int32_t la = level[row.a], lb = level[row.b];
+    if (!row.bounce && la >= 0 && lb >= 0 && la != lb) order.push_back(static_cast<int32_t>(r));
+  }
+  auto lower = [&](int32_t i) { return std::min(level[rows[i].a], level[rows[i].b]); };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int32_t i, int32_t j) { return lower(i) < lower(j); });
+  for (size_t lo = 0; lo < order.size();) {
+    size_t hi = lo;
+    while (hi < order.size() && lower(order[hi]) == lower(order[lo])) ++hi;
+    // the rows between levels L and L + 1: the bodies below are fixed, a few sweeps of
+    // the same row updates as solve_velocities with the upper body's mass only
+    for (int sweep = 0; sweep < sweeps; ++sweep) {
+      for (size_t q = lo; q < hi; ++q) {
+        ContactRow r = rows[order[q]];
+        bool upper_b = level[r.b] > level[r.a];
+        if (upper_b) {
+          r.ma = 0.0;
+          for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3{};
+        } else {
+          r.mb = 0.0;
+          for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3{};
+        }
+        double k_n = r.ma + r.mb + dot(r.ang_a[0], r.dw_a[0]) + dot(r.ang_b[0], r.dw_b[0]);
+        if (!(k_n > kTiny)) continue;
+        r.normal_mass = 1.0 / k_n;
+        auto block = [&](int i, int j) {
+          return (i == j ? r.ma + r.mb : 0.0) + dot(r.ang_a[i], r.dw_a[j]) +
+                 dot(r.ang_b[i], r.dw_b[j]);
+        };
+        r.kt[0] = block(1, 1);
+        r.kt[1] = block(1, 2) + block(2, 1);
+        r.kt[2] = block(2, 2);
+        // the lower body moving towards the upper one does not push it (no energy gain):
+        // only the upper body's own approach is stopped
+        const int32_t low = upper_b ? r.a : r.b;
+        double towards = (upper_b ? 1.0 : -1.0) *
+                         (dot(lin(v, low), r.n) +
+                          dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
+        r.allowance += std::max(towards, 0.0);
+        solve_row(r, v);
+        ContactRow& kept = rows[order[q]];
+        kept.normal = r.normal;
+        kept.tangent[0] = r.tangent[0];
+        kept.tangent[1] = r.tangent[1];
+      }
+    }
+    lo = hi;
+  }
 }
 
 void apply_restitution(std::vector<ContactRow>& rows, SolverBodies& bodies) {

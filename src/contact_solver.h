@@ -48,8 +48,8 @@ struct SolverParams {
   int position_iterations = 4;          // split-impulse sweeps
   double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
-  double linear_slop = 0.005;           // m: penetration left alone by the position pass
-  double position_correction = 0.2;     // fraction of the penetration beyond the slop removed
+  double linear_slop = 0.0001;          // m: penetration left alone by the position pass
+  double position_correction = 0.5;     // fraction of the penetration beyond the slop removed
   double max_correction = 0.2;          // m: largest push-out per step
   double converged = 1e-6;              // a sweep changing every impulse by less than this
                                         // times the largest normal impulse ends iterating
@@ -109,6 +109,17 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 // normal impulse. Returns the sweeps done.
 int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
                      double converged);
+
+// Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
+// normal and friction rows between each pair of levels, non-bouncing rows only, from the
+// ground up, `level` (N,) the contact distance of each body
+// from an immovable one (0: immovable, -1: not connected to one), in which a row between
+// two levels treats its lower body as immovable. A heavy body on a light one is held in
+// the same step instead of after m_heavy / m_light sweeps; the rows' accumulated normal
+// impulses take up the change (what the next step warm starts from). `order` is scratch.
+void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                     const std::vector<int32_t>& level, std::vector<int32_t>& order,
+                     int sweeps);
 
 // One pass: bouncing rows that carry a normal impulse leave at -e times their pre-solve
 // approach speed (A's and B's extra impulses with their own e, each keeping the total

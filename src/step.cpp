@@ -60,12 +60,15 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   double cold = warm(contacts, dt, warm_enabled);
   SolverBodies solver{n, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
   warm_start(rows_, solver);
-  // iterate: sequential impulses (more sweeps while resting contacts are new)
+  // iterate: sequential impulses (more sweeps while resting contacts are new), then
+  // shock propagation from the ground up
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
   StepStats stats;
   stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged);
   stats.rows = static_cast<int64_t>(rows_.size());
+  levels(n);
+  propagate_shock(rows_, solver, level_, order32_, params.position_iterations);
   // restitution from the pre-solve approach speed, above the threshold only
   apply_restitution(rows_, solver);
   // store impulses for next step's warm start, then report them
@@ -262,6 +265,39 @@ void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOu
         if (out.state[order_[j]] == kSticking) out.state[order_[j]] = kResting;
     }
     lo = hi;
+  }
+}
+
+void StepSolver::levels(int64_t n) {
+  // contact graph of the rows (CSR), then breadth first from the immovable bodies
+  first_.assign(n + 1, 0);
+  for (const ContactRow& r : rows_) {
+    ++first_[r.a + 1];
+    ++first_[r.b + 1];
+  }
+  for (int64_t i = 0; i < n; ++i) first_[i + 1] += first_[i];
+  adjacency_.resize(first_[n]);
+  order32_.assign(first_.begin(), first_.end() - 1);   // fill cursor per body
+  for (const ContactRow& r : rows_) {
+    adjacency_[order32_[r.a]++] = r.b;
+    adjacency_[order32_[r.b]++] = r.a;
+  }
+  level_.assign(n, -1);
+  queue_.clear();
+  for (int64_t i = 0; i < n; ++i)
+    if (!touched_[i] && first_[i + 1] > first_[i]) {   // immovable and in contact
+      level_[i] = 0;
+      queue_.push_back(static_cast<int32_t>(i));
+    }
+  for (size_t head = 0; head < queue_.size(); ++head) {
+    int32_t i = queue_[head];
+    for (int32_t k = first_[i]; k < first_[i + 1]; ++k) {
+      int32_t j = adjacency_[k];
+      if (level_[j] < 0) {
+        level_[j] = level_[i] + 1;
+        queue_.push_back(j);
+      }
+    }
   }
 }
 

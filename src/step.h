@@ -18,7 +18,8 @@
 //    speculative contact that cannot close within the step is no row), combined
 //    materials by the combine rules;
 // 3. warm start from last step's impulses of the same pair and feature (ContactCache);
-// 4. iterate: sequential impulses (more sweeps while the resting contacts are new);
+// 4. iterate: sequential impulses (more sweeps while the resting contacts are new), then
+//    shock propagation from the ground up (a heavy body on a light one);
 // 5. restitution from the pre-solve approach speed, above the threshold only;
 // 6. store impulses for the next step (without the restitution part);
 // 7. advance: impacted bodies from their time of impact with the new velocity for the
@@ -112,6 +113,7 @@ class StepSolver {
                        double threshold, ContactsOut& report);
   void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
   double warm(const ContactsView& c, double dt, bool enabled);
+  void levels(int64_t n);
   void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
                BodyStatesOut& out);
   void push_out(const BodyProperties& bodies, const SolverParams& p, double dt,
@@ -137,6 +139,7 @@ class StepSolver {
   std::vector<uint8_t> found_;
   std::vector<int64_t> order_;
   std::vector<ContactRow> rows_;
+  std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 
 }  // namespace collres

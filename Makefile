@@ -44,12 +44,14 @@ $(VENV)/.editable-stamp: setup.py pyproject.toml $(MSG_STAMP)
 	$(PIP) install --no-deps --no-build-isolation -e .
 	touch $@
 
+# BENCH_ARGS e.g. --sizes 10 100 --peer-venv DIR (default ~/.cache/collres_ros/peer-venv,
+# created when missing with pip install mujoco pybullet)
 bench: setup
-	$(VPY) bench/bench_step.py
+	$(VPY) bench/bench_step.py $(BENCH_ARGS)
 
 goldens: setup
 	$(VPY) tools/regenerate_goldens.py
 
 clean:
 	rm -rf build collres_ros/msg collres_ros/_lib collres_ros/*.so collres_ros/core/_native*.so \
-		demo_out
+		demo_out bench_out/step.json

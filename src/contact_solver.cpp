@@ -44,7 +44,7 @@ double solve_row(ContactRow& r, double* v) {
   double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
   double slip = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
   double tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
-  double size = std::hypot(tx, ty);
+  double size = norm2(tx, ty);
   double limit = r.mu * new_n;
   if (size > limit) {
     double scale = size > 0.0 ? limit / size : 0.0;
@@ -107,7 +107,7 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row_velocity(row, slow, before);
   row.approach = rel[0];
   row.bounce = rel[0] < -threshold;
-  row.sticking = std::hypot(before[1], before[2]) < sticking_speed;
+  row.sticking = norm2(before[1], before[2]) < sticking_speed;
   row.mu = row.sticking ? mu_static : mu_kinetic;
 }
 
@@ -139,7 +139,7 @@ int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int it
 
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<int32_t>& order,
-                     int sweeps) {
+                     std::vector<ContactRow>& scratch, int sweeps) {
   double* v = bodies.velocity;
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
@@ -150,47 +150,59 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
   auto lower = [&](int32_t i) { return std::min(level[rows[i].a], level[rows[i].b]); };
   std::stable_sort(order.begin(), order.end(),
                    [&](int32_t i, int32_t j) { return lower(i) < lower(j); });
-  for (size_t lo = 0; lo < order.size();) {
+  // the rows between levels L and L + 1 see the bodies below as fixed: copies of the rows
+  // with the lower body's inverse mass and inertia zeroed
+  scratch.clear();
+  for (int32_t index : order) {
+    ContactRow r = rows[index];
+    bool upper_b = level[r.b] > level[r.a];
+    if (upper_b) {
+      r.ma = 0.0;
+      for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3{};
+    } else {
+      r.mb = 0.0;
+      for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3{};
+    }
+    double k_n = r.ma + r.mb + dot(r.ang_a[0], r.dw_a[0]) + dot(r.ang_b[0], r.dw_b[0]);
+    if (!(k_n > kTiny)) continue;
+    r.normal_mass = 1.0 / k_n;
+    auto block = [&](int i, int j) {
+      return (i == j ? r.ma + r.mb : 0.0) + dot(r.ang_a[i], r.dw_a[j]) +
+             dot(r.ang_b[i], r.dw_b[j]);
+    };
+    r.kt[0] = block(1, 1);
+    r.kt[1] = block(1, 2) + block(2, 1);
+    r.kt[2] = block(2, 2);
+    r.contact = index;               // (the row it stands for, while it is a copy)
+    scratch.push_back(r);
+  }
+  for (size_t lo = 0; lo < scratch.size();) {
     size_t hi = lo;
-    while (hi < order.size() && lower(order[hi]) == lower(order[lo])) ++hi;
-    // the rows between levels L and L + 1: the bodies below are fixed, a few sweeps of
-    // the same row updates as solve_velocities with the upper body's mass only
+    auto lower_of = [&](const ContactRow& r) { return std::min(level[r.a], level[r.b]); };
+    while (hi < scratch.size() && lower_of(scratch[hi]) == lower_of(scratch[lo])) ++hi;
     for (int sweep = 0; sweep < sweeps; ++sweep) {
       for (size_t q = lo; q < hi; ++q) {
-        ContactRow r = rows[order[q]];
+        ContactRow& r = scratch[q];
+        // the lower body moving towards the upper one does not push it (no energy
+        // gain): only the upper body's own approach is stopped
         bool upper_b = level[r.b] > level[r.a];
-        if (upper_b) {
-          r.ma = 0.0;
-          for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3{};
-        } else {
-          r.mb = 0.0;
-          for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3{};
-        }
-        double k_n = r.ma + r.mb + dot(r.ang_a[0], r.dw_a[0]) + dot(r.ang_b[0], r.dw_b[0]);
-        if (!(k_n > kTiny)) continue;
-        r.normal_mass = 1.0 / k_n;
-        auto block = [&](int i, int j) {
-          return (i == j ? r.ma + r.mb : 0.0) + dot(r.ang_a[i], r.dw_a[j]) +
-                 dot(r.ang_b[i], r.dw_b[j]);
-        };
-        r.kt[0] = block(1, 1);
-        r.kt[1] = block(1, 2) + block(2, 1);
-        r.kt[2] = block(2, 2);
-        // the lower body moving towards the upper one does not push it (no energy gain):
-        // only the upper body's own approach is stopped
         const int32_t low = upper_b ? r.a : r.b;
         double towards = (upper_b ? 1.0 : -1.0) *
                          (dot(lin(v, low), r.n) +
                           dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
+        double allowance = r.allowance;
         r.allowance += std::max(towards, 0.0);
         solve_row(r, v);
-        ContactRow& kept = rows[order[q]];
-        kept.normal = r.normal;
-        kept.tangent[0] = r.tangent[0];
-        kept.tangent[1] = r.tangent[1];
+        r.allowance = allowance;
       }
     }
     lo = hi;
+  }
+  for (const ContactRow& r : scratch) {
+    ContactRow& kept = rows[r.contact];
+    kept.normal = r.normal;
+    kept.tangent[0] = r.tangent[0];
+    kept.tangent[1] = r.tangent[1];
   }
 }
 
@@ -237,11 +249,11 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
 uint8_t contact_state(const ContactRow& r, const double* velocity, double sticking_speed) {
   double rel[3];
   row_velocity(r, velocity, rel);
-  double size = std::hypot(r.tangent[0], r.tangent[1]);
+  double size = norm2(r.tangent[0], r.tangent[1]);
   bool friction = size > kTiny;
   bool touching = r.normal > 0.0;
   bool at_limit = size >= r.mu * r.normal * (1.0 - 1e-9);
-  bool sliding = std::hypot(rel[1], rel[2]) > sticking_speed || !r.sticking ||
+  bool sliding = norm2(rel[1], rel[2]) > sticking_speed || !r.sticking ||
                  (friction && at_limit);
   if (r.bounce && touching) return kImpact;
   if (touching && sliding && (friction || r.mu == 0.0)) return kSliding;

@@ -116,10 +116,11 @@ int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int it
 // from an immovable one (0: immovable, -1: not connected to one), in which a row between
 // two levels treats its lower body as immovable. A heavy body on a light one is held in
 // the same step instead of after m_heavy / m_light sweeps; the rows' accumulated normal
-// impulses take up the change (what the next step warm starts from). `order` is scratch.
+// impulses take up the change (what the next step warm starts from). `order` and
+// `scratch` are scratch space.
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<int32_t>& order,
-                     int sweeps);
+                     std::vector<ContactRow>& scratch, int sweeps);
 
 // One pass: bouncing rows that carry a normal impulse leave at -e times their pre-solve
 // approach speed (A's and B's extra impulses with their own e, each keeping the total

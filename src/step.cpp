@@ -68,7 +68,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged);
   stats.rows = static_cast<int64_t>(rows_.size());
   levels(n);
-  propagate_shock(rows_, solver, level_, order32_, params.position_iterations);
+  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.position_iterations);
   // restitution from the pre-solve approach speed, above the threshold only
   apply_restitution(rows_, solver);
   // store impulses for next step's warm start, then report them
@@ -215,7 +215,7 @@ double StepSolver::warm(const ContactsView& c, double dt, bool enabled) {
     Vec3 friction = load3(cached_friction_.data() + 3 * k);
     r.normal = cached_normal_[k] * scale;
     double tx = dot(r.t1, friction) * scale, ty = dot(r.t2, friction) * scale;
-    double size = std::hypot(tx, ty), limit = r.mu * r.normal;
+    double size = norm2(tx, ty), limit = r.mu * r.normal;
     if (size > limit) {
       tx *= limit / size;
       ty *= limit / size;

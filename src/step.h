@@ -138,7 +138,7 @@ class StepSolver {
   std::vector<double> cached_normal_, cached_friction_;
   std::vector<uint8_t> found_;
   std::vector<int64_t> order_;
-  std::vector<ContactRow> rows_;
+  std::vector<ContactRow> rows_, shock_rows_;
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

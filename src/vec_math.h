@@ -23,6 +23,8 @@ inline Vec3 cross(Vec3 a, Vec3 b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 inline double length(Vec3 a) { return std::sqrt(dot(a, a)); }
+// |(x, y)| without std::hypot's overflow care (slow, and not needed at these magnitudes)
+inline double norm2(double x, double y) { return std::sqrt(x * x + y * y); }
 inline bool finite(Vec3 a) {
   return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
 }

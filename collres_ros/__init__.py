@@ -8,6 +8,8 @@ import ctypes
 import glob
 import os
 
+__version__ = '0.1.0'  # as package.xml and setup.py (a test keeps them equal)
+
 
 def _preload_interface_libraries() -> None:
     """Load the package's own rosidl libraries when they live inside the package.

@@ -73,7 +73,7 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     from rclpy.executors import SingleThreadedExecutor
 
     from collres_ros.ros import processes
-    from collres_ros.ros.bag import BagError, read_messages
+    from collres_ros.ros.bag import BagError, describe, read_messages
     from collres_ros.ros.recorder import Recorder
     from collres_ros.ros.resources import config_path
     from collres_ros.ros.simulation import load_sim_scene
@@ -103,7 +103,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
         try:
             node = rclpy.create_node('collres_demo_recorder', context=context)
             try:
-                recorder = Recorder(node, bag, storage)
+                recorder = Recorder(node, bag, storage,
+                                    custom_data=describe(sim_scene.scene))
             except BagError as error:
                 raise DemoError(str(error)) from None
             executor = SingleThreadedExecutor(context=context)

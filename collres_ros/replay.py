@@ -2,7 +2,7 @@
 
 ::
 
-    collres_replay IN_BAG OUT_BAG --params FILE [--storage mcap|sqlite3] [--namespace NS]
+    collres_replay IN_BAG OUT_BAG [--params FILE] [--storage mcap|sqlite3] [--namespace NS]
 
 Reads the node's input topics from IN_BAG (mcap or sqlite3): the batched
 ``body_states`` (one step per message), or else the per-body
@@ -53,7 +53,9 @@ def parser() -> argparse.ArgumentParser:
                     'every output topic of collres_node to a new bag.')
     p.add_argument('in_bag', help='input bag directory (mcap or sqlite3)')
     p.add_argument('out_bag', help='output bag directory (must not exist)')
-    p.add_argument('--params', required=True, help='params file of the scene (as the node)')
+    p.add_argument('--params', help='params file of the scene, read as collres_node in '
+                                    '--namespace reads it (default: the params recorded in '
+                                    'IN_BAG by collres_sim, collres_replay or collres_demo)')
     p.add_argument('--storage', help='output storage: mcap or sqlite3 (default: as the input)')
     p.add_argument('--namespace', default='/', help='namespace of the node\'s topics (/)')
     p.add_argument('--topics', help='write only these output topics, comma separated '
@@ -69,7 +71,8 @@ def _run(args: argparse.Namespace) -> int:
     topics = None if args.topics is None else \
         tuple(t.strip() for t in args.topics.split(',') if t.strip())
     try:
-        summary = replay(Path(args.in_bag), Path(args.out_bag), Path(args.params),
+        summary = replay(Path(args.in_bag), Path(args.out_bag),
+                         Path(args.params) if args.params else None,
                          args.storage, args.namespace,
                          None if args.quiet else _progress_printer(), topics)
     except BagError as failure:

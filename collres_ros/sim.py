@@ -6,7 +6,7 @@ Live (default)::
 
 integrates the scene of the params file (semi-implicit Euler with gravity,
 ``collres_ros.ros.simulation``) at ``rate_hz`` for ``duration`` s of simulated time.
-Each step it publishes ``body_states`` (BodyStateArray of the dynamic bodies,
+Each step it publishes ``body_states`` (BodyStateArray of the dynamic and kinematic bodies,
 stamped with simulated time; or, with ``--per-body``/``publish_per_body``,
 ``bodies/<name>/pose`` and ``bodies/<name>/twist`` instead) and ``/clock``,
 waits for ``body_states/corrected`` of the same stamp and adopts it

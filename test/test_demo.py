@@ -120,3 +120,25 @@ def test_demo_bad_params_is_one_error_line(tmp_path: Path, capsys: pytest.Captur
     assert main(['--params', str(tmp_path / 'missing.yaml'), '--out', str(tmp_path)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith('error: ') and 'missing.yaml' in err[0]
+
+
+def test_the_live_bag_carries_the_offered_qos_and_the_params(demo) -> None:
+    """The recorder writes what the publishers offered, and the scene, to metadata.yaml."""
+    import yaml
+
+    from collres_ros import __version__
+    from collres_ros.ros import params
+    from collres_ros.ros.resources import config_path
+    info = yaml.safe_load((demo.bag / 'metadata.yaml').read_text())
+    info = info['rosbag2_bagfile_information']
+    found = {t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles']
+             for t in info['topics_with_message_count']}
+    for topic in ('/body_states', '/body_states/corrected', '/contacts', '/diagnostics'):
+        print(topic, found[topic])
+        assert found[topic], f'{topic}: no offered_qos_profiles'
+        assert {p['reliability'] for p in found[topic]} == {'reliable'}
+        assert {p['durability'] for p in found[topic]} == {'volatile'}
+    assert info['custom_data']['collres_ros.version'] == __version__
+    path = demo.bag.parent / 'recorded_params.yaml'
+    path.write_text(info['custom_data']['collres_ros.params'])
+    assert params.load_scene(path).bodies == params.load_scene(config_path()).bodies

@@ -110,6 +110,9 @@ def test_colcon_builds_the_package_against_the_ros_environment(tmp_path: Path) -
     for name in EXECUTABLES:
         assert os.access(install / 'lib' / 'collres_ros' / name, os.X_OK)
     assert (install / 'share' / 'collres_ros' / 'config' / 'collres.yaml').is_file()
+    for viewer in ('launch/collres.launch.py', 'rviz/collres.rviz',
+                   'foxglove/collres_layout.json'):
+        assert (install / 'share' / 'collres_ros' / viewer).is_file(), viewer
     # the colcon-installed messages import and serialise from the install tree
     check = ('from collres_ros.msg import ContactArray, Contact\n'
              'from rclpy.serialization import serialize_message, deserialize_message\n'

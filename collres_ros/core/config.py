@@ -169,6 +169,10 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
               'plane [nx, ny, nz, d] (|d| up to the position limit)', *SIZE_RANGE, unit='m',
               reason='1 um to 1000 km: beyond that the solver loses every digit'),
     ParamSpec('static', 'bool', False, 'Infinite mass; the pose may still be set or published'),
+    ParamSpec('kinematic', 'bool', False,
+              'Static (infinite mass) and moved by collres_sim at its linear_velocity and '
+              'angular_velocity: a conveyor belt, a turntable, a driven platform',
+              reason='bodies driven from outside push others but are never pushed'),
     ParamSpec('mass', 'double', 1.0, 'Mass (dynamic bodies)', 1e-9, 1e9, unit='kg'),
     ParamSpec('inertia', 'double_array', [],
               'Principal inertia [ixx, iyy, izz] about the origin; empty: from shape and mass',
@@ -183,10 +187,11 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('orientation', 'double_array', [0.0, 0.0, 0.0, 1.0],
               'Initial orientation, quaternion x, y, z, w'),
     ParamSpec('linear_velocity', 'double_array', [0.0, 0.0, 0.0],
-              'Initial linear velocity, world frame (sim)', -VELOCITY_LIMIT, VELOCITY_LIMIT,
-              unit='m/s'),
+              'Initial linear velocity, world frame (sim); kinematic: its constant velocity',
+              -VELOCITY_LIMIT, VELOCITY_LIMIT, unit='m/s'),
     ParamSpec('angular_velocity', 'double_array', [0.0, 0.0, 0.0],
-              'Initial angular velocity, world frame (sim)', -VELOCITY_LIMIT, VELOCITY_LIMIT,
+              'Initial angular velocity, world frame (sim); kinematic: its constant velocity',
+              -VELOCITY_LIMIT, VELOCITY_LIMIT,
               unit='rad/s'),
     ParamSpec('mesh', 'string', '',
               'convex: mesh file (OBJ/STL vertices), relative to the params file or absolute; '
@@ -218,6 +223,12 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('queue_depth', 'integer', 10,
               'Depth of the reliable QoS of state topics (keep last)', 1, 1000,
               reason='a few steps of buffering; old states are worthless to a control loop'),
+    ParamSpec('min_rate', 'double', 0.0,
+              'Expected step rate: /diagnostics warns when the rate over its window falls '
+              'below it, and reports an error when no step comes (0: no rate check)',
+              0.0, 100000.0, unit='Hz',
+              reason='the source\'s rate is the user\'s to state, as diagnostic_updater\'s '
+                     'FrequencyStatus min_freq'),
 )
 
 
@@ -231,6 +242,7 @@ class NodeSettings:
     diagnostics_period: float = 1.0
     per_body_outputs: bool = True
     queue_depth: int = 10
+    min_rate: float = 0.0
 
 
 # Simulator settings: the parameters of collres_sim (its own section).

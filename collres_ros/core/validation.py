@@ -41,6 +41,23 @@ from collres_ros.core.types import BodyInput, InputBatch, Rejection
 ZERO_NORM = 1e-6              # quaternion norms below this are 'zero'
 QUATERNION_TOLERANCE = 1e-3   # |norm - 1| up to this is normalised silently
 NO_STAMP = -1                 # last-stamp value of a body never seen
+NAME_SHOWN = 40               # characters of a name shown in a detail line
+
+
+def shown_name(name: str, limit: int = NAME_SHOWN) -> str:
+    """A body name as it goes into a log line: printable, one line, at most ``limit`` chars.
+
+    A plain name (letters, digits, ``_``) is shown as is; anything else as its
+    ``repr`` (so a newline cannot start a forged log line); both cut with ``...``.
+    """
+    text = name if name.isascii() and (name.replace('_', '').isalnum() or not name) \
+        else repr(name)
+    return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
+def _quoted(text: str, limit: int = NAME_SHOWN) -> str:
+    shown = repr(text)
+    return shown if len(shown) <= limit else shown[:limit - 3] + '...'
 
 
 @dataclass
@@ -91,10 +108,12 @@ def check_inputs(inputs: Sequence[BodyInput] | InputBatch, index_of: Mapping[str
                                  bool).reshape(count)
         twist_ok = twist_in_body | np.array([f in world for f in frames], bool).reshape(count)
     finite = np.isfinite(numbers).all(axis=1)
+    with np.errstate(over='ignore'):      # a huge quaternion has an infinite norm: refused
+        norm = np.linalg.norm(np.where(np.isfinite(numbers[:, 3:7]), numbers[:, 3:7], 0.0),
+                              axis=1)
     magnitude = np.abs(np.where(np.isfinite(numbers), numbers, 0.0))
     too_far = magnitude[:, 0:3].max(axis=1, initial=0.0) > POSITION_LIMIT
     too_fast = magnitude[:, 7:13].max(axis=1, initial=0.0) > VELOCITY_LIMIT
-    norm = np.linalg.norm(np.where(np.isfinite(numbers[:, 3:7]), numbers[:, 3:7], 0.0), axis=1)
     failing = [index < 0, duplicate, ~pose_ok, ~twist_ok, ~finite, too_far | too_fast,
                norm < ZERO_NORM, np.abs(norm - 1.0) > quaternion_tolerance]
     code = np.select(failing, np.arange(len(failing)), -1) if count else np.zeros(0, int)
@@ -105,7 +124,7 @@ def check_inputs(inputs: Sequence[BodyInput] | InputBatch, index_of: Mapping[str
         name = names[k]
         reason, detail = _refusal(int(code[k]), k, name, batch, repeats, world_frame,
                                   bool(too_far[k]), float(norm[k]), quaternion_tolerance)
-        rejected.append(Rejection(name, reason, f'{name}: {detail}'))
+        rejected.append(Rejection(name, reason, f'{shown_name(name)}: {detail}'))
 
     good = numbers[keep]
     orientation = good[:, 3:7] / norm[keep, None]
@@ -131,11 +150,12 @@ def _refusal(code: int, k: int, name: str, batch: InputBatch, repeats: Counter[s
         return 'duplicate_body', f'appears {repeats[name] if repeats else 2} times in one step'
     if code == 2:
         frame = _per_body(batch.frame_id, batch.count)[k]
-        return 'wrong_frame', f'pose frame {frame!r} is not the world frame {world_frame!r}'
+        return 'wrong_frame', (f'pose frame {_quoted(frame)} is not the world frame '
+                               f'{world_frame!r}')
     if code == 3:
         frame = _per_body(batch.twist_frame_id, batch.count)[k]
-        return 'wrong_frame', (f'twist frame {frame!r} is neither {world_frame!r} nor the '
-                               f'body frame {name!r}')
+        return 'wrong_frame', (f'twist frame {_quoted(frame)} is neither {world_frame!r} nor '
+                               f'the body frame {shown_name(name)!r}')
     if code == 4:
         return 'non_finite', 'NaN or Inf in pose or twist'
     if code == 5:

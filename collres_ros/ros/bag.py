@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
@@ -101,6 +101,22 @@ class BagMessage:
     msg: Any
 
 
+# custom_data keys of the bags collres_ros writes (metadata.yaml, rosbag2_bagfile_information)
+VERSION_KEY = 'collres_ros.version'
+PARAMS_KEY = 'collres_ros.params'
+
+
+def describe(scene: Any) -> dict[str, str]:
+    """custom_data of a bag recorded on ``scene``: the package version and the params.
+
+    The params are a complete params file (every parameter, convex meshes
+    inlined as points) that ``collres_replay`` reads when no ``--params`` is given.
+    """
+    from collres_ros import __version__
+    from collres_ros.ros.params import scene_to_yaml
+    return {VERSION_KEY: __version__, PARAMS_KEY: scene_to_yaml(scene)}
+
+
 class BagWriter:
     """Write rclpy messages to a new rosbag2 bag; use as a context manager.
 
@@ -108,9 +124,14 @@ class BagWriter:
     with ``add_topic``). ``path`` must not exist yet (rosbag2's rule).
     ``compress``: zstd-compressed mcap chunks (the mcap format's own chunk
     compression, read transparently by every mcap reader; mcap storage only).
+    ``qos``: the rclpy QoS profiles offered on a topic (absolute name), written
+    to ``offered_qos_profiles`` in metadata.yaml when the topic is added.
+    ``custom_data``: string pairs for metadata.yaml's ``custom_data``.
     """
 
-    def __init__(self, path: str | Path, storage: str = 'mcap', compress: bool = False) -> None:
+    def __init__(self, path: str | Path, storage: str = 'mcap', compress: bool = False,
+                 qos: Callable[[str], Sequence[Any]] | None = None,
+                 custom_data: Mapping[str, str] | None = None) -> None:
         if storage not in STORAGES:
             raise BagError(f'unknown storage {storage!r} (supported: {", ".join(STORAGES)})')
         self.path = Path(path)
@@ -124,8 +145,15 @@ class BagWriter:
             self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._connections: dict[str, Any] = {}
         self._types: dict[str, str] = {}
+        self._qos = qos
+        for key, value in (custom_data or {}).items():
+            self.set_custom_data(key, value)
         self.count = 0
         self._open = False
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """One ``custom_data`` entry of metadata.yaml (written when the bag closes)."""
+        self._writer.set_custom_data(key, value)
 
     def open(self) -> 'BagWriter':
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -145,15 +173,21 @@ class BagWriter:
                  traceback: TracebackType | None) -> None:
         self.close()
 
-    def add_topic(self, topic: str, msgtype: str) -> None:
-        """Declare a topic with its wire type (idempotent); BagError on a type clash."""
+    def add_topic(self, topic: str, msgtype: str, qos: Sequence[Any] | None = None) -> None:
+        """Declare a topic with its wire type (idempotent); BagError on a type clash.
+
+        ``qos``: rclpy QoS profiles offered on it (default: from the writer's ``qos``).
+        """
         known = self._types.get(topic)
         if known == msgtype:
             return
         if known is not None:
             raise BagError(f'topic {topic} already has type {known}, not {msgtype}')
+        if qos is None and self._qos is not None:
+            qos = self._qos(topic)
+        from collres_ros.ros.qos import to_bag_list
         self._connections[topic] = self._writer.add_connection(
-            topic, msgtype, typestore=typestore())
+            topic, msgtype, typestore=typestore(), offered_qos_profiles=to_bag_list(qos or ()))
         self._types[topic] = msgtype
 
     def write(self, topic: str, log_time: int, msg: Any) -> None:
@@ -204,6 +238,33 @@ class BagReader:
     def topics(self) -> dict[str, str]:
         """Topic name -> wire type of every topic in the bag."""
         return {c.topic: c.msgtype for c in self._reader.connections}
+
+    @property
+    def metadata(self) -> dict[str, Any]:
+        """``rosbag2_bagfile_information`` of metadata.yaml, as plain YAML values."""
+        import yaml
+        try:
+            document = yaml.safe_load((self.path / 'metadata.yaml').read_text())
+            return dict(document['rosbag2_bagfile_information'])
+        except (OSError, yaml.YAMLError, KeyError, TypeError) as error:
+            raise BagError(f'cannot read {self.path / "metadata.yaml"}: {error}') from None
+
+    @property
+    def custom_data(self) -> dict[str, str]:
+        """metadata.yaml's ``custom_data`` (empty when the bag has none)."""
+        return dict(self.metadata.get('custom_data') or {})
+
+    def offered_qos(self, topic: str) -> list[dict[str, Any]]:
+        """The ``offered_qos_profiles`` recorded for ``topic`` (YAML dicts; [] if none)."""
+        for entry in self.metadata.get('topics_with_message_count') or []:
+            meta = entry.get('topic_metadata', {})
+            if meta.get('name') == topic:
+                value = meta.get('offered_qos_profiles') or []
+                if isinstance(value, str):   # metadata version 8 and older: YAML text
+                    import yaml
+                    value = yaml.safe_load(value) or []
+                return list(value)
+        return []
 
     @property
     def message_count(self) -> int:

@@ -13,15 +13,22 @@ from collres_ros.core.types import BodyStates
 
 
 def euler_step(states: BodyStates, dynamic: np.ndarray, gravity: np.ndarray,
-               dt: float) -> BodyStates:
+               dt: float, kinematic: np.ndarray | None = None) -> BodyStates:
     """States after ``dt`` s: v += g dt, then x += v dt, q rotated by omega dt (world frame).
 
     ``dynamic``: (N,) bool, static bodies keep their pose and zero twist.
+    ``kinematic``: (N,) bool, static bodies that move at their prescribed,
+    constant twist (no gravity): x += v dt, q rotated by omega dt.
     ``gravity``: (3,) m/s^2, world frame. Torque-free bodies keep their
     world angular velocity (no gyroscopic term: the test scenes do not need it).
     """
-    moving = np.asarray(dynamic, bool)[:, None]
-    linear = np.where(moving, states.linear + np.asarray(gravity, float) * dt, 0.0)
+    dynamic = np.asarray(dynamic, bool)
+    driven = np.zeros_like(dynamic) if kinematic is None else np.asarray(kinematic, bool)
+    driven = driven & ~dynamic
+    moving = (dynamic | driven)[:, None]
+    accelerated = dynamic[:, None]
+    linear = np.where(moving, states.linear + np.where(accelerated, np.asarray(gravity, float)
+                                                       * dt, 0.0), 0.0)
     angular = np.where(moving, states.angular, 0.0)
     position = states.position + linear * dt
     orientation = np.where(moving, integrate_orientation(states.orientation, angular, dt),

@@ -95,7 +95,8 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
     ``topics``: record only these (relative names; default: all). ``compress``:
     zstd mcap chunks.
     """
-    from collres_ros.ros.bag import BagWriter
+    from collres_ros.ros import qos
+    from collres_ros.ros.bag import BagWriter, describe
     contacts: dict[str, int] = {}
     start = time.perf_counter()
 
@@ -103,7 +104,9 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
         if progress and (step % 200 == 0 or step == total):
             print(f'\rstep {step}/{total}', end='', file=sys.stderr, flush=True)
 
-    with BagWriter(record, storage, compress) as writer:
+    depth = sim.scene.node.queue_depth
+    with BagWriter(record, storage, compress, qos=lambda topic: [qos.offered(topic, depth)],
+                   custom_data=describe(sim.scene)) as writer:
         def sink(stamp: int, outputs: list[tuple[str, str, bytes]]) -> None:
             for topic, kind, data in outputs:
                 if topics is None or topic in topics:
@@ -243,33 +246,40 @@ class PerBodyGrouper:
         self.incomplete = self.sync.dropped + len(self.sync.pending)
 
 
-def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None,
+def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None = None,
            namespace: str = '/', progress: Callable[[int, int], None] | None = None,
            topics: Sequence[str] | None = None, compress: bool = False) -> ReplaySummary:
     """Replay ``in_bag`` into a new ``out_bag``; ReplayError/BagError/ValueError on bad input.
 
+    ``params``: the scene's params file; None: the params recorded in the bag
+    (custom_data ``collres_ros.params``, written by collres_sim, collres_replay
+    and collres_demo).
+
     ``topics``: write only these output topics (relative names; default all).
     ``compress``: zstd mcap chunks (see ``BagWriter``).
     """
-    from collres_ros.ros import messages, params as params_module
-    from collres_ros.ros.bag import STORAGES, BagReader, BagWriter
+    from collres_ros.ros import messages, qos
+    from collres_ros.ros.bag import STORAGES, BagReader, BagWriter, describe
     from collres_ros.core.pipeline import Resolver
 
     if storage is not None and storage not in STORAGES:
         raise ReplayError(f'unknown storage {storage!r} (supported: {", ".join(STORAGES)})')
-    if not params.is_file():
+    if params is not None and not params.is_file():
         raise ReplayError(f'params file not found: {params}')
-    scene = params_module.load_scene(params)
     summary = ReplaySummary()
     start = time.perf_counter()
     with BagReader(in_bag) as reader:
+        scene = _scene(params, reader, namespace)
         if out_bag.exists():
             raise ReplayError(f'output bag already exists: {out_bag}')
         source, total = read_steps(reader, scene, namespace)
         resolver = Resolver(scene)
         diagnostics = OfflineDiagnostics(scene.node.diagnostics_period)
         encoder = messages.OutputEncoder(scene.names, scene.world_frame)
-        with BagWriter(out_bag, storage or reader.storage, compress) as writer:
+        depth = scene.node.queue_depth
+        with BagWriter(out_bag, storage or reader.storage, compress,
+                       qos=lambda topic: [qos.offered(topic, depth)],
+                       custom_data=describe(scene)) as writer:
             for step in source.steps(reader):
                 resolved = resolver.resolve(step.stamp, step.inputs)
                 outputs = encoder.encode(
@@ -295,6 +305,24 @@ def replay(in_bag: Path, out_bag: Path, params: Path, storage: str | None = None
             summary.rejected[reason] = summary.rejected.get(reason, 0) + count
     summary.wall_s = time.perf_counter() - start
     return summary
+
+
+def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
+    """The scene of ``params``, or else the params recorded in the bag's custom_data."""
+    import tempfile
+
+    from collres_ros.ros import params as params_module
+    from collres_ros.ros.bag import PARAMS_KEY
+    if params is not None:
+        return params_module.load_scene(params)
+    text = reader.custom_data.get(PARAMS_KEY)
+    if not text:
+        raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '
+                          'give --params FILE')
+    with tempfile.TemporaryDirectory(prefix='collres_replay-') as scratch:
+        path = Path(scratch) / 'params.yaml'
+        path.write_text(text)
+        return params_module.load_scene(path)
 
 
 def _rejections(resolved: Any) -> list[Any]:

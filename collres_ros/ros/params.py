@@ -71,6 +71,12 @@ class Scene:
     def names(self) -> list[str]:
         return [b.name for b in self.bodies]
 
+    @property
+    def kinematic(self) -> np.ndarray:
+        """(N,) bool: bodies moved by collres_sim at their prescribed twist (also static)."""
+        return np.array([bool(self.values.get(f'body.{b.name}.kinematic', False))
+                         for b in self.bodies], bool)
+
     def index(self, name: str) -> int:
         """Index of a body by name (ValueError when unknown)."""
         return self.names.index(name)
@@ -287,7 +293,7 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
     key = f'body.{name}'
     shape = values[f'{key}.shape']
     size = values[f'{key}.size']
-    static = values[f'{key}.static']
+    static = values[f'{key}.static'] or values[f'{key}.kinematic']   # kinematic: static too
     points: tuple[tuple[float, float, float], ...] = ()
     if shape == 'convex':
         points = _convex_points(key, values, base_dir)
@@ -383,6 +389,29 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
                       duration=typed['duration'], publish_per_body=typed['publish_per_body'])
     return Scene(world_frame, tuple(spec for spec, _ in built), initial, solver, node, sim,
                  typed, base_dir)
+
+
+def scene_to_yaml(scene: Scene) -> str:
+    """A complete params file of ``scene``: every parameter in one ``/**`` section.
+
+    Loading it gives the same scene (a test checks it) with no other file
+    needed: convex meshes are written as their vertices (``points``).
+    """
+    import yaml
+    values = dict(scene.values)
+    for body in scene.bodies:
+        if body.shape == 'convex':
+            values[f'body.{body.name}.mesh'] = ''
+            values[f'body.{body.name}.points'] = [float(c) for p in body.points for c in p]
+    nested: dict[str, Any] = {}
+    for name, value in values.items():
+        *path, leaf = name.split('.')
+        target = nested
+        for part in path:
+            target = target.setdefault(part, {})
+        target[leaf] = list(value) if isinstance(value, tuple) else value
+    return yaml.safe_dump({'/**': {'ros__parameters': nested}}, sort_keys=False,
+                          default_flow_style=None, width=99)
 
 
 def with_changes(scene: Scene, changes: Mapping[str, Any]) -> Scene:

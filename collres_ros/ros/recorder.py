@@ -3,7 +3,8 @@
 It subscribes to each topic it discovers (re-scanning the graph periodically),
 takes the serialized CDR bytes as rclpy receives them (``raw=True``) and
 writes them with ``collres_ros.ros.bag`` at the receive time (ns since the epoch),
-as ``ros2 bag record`` does. Run it in an executor of the caller's choosing;
+as ``ros2 bag record`` does, with the publishers' QoS profiles as the
+topic's ``offered_qos_profiles``. Run it in an executor of the caller's choosing;
 all writes happen in subscription callbacks of that one executor.
 """
 
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -25,9 +26,10 @@ class Recorder:
     """Record the topics of the ROS graph seen by ``node`` into a new bag at ``path``."""
 
     def __init__(self, node: Node, path: str | Path, storage: str = 'mcap',
-                 scan_period: float = 0.1, ignore: Iterable[str] = IGNORED) -> None:
+                 scan_period: float = 0.1, ignore: Iterable[str] = IGNORED,
+                 custom_data: Mapping[str, str] | None = None) -> None:
         self.node = node
-        self.writer = BagWriter(path, storage).open()
+        self.writer = BagWriter(path, storage, custom_data=custom_data).open()
         self.ignore = set(ignore)
         self.counts: dict[str, int] = {}
         self._subscriptions: dict[str, Any] = {}
@@ -51,6 +53,8 @@ class Recorder:
                            for info in publishers)
             qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE if reliable
                              else ReliabilityPolicy.BEST_EFFORT)
+            # the bag's offered_qos_profiles: what the publishers offer (ros2 bag record's rule)
+            self.writer.add_topic(topic, types[0], [info.qos_profile for info in publishers])
             self._subscriptions[topic] = self.node.create_subscription(
                 cls, topic, self._callback(topic, types[0]), qos, raw=True)
             self.counts.setdefault(topic, 0)

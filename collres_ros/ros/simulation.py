@@ -4,8 +4,11 @@ A ``SimScene`` (bodies, initial state, gravity, rate, duration) is integrated
 with ``collres_ros.ros.integrator.euler_step``; each step its dynamic bodies'
 states go to an ``exchange`` (live: publish and wait for the node's answer;
 offline: the core in-process) and the corrected states that come back are
-adopted, closing the loop. No messages are built here: the exchange does
-that with the shared builders. ROS-free.
+adopted, closing the loop. Kinematic bodies (``body.<n>.kinematic: true``:
+static, infinite mass) move at their prescribed ``linear_velocity`` /
+``angular_velocity`` and are published with it, so the node sees a conveyor or
+a turntable move; their corrected states are never adopted. No messages are
+built here: the exchange does that with the shared builders. ROS-free.
 """
 
 from __future__ import annotations
@@ -44,11 +47,17 @@ class SimScene:
     duration: float             # s of simulated time
     world_frame: str
     per_body: bool = False
+    kinematic: np.ndarray | None = None   # (N,) bool: static bodies moved at their twist
+
+    @property
+    def driven(self) -> np.ndarray:
+        """(N,) bool: the kinematic bodies (all False when there are none)."""
+        return np.zeros_like(self.dynamic) if self.kinematic is None else self.kinematic
 
     @property
     def rows(self) -> list[int]:
-        """Indices of the bodies the sim publishes (the dynamic ones)."""
-        return [i for i in range(len(self.names)) if self.dynamic[i]]
+        """Indices of the bodies the sim publishes (dynamic and kinematic ones)."""
+        return [i for i in range(len(self.names)) if self.dynamic[i] or self.driven[i]]
 
     @property
     def steps(self) -> int:
@@ -71,13 +80,17 @@ def load_sim_scene(path: str | Path, duration: float | None = None,
         rate_hz=float(rate_hz if rate_hz is not None else sim.rate_hz),
         duration=float(duration if duration is not None else sim.duration),
         world_frame=scene.world_frame,
-        per_body=bool(getattr(sim, 'publish_per_body', False)))
+        per_body=bool(getattr(sim, 'publish_per_body', False)),
+        kinematic=scene.kinematic)
 
 
 def adopt(states: BodyStates, names: Sequence[str], corrected_names: Sequence[str],
-          corrected: BodyStates) -> BodyStates:
-    """``states`` with the bodies named in ``corrected_names`` replaced by ``corrected``."""
-    index = {name: i for i, name in enumerate(names)}
+          corrected: BodyStates, only: np.ndarray | None = None) -> BodyStates:
+    """``states`` with the bodies named in ``corrected_names`` replaced by ``corrected``.
+
+    ``only``: (N,) bool, adopt only these bodies (the others keep their state).
+    """
+    index = {name: i for i, name in enumerate(names) if only is None or only[i]}
     out = states.copy()
     for k, name in enumerate(corrected_names):
         i = index.get(name)
@@ -99,12 +112,12 @@ def run_loop(sim: SimScene, exchange: Exchange,
     for k, stamp in enumerate(all_stamps):
         if k > 0:
             states = euler_step(states, sim.dynamic, sim.gravity,
-                                (stamp - all_stamps[k - 1]) * 1e-9)
+                                (stamp - all_stamps[k - 1]) * 1e-9, sim.driven)
         answer = exchange(stamp, states)
         if answer is None:
             dropped += 1
         else:
-            states = adopt(states, sim.names, *answer)
+            states = adopt(states, sim.names, *answer, sim.dynamic)   # kinematic: prescribed
         if on_step is not None:
             on_step(k + 1, len(all_stamps))
     return len(all_stamps), dropped

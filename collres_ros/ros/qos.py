@@ -1,0 +1,85 @@
+"""The QoS profiles collres_node and collres_sim offer, and their rosbag2 form for bags.
+
+States, contacts and markers: reliable, volatile, keep last ``queue_depth``
+(a control loop wants every step in order, never a backlog of old states).
+``/diagnostics``: reliable, volatile, keep last 10 (as diagnostic_updater).
+The simulator's ``body_states`` and per-body inputs: reliable, volatile, keep
+last 10.
+
+Bags record these in ``metadata.yaml`` as ``offered_qos_profiles`` (the list
+rosbag2 Jazzy writes, metadata version 9), so ``ros2 bag play`` offers what the
+node offered instead of guessing. Unspecified durations (0) are written as
+rmw's infinite duration, as rosbag2 records them.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+from rclpy.qos import (
+    DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy)
+
+DIAGNOSTICS_DEPTH = 10   # diagnostic_updater's depth
+SIM_DEPTH = 10           # depth of collres_sim's publishers
+INFINITE_NS = 2**63 - 1  # RMW_DURATION_INFINITE: 9223372036 s 854775807 ns
+
+
+def state_qos(depth: int) -> QoSProfile:
+    """Reliable, volatile, keep last ``depth``: the node's state, contact and marker topics.
+
+    Liveliness automatic: what DDS offers for rmw's default.
+    """
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE,
+                      history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      liveliness=LivelinessPolicy.AUTOMATIC)
+
+
+def offered(topic: str, queue_depth: int) -> QoSProfile:
+    """The profile collres_node (or, for its inputs, collres_sim) offers on ``topic``.
+
+    ``topic``: relative or absolute name; ``queue_depth``: the node's parameter.
+    """
+    if topic.endswith('diagnostics'):
+        return state_qos(DIAGNOSTICS_DEPTH)
+    inputs = topic.endswith('body_states') or topic.endswith('/pose') \
+        or topic.endswith('/twist')
+    return state_qos(SIM_DEPTH if inputs else queue_depth)
+
+
+def _time(ns: int) -> Any:
+    from rosbags.interfaces import QosTime
+    ns = INFINITE_NS if ns <= 0 or ns >= INFINITE_NS else int(ns)
+    return QosTime(ns // 1_000_000_000, ns % 1_000_000_000)
+
+
+def to_bag(profile: Any) -> Any:
+    """An rclpy QoSProfile -> the rosbags ``Qos`` written to ``offered_qos_profiles``."""
+    from rosbags.interfaces import (
+        Qos, QosDurability, QosHistory, QosLiveliness, QosReliability)
+
+    def enum(kind: Any, value: Any, unknown: Any) -> Any:
+        try:
+            return kind(int(value))
+        except ValueError:
+            return unknown
+    return Qos(
+        history=enum(QosHistory, profile.history, QosHistory.UNKNOWN),
+        depth=int(profile.depth),
+        reliability=enum(QosReliability, profile.reliability, QosReliability.UNKNOWN),
+        durability=enum(QosDurability, profile.durability, QosDurability.UNKNOWN),
+        deadline=_time(profile.deadline.nanoseconds),
+        lifespan=_time(profile.lifespan.nanoseconds),
+        liveliness=enum(QosLiveliness, profile.liveliness, QosLiveliness.UNKNOWN),
+        liveliness_lease_duration=_time(profile.liveliness_lease_duration.nanoseconds),
+        avoid_ros_namespace_conventions=bool(profile.avoid_ros_namespace_conventions))
+
+
+def to_bag_list(profiles: Sequence[Any]) -> list[Any]:
+    """Several publishers' profiles (rclpy) -> rosbags ``Qos`` list, duplicates once."""
+    out: list[Any] = []
+    for profile in profiles:
+        qos = to_bag(profile)
+        if qos not in out:
+            out.append(qos)
+    return out

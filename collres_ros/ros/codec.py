@@ -570,40 +570,63 @@ class MarkerSpec:
     colors: Optional[np.ndarray] = None
 
 
+def _pad(buf: bytearray, size: int) -> None:
+    """Zero bytes up to the next multiple of ``size`` (counted from after the header)."""
+    buf += _ZEROS[:-(len(buf) - 4) % size]
+
+
+_ZEROS = bytes(8)
+_MARKER_IDS = struct.Struct('<iii')         # id, type, action
+_MARKER_BODY = struct.Struct('<10d4fiIB')   # pose 7, scale 3, color 4, lifetime, frame_locked
+
+
+def _marker_tail() -> bytes:
+    """The empty fields after ``colors``: texture_resource, texture (CompressedImage:
+    header, format, data), uv_coordinates, text, mesh_resource, mesh_file (filename,
+    data), mesh_use_embedded_materials. Aligned to 4 at most, and it starts 4-aligned:
+    the same bytes after every marker."""
+    w = Writer()
+    w.string('')
+    w.header(0, '')
+    w.string('')
+    w.u32(0)
+    w.u32(0)
+    w.string('')
+    w.string('')
+    w.string('')
+    w.u32(0)
+    w.u8(0)
+    return w.bytes()[4:]
+
+
+_MARKER_TAIL = _marker_tail()
+
+
 def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) -> bytes:
     """Serialised visualization_msgs/MarkerArray (Jazzy's Marker: texture, uv, mesh_file empty)."""
-    w = Writer()
-    w.u32(len(markers))
+    buf = bytearray(ENCAPSULATION)
+    buf += _U32.pack(len(markers))
+    header = _STAMP.pack(*stamp_parts(stamp_ns)) + string_bytes(frame_id)
     for m in markers:
-        w.header(stamp_ns, frame_id)
-        w.string(m.ns)
-        w.i32(m.id)
-        w.i32(m.type)
-        w.i32(m.action)
-        w.f64s(m.pose)
-        w.f64s(m.scale)
-        w.f32s(m.color)
+        _pad(buf, 4)
+        buf += header
+        _pad(buf, 4)
+        buf += string_bytes(m.ns)
+        _pad(buf, 4)
+        buf += _MARKER_IDS.pack(m.id, m.type, m.action)
+        _pad(buf, 8)
         sec, nanosec = divmod(int(m.lifetime_ns), NS_PER_S)
-        w.i32(sec)
-        w.u32(nanosec)
-        w.u8(0)                                       # frame_locked
-        points = np.zeros((0, 3)) if m.points is None else np.asarray(m.points, float)
-        w.u32(len(points))
+        buf += _MARKER_BODY.pack(*m.pose, *m.scale, *m.color, sec, nanosec, 0)
+        points = () if m.points is None else m.points
+        _pad(buf, 4)
+        buf += _U32.pack(len(points))
         if len(points):
-            w.f64_array(points)
-        colors = np.zeros((0, 4)) if m.colors is None else np.asarray(m.colors, np.float32)
-        w.u32(len(colors))
+            _pad(buf, 8)
+            buf += np.ascontiguousarray(points, '<f8').tobytes()
+        colors = () if m.colors is None else m.colors
+        _pad(buf, 4)
+        buf += _U32.pack(len(colors))
         if len(colors):
-            w.align(4)
-            w.buf += np.ascontiguousarray(colors, '<f4').tobytes()
-        w.string('')                                  # texture_resource
-        w.header(0, '')                               # texture: CompressedImage header
-        w.string('')                                  # texture.format
-        w.u32(0)                                      # texture.data
-        w.u32(0)                                      # uv_coordinates
-        w.string('')                                  # text
-        w.string('')                                  # mesh_resource
-        w.string('')                                  # mesh_file.filename
-        w.u32(0)                                      # mesh_file.data
-        w.u8(0)                                       # mesh_use_embedded_materials
-    return w.bytes()
+            buf += np.ascontiguousarray(colors, '<f4').tobytes()
+        buf += _MARKER_TAIL
+    return bytes(buf)

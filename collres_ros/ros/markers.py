@@ -64,11 +64,15 @@ def contact_marker_specs(step: ResolvedStep, lifetime: float = 0.5) -> list[Mark
     tip = point + normal_lengths(np.asarray(report.normal_impulse, float))[:, None] \
         * np.asarray(c.normal, float).reshape(-1, 3)
     states = np.asarray(report.state, np.uint8)
+    order = np.argsort(states, kind='stable')            # contacts grouped by state, in order
+    ends = np.searchsorted(states[order], np.arange(1, len(STATE_COLOURS) + 2))
+    segments = np.stack([point, tip], 1)[order]
+    point = point[order]
     life = int(round(lifetime * 1e9))
     specs = [MarkerSpec(action=DELETEALL)]
-    for state, colour in STATE_COLOURS.items():
-        mine = states == int(state)
-        if not mine.any():
+    for k, (state, colour) in enumerate(STATE_COLOURS.items()):
+        mine = slice(ends[k], ends[k + 1])                # the contacts of this state
+        if mine.start == mine.stop:
             specs += [MarkerSpec(action=DELETE, ns=POINTS_NS, id=int(state)),
                       MarkerSpec(action=DELETE, ns=NORMALS_NS, id=int(state))]
             continue
@@ -77,5 +81,5 @@ def contact_marker_specs(step: ResolvedStep, lifetime: float = 0.5) -> list[Mark
                                 points=point[mine]))
         specs.append(MarkerSpec(action=ADD, type=LINE_LIST, ns=NORMALS_NS, id=int(state),
                                 scale=(LINE_WIDTH, 0.0, 0.0), color=colour, lifetime_ns=life,
-                                points=np.stack([point[mine], tip[mine]], 1).reshape(-1, 3)))
+                                points=segments[mine].reshape(-1, 3)))
     return specs

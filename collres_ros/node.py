@@ -16,7 +16,17 @@ Topics (relative names): in ``body_states`` (BodyStateArray, one step per
 message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
 every non-stale dynamic body has both for one stamp, see ``sync.py``); out
 ``body_states/corrected``, ``bodies/<name>/{pose,twist}/corrected`` (for
-per-body steps), ``contacts``, ``contact_markers``, ``/diagnostics``.
+per-body steps), ``contacts``, ``contact_markers`` (built only while someone
+subscribes), ``/diagnostics``.
+
+The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
+``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
+Python message objects) after checking their size (more bodies than the scene
+has, a malformed message, a negative or unnormalised stamp: refused at once and
+counted), and every output is published as bytes built by
+``messages.OutputEncoder``. ``/diagnostics`` reports the callback's time split
+(``time.decode_ms``, ``time.resolve_ms``, ``time.world_ms``, ``time.encode_ms``,
+``time.publish_ms``).
 
 QoS: states, contacts and markers are reliable, volatile, keep-last with
 depth ``queue_depth`` (10): a control loop wants every step delivered in

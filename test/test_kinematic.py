@@ -30,8 +30,13 @@ def run(scene: str) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]], list[
     rows: dict[str, dict[str, list]] = {}
     contacts: list[list] = []
 
-    def sink(stamp: int, outputs: list) -> None:
-        out = dict(outputs)
+    from rclpy.serialization import deserialize_message
+
+    from collres_ros.ros.bag import message_class
+
+    def sink(stamp: int, outputs: list) -> None:   # (topic, wire type, CDR bytes)
+        out = {topic: deserialize_message(data, message_class(kind))
+               for topic, kind, data in outputs}
         stamps.append(stamp)
         for body in out['body_states/corrected'].bodies:
             fields = ('position', 'orientation', 'linear', 'angular')

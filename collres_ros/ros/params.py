@@ -131,7 +131,9 @@ def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, S
     import yaml
     path = Path(path)
     try:
-        document = yaml.safe_load(path.read_text())
+        # libyaml's loader where PyYAML has it: the same documents, ~7x faster (pile.yaml)
+        loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+        document = yaml.load(path.read_text(), Loader=loader)
     except yaml.YAMLError as error:
         mark = getattr(error, 'problem_mark', None)
         where = f' line {mark.line + 1}' if mark is not None else ''

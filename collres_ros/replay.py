@@ -317,7 +317,7 @@ def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
     from collres_ros.ros import params as params_module
     from collres_ros.ros.bag import PARAMS_KEY
     if params is not None:
-        return params_module.load_scene(params)
+        return params_module.load_scene(params, namespace)
     text = reader.custom_data.get(PARAMS_KEY)
     if not text:
         raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '
@@ -325,7 +325,7 @@ def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
     with tempfile.TemporaryDirectory(prefix='collres_replay-') as scratch:
         path = Path(scratch) / 'params.yaml'
         path.write_text(text)
-        return params_module.load_scene(path)
+        return params_module.load_scene(path, namespace)
 
 
 def _rejections(resolved: Any) -> list[Any]:
@@ -363,7 +363,9 @@ def parser() -> argparse.ArgumentParser:
                                     '--namespace reads it (default: the params recorded in '
                                     'IN_BAG by collres_sim, collres_replay or collres_demo)')
     p.add_argument('--storage', help='output storage: mcap or sqlite3 (default: as the input)')
-    p.add_argument('--namespace', default='/', help='namespace of the node\'s topics (/)')
+    p.add_argument('--namespace', default='/',
+                   help='namespace of the node: its topics, and the sections of the params '
+                        'file that apply to it (default: /)')
     p.add_argument('--topics', help='write only these output topics, comma separated '
                                     '(relative names, e.g. body_states/corrected,contacts; '
                                     'default: every output topic)')

@@ -117,6 +117,7 @@ class SimScene:
     world_frame: str
     per_body: bool = False
     kinematic: np.ndarray | None = None   # (N,) bool: static bodies moved at their twist
+    namespace: str = '/'                   # of the sim and the node ('/' or '/r1')
 
     @property
     def driven(self) -> np.ndarray:
@@ -130,10 +131,15 @@ class SimScene:
 
 
 def load_sim_scene(path: str | Path, duration: float | None = None,
-                   rate_hz: float | None = None) -> SimScene:
-    """Load a params file (ValueError/OSError with a one-line reason when bad)."""
+                   rate_hz: float | None = None, namespace: str = '/') -> SimScene:
+    """Load a params file (ValueError/OSError with a one-line reason when bad).
+
+    ``namespace``: the sim's (and the node's) namespace: the file's sections
+    are chosen for ``<namespace>/collres_sim`` and ``<namespace>/collres_node``
+    as rcl chooses them for those nodes.
+    """
     from collres_ros.ros import params
-    scene = params.load_scene(path)
+    scene = params.load_scene(path, namespace)
     sim = scene.sim
     return SimScene(
         scene=scene,
@@ -145,7 +151,8 @@ def load_sim_scene(path: str | Path, duration: float | None = None,
         duration=float(duration if duration is not None else sim.duration),
         world_frame=scene.world_frame,
         per_body=bool(getattr(sim, 'publish_per_body', False)),
-        kinematic=scene.kinematic)
+        kinematic=scene.kinematic,
+        namespace=params.fully_qualified_name(namespace, '').rstrip('/') or '/')
 
 
 def run_loop(sim: SimScene, exchange: Callable[[int, Any], Any | None],
@@ -236,7 +243,7 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
         def sink(stamp: int, outputs: list[tuple[str, Any]]) -> None:
             for topic, msg in outputs:
                 if topics is None or topic in topics:
-                    writer.write(absolute(topic), stamp, msg)
+                    writer.write(absolute(topic, sim.namespace), stamp, msg)
                 if topic == 'contacts':
                     for contact in msg.contacts:
                         key = STATE_NAMES.get(contact.state, str(contact.state))
@@ -359,6 +366,17 @@ def _split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
     return argv, []
 
 
+def _namespace_from_ros_args(ros_args: list[str]) -> str:
+    """The namespace a ``-r [collres_sim:]__ns:=NS`` remap in ROS arguments gives ('/')."""
+    namespace = '/'
+    for flag, rule in zip(ros_args, ros_args[1:]):
+        if flag in ('-r', '--remap'):
+            target, _, value = rule.partition(':=')
+            if target in ('__ns', 'collres_sim:__ns') and value:
+                namespace = value
+    return namespace
+
+
 def _params_file_from_ros_args(ros_args: list[str]) -> str | None:
     for i, arg in enumerate(ros_args[:-1]):
         if arg == '--params-file':
@@ -404,7 +422,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if not Path(path).is_file():
             raise ValueError(f'params file not found: {path}')
-        sim = load_sim_scene(path, args.duration, args.rate)
+        sim = load_sim_scene(path, args.duration, args.rate, _namespace_from_ros_args(ros_args))
         if sim.duration < 0 or sim.rate_hz <= 0:
             raise ValueError('duration must be >= 0 and rate > 0')
         if args.offline:

@@ -121,16 +121,45 @@ def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
         out[prefix] = None if value in ({}, []) else value
 
 
-def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, SIM_NAME)
-                     ) -> dict[str, Any]:
-    """Flat {dotted name: value} of the ``/**`` section and the sections of ``node_names``.
+def fully_qualified_name(namespace: str, name: str) -> str:
+    """``/ns/name`` of a node (``namespace`` '/', '', 'r1' or '/r1/sub')."""
+    namespace = '/' + namespace.strip('/') if namespace.strip('/') else ''
+    return f'{namespace}/{name}'
 
-    Later sections win, as in rcl. ValueError (one line) for unreadable YAML.
+
+def section_matches(section: str, fqn: str) -> bool:
+    """Whether a params-file section applies to the node ``fqn``, by rcl's rules.
+
+    A section without a leading ``/`` is absolute (``collres_node`` is
+    ``/collres_node``: the root namespace only); ``*`` stands for one name
+    token, ``/**`` for any number of leading namespaces (none included).
+    """
+    key = section if section.startswith('/') else '/' + section
+    pattern = ''
+    for token in key.split('/')[1:]:
+        pattern += {'**': '(/[^/]+)*', '*': '/[^/]+'}.get(token, '/' + re.escape(token))
+    return re.fullmatch(pattern, fqn) is not None
+
+
+def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, SIM_NAME),
+                     namespace: str = '/') -> dict[str, Any]:
+    """Flat {dotted name: value} of the sections that apply to ``node_names`` in ``namespace``.
+
+    The sections are chosen as rcl chooses them for a node of that fully
+    qualified name (``/**``, ``/**/collres_node``, ``/r1/collres_node``,
+    ``/*/collres_node``, ``/r1/**``; a bare ``collres_node`` is the root
+    namespace's), merged leaf by leaf in file order (later sections win), and
+    read with rclpy's own reader (``rclpy.parameter.parameter_dict_from_yaml_file``).
+    Where that reader departs from rcl, rcl's reading is kept: a quoted value
+    stays a string, ``[]`` is not set, a list mixing types is refused.
+    ValueError (one line) for unreadable YAML or a malformed section.
     """
     import yaml
+    from rclpy.parameter import parameter_dict_from_yaml_file, parameter_value_to_python
     path = Path(path)
     try:
-        document = yaml.safe_load(path.read_text())
+        document = yaml.load(path.read_text(), Loader=getattr(yaml, 'CSafeLoader',
+                                                              yaml.SafeLoader))
     except yaml.YAMLError as error:
         mark = getattr(error, 'problem_mark', None)
         where = f' line {mark.line + 1}' if mark is not None else ''
@@ -138,29 +167,61 @@ def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, S
                          f'({getattr(error, "problem", None) or error})') from None
     if not isinstance(document, dict):
         raise ValueError(f'{path}: not a ROS 2 params file (top level must be a mapping)')
-    wanted = {'/**'} | {n for name in node_names for n in (name, f'/{name}', f'/**/{name}')}
-    values: dict[str, Any] = {}
+    fqns = [fully_qualified_name(namespace, name) for name in node_names]
+    sections, written = [], {}
     for section, body in document.items():
-        if section not in wanted:
+        if not any(section_matches(str(section), fqn) for fqn in fqns):
             continue
         if not isinstance(body, dict) or 'ros__parameters' not in body:
             raise ValueError(f'{path}: section {section!r} has no ros__parameters')
         params = body['ros__parameters'] or {}
         if not isinstance(params, dict):
             raise ValueError(f'{path}: {section}.ros__parameters must be a mapping')
-        _flatten('', params, values)
+        sections.append((section, set(params)))
+        _flatten('', params, written)
+    # rclpy's reader merges the sections it is given key by key at the top level only
+    # (a later `body:` would replace an earlier one whole): one call per group of
+    # sections whose top-level keys do not meet, in file order (rcl merges leaf by leaf)
+    groups: list[tuple[list[Any], set[str]]] = []
+    for section, keys in sections:
+        if groups and not groups[-1][1] & keys:
+            groups[-1][0].append(section)
+            groups[-1][1].update(keys)
+        else:
+            groups.append(([section], set(keys)))
+    values: dict[str, Any] = {}
+    for group, _ in groups:
+        try:
+            read = parameter_dict_from_yaml_file(str(path), target_nodes=group)
+        except (RuntimeError, yaml.YAMLError) as error:
+            raise ValueError(f'{path}: section {group[0]!r}: {error}') from None
+        for name, message in read.items():
+            value = parameter_value_to_python(message.value)
+            leaf = written.get(name)
+            if isinstance(leaf, str):
+                value = leaf   # rclpy re-parses str(value): '1.5' would become a double
+            elif isinstance(leaf, list) and isinstance(value, str):
+                raise ValueError(f'{name}: a list must hold values of one type, as rcl '
+                                 f'requires (write 1.0, not 1, among doubles) (got {leaf})')
+            elif isinstance(value, (list, tuple)) or hasattr(value, 'tolist'):
+                value = list(value) or None   # rcl reads [] as not set
+            values[name] = value
+    for name, leaf in written.items():   # `{}` and `[]` leaves: not set
+        if leaf is None:
+            values.setdefault(name, None)
     return values
 
 
-def load_scene(path: str | Path) -> Scene:
+def load_scene(path: str | Path, namespace: str = '/') -> Scene:
     """Load a scene from a params file (ValueError with one line naming the parameter).
 
-    A missing file raises FileNotFoundError (an OSError).
+    The file is read as collres_node and collres_sim in ``namespace`` read it
+    (see ``read_params_file``). A missing file raises FileNotFoundError (an OSError).
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f'params file not found: {path}')
-    values = read_params_file(path)
+    values = read_params_file(path, namespace=namespace)
     return scene_from_values(values, path.resolve().parent)
 
 

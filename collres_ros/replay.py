@@ -11,8 +11,8 @@ step when every dynamic body of the scene has both for the same stamp, as the
 node's exact sync does). Every step goes through the same ``Resolver`` and the
 same output builder as ``collres_node``, and every output topic is written to
 OUT_BAG at the log time of the input message that completed the step (the
-node publishes its answer on receipt). Progress goes to stderr, a summary to
-stdout; errors exit 1 with one ``error: ...`` line.
+node publishes its answer on receipt). Progress goes to stderr (on a terminal
+only), a summary to stdout; errors exit 1 with one ``error: ...`` line.
 
 Same input, same output: the core is deterministic, so two replays of a bag
 give identical decoded messages.
@@ -336,20 +336,10 @@ def _rejections(resolved: Any) -> list[Any]:
     return []
 
 
-def _progress_printer() -> Callable[[int, int], None]:
-    """Progress on stderr, at most twice a second."""
-    last = [0.0]
-
-    def show(done: int, total: int) -> None:
-        now = time.monotonic()
-        if done == total or now - last[0] >= 0.5:
-            last[0] = now
-            percent = 100.0 * done / total if total else 100.0
-            print(f'\rreplay: {done}/{total} steps ({percent:.0f} %)', end='',
-                  file=sys.stderr, flush=True)
-            if done == total:
-                print(file=sys.stderr)
-    return show
+def _progress_printer() -> Callable[[int, int], None] | None:
+    """Progress on stderr at most twice a second, when stdout and stderr are terminals."""
+    from collres_ros.ros.console import progress_printer
+    return progress_printer('replay')
 
 
 def parser() -> argparse.ArgumentParser:
@@ -369,7 +359,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--topics', help='write only these output topics, comma separated '
                                     '(relative names, e.g. body_states/corrected,contacts; '
                                     'default: every output topic)')
-    p.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    p.add_argument('--quiet', action='store_true',
+                   help='no progress line (it is drawn on a terminal only anyway)')
     return p
 
 

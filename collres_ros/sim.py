@@ -225,18 +225,17 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
                 topics: Sequence[str] | None = None, compress: bool = False) -> OfflineSummary:
     """Step the scene in-process and record input and outputs to a new bag.
 
+    ``progress``: a progress line on stderr, when stdout and stderr are terminals.
     ``topics``: record only these (relative names; default: all). ``compress``:
     zstd mcap chunks.
     """
     from collres_ros.ros import qos
     from collres_ros.ros.bag import BagWriter, describe
+    from collres_ros.ros.console import progress_printer
     contacts: dict[str, int] = {}
     start = time.perf_counter()
 
-    def show(step: int, total: int) -> None:
-        if progress and (step % 200 == 0 or step == total):
-            print(f'\rstep {step}/{total}', end='', file=sys.stderr, flush=True)
-
+    show = progress_printer('collres_sim') if progress else None   # on a terminal only
     depth = sim.scene.node.queue_depth
     with BagWriter(record, storage, compress, qos=lambda topic: [qos.offered(topic, depth)],
                    custom_data=describe(sim.scene)) as writer:
@@ -252,8 +251,6 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
         steps = run_core(sim, sink, show,
                          markers=topics is None or 'contact_markers' in topics)
         messages = writer.count
-    if progress:
-        print(file=sys.stderr)
     return OfflineSummary(steps, messages, contacts, time.perf_counter() - start)
 
 

@@ -17,7 +17,7 @@ The one place that talks to coal for queries; it returns our own ContactSet
 4. Narrow phase of the other pairs (``narrowphase``, one batched coal call per
    pair at the current state, after dropping pairs whose bounding spheres are
    farther apart than both the margin and their relative motion), then per
-   pair (DESIGN.md, "one step"):
+   pair:
    PERSISTENT when within the margin at the previous state too (or within it
    now and apart before without a hit: a speculative contact); IMPACT when
    apart before and overlapping now: bisection for the time of impact
@@ -346,7 +346,7 @@ class CollisionWorld:
                 return
         override = None
         if -found[0] > DEEP_FRACTION * min(self._thickness[a], self._thickness[b]):
-            # EPA on a deep overlap is not trusted: the lecture's direction from the
+            # EPA on a deep overlap is not trusted: the classic direction from the
             # closest points of the last separated configuration
             gap, point_a, point_b = narrow.distance(ga, ma.at(s0), gb, mb.at(s0))
             direction = np.asarray(point_b) - np.asarray(point_a)

@@ -5,11 +5,11 @@ an enum value of ``config.RESTITUTION_RULES`` / ``config.FRICTION_RULES``).
 
 Restitution rules ``average``, ``min``, ``max`` and ``multiply`` give one
 coefficient e per contact: the same impulse acts on both bodies, so linear
-and angular momentum are conserved. ``per_object`` is the lecture's model:
+and angular momentum are conserved. ``per_object`` is the textbook per-body model:
 body A's impulse j_A uses A's own coefficient and body B's j_B uses B's,
 so when e_A != e_B the two impulses differ and momentum is NOT conserved
 (it changes by (e_A - e_B) j0 n, j0 the inelastic impulse). It is offered
-for fidelity to the lecture, never as the default.
+for fidelity to that textbook model, never as the default.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ solved at once with numpy: Gauss-Seidel across colours, Jacobi over the K
 points of a pair with a step factor 1 / lambda_max of the pair's normalised
 Delassus matrix, so the joint step never overshoots (a box face's support is
 found in one iteration). Friction of a point acts along minus its slip
-velocity (the lecture's tangent), clamped to the circular cone mu * j_n.
+velocity (the classic unit tangent), clamped to the circular cone mu * j_n.
 Immovable bodies (static or inactive) have zero inverse mass and inertia and
 may appear in any number of pairs of a colour: their velocity never
 changes. Stages, as in Box2D v3: prepare, warm start, solve (iterate),
@@ -386,7 +386,7 @@ def _solve_batch(b: Batch, velocity: np.ndarray) -> tuple[float, float]:
     # normal: approach no faster than the speculative allowance, accumulated impulse >= 0
     new_n = np.maximum(b.normal - b.normal_mass * (rel[:, :, 0] + b.allowance), 0.0)
     d_n = new_n - b.normal
-    # friction: oppose the tangential slip left after the normal change (the lecture's
+    # friction: oppose the tangential slip left after the normal change (the classic
     # tangent, v_t / |v_t|), as much as stops it along that direction, within mu * j_n
     v_t = rel[:, :, 1:] + b.coupling * d_n[:, :, None]
     x, y = v_t[:, :, 0], v_t[:, :, 1]

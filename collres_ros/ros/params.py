@@ -4,7 +4,7 @@ Both roads meet in ``scene_from_values``, the one validator: every error is a
 ``ValueError`` whose message is one line naming the parameter and what is
 allowed, e.g. ``body.ball.restitution: allowed range [0.0, 1.0] (got 1.5)``.
 
-File schema (DESIGN.md): the ``/**`` section holds ``world_frame``,
+File schema (README, "Parameters"): the ``/**`` section holds ``world_frame``,
 ``bodies`` and ``body.<name>.*``; the ``collres_node`` section ``solver.*``
 and the node settings; the ``collres_sim`` section the sim settings. The
 defaults, units and ranges come from ``collres_ros.core.config``. No ROS import.

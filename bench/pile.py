@@ -58,15 +58,9 @@ def make_pile(count: int, seed: int = 1) -> tuple[list[BodySpec], BodyStates]:
 
 
 def integrate(state: BodyStates, dynamic: np.ndarray, dt: float) -> BodyStates:
-    """Semi-implicit Euler with gravity (as collres_sim)."""
-    from collres_ros.core.rotation import integrate as turn
-    out = state.copy()
-    move = dynamic[:, None]
-    out.linear = np.where(move, state.linear + GRAVITY * dt, state.linear)
-    out.position = np.where(move, state.position + out.linear * dt, state.position)
-    out.orientation = np.where(move, turn(state.orientation, state.angular, dt),
-                               state.orientation)
-    return out
+    """Semi-implicit Euler with gravity: collres_sim's integrator."""
+    from collres_ros.ros.integrator import euler_step
+    return euler_step(state, dynamic, GRAVITY, dt)
 
 
 def describe(bodies: list[BodySpec], state: BodyStates) -> dict:

@@ -26,13 +26,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
+from collres_ros.ros import cli
 from collres_ros.ros.analysis import RunReport, analyse, plot
 
 DEMO_DURATION = 2.5  # s of simulated time by default: four bounces of the default ball
 OUTPUT_TOPICS = ('/body_states/corrected', '/contacts', '/contact_markers', '/diagnostics')
 
 
-class DemoError(Exception):
+class DemoError(cli.CliError):
     """A one-line failure of the demo (printed as ``error: ...``)."""
 
 
@@ -78,7 +79,7 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     from collres_ros.ros.bag import BagError, describe, read_messages
     from collres_ros.ros.recorder import Recorder
     from collres_ros.ros.resources import config_path
-    from collres_ros.sim import load_sim_scene
+    from collres_ros.ros.simulation import load_sim_scene
 
     params = Path(params) if params is not None else config_path('collres.yaml')
     if not params.is_file():
@@ -96,73 +97,73 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     domain_id = _private_domain_id() if domain_id is None else domain_id
     env = processes.ros_env(domain_id)
     logs = {'node': out_dir / 'node.log', 'sim': out_dir / 'sim.log'}
-    expected_steps = int(round(sim_scene.duration * sim_scene.rate_hz)) + 1
+    expected_steps = sim_scene.steps
 
     start = time.monotonic()
     context = rclpy.Context()
-    rclpy.init(context=context, domain_id=domain_id)
     node_proc = sim_proc = None
-    try:
-        node = rclpy.create_node('collres_demo_recorder', context=context)
+    with cli.ros_init(context=context, domain_id=domain_id):
         try:
-            recorder = Recorder(node, bag, storage, custom_data=describe(sim_scene.scene))
-        except BagError as error:
-            raise DemoError(str(error)) from None
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        spinner = threading.Thread(target=executor.spin, daemon=True)
-        spinner.start()
+            node = rclpy.create_node('collres_demo_recorder', context=context)
+            try:
+                recorder = Recorder(node, bag, storage,
+                                    custom_data=describe(sim_scene.scene))
+            except BagError as error:
+                raise DemoError(str(error)) from None
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            spinner = threading.Thread(target=executor.spin, daemon=True)
+            spinner.start()
 
-        def recorded(topic: str) -> int:
-            return recorder.counts.get(topic, 0)
+            def recorded(topic: str) -> int:
+                return recorder.counts.get(topic, 0)
 
-        def subscribed(topic: str) -> bool:
-            subscription = recorder.subscription(topic)
-            return subscription is not None and subscription.get_publisher_count() > 0
+            def subscribed(topic: str) -> bool:
+                subscription = recorder.subscription(topic)
+                return subscription is not None and subscription.get_publisher_count() > 0
 
-        node_proc = processes.start(
-            'collres_node', ['--ros-args', '--params-file', str(params)], env=env,
-            log=logs['node'])
-        node_up = processes.wait_for(lambda: all(subscribed(t) for t in OUTPUT_TOPICS)
-                                     or node_proc.poll() is not None, 30.0)
-        if not node_up:
-            raise DemoError(f'collres_node did not come up within 30 s (log: {logs["node"]})')
-        if node_proc.poll() is not None:
-            raise DemoError(f'collres_node exited with {node_proc.poll()} '
-                            f'(log: {logs["node"]})')
-        sim_args = ['--duration', str(sim_scene.duration), '--subscribers', '2'] \
-            + (['--per-body'] if per_body else []) \
-            + ['--ros-args', '--params-file', str(params)]
-        sim_proc = processes.start('collres_sim', sim_args, env=env, log=logs['sim'])
+            node_proc = processes.start(
+                'collres_node', ['--ros-args', '--params-file', str(params)], env=env,
+                log=logs['node'])
+            node_up = processes.wait_for(lambda: all(subscribed(t) for t in OUTPUT_TOPICS)
+                                         or node_proc.poll() is not None, 30.0)
+            if not node_up:
+                raise DemoError(f'collres_node did not come up within 30 s (log: {logs["node"]})')
+            if node_proc.poll() is not None:
+                raise DemoError(f'collres_node exited with {node_proc.poll()} '
+                                f'(log: {logs["node"]})')
+            sim_args = ['--duration', str(sim_scene.duration), '--subscribers', '2'] \
+                + (['--per-body'] if per_body else []) \
+                + ['--ros-args', '--params-file', str(params)]
+            sim_proc = processes.start('collres_sim', sim_args, env=env, log=logs['sim'])
 
-        last = 0.0
-        deadline = time.monotonic() + timeout
-        while sim_proc.poll() is None and time.monotonic() < deadline:
-            if progress and time.monotonic() - last > 0.25:
-                last = time.monotonic()
-                done = recorded('/body_states/corrected')
-                print(f'\rdemo: step {done}/{expected_steps}', end='', file=sys.stderr,
-                      flush=True)
-            time.sleep(0.02)
-        if sim_proc.poll() is None:
-            raise DemoError(f'collres_sim did not finish within {timeout} s '
-                            f'(log: {logs["sim"]})')
-        # the last answers may still be in flight to the recorder
-        processes.wait_for(
-            lambda: recorded('/body_states/corrected') >= expected_steps, 2.0)
-        if progress:
-            print(f'\rdemo: step {recorded("/body_states/corrected")}/{expected_steps}',
-                  file=sys.stderr)
-        node_exit = processes.stop(node_proc)
-        node_proc = None
-        sim_exit = sim_proc.poll()
-        recorder.close()
-        executor.shutdown()
-    finally:
-        for proc in (sim_proc, node_proc):
-            if proc is not None and proc.poll() is None:
-                processes.stop(proc)
-        rclpy.try_shutdown(context=context)
+            last = 0.0
+            deadline = time.monotonic() + timeout
+            while sim_proc.poll() is None and time.monotonic() < deadline:
+                if progress and time.monotonic() - last > 0.25:
+                    last = time.monotonic()
+                    done = recorded('/body_states/corrected')
+                    print(f'\rdemo: step {done}/{expected_steps}', end='', file=sys.stderr,
+                          flush=True)
+                time.sleep(0.02)
+            if sim_proc.poll() is None:
+                raise DemoError(f'collres_sim did not finish within {timeout} s '
+                                f'(log: {logs["sim"]})')
+            # the last answers may still be in flight to the recorder
+            processes.wait_for(
+                lambda: recorded('/body_states/corrected') >= expected_steps, 2.0)
+            if progress:
+                print(f'\rdemo: step {recorded("/body_states/corrected")}/{expected_steps}',
+                      file=sys.stderr)
+            node_exit = processes.stop(node_proc)
+            node_proc = None
+            sim_exit = sim_proc.poll()
+            recorder.close()
+            executor.shutdown()
+        finally:
+            for proc in (sim_proc, node_proc):
+                if proc is not None and proc.poll() is None:
+                    processes.stop(proc)
 
     messages = read_messages(bag)
     solver = getattr(sim_scene.scene, 'solver', None)
@@ -204,18 +205,19 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    args = parser().parse_args(argv)
-    try:
-        result = run_demo(Path(args.out), Path(args.params) if args.params else None,
-                          args.duration, args.domain_id, args.storage,
-                          timeout=args.timeout, per_body=args.per_body)
-    except (DemoError, ValueError, OSError) as error:
-        print(f'error: {error}', file=sys.stderr)
-        return 1
+def _run(args: argparse.Namespace) -> int:
+    result = run_demo(Path(args.out), Path(args.params) if args.params else None,
+                      args.duration, args.domain_id, args.storage,
+                      timeout=args.timeout, per_body=args.per_body)
     for line in summary_lines(result):
         print(line)
     return 0 if result.ok else 1
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Console script ``collres_demo``: 0 when the run was clean, 1 otherwise."""
+    args = parser().parse_args(argv)
+    return cli.run(lambda: _run(args))
 
 
 if __name__ == '__main__':

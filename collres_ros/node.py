@@ -51,10 +51,12 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from visualization_msgs.msg import MarkerArray
 
-from collres_ros.ros import messages, params
 from collres_ros.core.config import ParamSpec, range_text
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
+from collres_ros.ros import cli, messages, names, params
+from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
+from collres_ros.ros.stamps import seconds_ns, stamp_ns
 from collres_ros.ros.sync import StampSync
 
 NAME = 'collres_node'
@@ -101,8 +103,8 @@ def _plain(value: Any) -> Any:
 
 def params_file_dir(argv: Sequence[str]) -> Optional[Path]:
     """Directory of the last ``--params-file`` in ``argv`` (relative mesh paths start there)."""
-    files = [argv[k + 1] for k, arg in enumerate(argv[:-1]) if arg == '--params-file']
-    return Path(files[-1]).resolve().parent if files else None
+    path = cli.last_params_file(argv)
+    return path.resolve().parent if path is not None else None
 
 
 def default_params_file() -> Optional[Path]:
@@ -122,26 +124,26 @@ class CollresNode(Node):
         self.scene = params.scene_from_values(overrides, base_dir)   # ValueError: one line
         self._declare_parameters()
         self.resolver = Resolver(self.scene)
-        names = self.scene.names
+        body_names = self.scene.names
         statics = [b.name for b in self.scene.bodies if b.static]
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]
-        self.sync = StampSync(self.dynamic, statics, self._ns(self.scene.node.sync_slop),
-                              self._ns(self.scene.node.stale_timeout))
+        self.sync = StampSync(self.dynamic, statics, seconds_ns(self.scene.node.sync_slop),
+                              seconds_ns(self.scene.node.stale_timeout))
         depth = self.scene.node.queue_depth
         self.qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
                               durability=DurabilityPolicy.VOLATILE,
                               history=HistoryPolicy.KEEP_LAST, depth=depth)
         self._publishers_by_topic: dict[str, Any] = {}
-        for topic, kind in ((messages.CORRECTED_STATES, BodyStateArray),
-                            (messages.CONTACTS, ContactArray),
-                            (messages.MARKERS, MarkerArray)):
+        for topic, kind in ((names.CORRECTED_STATES, BodyStateArray),
+                            (names.CONTACTS, ContactArray),
+                            (names.MARKERS, MarkerArray)):
             self._publisher(topic, kind)
-        self._diagnostics = self.create_publisher(DiagnosticArray, messages.DIAGNOSTICS, 10)
-        self.create_subscription(BodyStateArray, 'body_states', self._on_states, self.qos)
-        for name in names:
-            self.create_subscription(PoseStamped, messages.pose_topic(name),
+        self._diagnostics = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS, 10)
+        self.create_subscription(BodyStateArray, names.STATES, self._on_states, self.qos)
+        for name in body_names:
+            self.create_subscription(PoseStamped, names.pose_topic(name),
                                      partial(self._on_part, name, 'pose'), self.qos)
-            self.create_subscription(TwistStamped, messages.twist_topic(name),
+            self.create_subscription(TwistStamped, names.twist_topic(name),
                                      partial(self._on_part, name, 'twist'), self.qos)
         self._pending: Optional[params.Scene] = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -154,12 +156,8 @@ class CollresNode(Node):
                         'since': time.monotonic()}
         self.last_step: Optional[ResolvedStep] = None
         self.get_logger().info(
-            f'resolving {len(names)} bodies ({", ".join(names)}) in frame '
+            f'resolving {len(body_names)} bodies ({", ".join(body_names)}) in frame '
             f'{self.scene.world_frame!r}')
-
-    @staticmethod
-    def _ns(seconds: float) -> int:
-        return int(round(seconds * 1e9))
 
     # --- parameters -------------------------------------------------------------------------
 
@@ -193,8 +191,8 @@ class CollresNode(Node):
             if changed:
                 self.resolver.set_material(after.name, **changed)
         self.resolver.stale_timeout = new.node.stale_timeout
-        self.sync.slop_ns = self._ns(new.node.sync_slop)
-        self.sync.stale_timeout_ns = self._ns(new.node.stale_timeout)
+        self.sync.slop_ns = seconds_ns(new.node.sync_slop)
+        self.sync.stale_timeout_ns = seconds_ns(new.node.stale_timeout)
         if new.node.diagnostics_period != old.node.diagnostics_period:
             self.destroy_timer(self._timer)
             self._timer = self._diagnostics_timer()
@@ -203,22 +201,22 @@ class CollresNode(Node):
     # --- inputs -----------------------------------------------------------------------------
 
     def _on_states(self, msg: BodyStateArray) -> None:
-        self._step(messages.stamp_ns(msg.header.stamp), messages.inputs_from_array(msg), False)
+        self._step(stamp_ns(msg.header.stamp), messages.inputs_from_array(msg), False)
 
     def _on_part(self, name: str, kind: str, msg: Any) -> None:
-        for group in self.sync.add(name, kind, messages.stamp_ns(msg.header.stamp), msg):
+        for group in self.sync.add(name, kind, stamp_ns(msg.header.stamp), msg):
             self._step(group.stamp_ns, messages.inputs_from_group(group.parts, self.dynamic),
                        True)
 
     # --- one step ---------------------------------------------------------------------------
 
-    def _step(self, stamp_ns: int, inputs: list[Any], per_body: bool) -> None:
+    def _step(self, stamp: int, inputs: list[Any], per_body: bool) -> None:
         start = time.perf_counter()
-        step = self.resolver.resolve(stamp_ns, inputs)
+        step = self.resolver.resolve(stamp, inputs)
         outputs = messages.build_outputs(
             step, self.scene.world_frame, per_body and self.scene.node.per_body_outputs,
             self.scene.node.marker_lifetime,
-            markers=self._publisher(messages.MARKERS, MarkerArray).get_subscription_count() > 0)
+            markers=self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0)
         for topic, msg in outputs:
             self._publisher(topic, type(msg)).publish(msg)
         self.last_step = step
@@ -254,7 +252,7 @@ class CollresNode(Node):
         return self.create_timer(self.scene.node.diagnostics_period, self._publish_diagnostics,
                                  clock=self._steady)
 
-    def snapshot(self) -> messages.DiagnosticsSnapshot:
+    def snapshot(self) -> DiagnosticsSnapshot:
         """Counters for /diagnostics (resets the rate window)."""
         w = self._window
         now = time.monotonic()
@@ -263,7 +261,7 @@ class CollresNode(Node):
         counts = {k: v for k, v in totals.items() if k not in ('steps', 'contacts')}
         stale = sorted(set(self.sync.stale()) | set(self.last_step.stale if self.last_step
                                                     else ()))
-        snap = messages.DiagnosticsSnapshot(
+        snap = DiagnosticsSnapshot(
             stamp_ns=self.get_clock().now().nanoseconds, steps=totals['steps'],
             rate_hz=w['steps'] / elapsed,
             step_time_mean_ms=1e3 * w['time'] / w['steps'] if w['steps'] else 0.0,
@@ -277,17 +275,16 @@ class CollresNode(Node):
         return snap
 
     def _publish_diagnostics(self) -> None:
-        self._diagnostics.publish(messages.diagnostics_array(self.snapshot()))
+        self._diagnostics.publish(diagnostics_array(self.snapshot()))
 
 
 def _check_files(argv: Sequence[str]) -> None:
     """Readable params files (rcl's own errors are cryptic): ValueError/OSError, one line."""
-    for k, arg in enumerate(argv[:-1]):
-        if arg == '--params-file':
-            path = Path(argv[k + 1])
-            if not path.is_file():
-                raise FileNotFoundError(f'params file not found: {path}')
-            params.read_params_file(path, ())
+    for name in cli.params_files(argv):
+        path = Path(name)
+        if not path.is_file():
+            raise FileNotFoundError(f'params file not found: {path}')
+        params.read_params_file(path, ())
 
 
 def _print_help_if_asked(argv: Sequence[str]) -> bool:
@@ -305,6 +302,26 @@ def _print_help_if_asked(argv: Sequence[str]) -> bool:
     return True
 
 
+def _spin(argv: Sequence[str]) -> int:
+    """Create the node in the initialised context and spin it until shutdown."""
+    try:
+        node = CollresNode(params_file_dir(argv))
+    except (ValueError, OSError) as failure:
+        return cli.error(failure)
+    try:
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok():   # a real failure; otherwise a signal shut us down while starting
+            raise
+    finally:
+        node.destroy_node()
+    return 0
+
+
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Console script ``collres_node``: 0 on a clean shutdown, 1 on a bad configuration."""
     argv = list(sys.argv if args is None else args)
@@ -315,35 +332,15 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         if default is not None:
             argv += (['--ros-args'] if '--ros-args' not in argv else []) + \
                 ['--params-file', str(default)]
-    try:
+
+    def run() -> int:
         _check_files(argv)
-        rclpy.init(args=argv)
-    except (ValueError, OSError) as error:
-        print(f'error: {error}', file=sys.stderr)
-        return 1
-    except Exception as error:   # rcl's parser: RCLError and friends
-        print(f'error: cannot read parameters: {str(error).splitlines()[0]}', file=sys.stderr)
-        return 1
-    node = None
+        with cli.ros_init(args=argv, failure='cannot read parameters'):
+            return _spin(argv)
     try:
-        executor = SingleThreadedExecutor()
-        try:
-            node = CollresNode(params_file_dir(argv))
-        except (ValueError, OSError) as error:
-            print(f'error: {error}', file=sys.stderr)
-            return 1
-        executor.add_node(node)
-        executor.spin()
+        return cli.run(run)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if rclpy.ok():   # a real failure; otherwise a signal shut us down while starting
-            raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+        return 0
 
 
 if __name__ == '__main__':

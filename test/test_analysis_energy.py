@@ -22,7 +22,8 @@ pytest.importorskip('rclpy')
 
 from collres_ros.ros.analysis import analyse, energy, plot, plot_series  # noqa: E402
 from collres_ros.ros.bag import read_messages  # noqa: E402
-from collres_ros.sim import load_sim_scene, run_offline  # noqa: E402
+from collres_ros.ros.offline import run_offline  # noqa: E402
+from collres_ros.ros.simulation import load_sim_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / 'config' / 'scenes'

@@ -70,7 +70,7 @@ def test_plot_and_bag_are_written(demo) -> None:
 def _largest_replay_difference(bag: Path, out: Path) -> float:
     """Replay a live bag offline; the largest |live - offline| over all corrected states."""
     from collres_ros.ros.bag import read_messages
-    from collres_ros.replay import replay
+    from collres_ros.ros.offline import replay
     from collres_ros.ros.resources import config_path
     replay(bag, out, config_path('collres.yaml'), topics=('body_states/corrected',))
 

@@ -136,6 +136,10 @@ def test_bad_inputs_are_counted_and_the_others_served(running):
 
 def test_per_body_topics_body_frame_twist_and_stale(running):
     peer, node = running
+    topics = [f'bodies/{n}/{k}' for n in ('ball', 'box') for k in ('pose', 'twist')]
+    for topic in topics:   # a message published before discovery is lost: wait for the match
+        peer.advertise(topic, PoseStamped if topic.endswith('pose') else TwistStamped)
+    assert peer.wait(lambda: all(peer.connected(t) for t in topics), 30.0)
     half = math.sqrt(0.5)
     for k in range(3):
         stamp = T0 + k * DT

@@ -159,3 +159,22 @@ def test_inputs_that_never_pair_say_why():
     print(apart.unpaired())
     assert apart.unpaired().startswith('pose and twist stamps never match for: ball (1 us')
     assert StampSync(['ball']).unpaired() == ''
+
+
+def test_a_gap_in_one_body_stream_does_not_stall_the_others():
+    """Messages lost upstream leave a gap longer than the stale timeout in the ball's stamps.
+
+    The box went silent before the gap: after it the ball must be served alone at once
+    (the box is stale by its own last stamp), not held until the box is heard again.
+    """
+    sync = StampSync(['ball', 'box'], ['floor'], stale_timeout_ns=200 * MS)
+    steps = []
+    for k in range(40):
+        names = ('ball', 'box') if k < 2 else ('ball',)
+        if 3 <= k < 25:
+            continue                   # the ball's messages 3..24 were lost
+        steps += _feed(sync, names, k * DT)
+    served = [g.stamp_ns // DT for g in steps]
+    print('served', served)
+    assert served[-15:] == list(range(25, 40))
+    assert sync.stale() == ['box']

@@ -125,3 +125,20 @@ def test_colcon_builds_the_package_against_the_ros_environment(tmp_path: Path) -
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert str(site) in result.stdout
+
+
+def test_executables_are_thin_mains_that_never_import_one_another() -> None:
+    """node, sim, replay, demo import the core and collres_ros.ros, never each other."""
+    mains = {'node', 'sim', 'replay', 'demo'}
+    for name in sorted(mains):
+        tree = ast.parse((ROOT / 'collres_ros' / f'{name}.py').read_text())
+        imported = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                imported.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                imported.add(node.module)
+                if node.module == 'collres_ros':
+                    imported.update(f'collres_ros.{alias.name}' for alias in node.names)
+        others = {f'collres_ros.{m}' for m in mains - {name}}
+        assert not imported & others, f'{name}.py imports {sorted(imported & others)}'

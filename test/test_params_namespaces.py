@@ -121,8 +121,9 @@ collres_sim:
 
 def test_sim_and_replay_read_the_sections_of_their_namespace(tmp_path: Path) -> None:
     from collres_ros.ros.bag import BagReader
-    from collres_ros.replay import replay
-    from collres_ros.sim import load_sim_scene, main
+    from collres_ros.ros.offline import replay
+    from collres_ros.ros.simulation import load_sim_scene
+    from collres_ros.sim import main
     path = tmp_path / 'scene.yaml'
     path.write_text(NAMESPACED_SCENE)
     r1, root = load_sim_scene(path, namespace='/r1'), load_sim_scene(path)

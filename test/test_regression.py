@@ -119,7 +119,7 @@ def test_goldens_are_small() -> None:
 @pytest.mark.parametrize('scene', SHIPPED)
 def test_replay_matches_golden(tmp_path: Path, scene: str) -> None:
     from collres_ros.ros.bag import read_messages
-    from collres_ros.replay import replay
+    from collres_ros.ros.offline import replay
     summary = replay(DATA / scene / 'input', tmp_path / 'out', SCENES / f'{scene}.yaml',
                      topics=('body_states/corrected', 'contacts'))
     golden = read_messages(DATA / scene / 'golden')

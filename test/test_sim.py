@@ -34,7 +34,7 @@ def test_semi_implicit_euler_free_fall_matches_its_closed_form() -> None:
 
 def test_every_scene_loads_and_its_stamps_cover_the_duration() -> None:
     pytest.importorskip('yaml')
-    from collres_ros.sim import load_sim_scene, stamps
+    from collres_ros.ros.simulation import load_sim_scene, stamps
     names = sorted(p.stem for p in SCENES.glob('*.yaml'))
     assert {'bouncing_ball', 'billiard_break', 'box_slide', 'slope_hold', 'slope_slide',
             'box_stack', 'fast_sphere_wall', 'pile'} <= set(names)
@@ -70,8 +70,9 @@ def test_offline_closes_the_loop_and_replay_reproduces_it(tmp_path: Path) -> Non
     """The sim adopts the corrected state: the ball bounces (and replay gives the same outputs)."""
     pytest.importorskip('rclpy')
     from collres_ros.ros.bag import message_fields, read_messages
-    from collres_ros.replay import replay
-    from collres_ros.sim import load_sim_scene, run_offline
+    from collres_ros.ros.offline import replay
+    from collres_ros.ros.offline import run_offline
+    from collres_ros.ros.simulation import load_sim_scene
     params = SCENES / 'bouncing_ball.yaml'
     run_offline(load_sim_scene(params, 0.8), tmp_path / 'rec')
     recorded = read_messages(tmp_path / 'rec')

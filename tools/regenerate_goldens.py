@@ -39,8 +39,8 @@ sys.path.insert(0, str(ROOT))
 
 from collres_ros.ros import analysis  # noqa: E402
 from collres_ros.ros.bag import read_messages  # noqa: E402
-from collres_ros.replay import replay  # noqa: E402
-from collres_ros.sim import load_sim_scene, run_offline  # noqa: E402
+from collres_ros.ros.offline import replay, run_offline  # noqa: E402
+from collres_ros.ros.simulation import load_sim_scene  # noqa: E402
 
 SCENES_DIR = ROOT / 'config' / 'scenes'
 DATA_DIR = ROOT / 'test' / 'data'

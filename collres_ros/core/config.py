@@ -223,6 +223,12 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('queue_depth', 'integer', 10,
               'Depth of the reliable QoS of state topics (keep last)', 1, 1000,
               reason='a few steps of buffering; old states are worthless to a control loop'),
+    ParamSpec('min_rate', 'double', 0.0,
+              'Expected step rate: /diagnostics warns when the rate over its window falls '
+              'below it, and reports an error when no step comes (0: no rate check)',
+              0.0, 100000.0, unit='Hz',
+              reason='the source\'s rate is the user\'s to state, as diagnostic_updater\'s '
+                     'FrequencyStatus min_freq'),
 )
 
 
@@ -236,6 +242,7 @@ class NodeSettings:
     diagnostics_period: float = 1.0
     per_body_outputs: bool = True
     queue_depth: int = 10
+    min_rate: float = 0.0
 
 
 # Simulator settings: the parameters of collres_sim (its own section).

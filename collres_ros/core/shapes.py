@@ -175,21 +175,31 @@ def local_aabb(spec: BodySpec, geometry: coal.CollisionGeometry) -> tuple[np.nda
 
 def load_mesh_points(path: str) -> np.ndarray:
     """Distinct vertices (K, 3) of an OBJ or STL (ASCII or binary) file, in the file's units."""
-    data = Path(path).read_bytes()
-    suffix = Path(path).suffix.lower()
+    return mesh_points(Path(path).read_bytes(), Path(path).suffix, str(path))
+
+
+def mesh_points(data: bytes, suffix: str, name: str = 'mesh') -> np.ndarray:
+    """Distinct vertices (K, 3) of the bytes of an OBJ or STL file (``suffix`` '.obj'/'.stl').
+
+    The one mesh reader of the package (the params validator reads the bytes
+    safely and parses them here). An STL is binary when its size is exactly
+    84 + 50 * (the triangle count of its header), whatever its first bytes say
+    (CAD tools write ``solid`` into binary headers too).
+    """
+    suffix = suffix.lower()
     if suffix == '.obj':
         points = _obj_vertices(data.decode('utf-8', errors='replace'))
     elif suffix == '.stl':
         points = _stl_vertices(data)
     else:
-        raise ValueError(f'{path}: unsupported mesh format (use .obj or .stl)')
+        raise ValueError(f'{name}: unsupported mesh format (use .obj or .stl)')
     if points.shape[0] == 0:
-        raise ValueError(f'{path}: no vertices found')
+        raise ValueError(f'{name}: no vertices found')
     return np.unique(points, axis=0)
 
 
 def _obj_vertices(text: str) -> np.ndarray:
-    rows = [line.split()[1:4] for line in text.splitlines() if line.startswith('v ')]
+    rows = [line.split()[1:4] for line in text.splitlines() if line.split()[:1] == ['v']]
     return np.array(rows, dtype=float).reshape(-1, 3)
 
 

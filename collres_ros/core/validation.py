@@ -41,6 +41,23 @@ from collres_ros.core.types import BodyInput, Rejection
 ZERO_NORM = 1e-6              # quaternion norms below this are 'zero'
 QUATERNION_TOLERANCE = 1e-3   # |norm - 1| up to this is normalised silently
 NO_STAMP = -1                 # last-stamp value of a body never seen
+NAME_SHOWN = 40               # characters of a name shown in a detail line
+
+
+def shown_name(name: str, limit: int = NAME_SHOWN) -> str:
+    """A body name as it goes into a log line: printable, one line, at most ``limit`` chars.
+
+    A plain name (letters, digits, ``_``) is shown as is; anything else as its
+    ``repr`` (so a newline cannot start a forged log line); both cut with ``...``.
+    """
+    text = name if name.isascii() and (name.replace('_', '').isalnum() or not name) \
+        else repr(name)
+    return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
+def _quoted(text: str, limit: int = NAME_SHOWN) -> str:
+    shown = repr(text)
+    return shown if len(shown) <= limit else shown[:limit - 3] + '...'
 
 
 @dataclass
@@ -68,10 +85,12 @@ def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world
     twist_in_body = np.array([i.twist_frame_id == i.name and i.name not in world
                               for i in inputs], bool)
     finite = np.isfinite(numbers).all(axis=1)
+    with np.errstate(over='ignore'):      # a huge quaternion has an infinite norm: refused
+        norm = np.linalg.norm(np.where(np.isfinite(numbers[:, 3:7]), numbers[:, 3:7], 0.0),
+                              axis=1)
     magnitude = np.abs(np.where(np.isfinite(numbers), numbers, 0.0))
     too_far = magnitude[:, 0:3].max(axis=1, initial=0.0) > POSITION_LIMIT
     too_fast = magnitude[:, 7:13].max(axis=1, initial=0.0) > VELOCITY_LIMIT
-    norm = np.linalg.norm(np.where(np.isfinite(numbers[:, 3:7]), numbers[:, 3:7], 0.0), axis=1)
 
     rejected: list[Rejection] = []
     keep = np.zeros(count, bool)
@@ -82,11 +101,12 @@ def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world
         elif repeats[item.name] > 1:
             reason, detail = 'duplicate_body', f'appears {repeats[item.name]} times in one step'
         elif item.frame_id not in world:
-            reason, detail = 'wrong_frame', (f'pose frame {item.frame_id!r} is not the world '
-                                             f'frame {world_frame!r}')
+            reason, detail = 'wrong_frame', (f'pose frame {_quoted(item.frame_id)} is not the '
+                                             f'world frame {world_frame!r}')
         elif item.twist_frame_id not in world and not twist_in_body[k]:
-            reason, detail = 'wrong_frame', (f'twist frame {item.twist_frame_id!r} is neither '
-                                             f'{world_frame!r} nor the body frame {item.name!r}')
+            reason, detail = 'wrong_frame', (f'twist frame {_quoted(item.twist_frame_id)} is '
+                                             f'neither {world_frame!r} nor the body frame '
+                                             f'{shown_name(item.name)!r}')
         elif not finite[k]:
             reason, detail = 'non_finite', 'NaN or Inf in pose or twist'
         elif too_far[k] or too_fast[k]:
@@ -99,7 +119,7 @@ def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world
             reason, detail = 'non_unit_quaternion', (f'orientation norm {norm[k]:.6g} is off 1 '
                                                      f'by more than {quaternion_tolerance:g}')
         if reason:
-            rejected.append(Rejection(item.name, reason, f'{item.name}: {detail}'))
+            rejected.append(Rejection(item.name, reason, f'{shown_name(item.name)}: {detail}'))
         else:
             keep[k] = True
 

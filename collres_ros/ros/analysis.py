@@ -18,8 +18,9 @@ import numpy as np
 
 from collres_ros.core.rotation import to_matrix
 from collres_ros.core.types import BodySpec
-
-STATE_NAMES = {1: 'IMPACT', 2: 'RESTING', 3: 'SLIDING', 4: 'STICKING'}
+from collres_ros.ros.energy import total_energy
+from collres_ros.ros.names import STATE_NAMES, state_name
+from collres_ros.ros.stamps import stamp_ns
 MIN_BOUNCE = 0.01  # m: rebounds lower than this are not counted as apexes
 
 
@@ -38,45 +39,25 @@ class Trajectory:
 
 def trajectory(msgs: Sequence[Any], names: Sequence[str]) -> Trajectory:
     """Stack BodyStateArray messages; bodies missing from a message keep the previous row."""
+    from collres_ros.ros.messages import read_body_state_array
     index = {n: i for i, n in enumerate(names)}
     count, steps = len(names), len(msgs)
     pos, ori = np.zeros((steps, count, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (steps, count, 1))
     lin, ang = np.zeros((steps, count, 3)), np.zeros((steps, count, 3))
     stamps = np.zeros(steps, np.int64)
     for k, msg in enumerate(msgs):
-        stamps[k] = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        stamps[k] = stamp_ns(msg.header.stamp)
         if k > 0:
             pos[k], ori[k], lin[k], ang[k] = pos[k - 1], ori[k - 1], lin[k - 1], ang[k - 1]
-        for body in msg.bodies:
-            i = index.get(body.name)
+        got, states = read_body_state_array(msg)
+        for j, name in enumerate(got):
+            i = index.get(name)
             if i is None:
                 continue
-            p, q, t = body.pose.position, body.pose.orientation, body.twist
-            pos[k, i] = (p.x, p.y, p.z)
-            ori[k, i] = (q.x, q.y, q.z, q.w)
-            lin[k, i] = (t.linear.x, t.linear.y, t.linear.z)
-            ang[k, i] = (t.angular.x, t.angular.y, t.angular.z)
+            pos[k, i], ori[k, i] = states.position[j], states.orientation[j]
+            lin[k, i], ang[k, i] = states.linear[j], states.angular[j]
     time = (stamps - stamps[0]) * 1e-9 if steps else np.zeros(0)
     return Trajectory(list(names), time, stamps, pos, ori, lin, ang)
-
-
-def body_inertia(spec: BodySpec) -> np.ndarray:
-    """Principal inertia (3,) kg m^2 about the origin, body frame (solid shapes)."""
-    if spec.inertia is not None:
-        return np.asarray(spec.inertia, float)
-    try:
-        from collres_ros.core.shapes import mass_properties
-        _, inv_inertia = mass_properties(spec)
-        inv = np.diag(np.asarray(inv_inertia, float))
-        return np.where(inv > 0, 1.0 / np.where(inv > 0, inv, 1.0), 0.0)
-    except Exception:  # shapes not available: spheres and boxes by formula, else 0
-        m, size = spec.mass, spec.size
-        if spec.shape == 'sphere':
-            return np.full(3, 0.4 * m * size[0] ** 2)
-        if spec.shape == 'box':
-            x, y, z = size
-            return m / 12.0 * np.array([y * y + z * z, x * x + z * z, x * x + y * y])
-        return np.zeros(3)
 
 
 def step_lengths(stamps: np.ndarray, input_stamps: Sequence[int] | None = None) -> np.ndarray:
@@ -99,27 +80,20 @@ def step_lengths(stamps: np.ndarray, input_stamps: Sequence[int] | None = None) 
 
 def energy(traj: Trajectory, specs: Sequence[BodySpec], gravity: np.ndarray,
            dt: np.ndarray | float | None = None) -> np.ndarray:
-    """Return the total mechanical energy at each stamp, J: kinetic + potential, dynamic bodies.
+    """Total mechanical energy of the trajectory's bodies at each stamp, J, shape (T,).
 
-    Kinetic 1/2 m v^2 + 1/2 w.I w (principal inertia, body frame) with v the
-    velocity at the stamp, ``integrator.stamp_velocity`` (the reported twist is
-    the mid-step one: v + g dt/2 at the stamp); potential -m g.x (zero at the
-    world origin). With that definition free flight is flat to rounding.
-    ``dt``: (T,) or scalar step length, s (default: from the stamps). Shape (T,).
+    ``collres_ros.ros.energy.total_energy`` with the linear velocity at the stamp,
+    ``integrator.stamp_velocity``: the reported twist is the semi-implicit Euler's
+    mid-step one, v + g dt/2 at the stamp. With it free flight is flat (to
+    rounding). ``dt``: (T,) or scalar step length, s (default: from the stamps;
+    0 reads the reported twist as is).
     """
     from collres_ros.ros.integrator import stamp_velocity
-    mass = np.array([s.mass for s in specs])
-    inertia = np.array([body_inertia(s) for s in specs])
     if dt is None:
         dt = step_lengths(traj.stamps)
     dt = np.broadcast_to(np.asarray(dt, float), traj.time.shape)
     linear = stamp_velocity(traj.linear, gravity, dt[:, None])     # (T, N, 3)
-    rot = to_matrix(traj.orientation)                          # (T, N, 3, 3)
-    w_body = np.einsum('tnji,tnj->tni', rot, traj.angular)     # R^T w
-    kinetic = 0.5 * mass * np.sum(linear ** 2, axis=2) \
-        + 0.5 * np.sum(inertia * w_body ** 2, axis=2)
-    potential = -mass * np.einsum('tni,i->tn', traj.position, gravity)
-    return np.sum(kinetic + potential, axis=1)
+    return total_energy(traj.position, traj.orientation, linear, traj.angular, specs, gravity)
 
 
 def horizontal_momentum_drift(traj: Trajectory, specs: Sequence[BodySpec],
@@ -228,7 +202,7 @@ def _pair_restitution(ball: BodySpec, other: BodySpec | None, rule: str) -> floa
 
 
 def _stamp(msg: Any) -> int:
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    return stamp_ns(msg.header.stamp)
 
 
 def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequence[float],
@@ -262,7 +236,7 @@ def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequenc
     first_impact: dict[str, Any] = {}
     for msg in by_topic.get(f'{ns}/contacts', []):
         for c in msg.contacts:
-            name = STATE_NAMES.get(c.state, str(c.state))
+            name = state_name(c.state)
             report.contacts[name] = report.contacts.get(name, 0) + 1
             if c.state == 1:
                 first_impact.setdefault(c.body_a, c)

@@ -51,17 +51,3 @@ def stamp_velocity(linear: np.ndarray, gravity: np.ndarray, dt: np.ndarray | flo
     """
     dt = np.asarray(dt, float)[..., None]
     return np.asarray(linear, float) + np.asarray(gravity, float) * (0.5 * dt)
-
-
-def kinetic_energy(states: BodyStates, mass: np.ndarray, inertia_body: np.ndarray,
-                   dynamic: np.ndarray) -> np.ndarray:
-    """Kinetic energy per body, J: 1/2 m v^2 + 1/2 w^T I_world w (0 for static bodies).
-
-    ``inertia_body``: (N, 3) principal inertia about the origin, kg m^2.
-    """
-    from collres_ros.core.rotation import to_matrix
-    rot = to_matrix(states.orientation)
-    w_body = np.einsum('nji,nj->ni', rot, states.angular)  # R^T w
-    energy = 0.5 * mass * np.sum(states.linear ** 2, axis=1) \
-        + 0.5 * np.sum(inertia_body * w_body ** 2, axis=1)
-    return np.where(np.asarray(dynamic, bool), energy, 0.0)

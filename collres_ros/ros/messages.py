@@ -17,52 +17,54 @@ with ``rclpy.serialization``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any, Container, Mapping, Optional, Sequence
 
 import numpy as np
-from builtin_interfaces.msg import Duration, Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped, TwistStamped, Vector3
-from std_msgs.msg import ColorRGBA, Header
-from visualization_msgs.msg import Marker, MarkerArray
+from std_msgs.msg import Header
 
 from collres_ros.core.pipeline import ResolvedStep
 from collres_ros.core.rotation import to_matrix
-from collres_ros.core.types import BodyInput, ContactState
+from collres_ros.core.types import BodyInput, BodyStates
 from collres_ros.msg import BodyState, BodyStateArray, Contact, ContactArray
+from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
+from collres_ros.ros.markers import contact_markers
+from collres_ros.ros.names import (  # noqa: F401 (the topic names, re-exported)
+    CONTACTS, CORRECTED_STATES, DIAGNOSTICS, MARKERS, STATES, pose_topic, twist_topic)
+from collres_ros.ros.stamps import stamp_ns, to_stamp  # noqa: F401 (re-exported)
 
-# Relative output topic names (the node publishes them in its namespace).
-CORRECTED_STATES = 'body_states/corrected'
-CONTACTS = 'contacts'
-MARKERS = 'contact_markers'
-DIAGNOSTICS = '/diagnostics'
-
-
-def pose_topic(name: str, corrected: bool = False) -> str:
-    return f'bodies/{name}/pose' + ('/corrected' if corrected else '')
+__all__ = ['DiagnosticsSnapshot', 'diagnostics_array', 'contact_markers', 'stamp_ns', 'to_stamp']
 
 
-def twist_topic(name: str, corrected: bool = False) -> str:
-    return f'bodies/{name}/twist' + ('/corrected' if corrected else '')
+# --- BodyStateArray: the one builder and reader -----------------------------------------------
+
+def body_state_array(names: Sequence[str], states: BodyStates, stamp: int, frame_id: str,
+                     rows: Optional[Sequence[int]] = None) -> BodyStateArray:
+    """BodyStateArray of bodies ``rows`` (default: all) of ``states`` at ``stamp`` (ns)."""
+    header = Header(stamp=to_stamp(stamp), frame_id=frame_id)
+    bodies = []
+    for k in (range(len(names)) if rows is None else rows):
+        body = BodyState(name=names[k])
+        p, q = body.pose.position, body.pose.orientation
+        p.x, p.y, p.z = (float(c) for c in states.position[k])
+        q.x, q.y, q.z, q.w = (float(c) for c in states.orientation[k])
+        v, w = body.twist.linear, body.twist.angular
+        v.x, v.y, v.z = (float(c) for c in states.linear[k])
+        w.x, w.y, w.z = (float(c) for c in states.angular[k])
+        bodies.append(body)
+    return BodyStateArray(header=header, bodies=bodies)
 
 
-# --- time -------------------------------------------------------------------------------------
-
-def stamp_ns(stamp: Any) -> int:
-    """builtin_interfaces/Time -> integer ns."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
-def to_stamp(ns: int) -> Time:
-    """Integer ns -> builtin_interfaces/Time (negative times clamp to 0)."""
-    sec, nanosec = divmod(max(int(ns), 0), 1_000_000_000)
-    return Time(sec=sec, nanosec=nanosec)
-
-
-def _duration(seconds: float) -> Duration:
-    sec, nanosec = divmod(int(round(seconds * 1e9)), 1_000_000_000)
-    return Duration(sec=sec, nanosec=nanosec)
+def read_body_state_array(msg: BodyStateArray) -> tuple[list[str], BodyStates]:
+    """(names, states) of a BodyStateArray's bodies, in message order (its frame: the header's)."""
+    names = [body.name for body in msg.bodies]
+    values = np.array([(b.pose.position.x, b.pose.position.y, b.pose.position.z,
+                        b.pose.orientation.x, b.pose.orientation.y, b.pose.orientation.z,
+                        b.pose.orientation.w, b.twist.linear.x, b.twist.linear.y,
+                        b.twist.linear.z, b.twist.angular.x, b.twist.angular.y,
+                        b.twist.angular.z) for b in msg.bodies], float).reshape(-1, 13)
+    return names, BodyStates(values[:, 0:3].copy(), values[:, 3:7].copy(),
+                             values[:, 7:10].copy(), values[:, 10:13].copy())
 
 
 # --- inputs -----------------------------------------------------------------------------------
@@ -80,13 +82,23 @@ def _twist_tuple(twist: Any) -> tuple[tuple[float, ...], tuple[float, ...]]:
 def inputs_from_array(msg: BodyStateArray) -> list[BodyInput]:
     """BodyInputs of a BodyStateArray (pose and twist in ``header.frame_id``)."""
     frame = msg.header.frame_id
-    inputs = []
-    for body in msg.bodies:
-        position, orientation = _pose_tuple(body.pose)
-        linear, angular = _twist_tuple(body.twist)
-        inputs.append(BodyInput(body.name, position, orientation,  # type: ignore[arg-type]
-                                linear, angular, frame, frame))
-    return inputs
+    names, states = read_body_state_array(msg)
+    return inputs_from_states(names, states, frame)
+
+
+def inputs_from_states(names: Sequence[str], states: BodyStates, frame: str) -> list[BodyInput]:
+    """BodyInputs of decoded states (pose and twist both in ``frame``)."""
+    rows = np.concatenate([states.position, states.orientation, states.linear,
+                           states.angular], axis=1).tolist()
+    return [BodyInput(name, tuple(v[0:3]), tuple(v[3:7]),  # type: ignore[arg-type]
+                      tuple(v[7:10]), tuple(v[10:13]), frame, frame)
+            for name, v in zip(names, rows)]
+
+
+def pose_twist_messages(msg: BodyStateArray) -> list[tuple[str, PoseStamped, TwistStamped]]:
+    """(name, PoseStamped, TwistStamped) of each body of a BodyStateArray, its header each."""
+    return [(body.name, PoseStamped(header=msg.header, pose=body.pose),
+             TwistStamped(header=msg.header, twist=body.twist)) for body in msg.bodies]
 
 
 def input_from_pose_twist(name: str, pose: PoseStamped, twist: TwistStamped) -> BodyInput:
@@ -99,13 +111,6 @@ def input_from_pose_twist(name: str, pose: PoseStamped, twist: TwistStamped) -> 
 
 # --- outputs ----------------------------------------------------------------------------------
 
-STATE_COLOURS = {
-    ContactState.IMPACT: (1.0, 0.2, 0.1), ContactState.RESTING: (0.2, 0.6, 1.0),
-    ContactState.SLIDING: (1.0, 0.8, 0.1), ContactState.STICKING: (0.2, 0.9, 0.3)}
-POINT_DIAMETER = 0.02   # m, contact point sphere
-ARROW_LENGTH = 0.1      # m, normal arrow
-
-
 def _point(v: np.ndarray) -> Point:
     return Point(x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
@@ -116,19 +121,7 @@ def _vector(v: np.ndarray) -> Vector3:
 
 def corrected_array(step: ResolvedStep, world_frame: str) -> BodyStateArray:
     """body_states/corrected: the accepted bodies, world frame, at the step stamp."""
-    s = step.states
-    header = Header(stamp=to_stamp(step.stamp_ns), frame_id=world_frame)
-    bodies = []
-    for k, name in enumerate(step.names):
-        body = BodyState(name=name)
-        p, q = body.pose.position, body.pose.orientation
-        p.x, p.y, p.z = (float(c) for c in s.position[k])
-        q.x, q.y, q.z, q.w = (float(c) for c in s.orientation[k])
-        v, w = body.twist.linear, body.twist.angular
-        v.x, v.y, v.z = (float(c) for c in s.linear[k])
-        w.x, w.y, w.z = (float(c) for c in s.angular[k])
-        bodies.append(body)
-    return BodyStateArray(header=header, bodies=bodies)
+    return body_state_array(step.names, step.states, step.stamp_ns, world_frame)
 
 
 def _per_body(step: ResolvedStep, array: BodyStateArray,
@@ -165,82 +158,6 @@ def contact_array(step: ResolvedStep, world_frame: str) -> ContactArray:
             state=int(report.state[k])))
     return ContactArray(header=Header(stamp=to_stamp(step.stamp_ns), frame_id=world_frame),
                         contacts=contacts)
-
-
-def contact_markers(step: ResolvedStep, world_frame: str,
-                    lifetime: float = 0.5) -> MarkerArray:
-    """contact_markers: DELETEALL, then a sphere and a normal arrow per contact.
-
-    Namespace per body pair (``a/b``); ids count the pair's points (point 2k,
-    arrow 2k+1). Each marker also has ``lifetime`` (s; 0 = forever).
-    """
-    header = Header(stamp=to_stamp(step.stamp_ns), frame_id=world_frame)
-    markers = [Marker(header=header, action=Marker.DELETEALL)]
-    c = step.report.contacts
-    seen: dict[str, int] = {}
-    life = _duration(lifetime)
-    for k in range(c.count):
-        a, b = step.contact_names(k)
-        namespace = f'{a}/{b}'
-        n = seen.get(namespace, 0)
-        seen[namespace] = n + 1
-        r, g, bl = STATE_COLOURS.get(ContactState(int(step.report.state[k])), (1.0, 1.0, 1.0))
-        colour = ColorRGBA(r=r, g=g, b=bl, a=1.0)
-        # check_fields=False: the fields are typed here; rclpy's checks cost ~100 us a marker
-        point = Marker(header=header, ns=namespace, id=2 * n, type=Marker.SPHERE,
-                       action=Marker.ADD, color=colour, lifetime=life, check_fields=False)
-        point.pose.position = _point(c.point[k])
-        point.scale = Vector3(x=POINT_DIAMETER, y=POINT_DIAMETER, z=POINT_DIAMETER)
-        arrow = Marker(header=header, ns=namespace, id=2 * n + 1, type=Marker.ARROW,
-                       action=Marker.ADD, color=colour, lifetime=life,
-                       points=[_point(c.point[k]),
-                               _point(c.point[k] + ARROW_LENGTH * c.normal[k])],
-                       check_fields=False)
-        arrow.scale = Vector3(x=0.005, y=0.01, z=0.02)  # shaft, head diameters, head length
-        markers += [point, arrow]
-    return MarkerArray(markers=markers)
-
-
-@dataclass
-class DiagnosticsSnapshot:
-    """What /diagnostics reports; counts are cumulative since start, by reason key."""
-
-    stamp_ns: int
-    steps: int = 0
-    rate_hz: float = 0.0              # steps per second of wall time since the last report
-    step_time_mean_ms: float = 0.0
-    step_time_max_ms: float = 0.0
-    contacts: int = 0                 # in the last step
-    counts: Mapping[str, int] = field(default_factory=dict)   # rejections/resets by reason
-    stale: Sequence[str] = ()
-    extra: Mapping[str, Any] = field(default_factory=dict)
-    name: str = 'collres_node: resolver'
-
-
-def diagnostics_array(snapshot: DiagnosticsSnapshot) -> DiagnosticArray:
-    """One DiagnosticStatus: WARN when bodies are stale or inputs were refused."""
-    problems = {k: v for k, v in snapshot.counts.items() if v}
-    level = DiagnosticStatus.OK
-    message = f'{snapshot.steps} steps, {snapshot.rate_hz:.1f} Hz'
-    if snapshot.stale:
-        level = DiagnosticStatus.WARN
-        message += f'; stale: {", ".join(snapshot.stale)}'
-    if problems:
-        level = DiagnosticStatus.WARN
-        message += '; refused/reset inputs: ' + ', '.join(
-            f'{k} {v}' for k, v in sorted(problems.items()))
-    values = {
-        'steps': snapshot.steps, 'rate_hz': f'{snapshot.rate_hz:.3f}',
-        'step_time_mean_ms': f'{snapshot.step_time_mean_ms:.3f}',
-        'step_time_max_ms': f'{snapshot.step_time_max_ms:.3f}',
-        'contacts_last_step': snapshot.contacts,
-        'stale_bodies': ','.join(snapshot.stale),
-        **{f'count.{k}': v for k, v in sorted(snapshot.counts.items())},
-        **snapshot.extra}
-    status = DiagnosticStatus(level=level, name=snapshot.name, message=message,
-                              hardware_id='collres_ros',
-                              values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
-    return DiagnosticArray(header=Header(stamp=to_stamp(snapshot.stamp_ns)), status=[status])
 
 
 def build_outputs(step: ResolvedStep, world_frame: str, per_body: bool = False,

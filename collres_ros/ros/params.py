@@ -27,6 +27,7 @@ from collres_ros.core.config import (
     BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, POSITION_LIMIT, SCENE_PARAMS,
     SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
+from collres_ros.core.shapes import mesh_points
 from collres_ros.core.types import BodySpec, BodyStates
 
 NODE_NAME = 'collres_node'
@@ -168,7 +169,7 @@ def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, S
     if not isinstance(document, dict):
         raise ValueError(f'{path}: not a ROS 2 params file (top level must be a mapping)')
     fqns = [fully_qualified_name(namespace, name) for name in node_names]
-    sections, written = [], {}
+    sections: list[tuple[Any, dict[str, Any]]] = []
     for section, body in document.items():
         if not any(section_matches(str(section), fqn) for fqn in fqns):
             continue
@@ -177,38 +178,47 @@ def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, S
         params = body['ros__parameters'] or {}
         if not isinstance(params, dict):
             raise ValueError(f'{path}: {section}.ros__parameters must be a mapping')
-        sections.append((section, set(params)))
-        _flatten('', params, written)
+        flat: dict[str, Any] = {}
+        _flatten('', params, flat)
+        sections.append((section, flat))
     # rclpy's reader merges the sections it is given key by key at the top level only
     # (a later `body:` would replace an earlier one whole): one call per group of
     # sections whose top-level keys do not meet, in file order (rcl merges leaf by leaf)
-    groups: list[tuple[list[Any], set[str]]] = []
-    for section, keys in sections:
-        if groups and not groups[-1][1] & keys:
+    groups: list[tuple[list[Any], dict[str, Any], set[str]]] = []
+    for section, flat in sections:
+        keys = {name.split('.')[0] for name in flat}
+        if groups and not groups[-1][2] & keys:
             groups[-1][0].append(section)
-            groups[-1][1].update(keys)
+            groups[-1][1].update(flat)
+            groups[-1][2].update(keys)
         else:
-            groups.append(([section], set(keys)))
+            groups.append(([section], dict(flat), keys))
     values: dict[str, Any] = {}
-    for group, _ in groups:
+    for group, written, _ in groups:
+        for name, leaf in written.items():
+            if isinstance(leaf, list) and len({type(v) for v in leaf}) > 1:
+                shown = name if name.isprintable() else repr(name)
+                got = _show(leaf)
+                raise ValueError(f'{shown[:100]}: a list must hold values of one type, as rcl '
+                                 'requires (write 1.0, not 1, among doubles) (got '
+                                 f'{got if len(got) < 100 else got[:96] + " ..."})')
         try:
-            read = parameter_dict_from_yaml_file(str(path), target_nodes=group)
-        except (RuntimeError, yaml.YAMLError) as error:
+            read = {name: parameter_value_to_python(message.value) for name, message in
+                    parameter_dict_from_yaml_file(str(path), target_nodes=group).items()}
+        except RuntimeError as error:
             raise ValueError(f'{path}: section {group[0]!r}: {error}') from None
-        for name, message in read.items():
-            value = parameter_value_to_python(message.value)
+        except Exception:   # rclpy re-parses str(value) as YAML: a string it cannot re-read
+            read = dict(written)
+        for name, value in read.items():
             leaf = written.get(name)
             if isinstance(leaf, str):
                 value = leaf   # rclpy re-parses str(value): '1.5' would become a double
-            elif isinstance(leaf, list) and isinstance(value, str):
-                raise ValueError(f'{name}: a list must hold values of one type, as rcl '
-                                 f'requires (write 1.0, not 1, among doubles) (got {leaf})')
             elif isinstance(value, (list, tuple)) or hasattr(value, 'tolist'):
                 value = list(value) or None   # rcl reads [] as not set
             values[name] = value
-    for name, leaf in written.items():   # `{}` and `[]` leaves: not set
-        if leaf is None:
-            values.setdefault(name, None)
+        for name, leaf in written.items():   # `{}` and `[]` leaves: not set
+            if leaf is None:
+                values[name] = None
     return values
 
 
@@ -314,23 +324,8 @@ def _mesh_bytes(path: Path) -> bytes:
 
 
 def _read_mesh(path: Path) -> np.ndarray:
-    """Vertices (K, 3) of an OBJ or STL (ASCII or binary) file.
-
-    An STL is binary when its size is exactly 84 + 50 * (triangle count in the
-    header), whatever its first bytes say: CAD tools often write ``solid`` in
-    the 80-byte header of a binary file.
-    """
-    data = _mesh_bytes(path)
-    if path.suffix.lower() == '.stl' and len(data) >= 84 \
-            and len(data) == 84 + 50 * struct.unpack_from('<I', data, 80)[0]:
-        count = struct.unpack_from('<I', data, 80)[0]
-        raw = np.frombuffer(data, np.dtype([('n', '<f4', 3), ('v', '<f4', (3, 3)),
-                                            ('a', '<u2')]), count, 84)
-        return raw['v'].reshape(-1, 3).astype(float)
-    keyword = 'vertex' if path.suffix.lower() == '.stl' else 'v'
-    rows = [line.split()[1:4] for line in data.decode(errors='replace').splitlines()
-            if line.split()[:1] == [keyword]]
-    return np.array(rows, float).reshape(-1, 3)
+    """Vertices (K, 3) of an OBJ or STL file, read safely, parsed by the core's mesh reader."""
+    return mesh_points(_mesh_bytes(path), path.suffix)
 
 
 def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path]

@@ -18,13 +18,14 @@ Clock jumps. A stamp more than ``jump_ns`` (default: the stale timeout)
 before or after the newest one is held as a *suspect*, not used: one stray
 stamp must neither make every other body stale (far future) nor reset the
 synchroniser (far past). When a second body (or the same body's next message
-of the same kind) confirms the new time, the source's clock has jumped (a
-simulator restart, a bag played again): every pending group and every body's
-history is forgotten (``time_jumps`` counts it, ``take_jump`` reports it once
-so the caller can reset its own history) and the suspects are used. A suspect
-that is contradicted (its body sends a normal stamp again) or never
-confirmed is refused and counted in ``refused`` (``future_stamp`` or
-``past_stamp``).
+of the same kind) confirms the new time, it is used. Confirmed backwards, the
+source's clock has jumped (a simulator restart, a bag played again): every
+pending group and every body's history is forgotten. Confirmed forwards (a
+pause, or messages lost upstream), nothing is forgotten: bodies left behind
+turn stale. Either way ``time_jumps`` counts it and ``take_jump`` reports it
+once so the caller can reset its own history. A suspect that is contradicted
+(its body sends a normal stamp again) or never confirmed is refused and
+counted in ``refused`` (``future_stamp`` or ``past_stamp``).
 
 When a group completes, older pending groups can no longer be used and are
 dropped (counted in ``dropped``), as are the oldest groups beyond
@@ -228,8 +229,12 @@ class StampSync:
             return []
         before = self.newest_ns if self.newest_ns is not None else stamp_ns
         suspects, self._suspects = self._suspects, []
-        self.dropped += len(self.pending)
-        self._forget()
+        if suspects[0][2] < before:
+            # backwards: a new run of the source; its history means nothing now
+            self.dropped += len(self.pending)
+            self._forget()
+        # forwards: time went on (a pause, or messages lost upstream); nothing is
+        # forgotten, the bodies that did not come along turn stale by the usual rule
         self.time_jumps += 1
         self._jump = TimeJump(before, suspects[0][2])
         done: list[Group] = []

@@ -1,0 +1,102 @@
+"""/diagnostics: what the node reports, as ``diagnostic_msgs/DiagnosticArray``.
+
+``DiagnosticsSnapshot`` holds the figures of one report (the node fills it from
+its counters, ``OfflineDiagnostics`` from a replay's steps on the stamps'
+clock); ``diagnostics_array`` builds the message.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Optional, Sequence
+
+from collres_ros.ros.stamps import seconds_ns, to_stamp
+
+
+@dataclass
+class DiagnosticsSnapshot:
+    """What /diagnostics reports; counts are cumulative since start, by reason key."""
+
+    stamp_ns: int
+    steps: int = 0
+    rate_hz: float = 0.0              # steps per second of wall time since the last report
+    step_time_mean_ms: float = 0.0
+    step_time_max_ms: float = 0.0
+    contacts: int = 0                 # in the last step
+    counts: Mapping[str, int] = field(default_factory=dict)   # rejections/resets by reason
+    stale: Sequence[str] = ()
+    extra: Mapping[str, Any] = field(default_factory=dict)
+    name: str = 'collres_node: resolver'
+
+
+def diagnostics_array(snapshot: DiagnosticsSnapshot) -> Any:
+    """One DiagnosticStatus: WARN when bodies are stale or inputs were refused."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from std_msgs.msg import Header
+    problems = {k: v for k, v in snapshot.counts.items() if v}
+    level = DiagnosticStatus.OK
+    message = f'{snapshot.steps} steps, {snapshot.rate_hz:.1f} Hz'
+    if snapshot.stale:
+        level = DiagnosticStatus.WARN
+        message += f'; stale: {", ".join(snapshot.stale)}'
+    if problems:
+        level = DiagnosticStatus.WARN
+        message += '; refused/reset inputs: ' + ', '.join(
+            f'{k} {v}' for k, v in sorted(problems.items()))
+    values = {
+        'steps': snapshot.steps, 'rate_hz': f'{snapshot.rate_hz:.3f}',
+        'step_time_mean_ms': f'{snapshot.step_time_mean_ms:.3f}',
+        'step_time_max_ms': f'{snapshot.step_time_max_ms:.3f}',
+        'contacts_last_step': snapshot.contacts,
+        'stale_bodies': ','.join(snapshot.stale),
+        **{f'count.{k}': v for k, v in sorted(snapshot.counts.items())},
+        **snapshot.extra}
+    status = DiagnosticStatus(level=level, name=snapshot.name, message=message,
+                              hardware_id='collres_ros',
+                              values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+    return DiagnosticArray(header=Header(stamp=to_stamp(snapshot.stamp_ns)), status=[status])
+
+
+class OfflineDiagnostics:
+    """/diagnostics of an offline run, as collres_node reports them, on the stamps' clock.
+
+    A snapshot every ``period`` s of stamp time (the node's
+    ``diagnostics_period``) with the node's fields: steps, rate (steps per
+    second of stamp time here), contacts of the last step, the resolver's
+    totals by reason, stale bodies, and the extras (bodies, sync_dropped,
+    contacts_total). Step times are wall-clock figures: reported only with
+    ``timings=True``, otherwise 0, so that a replay is deterministic.
+    """
+
+    def __init__(self, period: float, timings: bool = False) -> None:
+        self.period_ns = seconds_ns(period)
+        self.timings = timings
+        self.steps = 0
+        self._last_ns: Optional[int] = None
+        self._steps_at_last = 0
+        self._times: list[float] = []
+
+    def update(self, resolved: Any, resolver: Any,
+               sync_dropped: int = 0) -> Optional[DiagnosticsSnapshot]:
+        """Account for one ResolvedStep; a DiagnosticsSnapshot when one is due, else None."""
+        self.steps += 1
+        self._times.append(float(getattr(resolved, 'step_time_s', 0.0)))
+        stamp = int(resolved.stamp_ns)
+        if self._last_ns is None:
+            self._last_ns = stamp
+        elapsed = stamp - self._last_ns
+        if elapsed < self.period_ns and self.steps > 1:
+            return None
+        rate = (self.steps - self._steps_at_last) / (elapsed * 1e-9) if elapsed > 0 else 0.0
+        times = self._times if self.timings else [0.0]
+        totals = resolver.totals
+        snapshot = DiagnosticsSnapshot(
+            stamp_ns=stamp, steps=int(totals.get('steps', self.steps)), rate_hz=rate,
+            step_time_mean_ms=1000.0 * sum(times) / len(times),
+            step_time_max_ms=1000.0 * max(times), contacts=int(resolved.report.contacts.count),
+            counts={k: v for k, v in totals.items() if k not in ('steps', 'contacts')},
+            stale=sorted(getattr(resolved, 'stale', [])),
+            extra={'bodies': len(resolver.bodies), 'sync_dropped': sync_dropped,
+                   'contacts_total': int(totals.get('contacts', 0))})
+        self._last_ns, self._steps_at_last, self._times = stamp, self.steps, []
+        return snapshot

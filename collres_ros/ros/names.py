@@ -1,0 +1,46 @@
+"""Names that users, launch files and bags see: topic names and contact state names.
+
+Topic names are relative (the node publishes them in its namespace, so
+namespaces and remaps work); ``absolute`` gives the name a bag records.
+"""
+
+from __future__ import annotations
+
+from collres_ros.core.types import ContactState
+
+# --- topics -----------------------------------------------------------------------------------
+
+STATES = 'body_states'                      # in: BodyStateArray, one step per message
+CORRECTED_STATES = 'body_states/corrected'  # out: BodyStateArray
+CONTACTS = 'contacts'                       # out: ContactArray
+MARKERS = 'contact_markers'                 # out: MarkerArray
+DIAGNOSTICS = '/diagnostics'                # out: DiagnosticArray (absolute: diagnostic_updater)
+CLOCK = '/clock'                            # sim out: rosgraph_msgs/Clock
+
+
+def pose_topic(name: str, corrected: bool = False) -> str:
+    """``bodies/<name>/pose`` (input) or ``bodies/<name>/pose/corrected`` (output)."""
+    return f'bodies/{name}/pose' + ('/corrected' if corrected else '')
+
+
+def twist_topic(name: str, corrected: bool = False) -> str:
+    """``bodies/<name>/twist`` (input) or ``bodies/<name>/twist/corrected`` (output)."""
+    return f'bodies/{name}/twist' + ('/corrected' if corrected else '')
+
+
+def absolute(topic: str, namespace: str = '/') -> str:
+    """Absolute name of a relative topic in ``namespace`` ('/' or '/robot'), as bags name it."""
+    if topic.startswith('/'):
+        return topic
+    return namespace.rstrip('/') + '/' + topic
+
+
+# --- contact states ---------------------------------------------------------------------------
+
+# Contact.state value -> name (the Contact.msg constants), in value order.
+STATE_NAMES = {int(state): state.name for state in ContactState}
+
+
+def state_name(value: int) -> str:
+    """Name of a Contact.state value ('IMPACT', ...), or the number itself when unknown."""
+    return STATE_NAMES.get(int(value), str(int(value)))

@@ -1,0 +1,321 @@
+"""Offline stepping and recording: the core in-process, inputs and outputs in rosbag2 bags.
+
+Two roads, one output builder (``messages.build_outputs``, the node's own):
+
+* ``run_offline``: the simulator's scene (``ros.simulation``) stepped through
+  the core without DDS, as fast as it can, recorded (inputs and every output)
+  into a new bag; used by ``collres_sim --offline`` and to make the goldens.
+* ``replay``: a recorded bag's inputs (batched ``body_states``, or per-body
+  pose/twist grouped by the node's ``StampSync``) through the core, every
+  output written to a new bag at the input's log time; ``collres_replay``.
+
+Deterministic: the same input gives the same output messages.
+"""
+
+from __future__ import annotations
+
+import struct
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator, Sequence
+
+from collres_ros.ros.cli import CliError
+from collres_ros.ros.diagnostics import OfflineDiagnostics
+from collres_ros.ros.names import STATE_NAMES, STATES, absolute, state_name
+from collres_ros.ros.simulation import SimScene, rows_of, run_loop
+from collres_ros.ros.stamps import seconds_ns, stamp_ns
+
+
+class ReplayError(CliError):
+    """A user error of a replay: one line, printed as ``error: ...``."""
+
+
+def count_states(counts: dict[str, int], states: Any) -> None:
+    """Add a step's contact states (Contact.state values) to ``counts`` by name."""
+    for value in states:
+        key = state_name(value)
+        counts[key] = counts.get(key, 0) + 1
+
+
+# --- the simulator's scene, offline -----------------------------------------------------------
+
+@dataclass
+class OfflineSummary:
+    """What an offline run recorded: steps, bag messages, contacts by state, wall time (s)."""
+
+    steps: int
+    messages: int
+    contacts: dict[str, int]
+    wall_s: float
+
+
+def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
+             on_step: Callable[[int, int], None] | None = None, markers: bool = True,
+             contacts: dict[str, int] | None = None) -> int:
+    """Run the scene through the core in-process; returns the number of steps.
+
+    ``sink(stamp_ns, [(topic, msg), ...])`` gets, per step, ('body_states',
+    input) followed by every output of the node's message builder (relative
+    topic names, as the node publishes them). ``markers`` False skips
+    building contact_markers (they dominate the cost with many contacts).
+    ``contacts``: counts of the solved contacts by state, added to.
+    """
+    from collres_ros.core.pipeline import Resolver
+    from collres_ros.ros import messages
+    resolver = Resolver(sim.scene)
+    node = sim.scene.node
+    diagnostics = OfflineDiagnostics(node.diagnostics_period)
+    names = [sim.names[i] for i in sim.rows]
+
+    def exchange(stamp: int, states: Any) -> Any:
+        published = rows_of(states, sim.rows)
+        step = resolver.resolve(stamp, messages.inputs_from_states(names, published,
+                                                                   sim.world_frame))
+        outputs = messages.build_outputs(step, sim.world_frame, per_body=False,
+                                         marker_lifetime=node.marker_lifetime,
+                                         diagnostics=diagnostics.update(step, resolver),
+                                         markers=markers)
+        state_msg = messages.body_state_array(names, published, stamp, sim.world_frame)
+        sink(stamp, [(STATES, state_msg)] + outputs)
+        if contacts is not None:
+            count_states(contacts, step.report.state)
+        return step.names, step.states
+
+    steps, _ = run_loop(sim, exchange, on_step)
+    return steps
+
+
+def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bool = False,
+                topics: Sequence[str] | None = None, compress: bool = False) -> OfflineSummary:
+    """Step the scene in-process and record input and outputs to a new bag.
+
+    ``progress``: a progress line on stderr, when stdout and stderr are terminals.
+    Topics are recorded in the scene's namespace (``sim.namespace``).
+    ``topics``: record only these (relative names; default: all). ``compress``:
+    zstd mcap chunks.
+    """
+    from collres_ros.ros import qos
+    from collres_ros.ros.bag import BagWriter, describe
+    from collres_ros.ros.console import progress_printer
+    contacts: dict[str, int] = {}
+    start = time.perf_counter()
+
+    show = progress_printer('collres_sim') if progress else None   # on a terminal only
+    depth = sim.scene.node.queue_depth
+    with BagWriter(record, storage, compress, qos=lambda topic: [qos.offered(topic, depth)],
+                   custom_data=describe(sim.scene)) as writer:
+        def sink(stamp: int, outputs: list[tuple[str, Any]]) -> None:
+            for topic, msg in outputs:
+                if topics is None or topic in topics:
+                    writer.write(absolute(topic, sim.namespace), stamp, msg)
+
+        steps = run_core(sim, sink, show,
+                         markers=topics is None or 'contact_markers' in topics,
+                         contacts=contacts)
+        messages = writer.count
+    return OfflineSummary(steps, messages, contacts, time.perf_counter() - start)
+
+
+# --- a recorded bag, replayed -----------------------------------------------------------------
+
+@dataclass
+class Step:
+    """One resolution step read from the input bag."""
+
+    stamp: int          # ns, header stamp of the inputs
+    log_time: int       # ns, receive time of the message that completed the step
+    inputs: list[Any]   # BodyInput list for Resolver.resolve
+    per_body: bool      # True when it came from per-body topics
+
+
+@dataclass
+class ReplaySummary:
+    steps: int = 0
+    messages_in: int = 0
+    messages_out: int = 0
+    contacts: dict[str, int] = field(default_factory=dict)
+    rejected: dict[str, int] = field(default_factory=dict)
+    incomplete: int = 0     # per-body stamps that never got every body
+    wall_s: float = 0.0
+
+    def lines(self) -> list[str]:
+        rate = self.steps / self.wall_s if self.wall_s > 0 else float('inf')
+        msg_rate = (self.messages_in + self.messages_out) / self.wall_s \
+            if self.wall_s > 0 else float('inf')
+        contacts = ', '.join(f'{k} {self.contacts.get(k, 0)}' for k in STATE_NAMES.values())
+        rejected = ', '.join(f'{k} {v}' for k, v in sorted(self.rejected.items())) or 'none'
+        out = [f'steps: {self.steps} ({rate:.0f} steps/s, {msg_rate:.0f} messages/s, '
+               f'{self.wall_s:.2f} s)',
+               f'messages: {self.messages_in} read, {self.messages_out} written',
+               f'contacts: {contacts}',
+               f'rejected inputs: {rejected}']
+        if self.incomplete:
+            out.append(f'incomplete per-body stamps skipped: {self.incomplete}')
+        return out
+
+
+class BatchedSource:
+    """One step per body_states message."""
+
+    def __init__(self, topic: str) -> None:
+        self.topic = topic
+        self.incomplete = 0
+
+    def steps(self, reader: Any) -> Iterator[Step]:
+        from rclpy.serialization import deserialize_message
+
+        from collres_ros.msg import BodyStateArray
+        from collres_ros.ros import messages
+        from collres_ros.ros.codec import decode_body_state_array
+        for _, _, log_time, data in reader.raw([self.topic]):
+            try:
+                decoded = decode_body_state_array(data)
+            except (struct.error, UnicodeDecodeError):
+                decoded = None
+            if decoded is None:
+                msg = deserialize_message(data, BodyStateArray)
+                decoded = stamp_ns(msg.header.stamp), messages.inputs_from_array(msg)
+            yield Step(decoded[0], log_time, decoded[1], False)
+
+
+def read_steps(reader: Any, scene: Any, namespace: str) -> tuple[Any, int]:
+    """Return a step source (``.steps(reader)``, ``.incomplete``) and the step count.
+
+    Batched if the bag has body_states, else per body.
+
+    ReplayError when the bag has none of the input topics.
+    """
+    topics = reader.topics
+    batched = absolute(STATES, namespace)
+    if batched in topics:
+        return BatchedSource(batched), reader.topic_count(batched)
+    wanted = {}
+    for body in scene.bodies:
+        for kind in ('pose', 'twist'):
+            name = absolute(f'bodies/{body.name}/{kind}', namespace)
+            if name in topics:
+                wanted[name] = (body.name, kind)
+    if not wanted:
+        raise ReplayError(f'no input topics in {reader.path}: expected {batched} or '
+                          f'{absolute("bodies/<name>/pose", namespace)} and .../twist '
+                          f'(found: {", ".join(sorted(topics)) or "none"})')
+    grouper = PerBodyGrouper(wanted, scene)
+    return grouper, min(reader.topic_count(t) for t in wanted)
+
+
+class PerBodyGrouper:
+    """Per-body pose/twist messages grouped into steps by the node's own ``StampSync``.
+
+    Same rules as collres_node: a step once every (non-stale) dynamic body
+    has a pose and a twist for the stamp (within ``sync_slop``); static bodies
+    join with their pose (twist optional); groups overtaken by a newer
+    complete one are dropped and counted in ``incomplete``.
+    """
+
+    def __init__(self, wanted: dict[str, tuple[str, str]], scene: Any) -> None:
+        from collres_ros.ros.sync import StampSync
+        self.wanted = wanted
+        self.dynamic = [b.name for b in scene.bodies if not b.static]
+        node = scene.node
+        self.sync = StampSync(self.dynamic, [b.name for b in scene.bodies if b.static],
+                              seconds_ns(node.sync_slop), seconds_ns(node.stale_timeout))
+        self.incomplete = 0
+
+    @property
+    def sync_dropped(self) -> int:
+        return int(self.sync.dropped)
+
+    def steps(self, reader: Any) -> Iterator[Step]:
+        from collres_ros.ros import messages
+        for m in reader.messages(list(self.wanted)):
+            name, kind = self.wanted[m.topic]
+            for group in self.sync.add(name, kind, stamp_ns(m.msg.header.stamp), m.msg):
+                yield Step(group.stamp_ns, m.log_time,
+                           messages.inputs_from_group(group.parts, self.dynamic), True)
+        self.incomplete = self.sync.dropped + len(self.sync.pending)
+
+
+def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None = None,
+           namespace: str = '/', progress: Callable[[int, int], None] | None = None,
+           topics: Sequence[str] | None = None, compress: bool = False) -> ReplaySummary:
+    """Replay ``in_bag`` into a new ``out_bag``; ReplayError/BagError/ValueError on bad input.
+
+    ``params``: the scene's params file; None: the params recorded in the bag
+    (custom_data ``collres_ros.params``, written by collres_sim, collres_replay
+    and collres_demo).
+
+    ``topics``: write only these output topics (relative names; default all).
+    ``compress``: zstd mcap chunks (see ``BagWriter``).
+    """
+    from collres_ros.ros import messages, qos
+    from collres_ros.ros.bag import STORAGES, BagReader, BagWriter, describe
+    from collres_ros.core.pipeline import Resolver
+
+    if storage is not None and storage not in STORAGES:
+        raise ReplayError(f'unknown storage {storage!r} (supported: {", ".join(STORAGES)})')
+    if params is not None and not params.is_file():
+        raise ReplayError(f'params file not found: {params}')
+    summary = ReplaySummary()
+    start = time.perf_counter()
+    with BagReader(in_bag) as reader:
+        scene = _scene(params, reader, namespace)
+        if out_bag.exists():
+            raise ReplayError(f'output bag already exists: {out_bag}')
+        source, total = read_steps(reader, scene, namespace)
+        resolver = Resolver(scene)
+        diagnostics = OfflineDiagnostics(scene.node.diagnostics_period)
+        depth = scene.node.queue_depth
+        with BagWriter(out_bag, storage or reader.storage, compress,
+                       qos=lambda topic: [qos.offered(topic, depth)],
+                       custom_data=describe(scene)) as writer:
+            for step in source.steps(reader):
+                resolved = resolver.resolve(step.stamp, step.inputs)
+                outputs = messages.build_outputs(
+                    resolved, scene.world_frame,
+                    per_body=step.per_body and scene.node.per_body_outputs,
+                    marker_lifetime=scene.node.marker_lifetime,
+                    diagnostics=diagnostics.update(resolved, resolver,
+                                                   getattr(source, 'sync_dropped', 0)),
+                    markers=topics is None or 'contact_markers' in topics)
+                for topic, msg in outputs:
+                    if topics is None or topic in topics:
+                        writer.write(absolute(topic, namespace), step.log_time, msg)
+                count_states(summary.contacts, resolved.report.state)
+                for rejection in _rejections(resolved):
+                    summary.rejected[rejection.reason] = \
+                        summary.rejected.get(rejection.reason, 0) + 1
+                summary.messages_in += len(step.inputs) * 2 if step.per_body else 1
+                summary.steps += 1
+                if progress is not None:
+                    progress(summary.steps, total)
+            summary.messages_out = writer.count
+        summary.incomplete = source.incomplete
+    summary.wall_s = time.perf_counter() - start
+    return summary
+
+
+def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
+    """The scene of ``params``, or else the params recorded in the bag's custom_data."""
+    import tempfile
+
+    from collres_ros.ros import params as params_module
+    from collres_ros.ros.bag import PARAMS_KEY
+    if params is not None:
+        return params_module.load_scene(params, namespace)
+    text = reader.custom_data.get(PARAMS_KEY)
+    if not text:
+        raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '
+                          'give --params FILE')
+    with tempfile.TemporaryDirectory(prefix='collres_replay-') as scratch:
+        path = Path(scratch) / 'params.yaml'
+        path.write_text(text)
+        return params_module.load_scene(path, namespace)
+
+
+def _rejections(resolved: Any) -> list[Any]:
+    for name in ('rejected', 'rejections'):
+        value = getattr(resolved, name, None)
+        if value is not None:
+            return list(value)
+    return []

@@ -189,16 +189,8 @@ class RunReport:
 def _pair_restitution(ball: BodySpec, other: BodySpec | None, rule: str) -> float:
     if other is None:
         return ball.restitution
-    try:
-        from collres_ros.core.combine import combine_restitution
-        return float(combine_restitution(np.array([ball.restitution]),
-                                         np.array([other.restitution]), rule)[0])
-    except Exception:
-        pairs = {'average': 0.5 * (ball.restitution + other.restitution),
-                 'min': min(ball.restitution, other.restitution),
-                 'max': max(ball.restitution, other.restitution),
-                 'multiply': ball.restitution * other.restitution}
-        return pairs.get(rule, ball.restitution)
+    from collres_ros.core.world import combine
+    return float(combine(np.array([ball.restitution]), np.array([other.restitution]), rule)[0])
 
 
 def _stamp(msg: Any) -> int:

@@ -32,7 +32,7 @@ enum class CombineRule : int {
   kMax = 2,
   kMultiply = 3,   // a b
   kGeometric = 4,  // sqrt(a b), as Box2D and Jolt combine friction
-  kPerObject = 5,  // restitution only: A's impulse uses e_A, B's uses e_B (the lecture's;
+  kPerObject = 5,  // restitution only: A's impulse uses e_A, B's uses e_B (textbook;
                    // momentum is NOT conserved when e_A != e_B)
 };
 

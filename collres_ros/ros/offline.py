@@ -14,7 +14,6 @@ Deterministic: the same input gives the same output messages.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections import Counter
 from dataclasses import dataclass, field

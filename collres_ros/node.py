@@ -31,7 +31,9 @@ counted), and every output is published as bytes built by
 QoS: states, contacts and markers are reliable, volatile, keep-last with
 depth ``queue_depth`` (10): a control loop wants every step delivered in
 order but never a backlog of old states. ``/diagnostics`` is reliable,
-depth 10 (as diagnostic_updater).
+depth 10 (as diagnostic_updater). Every publisher and subscription takes
+rclpy's QoS overrides from the parameters (``qos_overrides./<topic>.
+{publisher,subscription}.{history,depth,reliability,durability}``, ``ros/qos.py``).
 
 Bad input never stops the node: it is refused per body (``core/validation``),
 logged at most once a second per reason, counted in ``/diagnostics``; the
@@ -51,7 +53,7 @@ from typing import Any, Optional, Sequence
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, TwistStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import (
     FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
     SetParametersResult)
@@ -59,14 +61,13 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from visualization_msgs.msg import MarkerArray
 
 from collres_ros.core.config import ParamSpec, range_text
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
-from collres_ros.ros import cli, codec, messages, names, params
+from collres_ros.ros import cli, codec, messages, names, params, qos
 from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
 from collres_ros.ros.stamps import seconds_ns
 from collres_ros.ros.sync import StampSync
@@ -75,7 +76,8 @@ NAME = 'collres_node'
 CLASSES = {messages.TYPES[names.CORRECTED_STATES]: BodyStateArray,
            messages.TYPES[names.CONTACTS]: ContactArray,
            messages.TYPES[names.MARKERS]: MarkerArray,
-           messages.POSE_TYPE: PoseStamped, messages.TWIST_TYPE: TwistStamped}
+           messages.POSE_TYPE: PoseStamped, messages.TWIST_TYPE: TwistStamped,
+           messages.WRENCH_TYPE: WrenchStamped}
 # The parts of a callback timed for /diagnostics (time.<part>_ms, means over the period):
 # decode (CDR -> arrays), resolve (Resolver.resolve), world (World.step alone, inside
 # resolve), encode (every output to CDR), publish.
@@ -153,23 +155,23 @@ class CollresNode(Node):
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]
         self.sync = StampSync(self.dynamic, statics, seconds_ns(self.scene.node.sync_slop),
                               seconds_ns(self.scene.node.stale_timeout))
-        depth = self.scene.node.queue_depth
-        self.qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE,
-                              history=HistoryPolicy.KEEP_LAST, depth=depth)
         self._publishers_by_topic: dict[str, Any] = {}
         for topic, kind in ((names.CORRECTED_STATES, BodyStateArray),
                             (names.CONTACTS, ContactArray),
                             (names.MARKERS, MarkerArray)):
             self._publisher(topic, kind)
-        self._diagnostics = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS, 10)
-        self.create_subscription(BodyStateArray, names.STATES, self._on_states, self.qos,
-                                 raw=True)
+        self._diagnostics = self.create_publisher(
+            DiagnosticArray, names.DIAGNOSTICS, qos.state_qos(qos.DIAGNOSTICS_DEPTH),
+            qos_overriding_options=qos.OVERRIDES)
+        self.create_subscription(BodyStateArray, names.STATES, self._on_states, self._qos(),
+                                 raw=True, qos_overriding_options=qos.OVERRIDES)
         for name in body_names:
             self.create_subscription(PoseStamped, names.pose_topic(name),
-                                     partial(self._on_part, name, 'pose'), self.qos, raw=True)
+                                     partial(self._on_part, name, 'pose'), self._qos(),
+                                     raw=True, qos_overriding_options=qos.OVERRIDES)
             self.create_subscription(TwistStamped, names.twist_topic(name),
-                                     partial(self._on_part, name, 'twist'), self.qos, raw=True)
+                                     partial(self._on_part, name, 'twist'), self._qos(),
+                                     raw=True, qos_overriding_options=qos.OVERRIDES)
         self._pending: Optional[params.Scene] = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
@@ -193,7 +195,8 @@ class CollresNode(Node):
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         changes = {p.name: _plain(p.value) for p in parameters
-                   if p.name not in params.ROS_BUILTIN}
+                   if p.name not in params.ROS_BUILTIN
+                   and not p.name.startswith(qos.OVERRIDE_PREFIX)}
         if not changes:
             return SetParametersResult(successful=True)
         try:
@@ -261,7 +264,8 @@ class CollresNode(Node):
         resolved = time.perf_counter()
         markers = self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0
         outputs = self.encoder.encode(step, per_body and self.scene.node.per_body_outputs,
-                                      self.scene.node.marker_lifetime, markers=markers)
+                                      self.scene.node.marker_lifetime, markers=markers,
+                                      wrenches=self.scene.node.contact_wrench)
         encoded = time.perf_counter()
         for topic, kind, data in outputs:
             self._publisher(topic, CLASSES[kind]).publish(data)
@@ -283,9 +287,14 @@ class CollresNode(Node):
     def _publisher(self, topic: str, kind: type) -> Any:
         publisher = self._publishers_by_topic.get(topic)
         if publisher is None:
-            publisher = self.create_publisher(kind, topic, self.qos)
+            publisher = self.create_publisher(kind, topic, self._qos(),
+                                              qos_overriding_options=qos.OVERRIDES)
             self._publishers_by_topic[topic] = publisher
         return publisher
+
+    def _qos(self) -> Any:
+        """A new profile of the state topics (rclpy writes an entity's overrides into it)."""
+        return qos.state_qos(self.scene.node.queue_depth)
 
     def _warn(self, reason: str, detail: str) -> None:
         """At most one warning per reason per LOG_PERIOD, with the count of the others."""

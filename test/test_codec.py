@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 pytest.importorskip('rclpy')
 
-from geometry_msgs.msg import PoseStamped, TwistStamped  # noqa: E402
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
@@ -117,6 +117,27 @@ def test_pose_and_twist_stamped_both_ways(stamp: int, frame: str, v: list) -> No
         ours = encode(stamp, frame, v[n])
         assert ours == zero_filled(theirs, f'geometry_msgs/msg/{kind}')
         assert codec.encode_stamped(stamp, frame, np.array([v[n]]))[0] == ours
+
+
+@SETTINGS
+@given(STAMPS, NAMES, st.lists(st.lists(FLOATS, min_size=6, max_size=6), max_size=4))
+def test_wrench_stamped_encodes_as_rclpy(stamp: int, frame: str, rows: list) -> None:
+    values = np.array(rows, float).reshape(len(rows), 6)
+    batch = codec.encode_stamped(stamp, frame, values)
+    assert len(batch) == len(rows)
+    for v, ours in zip(rows, batch):
+        msg = WrenchStamped()
+        msg.header.stamp, msg.header.frame_id = stamp_of(stamp), frame
+        f, t = msg.wrench.force, msg.wrench.torque
+        f.x, f.y, f.z, t.x, t.y, t.z = v
+        theirs = bytes(serialize_message(msg))
+        assert ours == zero_filled(theirs, 'geometry_msgs/msg/WrenchStamped')
+        assert codec.encode_wrench(stamp, frame, v) == ours
+        back = deserialize_message(ours, WrenchStamped)
+        assert back.header.frame_id == frame
+        got = (back.wrench.force.x, back.wrench.force.y, back.wrench.force.z,
+               back.wrench.torque.x, back.wrench.torque.y, back.wrench.torque.z)
+        assert np.array_equal(bits(got), bits(v))
 
 
 @st.composite

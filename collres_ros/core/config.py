@@ -231,6 +231,10 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
               0.0, 100000.0, unit='Hz',
               reason='the source\'s rate is the user\'s to state, as diagnostic_updater\'s '
                      'FrequencyStatus min_freq'),
+    ParamSpec('contact_wrench', 'bool', False,
+              'Publish bodies/<name>/contact_wrench (WrenchStamped, world frame) every step: '
+              'the net contact force (sum of impulses / dt) and torque about the centre of mass',
+              reason='one message per body per step: opt-in, for users of contact forces'),
 )
 
 
@@ -245,6 +249,7 @@ class NodeSettings:
     per_body_outputs: bool = True
     queue_depth: int = 10
     min_rate: float = 0.0
+    contact_wrench: bool = False
 
 
 # Simulator settings: the parameters of collres_sim (its own section).

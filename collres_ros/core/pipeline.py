@@ -60,6 +60,9 @@ class ResolvedStep:
     dt: float = 0.0                   # s, step length used (FRESH_DT on a fresh start)
     step_time_s: float = 0.0          # wall time of resolve() (not deterministic)
     world_time_s: float = 0.0         # wall time of World.step alone (not deterministic)
+    # (N, 7) every body's pose after the step (scene order, world frame): position of the
+    # centre of mass (m), orientation x, y, z, w; static and held bodies included
+    poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
 
     def contact_names(self, k: int) -> tuple[str, str]:
         """Body names (A, B) of contact ``k``."""
@@ -216,7 +219,8 @@ class Resolver:
         return ResolvedStep(stamp_ns, names, index, states, checked.twist_in_body[use],
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)], dt,
-                            time.perf_counter() - start, world_time)
+                            time.perf_counter() - start, world_time,
+                            np.concatenate([self.state.position, self.state.orientation], 1))
 
     def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
         resets = []

@@ -9,8 +9,8 @@ count, then its elements. Nothing follows the last field.
 
 Decode: ``BodyStateArray`` (``StatesCodec``), ``PoseStamped`` and
 ``TwistStamped`` (``decode_pose``, ``decode_twist``). Encode: ``BodyStateArray``,
-``PoseStamped``, ``TwistStamped``, ``ContactArray`` and ``MarkerArray``
-(``encode_*``). Every decode checks the size of what it is about to read
+``PoseStamped``, ``TwistStamped``, ``WrenchStamped``, ``ContactArray`` and
+``MarkerArray`` (``encode_*``). Every decode checks the size of what it is about to read
 before it reads it (a message announcing more bodies than the scene has is
 refused at once) and refuses negative stamps and ``nanosec >= 1e9``:
 ``DecodeError`` with a reason key and one line.
@@ -400,8 +400,9 @@ def _stamped_prefix(stamp_ns: int, frame_id: str) -> bytes:
 
 
 def encode_stamped(stamp_ns: int, frame_id: str, values: np.ndarray) -> list[bytes]:
-    """Serialised PoseStamped (values (K, 7)) or TwistStamped ((K, 6)) messages, one per row,
-    all with the header (stamp_ns, frame_id)."""
+    """Serialised PoseStamped (values (K, 7)), TwistStamped or WrenchStamped ((K, 6): linear,
+    angular or force, torque) messages, one per row, all with the header (stamp_ns,
+    frame_id): a header, then doubles aligned to 8."""
     prefix = _stamped_prefix(stamp_ns, frame_id)
     rows = np.ascontiguousarray(values, '<f8')
     flat = rows.tobytes()
@@ -416,6 +417,11 @@ def encode_pose(stamp_ns: int, frame_id: str, values: Sequence[float]) -> bytes:
 
 def encode_twist(stamp_ns: int, frame_id: str, values: Sequence[float]) -> bytes:
     """Serialised geometry_msgs/TwistStamped: linear, angular."""
+    return _stamped_prefix(stamp_ns, frame_id) + _TWIST.pack(*values)
+
+
+def encode_wrench(stamp_ns: int, frame_id: str, values: Sequence[float]) -> bytes:
+    """Serialised geometry_msgs/WrenchStamped: force (N), torque (N m)."""
     return _stamped_prefix(stamp_ns, frame_id) + _TWIST.pack(*values)
 
 

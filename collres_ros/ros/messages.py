@@ -26,12 +26,14 @@ from rclpy.serialization import deserialize_message, serialize_message
 from collres_ros.core.pipeline import ResolvedStep
 from collres_ros.core.rotation import to_matrix
 from collres_ros.core.types import BodyInput, BodyStates, InputBatch
+from collres_ros.core.wrench import contact_wrenches
 from collres_ros.msg import BodyStateArray
 from collres_ros.ros import codec
 from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
 from collres_ros.ros.markers import contact_marker_specs
 from collres_ros.ros.names import (  # noqa: F401 (the topic names, re-exported)
-    CONTACTS, CORRECTED_STATES, DIAGNOSTICS, MARKERS, STATES, pose_topic, twist_topic)
+    CONTACTS, CORRECTED_STATES, DIAGNOSTICS, MARKERS, STATES, pose_topic, twist_topic,
+    wrench_topic)
 from collres_ros.ros.stamps import stamp_ns, to_stamp  # noqa: F401 (re-exported)
 
 __all__ = ['DiagnosticsSnapshot', 'diagnostics_array', 'stamp_ns', 'to_stamp']
@@ -122,6 +124,7 @@ TYPES = {
     MARKERS: 'visualization_msgs/msg/MarkerArray',
     DIAGNOSTICS: 'diagnostic_msgs/msg/DiagnosticArray'}
 POSE_TYPE, TWIST_TYPE = 'geometry_msgs/msg/PoseStamped', 'geometry_msgs/msg/TwistStamped'
+WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 
 
 class OutputEncoder:
@@ -170,6 +173,14 @@ class OutputEncoder:
                                      c.body_b, c.point, c.normal, c.depth, step.toi_ns,
                                      r.normal_impulse, r.friction_impulse, r.state)
 
+    def wrenches(self, step: ResolvedStep) -> list[tuple[str, str, bytes]]:
+        """bodies/<name>/contact_wrench of every body of the scene (zero without contacts):
+        net contact force and torque about the centre of mass, world frame
+        (``core/wrench.py``)."""
+        values = contact_wrenches(step.report, step.poses[:, 0:3], step.dt)
+        data = codec.encode_stamped(step.stamp_ns, self.world_frame, values)
+        return [(wrench_topic(name), WRENCH_TYPE, d) for name, d in zip(self.body_names, data)]
+
     def markers(self, step: ResolvedStep, lifetime: float) -> bytes:
         """contact_markers (markers.py)."""
         return codec.encode_markers(step.stamp_ns, self.world_frame,
@@ -177,13 +188,16 @@ class OutputEncoder:
 
     def encode(self, step: ResolvedStep, per_body: bool = False, marker_lifetime: float = 0.5,
                diagnostics: Optional[DiagnosticsSnapshot] = None,
-               markers: bool = True) -> list[tuple[str, str, bytes]]:
+               markers: bool = True, wrenches: bool = False) -> list[tuple[str, str, bytes]]:
         """Every output of one step. Order: body_states/corrected, [per-body pose/twist
-        corrected], contacts, [contact_markers], [/diagnostics when a snapshot is given]."""
+        corrected], contacts, [per-body contact_wrench], [contact_markers], [/diagnostics
+        when a snapshot is given]."""
         out = [(CORRECTED_STATES, TYPES[CORRECTED_STATES], self.corrected(step))]
         if per_body:
             out += self.per_body(step)
         out.append((CONTACTS, TYPES[CONTACTS], self.contacts(step)))
+        if wrenches:
+            out += self.wrenches(step)
         if markers:
             out.append((MARKERS, TYPES[MARKERS], self.markers(step, marker_lifetime)))
         if diagnostics is not None:
@@ -198,7 +212,7 @@ _ENCODERS: dict[tuple[tuple[str, ...], str], OutputEncoder] = {}
 def build_outputs(step: ResolvedStep, world_frame: str, per_body: bool = False,
                   marker_lifetime: float = 0.5,
                   diagnostics: Optional[DiagnosticsSnapshot] = None,
-                  markers: bool = True) -> list[tuple[str, Any]]:
+                  markers: bool = True, wrenches: bool = False) -> list[tuple[str, Any]]:
     """``OutputEncoder.encode`` as rclpy message objects: [(topic, message), ...]."""
     key = (tuple(step.body_names), world_frame)
     encoder = _ENCODERS.get(key)
@@ -209,7 +223,7 @@ def build_outputs(step: ResolvedStep, world_frame: str, per_body: bool = False,
     from collres_ros.ros.bag import message_class
     return [(topic, deserialize_message(data, message_class(kind)))
             for topic, kind, data in encoder.encode(step, per_body, marker_lifetime,
-                                                    diagnostics, markers)]
+                                                    diagnostics, markers, wrenches)]
 
 
 def batch_from_group(parts: Mapping[str, Mapping[str, codec.Stamped]],

@@ -28,6 +28,11 @@ def twist_topic(name: str, corrected: bool = False) -> str:
     return f'bodies/{name}/twist' + ('/corrected' if corrected else '')
 
 
+def wrench_topic(name: str) -> str:
+    """``bodies/<name>/contact_wrench`` (output, WrenchStamped)."""
+    return f'bodies/{name}/contact_wrench'
+
+
 def absolute(topic: str, namespace: str = '/') -> str:
     """Absolute name of a relative topic in ``namespace`` ('/' or '/robot'), as bags name it."""
     if topic.startswith('/'):

@@ -76,7 +76,7 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
                                                   sim.world_frame))
         outputs = encoder.encode(step, per_body=False, marker_lifetime=node.marker_lifetime,
                                  diagnostics=diagnostics.update(step, resolver),
-                                 markers=markers)
+                                 markers=markers, wrenches=node.contact_wrench)
         state = encoder.states.encode(stamp, sim.world_frame, names, values)
         sink(stamp, [(STATES, messages.TYPES[STATES], state)] + outputs)
         if contacts is not None:
@@ -284,7 +284,8 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
                     marker_lifetime=scene.node.marker_lifetime,
                     diagnostics=diagnostics.update(resolved, resolver,
                                                    getattr(source, 'sync_dropped', 0)),
-                    markers=topics is None or 'contact_markers' in topics)
+                    markers=topics is None or 'contact_markers' in topics,
+                    wrenches=scene.node.contact_wrench)
                 for topic, kind, data in outputs:
                     if topics is None or topic in topics:
                         writer.write_raw(absolute(topic, namespace), kind, step.log_time, data)

@@ -6,6 +6,14 @@ States, contacts and markers: reliable, volatile, keep last ``queue_depth``
 The simulator's ``body_states`` and per-body inputs: reliable, volatile, keep
 last 10.
 
+Every publisher and subscription of collres_node accepts rclpy's QoS
+overrides (``OVERRIDES``: history, depth, reliability, durability), read once
+at start from parameters such as
+``qos_overrides./body_states.subscription.reliability: best_effort`` (the
+topic's absolute name; read-only afterwards, as in every rclpy node). Each
+entity gets a profile of its own (``state_qos`` builds a new one), because
+rclpy writes the overrides into the profile it is given.
+
 Bags record these in ``metadata.yaml`` as ``offered_qos_profiles`` (the list
 rosbag2 Jazzy writes, metadata version 9), so ``ros2 bag play`` offers what the
 node offered instead of guessing. Unspecified durations (0) are written as
@@ -17,11 +25,19 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 from rclpy.qos import (
-    DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy)
+    DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPolicyKind, QoSProfile,
+    ReliabilityPolicy)
+from rclpy.qos_overriding_options import QoSOverridingOptions
 
 DIAGNOSTICS_DEPTH = 10   # diagnostic_updater's depth
 SIM_DEPTH = 10           # depth of collres_sim's publishers
 INFINITE_NS = 2**63 - 1  # RMW_DURATION_INFINITE: 9223372036 s 854775807 ns
+# The policies a params file may override on every topic of collres_node (rclpy's
+# with_default_policies() plus durability: a late viewer may want transient_local markers).
+OVERRIDABLE = (QoSPolicyKind.HISTORY, QoSPolicyKind.DEPTH, QoSPolicyKind.RELIABILITY,
+               QoSPolicyKind.DURABILITY)
+OVERRIDES = QoSOverridingOptions(OVERRIDABLE)
+OVERRIDE_PREFIX = 'qos_overrides.'
 
 
 def state_qos(depth: int) -> QoSProfile:

@@ -109,6 +109,7 @@ def test_the_node_publishes_the_wrench_over_dds(ros_domain, tmp_path: Path) -> N
         peer.listen('body_states/corrected', BodyStateArray)
         peer.listen('bodies/box/contact_wrench', WrenchStamped)
         peer.advertise('body_states', BodyStateArray)
+
         def publishing(topic):
             return any(s.get_publisher_count() for s in peer.node.subscriptions
                        if s.topic_name == topic)

@@ -16,8 +16,10 @@ Topics (relative names): in ``body_states`` (BodyStateArray, one step per
 message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
 every non-stale dynamic body has both for one stamp, see ``sync.py``); out
 ``body_states/corrected``, ``bodies/<name>/{pose,twist}/corrected`` (for
-per-body steps), ``contacts``, ``contact_markers`` (built only while someone
-subscribes), ``/diagnostics``.
+per-body steps), ``contacts``, ``contact_markers`` and ``body_markers`` (built
+only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
+``contact_wrench``), ``/tf`` (with ``publish_tf``, where tf2_msgs is installed),
+``/diagnostics``.
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
 ``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
@@ -78,6 +80,11 @@ CLASSES = {messages.TYPES[names.CORRECTED_STATES]: BodyStateArray,
            messages.TYPES[names.MARKERS]: MarkerArray,
            messages.POSE_TYPE: PoseStamped, messages.TWIST_TYPE: TwistStamped,
            messages.WRENCH_TYPE: WrenchStamped}
+try:   # /tf where tf2_msgs is installed (a ROS install; it is not on PyPI)
+    from tf2_msgs.msg import TFMessage
+    CLASSES[messages.TYPES[names.TF]] = TFMessage
+except ImportError:
+    pass
 # The parts of a callback timed for /diagnostics (time.<part>_ms, means over the period):
 # decode (CDR -> arrays), resolve (Resolver.resolve), world (World.step alone, inside
 # resolve), encode (every output to CDR), publish.
@@ -145,11 +152,28 @@ class CollresNode(Node):
         overrides = {name: _plain(p.value) for name, p in self._parameter_overrides.items()}
         self.scene = params.scene_from_values(overrides, base_dir)   # ValueError: one line
         self._declare_parameters()
+        self._pending: Optional[params.Scene] = None
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._last_log: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+        self.configured = False   # resolver, topics and timer exist (always, unless managed)
+        self.serving = False      # inputs are resolved and answered (managed: while active)
+        if not self.MANAGED:
+            self.configure_resolution()
+            self.serving = True
+
+    MANAGED = False   # ros/lifecycle.py: configure/activate through the lifecycle services
+
+    def configure_resolution(self) -> None:
+        """Create the resolver, the codecs, every topic and the diagnostics timer."""
         self.resolver = Resolver(self.scene)
         body_names = self.scene.names
         # the edge: CDR bytes in and out, decoded into and encoded from the core's arrays
         self.states_codec = codec.StatesCodec(max_bodies=len(body_names))
-        self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame)
+        self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame,
+                                              self.scene.bodies)
         self.refused: Counter[str] = Counter()   # inputs refused before the resolver
         statics = [b.name for b in self.scene.bodies if b.static]
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]
@@ -158,32 +182,42 @@ class CollresNode(Node):
         self._publishers_by_topic: dict[str, Any] = {}
         for topic, kind in ((names.CORRECTED_STATES, BodyStateArray),
                             (names.CONTACTS, ContactArray),
-                            (names.MARKERS, MarkerArray)):
+                            (names.MARKERS, MarkerArray),
+                            (names.BODY_MARKERS, MarkerArray)):
             self._publisher(topic, kind)
         self._diagnostics = self.create_publisher(
             DiagnosticArray, names.DIAGNOSTICS, qos.state_qos(qos.DIAGNOSTICS_DEPTH),
             qos_overriding_options=qos.OVERRIDES)
-        self.create_subscription(BodyStateArray, names.STATES, self._on_states, self._qos(),
-                                 raw=True, qos_overriding_options=qos.OVERRIDES)
+        self._inputs = [self.create_subscription(
+            BodyStateArray, names.STATES, self._on_states, self._qos(), raw=True,
+            qos_overriding_options=qos.OVERRIDES)]
         for name in body_names:
-            self.create_subscription(PoseStamped, names.pose_topic(name),
-                                     partial(self._on_part, name, 'pose'), self._qos(),
-                                     raw=True, qos_overriding_options=qos.OVERRIDES)
-            self.create_subscription(TwistStamped, names.twist_topic(name),
-                                     partial(self._on_part, name, 'twist'), self._qos(),
-                                     raw=True, qos_overriding_options=qos.OVERRIDES)
-        self._pending: Optional[params.Scene] = None
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.add_post_set_parameters_callback(self._after_set_parameters)
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+            self._inputs.append(self.create_subscription(
+                PoseStamped, names.pose_topic(name), partial(self._on_part, name, 'pose'),
+                self._qos(), raw=True, qos_overriding_options=qos.OVERRIDES))
+            self._inputs.append(self.create_subscription(
+                TwistStamped, names.twist_topic(name), partial(self._on_part, name, 'twist'),
+                self._qos(), raw=True, qos_overriding_options=qos.OVERRIDES))
         self._timer = self._diagnostics_timer()
-        self._last_log: dict[str, float] = {}
-        self._suppressed: dict[str, int] = {}
         self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
+        self.configured = True
+        if self.scene.node.publish_tf and messages.TYPES[names.TF] not in CLASSES:
+            self.get_logger().warning('publish_tf: tf2_msgs is not installed here: no /tf')
         self.get_logger().info(
             f'resolving {len(body_names)} bodies ({", ".join(body_names)}) in frame '
             f'{self.scene.world_frame!r}')
+
+    def release_resolution(self) -> None:
+        """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
+        self.serving = self.configured = False
+        self.destroy_timer(self._timer)
+        for subscription in self._inputs:
+            self.destroy_subscription(subscription)
+        for publisher in [*self._publishers_by_topic.values(), self._diagnostics]:
+            self.destroy_publisher(publisher)
+        self._inputs, self._publishers_by_topic = [], {}
+        del self.resolver, self.sync, self.encoder, self.states_codec
 
     # --- parameters -------------------------------------------------------------------------
 
@@ -210,6 +244,8 @@ class CollresNode(Node):
         if new is None:
             return
         old, self.scene = self.scene, new
+        if not self.configured:   # a managed node applies them when configured
+            return
         if new.solver != old.solver:
             self.resolver.settings = new.solver
         for before, after in zip(old.bodies, new.bodies):
@@ -228,6 +264,8 @@ class CollresNode(Node):
     # --- inputs -----------------------------------------------------------------------------
 
     def _on_states(self, data: bytes) -> None:
+        if not self.serving:
+            return
         start = time.perf_counter()
         try:
             decoded = self.states_codec.decode(data)
@@ -238,6 +276,8 @@ class CollresNode(Node):
         self._step(decoded.stamp_ns, batch, False, start)
 
     def _on_part(self, name: str, kind: str, data: bytes) -> None:
+        if not self.serving:
+            return
         start = time.perf_counter()
         try:
             part = codec.decode_pose(data) if kind == 'pose' else codec.decode_twist(data)
@@ -263,9 +303,13 @@ class CollresNode(Node):
         step = self.resolver.resolve(stamp, batch)
         resolved = time.perf_counter()
         markers = self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0
-        outputs = self.encoder.encode(step, per_body and self.scene.node.per_body_outputs,
-                                      self.scene.node.marker_lifetime, markers=markers,
-                                      wrenches=self.scene.node.contact_wrench)
+        node = self.scene.node
+        bodies = self._publisher(names.BODY_MARKERS, MarkerArray).get_subscription_count() > 0
+        outputs = self.encoder.encode(step, per_body and node.per_body_outputs,
+                                      node.marker_lifetime, markers=markers,
+                                      wrenches=node.contact_wrench,
+                                      body_markers=node.body_markers_period if bodies else None,
+                                      tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES)
         encoded = time.perf_counter()
         for topic, kind, data in outputs:
             self._publisher(topic, CLASSES[kind]).publish(data)
@@ -345,6 +389,8 @@ class CollresNode(Node):
                 **{key: 0.0 for key in TIMED}}
 
     def _publish_diagnostics(self) -> None:
+        if not self.serving:
+            return
         self._diagnostics.publish(diagnostics_array(self.snapshot()))
 
 
@@ -359,23 +405,32 @@ def _check_files(argv: Sequence[str]) -> None:
 
 def _print_help_if_asked(argv: Sequence[str]) -> bool:
     """``collres_node -h|--help`` (before any ``--ros-args``): print usage, True."""
-    own = argv[1:argv.index('--ros-args')] if '--ros-args' in argv else argv[1:]
-    if not {'-h', '--help'} & set(own):
+    if not {'-h', '--help'} & set(_own_args(argv)):
         return False
     import argparse
     parser = argparse.ArgumentParser(
         prog=NAME, formatter_class=argparse.RawDescriptionHelpFormatter,
-        usage=f'{NAME} [-h] [--ros-args --params-file FILE [-p NAME:=VALUE ...]]',
+        usage=f'{NAME} [-h] [--lifecycle] [--ros-args --params-file FILE [-p NAME:=VALUE ...]]',
         description=__doc__, epilog='Parameters: see README.md, or print them with '
-        '`python -m collres_ros.ros.params`.')
+        '`python -m collres_ros.ros.params`. --lifecycle: run as a managed (lifecycle) node, '
+        'unconfigured until its change_state service says otherwise (ros/lifecycle.py).')
     parser.print_help()
     return True
 
 
+def _own_args(argv: Sequence[str]) -> list[str]:
+    """The arguments before ``--ros-args`` (the program name excluded)."""
+    return list(argv[1:argv.index('--ros-args')] if '--ros-args' in argv else argv[1:])
+
+
 def _spin(argv: Sequence[str]) -> int:
     """Create the node in the initialised context and spin it until shutdown."""
+    kind: type = CollresNode
+    if '--lifecycle' in _own_args(argv):
+        from collres_ros.ros.lifecycle import ManagedCollresNode
+        kind = ManagedCollresNode
     try:
-        node = CollresNode(params_file_dir(argv))
+        node = kind(params_file_dir(argv))
     except (ValueError, OSError) as failure:
         return cli.error(failure)
     try:

@@ -235,6 +235,15 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
               'Publish bodies/<name>/contact_wrench (WrenchStamped, world frame) every step: '
               'the net contact force (sum of impulses / dt) and torque about the centre of mass',
               reason='one message per body per step: opt-in, for users of contact forces'),
+    ParamSpec('body_markers_period', 'double', 0.05,
+              'Least stamp interval between two body_markers messages (each body\'s shape at '
+              'its corrected pose; built only while subscribed; 0: every step)',
+              0.0, 60.0, unit='s',
+              reason='20 Hz looks smooth; the triangles of 1000 boxes are 1.3 MB a message'),
+    ParamSpec('publish_tf', 'bool', False,
+              'Publish /tf world_frame -> <body> for every body every step (needs tf2_msgs, '
+              'on a ROS install; without it a warning at start and no /tf)',
+              reason='N transforms per step, and tf2_msgs is not on PyPI: opt-in'),
 )
 
 
@@ -250,6 +259,8 @@ class NodeSettings:
     queue_depth: int = 10
     min_rate: float = 0.0
     contact_wrench: bool = False
+    body_markers_period: float = 0.05
+    publish_tf: bool = False
 
 
 # Simulator settings: the parameters of collres_sim (its own section).

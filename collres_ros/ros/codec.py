@@ -9,8 +9,9 @@ count, then its elements. Nothing follows the last field.
 
 Decode: ``BodyStateArray`` (``StatesCodec``), ``PoseStamped`` and
 ``TwistStamped`` (``decode_pose``, ``decode_twist``). Encode: ``BodyStateArray``,
-``PoseStamped``, ``TwistStamped``, ``WrenchStamped``, ``ContactArray`` and
-``MarkerArray`` (``encode_*``). Every decode checks the size of what it is about to read
+``PoseStamped``, ``TwistStamped``, ``WrenchStamped``, ``ContactArray``,
+``MarkerArray`` and ``tf2_msgs/TFMessage`` (``encode_*``; the last needs no
+tf2_msgs installed). Every decode checks the size of what it is about to read
 before it reads it (a message announcing more bodies than the scene has is
 refused at once) and refuses negative stamps and ``nanosec >= 1e9``:
 ``DecodeError`` with a reason key and one line.
@@ -423,6 +424,28 @@ def encode_twist(stamp_ns: int, frame_id: str, values: Sequence[float]) -> bytes
 def encode_wrench(stamp_ns: int, frame_id: str, values: Sequence[float]) -> bytes:
     """Serialised geometry_msgs/WrenchStamped: force (N), torque (N m)."""
     return _stamped_prefix(stamp_ns, frame_id) + _TWIST.pack(*values)
+
+
+def encode_tf(stamp_ns: int, frame_id: str, children: NamePool, poses: np.ndarray) -> bytes:
+    """Serialised tf2_msgs/TFMessage: ``frame_id`` -> each child of ``children`` at its pose
+    (rows of ``poses`` (N, 7): translation m, rotation x, y, z, w), all at ``stamp_ns``.
+
+    Each TransformStamped: header (stamp, frame_id), child_frame_id, then on 8
+    bytes the 7 doubles; the strings are the pool's, padded as the alignment needs.
+    """
+    poses = np.ascontiguousarray(poses, '<f8').reshape(-1, 7)
+    header = _STAMP.pack(*stamp_parts(stamp_ns)) + string_bytes(frame_id)
+    buf = bytearray(ENCAPSULATION)
+    buf += _U32.pack(len(poses))
+    for k in range(len(poses)):
+        _pad(buf, 4)
+        buf += header
+        _pad(buf, 4)
+        buf += children.pool[children.start[k]:children.start[k] + children.words[k]
+                             ].tobytes()[:int(children.length[k])]
+        _pad(buf, 8)
+        buf += poses[k].tobytes()
+    return bytes(buf)
 
 
 # --- ContactArray -----------------------------------------------------------------------------

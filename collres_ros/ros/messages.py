@@ -25,15 +25,15 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from collres_ros.core.pipeline import ResolvedStep
 from collres_ros.core.rotation import to_matrix
-from collres_ros.core.types import BodyInput, BodyStates, InputBatch
+from collres_ros.core.types import BodyInput, BodySpec, BodyStates, InputBatch
 from collres_ros.core.wrench import contact_wrenches
 from collres_ros.msg import BodyStateArray
 from collres_ros.ros import codec
 from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
 from collres_ros.ros.markers import contact_marker_specs
 from collres_ros.ros.names import (  # noqa: F401 (the topic names, re-exported)
-    CONTACTS, CORRECTED_STATES, DIAGNOSTICS, MARKERS, STATES, pose_topic, twist_topic,
-    wrench_topic)
+    BODY_MARKERS, CONTACTS, CORRECTED_STATES, DIAGNOSTICS, MARKERS, STATES, TF, pose_topic,
+    twist_topic, wrench_topic)
 from collres_ros.ros.stamps import stamp_ns, to_stamp  # noqa: F401 (re-exported)
 
 __all__ = ['DiagnosticsSnapshot', 'diagnostics_array', 'stamp_ns', 'to_stamp']
@@ -122,6 +122,7 @@ TYPES = {
     STATES: 'collres_ros/msg/BodyStateArray', CORRECTED_STATES: 'collres_ros/msg/BodyStateArray',
     CONTACTS: 'collres_ros/msg/ContactArray',
     MARKERS: 'visualization_msgs/msg/MarkerArray',
+    BODY_MARKERS: 'visualization_msgs/msg/MarkerArray', TF: 'tf2_msgs/msg/TFMessage',
     DIAGNOSTICS: 'diagnostic_msgs/msg/DiagnosticArray'}
 POSE_TYPE, TWIST_TYPE = 'geometry_msgs/msg/PoseStamped', 'geometry_msgs/msg/TwistStamped'
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
@@ -132,13 +133,37 @@ class OutputEncoder:
 
     ``body_names``: the scene's N names (contacts index them). Layouts are
     cached here, so keep one encoder per scene (node, replay, offline sim).
+    ``bodies``: the scene's N BodySpecs, for body_markers (None: no body markers).
     """
 
-    def __init__(self, body_names: Sequence[str], world_frame: str) -> None:
+    def __init__(self, body_names: Sequence[str], world_frame: str,
+                 bodies: Optional[Sequence[BodySpec]] = None) -> None:
         self.body_names = tuple(body_names)
         self.world_frame = world_frame
         self.states = codec.StatesCodec()
         self.names = codec.NamePool(self.body_names)
+        self._body_markers: Optional[Any] = None
+        if bodies is not None:
+            from collres_ros.ros.body_markers import BodyMarkers
+            self._body_markers = BodyMarkers(bodies)
+        self._last_body_markers: Optional[int] = None   # stamp (ns) of the last ones
+
+    def body_markers(self, step: ResolvedStep, period: float, lifetime: float
+                     ) -> Optional[bytes]:
+        """body_markers (``body_markers.py``), or None when the last ones are younger than
+        ``period`` s by stamp (a stamp going backwards starts again)."""
+        last, now = self._last_body_markers, step.stamp_ns
+        if self._body_markers is None or (last is not None and 0 <= now - last
+                                          < int(round(period * 1e9))):
+            return None
+        self._last_body_markers = now
+        life = int(round((lifetime + period) * 1e9))
+        return codec.encode_markers(now, self.world_frame,
+                                    self._body_markers.specs(step.poses, life))
+
+    def tf(self, step: ResolvedStep) -> bytes:
+        """/tf: world_frame -> every body at its corrected pose (TFMessage)."""
+        return codec.encode_tf(step.stamp_ns, self.world_frame, self.names, step.poses)
 
     def corrected(self, step: ResolvedStep) -> bytes:
         """body_states/corrected: the accepted bodies, world frame, at the step stamp."""
@@ -188,10 +213,13 @@ class OutputEncoder:
 
     def encode(self, step: ResolvedStep, per_body: bool = False, marker_lifetime: float = 0.5,
                diagnostics: Optional[DiagnosticsSnapshot] = None,
-               markers: bool = True, wrenches: bool = False) -> list[tuple[str, str, bytes]]:
+               markers: bool = True, wrenches: bool = False,
+               body_markers: Optional[float] = None, tf: bool = False
+               ) -> list[tuple[str, str, bytes]]:
         """Every output of one step. Order: body_states/corrected, [per-body pose/twist
-        corrected], contacts, [per-body contact_wrench], [contact_markers], [/diagnostics
-        when a snapshot is given]."""
+        corrected], contacts, [per-body contact_wrench], [contact_markers], [body_markers:
+        when ``body_markers`` is a period (s) and it has passed], [/tf], [/diagnostics when
+        a snapshot is given]."""
         out = [(CORRECTED_STATES, TYPES[CORRECTED_STATES], self.corrected(step))]
         if per_body:
             out += self.per_body(step)
@@ -200,6 +228,12 @@ class OutputEncoder:
             out += self.wrenches(step)
         if markers:
             out.append((MARKERS, TYPES[MARKERS], self.markers(step, marker_lifetime)))
+        if body_markers is not None:
+            data = self.body_markers(step, body_markers, marker_lifetime)
+            if data is not None:
+                out.append((BODY_MARKERS, TYPES[BODY_MARKERS], data))
+        if tf:
+            out.append((TF, TYPES[TF], self.tf(step)))
         if diagnostics is not None:
             out.append((DIAGNOSTICS, TYPES[DIAGNOSTICS],
                         bytes(serialize_message(diagnostics_array(diagnostics)))))

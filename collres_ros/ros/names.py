@@ -14,6 +14,8 @@ STATES = 'body_states'                      # in: BodyStateArray, one step per m
 CORRECTED_STATES = 'body_states/corrected'  # out: BodyStateArray
 CONTACTS = 'contacts'                       # out: ContactArray
 MARKERS = 'contact_markers'                 # out: MarkerArray
+BODY_MARKERS = 'body_markers'               # out: MarkerArray, each body's shape
+TF = '/tf'                                  # out: tf2_msgs/TFMessage (where installed)
 DIAGNOSTICS = '/diagnostics'                # out: DiagnosticArray (absolute: diagnostic_updater)
 CLOCK = '/clock'                            # sim out: rosgraph_msgs/Clock
 

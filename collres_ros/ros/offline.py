@@ -58,7 +58,7 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
     ``sink(stamp_ns, [(topic, wire type, CDR bytes), ...])`` gets, per step,
     the ``body_states`` input followed by every output of the node's encoder
     (relative topic names, as the node publishes them). ``markers`` False skips
-    building contact_markers (they dominate the cost with many contacts).
+    building contact_markers and body_markers (they dominate the cost with many contacts).
     ``contacts``: counts of the solved contacts by state, added to.
     """
     from collres_ros.core.pipeline import Resolver
@@ -67,7 +67,7 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
     resolver = Resolver(sim.scene)
     node = sim.scene.node
     diagnostics = OfflineDiagnostics(node.diagnostics_period)
-    encoder = messages.OutputEncoder(sim.names, sim.world_frame)
+    encoder = messages.OutputEncoder(sim.names, sim.world_frame, sim.scene.bodies)
     names = [sim.names[i] for i in sim.rows]
 
     def exchange(stamp: int, states: Any) -> Any:
@@ -76,7 +76,9 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
                                                   sim.world_frame))
         outputs = encoder.encode(step, per_body=False, marker_lifetime=node.marker_lifetime,
                                  diagnostics=diagnostics.update(step, resolver),
-                                 markers=markers, wrenches=node.contact_wrench)
+                                 markers=markers, wrenches=node.contact_wrench,
+                                 body_markers=node.body_markers_period if markers else None,
+                                 tf=node.publish_tf)
         state = encoder.states.encode(stamp, sim.world_frame, names, values)
         sink(stamp, [(STATES, messages.TYPES[STATES], state)] + outputs)
         if contacts is not None:
@@ -112,8 +114,8 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
                     writer.write_raw(absolute(topic, sim.namespace), kind, stamp, data)
 
         steps = run_core(sim, sink, show,
-                         markers=topics is None or 'contact_markers' in topics,
-                         contacts=contacts)
+                         markers=topics is None or 'contact_markers' in topics
+                         or 'body_markers' in topics, contacts=contacts)
         messages = writer.count
     return OfflineSummary(steps, messages, contacts, time.perf_counter() - start)
 
@@ -272,7 +274,7 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
         source, total = read_steps(reader, scene, namespace)
         resolver = Resolver(scene)
         diagnostics = OfflineDiagnostics(scene.node.diagnostics_period)
-        encoder = messages.OutputEncoder(scene.names, scene.world_frame)
+        encoder = messages.OutputEncoder(scene.names, scene.world_frame, scene.bodies)
         depth = scene.node.queue_depth
         with BagWriter(out_bag, storage or reader.storage, compress,
                        qos=lambda topic: [qos.offered(topic, depth)],
@@ -285,7 +287,10 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
                     diagnostics=diagnostics.update(resolved, resolver,
                                                    getattr(source, 'sync_dropped', 0)),
                     markers=topics is None or 'contact_markers' in topics,
-                    wrenches=scene.node.contact_wrench)
+                    wrenches=scene.node.contact_wrench,
+                    body_markers=scene.node.body_markers_period
+                    if topics is None or 'body_markers' in topics else None,
+                    tf=scene.node.publish_tf)
                 for topic, kind, data in outputs:
                     if topics is None or topic in topics:
                         writer.write_raw(absolute(topic, namespace), kind, step.log_time, data)

@@ -80,7 +80,7 @@ def test_offline_bag_carries_qos_params_and_version(tmp_path: Path) -> None:
     found = topics(bag)
     print({name: meta['offered_qos_profiles'][0]['depth'] for name, meta in found.items()})
     assert set(found) == {'/body_states', '/body_states/corrected', '/contacts',
-                          '/contact_markers', '/diagnostics'}
+                          '/contact_markers', '/body_markers', '/diagnostics'}
     queue_depth = params.load_scene(SCENES / 'box_stack.yaml').node.queue_depth
     for name, meta in found.items():
         check_profiles(meta, queue_depth if name != '/body_states' else 10)

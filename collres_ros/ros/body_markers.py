@@ -75,7 +75,7 @@ def _plane(spec: BodySpec) -> np.ndarray:
 
 def _convex(spec: BodySpec) -> np.ndarray:
     hull = convex_hull(convex_points(spec))
-    points = np.array([np.asarray(hull.points(i), float) for i in range(hull.num_points)])
+    points = np.asarray(hull.points(), float).reshape(-1, 3)
     corners = [[int(t[j]) for j in range(3)]
                for t in (hull.polygons(i) for i in range(hull.num_polygons))]
     return points[np.array(corners, np.int64).reshape(-1)]

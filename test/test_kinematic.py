@@ -23,7 +23,8 @@ G = 9.81
 def run(scene: str) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]], list[list]]:
     """(t s, {body: {position, orientation, linear, angular} (T, k)}, contacts per step)."""
     pytest.importorskip('rclpy')
-    from collres_ros.sim import load_sim_scene, run_core
+    from collres_ros.ros.offline import run_core
+    from collres_ros.ros.simulation import load_sim_scene
     sim = load_sim_scene(SCENES / f'{scene}.yaml')
     stamps: list[int] = []
     rows: dict[str, dict[str, list]] = {}
@@ -68,17 +69,19 @@ def test_the_integrator_moves_kinematic_bodies_at_their_twist_without_gravity() 
 
 def test_a_kinematic_body_is_static_and_published_but_never_adopted() -> None:
     pytest.importorskip('rclpy')
-    from collres_ros.sim import adopt, load_sim_scene, states_to_msg
+    from collres_ros.ros.messages import body_state_array, read_body_state_array
+    from collres_ros.ros.simulation import adopt, load_sim_scene, rows_of
     sim = load_sim_scene(SCENES / 'conveyor.yaml')
     belt = sim.names.index('belt')
     assert sim.scene.bodies[belt].static and sim.scene.kinematic[belt]
     assert not sim.dynamic[belt] and belt in sim.rows
-    msg = states_to_msg(sim.names, sim.initial, sim.rows, 10**9, sim.world_frame)
+    published = [sim.names[i] for i in sim.rows]
+    msg = body_state_array(published, rows_of(sim.initial, sim.rows), 10**9, sim.world_frame)
     assert [b.name for b in msg.bodies] == ['belt', 'box']
     assert msg.bodies[0].twist.linear.x == 1.0
     msg.bodies[0].pose.position.x = 99.0        # a corrected state never moves the belt
     msg.bodies[1].pose.position.x = 7.0
-    adopted = adopt(sim.initial, sim.names, msg, sim.dynamic)
+    adopted = adopt(sim.initial, sim.names, *read_body_state_array(msg), sim.dynamic)
     assert adopted.position[belt, 0] == 0.0 and adopted.position[sim.names.index('box'), 0] == 7.0
 
 

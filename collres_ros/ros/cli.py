@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable, Iterator, NoReturn, Optional, Sequence
@@ -70,14 +72,25 @@ def ros_init(*, args: Optional[Sequence[str]] = None, context: Any = None,
     ``<failure>: <rcl's first line>``.
     """
     import rclpy
+    from rclpy.signals import SignalHandlerOptions, install_signal_handlers
+    # rcl parses the params files inside init, in C, for up to minutes on a huge file: Python's
+    # SIGINT handler cannot run there, so Ctrl-C would wait for the parse to end. The OS
+    # default ends the process at once (no traceback); rclpy's own handlers come after.
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_DFL) if main else None
     try:
         rclpy.init(args=None if args is None else list(args), context=context,
-                   domain_id=domain_id)
+                   domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     except (KeyboardInterrupt, CliError):
         raise
     except Exception as error:  # RCLError and friends
         lines = str(error).strip().splitlines() or [type(error).__name__]
         raise CliError(f'{failure}: {lines[0]}') from None
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    if context is None or context is rclpy.get_default_context():
+        install_signal_handlers(SignalHandlerOptions.ALL)   # as rclpy.init does
     try:
         yield context
     finally:

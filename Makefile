@@ -1,14 +1,15 @@
 # The two commands of the README: `make demo` and `make test`.
 # Each creates .venv/ when missing, installs the requirements, builds the
-# messages and installs collres_ros (editable); a second run only checks stamps.
+# messages and the compiled core (collres_ros/core/_native) and installs collres_ros
+# (editable); a second run only checks stamps.
 
 PYTHON ?= python3.11
 VENV := .venv
 VPY := $(VENV)/bin/python
 PIP := $(VPY) -m pip --disable-pip-version-check -q
 MSG_STAMP := collres_ros/msg/.build-stamp
-INTERFACE_INPUTS := CMakeLists.txt package.xml cmake/RepairImportedIncludeDirs.cmake \
-	cmake/build_interfaces.py $(wildcard msg/*.msg)
+INTERFACE_INPUTS := CMakeLists.txt package.xml cmake/build_interfaces.py $(wildcard cmake/*.cmake) \
+	$(wildcard msg/*.msg) $(wildcard src/*.h) $(wildcard src/*.cpp)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
 .PHONY: demo test setup test-setup bench goldens clean
@@ -39,15 +40,20 @@ $(MSG_STAMP): $(INTERFACE_INPUTS) $(VENV)/.deps-stamp
 	$(VPY) cmake/build_interfaces.py collres_ros
 	touch $@
 
+# setuptools' "Editable installation ... folders with the same name" notice is informational
+# (the repo root is meant to be importable): silenced, nothing for a user to act on
 $(VENV)/.editable-stamp: setup.py pyproject.toml $(MSG_STAMP)
-	$(PIP) install --no-deps --no-build-isolation -e .
+	PYTHONWARNINGS="ignore:Editable installation" $(PIP) install --no-deps --no-build-isolation -e .
 	touch $@
 
+# BENCH_ARGS e.g. --sizes 10 100 --peer-venv DIR (default ~/.cache/collres_ros/peer-venv,
+# created when missing with pip install mujoco pybullet)
 bench: setup
-	$(VPY) bench/bench_step.py
+	$(VPY) bench/bench_step.py $(BENCH_ARGS)
 
 goldens: setup
 	$(VPY) tools/regenerate_goldens.py
 
 clean:
-	rm -rf build collres_ros/msg collres_ros/_lib collres_ros/*.so demo_out
+	rm -rf build collres_ros/msg collres_ros/_lib collres_ros/*.so collres_ros/core/_native*.so \
+		demo_out bench_out/step.json

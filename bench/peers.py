@@ -1,9 +1,16 @@
-"""Step time of MuJoCo and PyBullet on a pile described by bench/pile.py (peer venv only).
+"""Step time of MuJoCo (CG, Newton) and PyBullet on a pile described by bench/pile.py.
 
-Run with an interpreter that has ``mujoco`` and/or ``pybullet`` (never the
-project's .venv): ``/tmp/peervenv/bin/python bench/peers.py SCENE.json``.
-Prints one JSON line: {"mujoco": ms or null, "pybullet": ms or null}, the
-median wall time of one full step (detection + solver + integration).
+Run with the peers' throw-away interpreter (never the project's .venv; bench_step.py
+creates it): ``PEER_PYTHON bench/peers.py SCENE.json``. Prints one JSON line, per
+engine null when it is not installed, else {"ms": median wall time of one full step
+(detection + solver + integration), "contacts": median contact points per step,
+"steps": steps timed, ...}.
+
+MuJoCo's step time depends on how many contacts it keeps and how many solver
+iterations it needs (CG stops at 100), so both are reported with it, and the arena is
+sized from the body count with its contact-full warnings counted (0: no contact was
+dropped): an earlier figure of 4.66 ms at 1000 bodies could not be reproduced (about
+100-180 ms with CG at its cap) and a time without these numbers cannot be checked.
 """
 
 from __future__ import annotations
@@ -13,16 +20,26 @@ import statistics
 import sys
 import time
 
+WARMUP_S = 10.0   # at most this long settling the pile in the peer before timing, s
+TIMED_S = 20.0    # at most this long timing (at least 3 steps), s
 
-def _median_ms(step, warmup: int, steps: int) -> float:
+
+def _timed(step, count, warmup: int, steps: int) -> dict:
+    """Median ms per step and median contact points per step, within the time budgets."""
+    start = time.perf_counter()
     for _ in range(warmup):
         step()
-    times = []
-    for _ in range(steps):
-        start = time.perf_counter()
+        if time.perf_counter() - start > WARMUP_S:
+            break
+    times, contacts = [], []
+    start = time.perf_counter()
+    while len(times) < steps and (len(times) < 3 or time.perf_counter() - start < TIMED_S):
+        begin = time.perf_counter()
         step()
-        times.append(time.perf_counter() - start)
-    return 1000.0 * statistics.median(times)
+        times.append(time.perf_counter() - begin)
+        contacts.append(count())
+    return {'ms': 1000.0 * statistics.median(times), 'contacts': statistics.median(contacts),
+            'steps': len(times)}
 
 
 def _walls(scene: dict) -> list[tuple[list[float], list[float]]]:
@@ -36,12 +53,15 @@ def _walls(scene: dict) -> list[tuple[list[float], list[float]]]:
             ([0.0, half + thick, height], [half + 1.0, thick, height])]
 
 
-def mujoco_ms(scene: dict, dt: float, warmup: int, steps: int) -> float | None:
+def mujoco_run(scene: dict, solver: str, warmup: int, steps: int) -> dict | None:
     try:
         import mujoco
     except ImportError:
         return None
-    parts = [f'<mujoco><option timestep="{dt}" gravity="0 0 -9.81" solver="CG"/><worldbody>']
+    dynamic = sum(1 for b in scene['bodies'] if not b['static'])
+    memory = max(64, dynamic // 4)      # MB: ~40 contacts of a few KB each per body, roomy
+    parts = [f'<mujoco><option timestep="{scene["dt"]}" gravity="0 0 -9.81" '
+             f'solver="{solver}"/><size memory="{memory}M"/><worldbody>']
     for centre, half in _walls(scene):
         parts.append('<geom type="box" pos="{} {} {}" size="{} {} {}"/>'.format(*centre, *half))
     for i, body in enumerate(scene['bodies']):
@@ -58,17 +78,26 @@ def mujoco_ms(scene: dict, dt: float, warmup: int, steps: int) -> float | None:
     parts.append('</worldbody></mujoco>')
     model = mujoco.MjModel.from_xml_string(''.join(parts))
     data = mujoco.MjData(model)
-    return _median_ms(lambda: mujoco.mj_step(model, data), warmup, steps)
+    iterations = []
+
+    def step() -> None:
+        mujoco.mj_step(model, data)
+        iterations.append(int(data.solver_niter[0]))
+
+    result = _timed(step, lambda: int(data.ncon), warmup, steps)
+    result['iterations'] = statistics.median(iterations[-result['steps']:])
+    result['contact_full'] = int(data.warning[mujoco.mjtWarning.mjWARN_CONTACTFULL].number)
+    return result
 
 
-def pybullet_ms(scene: dict, dt: float, warmup: int, steps: int) -> float | None:
+def pybullet_run(scene: dict, warmup: int, steps: int) -> dict | None:
     try:
         import pybullet as p
     except ImportError:
         return None
     client = p.connect(p.DIRECT)
     p.setGravity(0, 0, -9.81, physicsClientId=client)
-    p.setTimeStep(dt, physicsClientId=client)
+    p.setTimeStep(scene['dt'], physicsClientId=client)
     for centre, half in _walls(scene):
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
         p.createMultiBody(0.0, shape, basePosition=centre, physicsClientId=client)
@@ -85,16 +114,18 @@ def pybullet_ms(scene: dict, dt: float, warmup: int, steps: int) -> float | None
                                 baseOrientation=scene['orientation'][i], physicsClientId=client)
         p.changeDynamics(uid, -1, lateralFriction=body['mu'], restitution=body['e'],
                          physicsClientId=client)
-    result = _median_ms(lambda: p.stepSimulation(physicsClientId=client), warmup, steps)
+    result = _timed(lambda: p.stepSimulation(physicsClientId=client),
+                    lambda: len(p.getContactPoints(physicsClientId=client)), warmup, steps)
     p.disconnect(client)
     return result
 
 
 def main() -> int:
     scene = json.load(open(sys.argv[1]))
-    dt, warmup, steps = scene['dt'], scene['warmup'], scene['steps']
-    print(json.dumps({'mujoco': mujoco_ms(scene, dt, warmup, steps),
-                      'pybullet': pybullet_ms(scene, dt, warmup, steps)}))
+    warmup, steps = scene['warmup'], scene['steps']
+    print(json.dumps({'mujoco_cg': mujoco_run(scene, 'CG', warmup, steps),
+                      'mujoco_newton': mujoco_run(scene, 'Newton', warmup, steps),
+                      'pybullet': pybullet_run(scene, warmup, steps)}))
     return 0
 
 

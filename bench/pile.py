@@ -1,4 +1,7 @@
-"""A pile of mixed boxes and spheres in a bin (static planes), shared by the benchmarks.
+"""A pile of boxes (and spheres) in a bin of static planes, shared by the benchmarks.
+
+Two kinds: ``mixed`` (alternating 0.1 m cubes and spheres) and ``cubes`` (cubes
+only: face contacts of 4 points).
 
 The pile is described by plain data (shapes, sizes, masses, poses) so the
 peer engines (MuJoCo, PyBullet) can build exactly the same scene.
@@ -15,6 +18,7 @@ from collres_ros.core.types import BodySpec, BodyStates
 SIZE = 0.1        # m, box edge and sphere diameter
 SPACING = 0.12    # m, grid pitch of the initial layout
 GRAVITY = np.array([0.0, 0.0, -9.81])
+PILES = ('mixed', 'cubes')
 
 
 def bin_half_width(count: int) -> float:
@@ -22,8 +26,11 @@ def bin_half_width(count: int) -> float:
     return 0.5 * columns * SPACING
 
 
-def make_pile(count: int, seed: int = 1) -> tuple[list[BodySpec], BodyStates]:
+def make_pile(count: int, seed: int = 1, kind: str = 'mixed'
+              ) -> tuple[list[BodySpec], BodyStates]:
     """Five static planes (floor, four walls) then ``count`` bodies on a jittered grid."""
+    if kind not in PILES:
+        raise ValueError(f'unknown pile {kind!r}: {", ".join(PILES)}')
     rng = np.random.default_rng(seed)
     half = bin_half_width(count)
     columns = int(round(2 * half / SPACING))
@@ -37,7 +44,7 @@ def make_pile(count: int, seed: int = 1) -> tuple[list[BodySpec], BodyStates]:
     for i in range(count):
         layer, cell = divmod(i, columns * columns)
         row, col = divmod(cell, columns)
-        if i % 2:
+        if i % 2 or kind == 'cubes':
             bodies.append(BodySpec(f'box{i}', 'box', (SIZE,) * 3, mass=1.0, restitution=0.2,
                                    static_friction=0.6, kinetic_friction=0.4))
         else:

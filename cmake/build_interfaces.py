@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Build the collres_ros message interfaces with CMake and place them in a Python package dir.
+"""Build the collres_ros messages and compiled core with CMake into a Python package dir.
 
 Used by the Makefile (in-tree, for the editable install) and by setup.py
 (into build_lib, for ``pip install .``). It runs the package's own
@@ -9,7 +9,8 @@ running interpreter's environment, into a scratch prefix, then copies:
 * ``collres_ros/msg/`` (generated Python, plus the .msg definitions),
 * ``collres_ros/collres_ros_s__rosidl_typesupport_*.so`` (extension modules),
 * ``collres_ros/_lib/libcollres_ros__rosidl_*.so`` (preloaded by collres_ros/__init__.py,
-  because rmw dlopen()s typesupport libraries by bare name).
+  because rmw dlopen()s typesupport libraries by bare name),
+* ``collres_ros/core/_native*.so`` (the compiled contact core, sources in src/).
 
 Usage: build_interfaces.py DEST_PACKAGE_DIR [--build-dir DIR]
 """
@@ -24,8 +25,10 @@ import sys
 import sysconfig
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-INPUTS = ['CMakeLists.txt', 'package.xml', 'cmake/RepairImportedIncludeDirs.cmake'] + sorted(
-    os.path.relpath(p, ROOT) for p in glob.glob(os.path.join(ROOT, 'msg', '*.msg')))
+INPUTS = ['CMakeLists.txt', 'package.xml'] + sorted(
+    os.path.relpath(p, ROOT) for pattern in ('cmake/*.cmake', 'msg/*.msg', 'src/*.h', 'src/*.cpp')
+    for p in glob.glob(os.path.join(ROOT, pattern)))
+JOBS = os.environ.get('CMAKE_BUILD_PARALLEL_LEVEL', '2')   # the compiled core needs ~0.6 GB a job
 
 
 def _fingerprint() -> str:
@@ -40,7 +43,8 @@ def build(dest: str, build_dir: str) -> None:
     """Generate and compile the interfaces; copy them into ``dest`` (a collres_ros/ dir)."""
     stamp = os.path.join(dest, 'msg', '.build-stamp')
     fingerprint = _fingerprint()
-    if os.path.exists(stamp) and open(stamp).read() == fingerprint:
+    native = glob.glob(os.path.join(dest, 'core', '_native*.so'))
+    if native and os.path.exists(stamp) and open(stamp).read() == fingerprint:
         print('interfaces up to date')
         return
     prefix = sys.prefix
@@ -59,7 +63,7 @@ def build(dest: str, build_dir: str) -> None:
          f'-DCMAKE_INSTALL_PREFIX={install}', f'-DPYTHON_INSTALL_DIR={site}',
          '-DBUILD_TESTING=OFF', '-DCOLLRES_SKIP_PYTHON_INSTALL=ON',
          '-DCMAKE_BUILD_TYPE=Release'],
-        ['cmake', '--build', os.path.join(build_dir, 'cmake')],
+        ['cmake', '--build', os.path.join(build_dir, 'cmake'), '--parallel', JOBS],
         ['cmake', '--install', os.path.join(build_dir, 'cmake')],
     ]
     for cmd in run:
@@ -79,6 +83,10 @@ def build(dest: str, build_dir: str) -> None:
     os.makedirs(lib_dir)
     for lib in glob.glob(os.path.join(install, 'lib', 'libcollres_ros__*.so')):
         shutil.copy2(lib, lib_dir)
+    for old in glob.glob(os.path.join(dest, 'core', '_native*.so')):
+        os.remove(old)
+    for ext in glob.glob(os.path.join(generated, 'core', '_native*.so')):
+        shutil.copy2(ext, os.path.join(dest, 'core'))
     for definition in glob.glob(os.path.join(ROOT, 'msg', '*.msg')):
         shutil.copy2(definition, os.path.join(dest, 'msg'))
     with open(stamp, 'w') as f:

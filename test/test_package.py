@@ -108,6 +108,7 @@ def test_colcon_builds_the_package_against_the_ros_environment(tmp_path: Path) -
     site = next(install.glob('lib/python3*/site-packages'))
     assert (site / 'collres_ros' / 'msg' / '_contact_array.py').is_file()
     assert (site / 'collres_ros' / 'core' / 'types.py').is_file()
+    assert len(list((site / 'collres_ros' / 'core').glob('_native*.so'))) == 1
     for name in EXECUTABLES:
         assert os.access(install / 'lib' / 'collres_ros' / name, os.X_OK)
     assert (install / 'share' / 'collres_ros' / 'config' / 'collres.yaml').is_file()
@@ -119,13 +120,15 @@ def test_colcon_builds_the_package_against_the_ros_environment(tmp_path: Path) -
              'from rclpy.serialization import serialize_message, deserialize_message\n'
              'm = ContactArray(contacts=[Contact(body_a="a", state=Contact.IMPACT)])\n'
              'assert deserialize_message(serialize_message(m), ContactArray) == m\n'
-             'import collres_ros.msg; print(collres_ros.msg.__file__)\n')
+             'import collres_ros.msg; print(collres_ros.msg.__file__)\n'
+             'from collres_ros.core import _native; print(_native.__file__)\n'
+             'assert _native.combine(0.25, 1.0, _native.CombineRule.geometric) == 0.5\n')
     run_env = dict(env, PYTHONPATH=str(site),
                    LD_LIBRARY_PATH=f'{install / "lib"}:{os.environ.get("LD_LIBRARY_PATH", "")}')
     result = subprocess.run([sys.executable, '-c', check], cwd=tmp_path, env=run_env,
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
-    assert str(site) in result.stdout
+    assert result.stdout.count(str(site)) == 2
 
 
 def test_executables_are_thin_mains_that_never_import_one_another() -> None:

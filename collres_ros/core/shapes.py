@@ -1,4 +1,4 @@
-"""Collision shapes: coal geometries, mass properties and bounds of a BodySpec.
+"""Collision shapes: validated sizes, coal geometries, mass properties and bounds of a BodySpec.
 
 Conventions (see ``types.BodySpec``): the body frame is the shape frame and
 its origin is the centre of mass. Every shape is centred on its origin except
@@ -43,6 +43,25 @@ def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
         return coal.Halfspace(normal, offset)
     if shape == 'convex':
         return convex_hull(convex_points(spec))
+    raise ValueError(f'{spec.name}: unknown shape {shape!r}')
+
+
+def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
+    """Validated sizes (m) and flat convex vertices (m, body frame) the compiled detector
+    builds its coal geometry from (the same checks and messages as ``make_geometry``)."""
+    size = [float(s) for s in spec.size]
+    shape = spec.shape
+    if shape == 'sphere':
+        return _positive(spec, size, 1), []
+    if shape == 'box':
+        return _positive(spec, size, 3), []
+    if shape in ('capsule', 'cylinder', 'cone'):
+        return list(_radius_length(spec, size)), []
+    if shape == 'plane':
+        normal, offset = plane_normal_offset(spec)
+        return [*normal.tolist(), offset], []
+    if shape == 'convex':
+        return [], convex_points(spec).reshape(-1).tolist()
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 
@@ -163,14 +182,6 @@ def bounding_radius(spec: BodySpec) -> float:
     if shape == 'convex':
         return float(np.max(np.linalg.norm(convex_points(spec), axis=1)))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
-
-
-def local_aabb(spec: BodySpec, geometry: coal.CollisionGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """(min, max) corners (3,) m of the shape's box in the body frame (cone offset included)."""
-    geometry.computeLocalAABB()
-    aabb = geometry.aabb_local
-    offset = shape_offset(spec)
-    return np.array(aabb.min_, dtype=float) + offset, np.array(aabb.max_, dtype=float) + offset
 
 
 def load_mesh_points(path: str) -> np.ndarray:

@@ -24,6 +24,12 @@ time (both world frame, before resolution) to corrected current states:
 Static bodies (and inactive ones, for this step) have zero inverse mass and
 inertia: their ``current`` twist is a kinematic velocity, their state is
 returned as given.
+
+Detection (``Detection.detect``) finds the contacts; everything that is
+per-contact work after it (reference frame, prepare, warm start, iterations,
+restitution, stored impulses, corrected poses, split-impulse push-out and
+contact states) is one call into the compiled core (``_native.StepSolver``,
+``src/step.h``) on whole arrays, without copies and with the GIL released.
 """
 
 from __future__ import annotations
@@ -33,25 +39,16 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
-from collres_ros.core import rotation, solver
-from collres_ros.core.collision import CollisionWorld
-from collres_ros.core.combine import combine_friction, restitution_per_side
+from collres_ros.core import _native
 from collres_ros.core.config import SolverSettings
-from collres_ros.core.contact_cache import ContactCache
+from collres_ros.core.detection import Detection
 from collres_ros.core.shapes import mass_properties
-from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactReport,
-                                    ContactSet, ContactState, Rejection, StepResult)
-
-POSITION_ITERATIONS = 4   # split-impulse iterations when some contact needs a push-out
-BALANCED_FRICTION = 1e-3  # net friction / net normal impulse of a pair below which it rests
-#                           (the solver converges to ~1e-4 relative: residual, not friction)
-# extra iterations (times velocity_iterations) when all resting contacts are new
-# (nothing to warm start from, e.g. a stack at its first step); scaled by their share
-COLD_EXTRA = 1.0
+from collres_ros.core.types import (BodySpec, BodyStates, ContactReport, ContactSet, Rejection,
+                                    StepResult)
 
 
 class Detector(Protocol):
-    """What the world needs from detection (``CollisionWorld`` is the real one)."""
+    """What the world needs from detection (``Detection`` is the real one)."""
 
     settings: SolverSettings
 
@@ -66,9 +63,8 @@ class World:
                  detector: Detector | None = None) -> None:
         """``detector`` replaces coal detection (tests feed hand-made ContactSets)."""
         self.specs = list(bodies)
-        self._settings = settings
         self._collision = detector if detector is not None else \
-            CollisionWorld(self.specs, settings)
+            Detection(self.specs, settings)
         props = [mass_properties(spec) for spec in self.specs]
         self.inv_mass = np.array([p[0] for p in props], dtype=float)           # (N,) 1/kg
         self.inv_inertia_body = np.array([p[1] for p in props]).reshape(-1, 3, 3)
@@ -76,10 +72,12 @@ class World:
         self.restitution = np.array([s.restitution for s in self.specs], dtype=float)
         self.static_friction = np.array([s.static_friction for s in self.specs], dtype=float)
         self.kinetic_friction = np.array([s.kinetic_friction for s in self.specs], dtype=float)
-        self._cache = ContactCache()
-        self._last_dt = 0.0
-        # last step: detection and solve time (s), velocity sweeps done
-        self.timing: dict[str, float] = {'detect': 0.0, 'solve': 0.0, 'iterations': 0}
+        self._solver = _native.StepSolver()
+        self._cache = self._solver.cache      # impulses of the last step, by pair and feature
+        self.settings = settings
+        # last step: detection and solve time (s), velocity sweeps done, solver rows
+        self.timing: dict[str, float] = {'detect': 0.0, 'solve': 0.0, 'iterations': 0,
+                                         'rows': 0}
 
     @property
     def settings(self) -> SolverSettings:
@@ -90,6 +88,7 @@ class World:
         """New settings take effect at the next step."""
         self._settings = settings
         self._collision.settings = settings
+        self._params = solver_params(settings)
 
     def set_material(self, index: int, restitution: float | None = None,
                      static_friction: float | None = None,
@@ -104,7 +103,7 @@ class World:
 
     def forget(self, bodies: np.ndarray) -> None:
         """Drop the warm-start impulses of these body indices (e.g. after a reset)."""
-        self._cache.forget(np.asarray(bodies, np.int64))
+        self._cache.forget(np.asarray(bodies, np.int64).ravel())
 
     def step(self, previous: BodyStates, current: BodyStates, dt: float,
              active: np.ndarray | None = None) -> StepResult:
@@ -117,100 +116,56 @@ class World:
         bodies, the solved contacts and non-finite results that were refused.
         A step longer than ``settings.max_dt`` is not warm started.
         """
-        s = self._settings
-        n = current.count
-        active = np.ones(n, bool) if active is None else np.asarray(active, bool)
-        movable = self.dynamic & active
+        active = np.ones(current.count, bool) if active is None else np.asarray(active, bool)
         previous = _hold(previous, current, ~active)
-        fresh = dt > s.max_dt
         started = time.perf_counter()
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection)
         contacts = _finite(self._collision.detect(previous, current, active))
         detected = time.perf_counter()
         if contacts.count == 0:
-            self.timing = {'detect': detected - started, 'solve': 0.0, 'iterations': 0}
+            self.timing = {'detect': detected - started, 'solve': 0.0, 'iterations': 0,
+                           'rows': 0}
             self._cache.clear()
             return StepResult(current.copy(), ContactReport.empty(), [])
-        # manifolds: reference time of each contact and body, pre-solve velocities
-        inv_mass = self.inv_mass * movable
-        inv_inertia = rotation.world_inverse_inertia(
-            current.orientation, self.inv_inertia_body) * movable[:, None, None]
-        frame = _Frame(previous, current, contacts, dt, movable, ~active,
-                       s.restitution_threshold)
-        # prepare: constraint rows, coloured batches, combined materials
-        restitution, friction = self._materials(contacts.body_a, contacts.body_b)
-        rows = solver.prepare(frame.pair, contacts.normal, frame.r_a, frame.r_b, inv_mass,
-                              inv_inertia, frame.velocity, frame.allowance, restitution,
-                              friction, s.restitution_threshold, s.sticking_speed,
-                              frame.sticking_velocity)
-        # warm start from last step's impulses of the same pair and feature
-        impulses = solver.Impulses.zeros(rows.count)
-        cold = self._warm(rows, impulses, contacts, dt, s.warm_start and not fresh)
-        velocity = frame.velocity.copy()
-        solver.warm_start(rows, impulses, velocity)
-        # iterate: sequential impulses over the colours (more while resting contacts are new)
-        iterations = int(round(s.velocity_iterations * (1.0 + COLD_EXTRA * cold)))
-        sweeps = solver.solve_velocities(rows, impulses, velocity, iterations)
-        # restitution from the pre-solve approach speed, above the threshold only
-        solver.apply_restitution(rows, impulses, velocity)
-        # store impulses for next step's warm start (without the restitution part)
-        friction = solver.friction_world(rows, impulses)
-        back = np.argsort(rows.order)
-        self._cache.store(contacts.body_a, contacts.body_b, contacts.feature,
-                          impulses.normal[back], friction[back], contacts.point)
-        self._last_dt = dt
-        # correct poses: rewind/advance, then split-impulse push-out without velocity
-        states = frame.advance(velocity, movable)
-        push = frame.push_out(rows, velocity, s)
-        pseudo = solver.solve_positions(rows, push, n, POSITION_ITERATIONS)
-        states = _displace(states, pseudo, dt, frame.touched)
-        # report: impulses, states, and the final guard against non-finite output
-        normal_impulse = impulses.normal + impulses.restitution.mean(axis=1)
-        state = solver.contact_states(rows, impulses, velocity, s.sticking_speed)
-        state = _resting_when_friction_balances(frame.reported, state[back], friction[back],
-                                                normal_impulse[back])
-        report = ContactReport(frame.reported, normal_impulse[back], friction[back], state)
+        # reference frame, prepare, warm start, iterate, restitution, store impulses,
+        # advance poses, split-impulse push-out, contact states: one compiled call
+        warm = self._settings.warm_start and dt <= self._settings.max_dt
+        states, report, sweeps, rows = self._solve(previous, current, contacts, active, dt, warm)
+        # report: the final guard against non-finite output
         rejected = self._guard(states, current)
         self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
-                       'iterations': sweeps}
+                       'iterations': sweeps, 'rows': rows}
         return StepResult(states, report, rejected)
 
-    def _materials(self, a: np.ndarray, b: np.ndarray
-                   ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-        """((e on A, e on B), (mu_static, mu_kinetic)) per contact, by the settings' rules.
+    def _solve(self, previous: BodyStates, current: BodyStates, contacts: ContactSet,
+               active: np.ndarray, dt: float, warm: bool
+               ) -> tuple[BodyStates, ContactReport, int, int]:
+        """The compiled solver step on whole arrays (no copy when dtypes and layout fit).
 
-        The kinetic coefficient never exceeds the static one of the same contact.
+        Returns corrected states, the report, velocity sweeps done and solver rows.
         """
-        s = self._settings
-        restitution = restitution_per_side(self.restitution[a], self.restitution[b],
-                                           s.restitution_rule)
-        mu_s = combine_friction(self.static_friction[a], self.static_friction[b],
-                                s.friction_rule)
-        mu_k = combine_friction(self.kinetic_friction[a], self.kinetic_friction[b],
-                                s.friction_rule)
-        return restitution, (mu_s, np.minimum(mu_s, mu_k))
-
-    def _warm(self, rows: solver.ContactRows, impulses: solver.Impulses,
-              contacts: ContactSet, dt: float, enabled: bool) -> float:
-        """Fill ``impulses`` with the cached ones, scaled to this dt, inside the cone.
-
-        Returns the fraction of persistent contacts that found no cached impulse.
-        """
-        persistent = contacts.kind[rows.order] == ContactKind.PERSISTENT
-        if not enabled:
-            return 1.0 if persistent.any() else 0.0
-        normal, friction, found = self._cache.lookup(contacts.body_a, contacts.body_b,
-                                                     contacts.feature, contacts.point)
-        scale = dt / self._last_dt if self._last_dt > 0.0 else 0.0
-        impulses.normal[:] = normal[rows.order] * scale
-        tangent = solver.project_friction(rows, friction[rows.order] * scale)
-        size = np.hypot(tangent[:, 0], tangent[:, 1])
-        limit = rows.mu * impulses.normal
-        over = size > limit
-        tangent[over] *= (limit[over] / size[over])[:, None]
-        impulses.tangent[:] = tangent
-        cold = persistent & ~found[rows.order]
-        return float(cold.sum()) / max(1, int(persistent.sum()))
+        movable = self.dynamic & active
+        out = BodyStates(*(np.array(a, np.float64, order='C') for a in _arrays(current)))
+        m = contacts.count
+        report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
+                                          contacts.normal, contacts.separation, np.empty(m),
+                                          np.empty(m, np.int8), contacts.feature),
+                               np.empty(m), np.empty((m, 3)), np.empty(m, np.uint8))
+        flat = (lambda array, dtype=np.float64: np.ascontiguousarray(array, dtype))
+        sweeps, rows = self._solver.step(
+            previous=_arrays(previous), current=_arrays(current), out=_arrays(out),
+            inv_mass=self.inv_mass * movable,
+            inv_inertia_body=self.inv_inertia_body * movable[:, None, None],
+            movable=movable, held=~active, restitution=self.restitution,
+            static_friction=self.static_friction, kinetic_friction=self.kinetic_friction,
+            body_a=flat(contacts.body_a, np.int64), body_b=flat(contacts.body_b, np.int64),
+            point=flat(contacts.point), normal=flat(contacts.normal),
+            separation=flat(contacts.separation), toi=flat(contacts.toi),
+            kind=flat(contacts.kind, np.int8), feature=flat(contacts.feature, np.int64),
+            dt=float(dt), warm=warm, params=self._params, normal_impulse=report.normal_impulse,
+            friction_impulse=report.friction_impulse, state=report.state,
+            reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
+        return out, report, sweeps, rows
 
     def _guard(self, states: BodyStates, current: BodyStates) -> list[Rejection]:
         """Bodies with a non-finite result keep their current input state; report them."""
@@ -225,109 +180,27 @@ class World:
         return rejected
 
 
-class _Frame:
-    """Reference configuration of the contacts and bodies of one step."""
-
-    def __init__(self, previous: BodyStates, current: BodyStates, contacts: ContactSet,
-                 dt: float, movable: np.ndarray, held: np.ndarray, threshold: float) -> None:
-        """Held (inactive) bodies are fixed this step: zero twist, infinite mass."""
-        self.previous, self.current, self.dt = previous, current, dt
-        a, b = contacts.body_a, contacts.body_b
-        self.pair = np.stack((a, b), axis=1)
-        impact = contacts.kind != ContactKind.PERSISTENT
-        # contact points are at the time of impact (IMPACT/TUNNELLED) or at the current state
-        at = np.where(impact, contacts.toi, 1.0)[:, None]
-        x0, x1 = previous.position, current.position
-        self.r_a = contacts.point - (x0[a] + at * (x1[a] - x0[a]))
-        self.r_b = contacts.point - (x0[b] + at * (x1[b] - x0[b]))
-        v_now = _twist(current, held)
-        # gap at the previous state of persistent contacts, from the current approach speed
-        v_in = _point_velocity(v_now, self.pair, self.r_a, self.r_b, contacts.normal)
-        gap = contacts.separation - v_in * dt
-        closing = ~impact & (gap > 0.0) & (contacts.separation < 0.0) & (v_in < -threshold)
-        toi = np.where(impact, contacts.toi, 0.0)
-        toi = np.where(closing, gap / np.maximum(gap - contacts.separation, 1e-300), toi)
-        impact |= closing
-        self.reported = ContactSet(a, b, contacts.point, contacts.normal, contacts.separation,
-                                   np.clip(toi, 0.0, 1.0), np.where(
-                                       closing, ContactKind.IMPACT, contacts.kind).astype(np.int8),
-                                   contacts.feature)
-        # each movable body's reference fraction: its earliest time of impact, else 0
-        n = current.count
-        first = np.ones(n)
-        np.minimum.at(first, np.concatenate((a[impact], b[impact])),
-                      np.concatenate((toi[impact], toi[impact])))
-        self.touched = np.zeros(n, bool)
-        self.touched[a] = self.touched[b] = True
-        self.touched &= movable
-        self.impacted = np.zeros(n, bool)
-        self.impacted[a[impact]] = self.impacted[b[impact]] = True
-        self.impacted &= movable
-        self.fraction = np.where(self.impacted, np.clip(first, 0.0, 1.0), 0.0)
-        # pre-solve velocities: at the time of impact for impacted bodies (the twist of
-        # a state is the velocity over the step that led to it, at mid-step), else current
-        v_then = _twist(previous, held)
-        self.external = v_now - v_then          # this step's external velocity change
-        f = self.fraction[:, None]
-        self.velocity = np.where(self.impacted[:, None], v_now + (f - 0.5) * self.external,
-                                 v_now)
-        self.sticking_velocity = v_then         # before this step's forces
-        # speculative allowance: gap at the later of the two bodies' reference times
-        later = np.maximum(self.fraction[a], self.fraction[b])
-        remaining = np.maximum((1.0 - later) * dt, 1e-9 * dt)
-        self.gap = np.where(impact, 0.0, gap + v_in * later * dt)
-        self.remaining = np.where(impact, (1.0 - toi) * dt, remaining)
-        self.allowance = np.maximum(self.gap, 0.0) / remaining
-
-    def advance(self, velocity: np.ndarray, movable: np.ndarray) -> BodyStates:
-        """Corrected states before push-out (see the module docstring)."""
-        prev, cur, dt = self.previous, self.current, self.dt
-        out = cur.copy()
-        hit = self.impacted
-        rest = self.touched & ~hit
-        # persistent contact only: previous pose advanced by the new velocity for dt
-        out.linear[rest], out.angular[rest] = velocity[rest, :3], velocity[rest, 3:]
-        out.position[rest] = prev.position[rest] + velocity[rest, :3] * dt
-        out.orientation[rest] = rotation.integrate(prev.orientation[rest], velocity[rest, 3:], dt)
-        # impact: rewind to the time of impact, advance for the rest of the step
-        f = self.fraction[hit][:, None]
-        end = velocity[hit] + (0.5 - f) * self.external[hit]      # mid-step twist, as input
-        mean = velocity[hit] + 0.5 * (1.0 - f) * self.external[hit]
-        tau = (1.0 - f) * dt
-        out.linear[hit], out.angular[hit] = end[:, :3], end[:, 3:]
-        start = prev.position[hit] + f * (cur.position[hit] - prev.position[hit])
-        out.position[hit] = start + mean[:, :3] * tau
-        turned = rotation.slerp(prev.orientation[hit], cur.orientation[hit], f[:, 0])
-        out.orientation[hit] = rotation.integrate(turned, mean[:, 3:], tau[:, 0])
-        return out
-
-    def push_out(self, rows: solver.ContactRows, velocity: np.ndarray,
-                 s: SolverSettings) -> np.ndarray:
-        """Pseudo normal speed (M,) m/s, colour order, that removes part of the predicted overlap.
-
-        Predicted gap at the end of the step = reference gap + new normal speed
-        times the remaining time; beyond ``linear_slop`` a fraction
-        ``position_correction`` of it (at most ``max_correction``) is removed.
-        """
-        speed = np.einsum('mj,mj->m', rows.jacobian[:, 0, :], velocity[rows.pair].reshape(-1, 12))
-        predicted = self.gap[rows.order] + speed * self.remaining[rows.order]
-        depth = np.minimum(s.position_correction * np.maximum(-predicted - s.linear_slop, 0.0),
-                           s.max_correction)
-        return depth / self.dt
+def solver_params(settings: SolverSettings) -> _native.SolverParams:
+    """The compiled solver's parameters from the settings (combine rules by name)."""
+    params = _native.SolverParams()
+    for name in ('velocity_iterations', 'restitution_threshold', 'sticking_speed',
+                 'linear_slop', 'position_correction', 'max_correction'):
+        setattr(params, name, getattr(settings, name))
+    params.restitution_rule = _native.CombineRule.__members__[settings.restitution_rule]
+    params.friction_rule = _native.CombineRule.__members__[settings.friction_rule]
+    return params
 
 
-def _twist(states: BodyStates, held: np.ndarray) -> np.ndarray:
-    """(N, 6) linear and angular velocity; held bodies and non-finite entries read as 0."""
-    twist = np.concatenate((states.linear, states.angular), axis=1)
-    return np.where(np.isfinite(twist) & ~held[:, None], twist, 0.0)
+def combine(a: np.ndarray, b: np.ndarray, rule: str) -> np.ndarray:
+    """One coefficient per contact from two bodies' (the solver's rule; per_object: mean)."""
+    return np.asarray(_native.combine(np.asarray(a, float), np.asarray(b, float),
+                                      _native.CombineRule.__members__[rule]), float)
 
 
-def _point_velocity(twist: np.ndarray, pair: np.ndarray, r_a: np.ndarray, r_b: np.ndarray,
-                    normal: np.ndarray) -> np.ndarray:
-    """Relative normal velocity (M,) m/s of B's point against A's (< 0 approaching)."""
-    va = twist[pair[:, 0], :3] + np.cross(twist[pair[:, 0], 3:], r_a)
-    vb = twist[pair[:, 1], :3] + np.cross(twist[pair[:, 1], 3:], r_b)
-    return np.einsum('mi,mi->m', vb - va, normal)
+def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(position, orientation, linear, angular), float64 and C-contiguous (copied only if not)."""
+    return tuple(np.ascontiguousarray(a, np.float64) for a in (  # type: ignore[return-value]
+        states.position, states.orientation, states.linear, states.angular))
 
 
 def _hold(previous: BodyStates, current: BodyStates, held: np.ndarray) -> BodyStates:
@@ -352,37 +225,3 @@ def _finite(contacts: ContactSet) -> ContactSet:
     return ContactSet(contacts.body_a[ok], contacts.body_b[ok], contacts.point[ok],
                       contacts.normal[ok] / norm[ok, None], contacts.separation[ok],
                       contacts.toi[ok], contacts.kind[ok], contacts.feature[ok])
-
-
-def _displace(states: BodyStates, pseudo: np.ndarray, dt: float,
-              touched: np.ndarray) -> BodyStates:
-    """Poses moved by the split-impulse pseudo velocity for dt (velocities untouched)."""
-    move = touched & np.any(pseudo != 0.0, axis=1)
-    if move.any():
-        states.position[move] += pseudo[move, :3] * dt
-        states.orientation[move] = rotation.integrate(states.orientation[move],
-                                                      pseudo[move, 3:], dt)
-    return states
-
-
-def _resting_when_friction_balances(contacts: ContactSet, state: np.ndarray,
-                                    friction: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """STICKING -> RESTING where a pair's friction impulses sum to nothing.
-
-    A box at rest on a flat floor may carry equal and opposite friction
-    impulses at its corners (a statically indeterminate manifold); no net
-    friction holds it, so users read it as RESTING. Caller order, (M,) uint8.
-    """
-    sticking = state == ContactState.STICKING
-    if not sticking.any():
-        return state
-    _, pair = np.unique(np.stack((contacts.body_a, contacts.body_b), axis=1), axis=0,
-                        return_inverse=True)
-    pair = pair.reshape(-1)
-    net_friction = np.zeros((pair.max() + 1, 3))
-    np.add.at(net_friction, pair, friction)
-    net_normal = np.bincount(pair, weights=normal)
-    balanced = np.linalg.norm(net_friction, axis=1) <= BALANCED_FRICTION * net_normal + 1e-15
-    out = state.copy()
-    out[sticking & balanced[pair]] = ContactState.RESTING
-    return out

@@ -5,11 +5,12 @@ from __future__ import annotations
 import itertools
 import math
 
+import coal
 import numpy as np
 import pytest
 
 from collres_ros.core import rotation
-from collres_ros.core.collision import CollisionWorld
+from collres_ros.core.detection import Detection
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import BodySpec, ContactKind
 from contacts import at_rest
@@ -20,8 +21,8 @@ states = at_rest
 
 def test_time_of_impact_of_two_approaching_spheres_matches_the_analytic_time() -> None:
     # r = 0.1 each; centres 1.0 apart close at 0.9 per step: touch at gap 0.2, t = 0.8 / 0.9
-    world = CollisionWorld([BodySpec('a', 'sphere', (0.1,)), BodySpec('b', 'sphere', (0.1,))],
-                           SETTINGS)
+    world = Detection([BodySpec('a', 'sphere', (0.1,)), BodySpec('b', 'sphere', (0.1,))],
+                      SETTINGS)
     contacts = world.detect(states([[-0.5, 0, 0], [0.5, 0, 0]]),
                             states([[-0.05, 0, 0], [0.05, 0, 0]]))
     assert contacts.count == 1 and contacts.kind[0] == ContactKind.IMPACT
@@ -36,8 +37,8 @@ def test_time_of_impact_of_two_approaching_spheres_matches_the_analytic_time() -
 
 def test_fast_small_sphere_through_a_thin_wall_is_caught_as_tunnelled() -> None:
     # 2 cm sphere at 200 m/s, 1 cm wall, 100 Hz: apart at both ends of the step
-    world = CollisionWorld([BodySpec('wall', 'box', (0.01, 1.0, 1.0), static=True),
-                            BodySpec('ball', 'sphere', (0.01,))], SETTINGS)
+    world = Detection([BodySpec('wall', 'box', (0.01, 1.0, 1.0), static=True),
+                       BodySpec('ball', 'sphere', (0.01,))], SETTINGS)
     before, after = states([[0, 0, 0], [-1.0, 0, 0]]), states([[0, 0, 0], [1.0, 0, 0]])
     contacts = world.detect(before, after)
     assert contacts.count == 1 and contacts.kind[0] == ContactKind.TUNNELLED
@@ -46,14 +47,14 @@ def test_fast_small_sphere_through_a_thin_wall_is_caught_as_tunnelled() -> None:
     assert abs(contacts.toi[0] - expected) <= 2 * SETTINGS.toi_tolerance
     np.testing.assert_allclose(contacts.normal[0], [-1, 0, 0], atol=1e-6)  # wall -> ball
     assert contacts.point[0][0] == pytest.approx(-0.005, abs=1e-3)
-    without_ccd = CollisionWorld(world.specs, SETTINGS.with_values(ccd=False))
+    without_ccd = Detection(world.specs, SETTINGS.with_values(ccd=False))
     assert without_ccd.detect(before, after).count == 0  # the sweep is what catches it
 
 
 def test_box_resting_face_down_gives_four_points_on_the_floor() -> None:
     for floor in (BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
                   BodySpec('floor', 'box', (10, 10, 0.2), static=True)):
-        world = CollisionWorld([floor, BodySpec('box', 'box', (0.2, 0.4, 0.2))], SETTINGS)
+        world = Detection([floor, BodySpec('box', 'box', (0.2, 0.4, 0.2))], SETTINGS)
         floor_z = 0.0 if floor.shape == 'plane' else -0.1
         resting = states([[0, 0, floor_z], [0, 0, 0.1 - 0.001]])
         contacts = world.detect(resting, resting)
@@ -69,8 +70,8 @@ def test_box_resting_face_down_gives_four_points_on_the_floor() -> None:
 
 
 def test_sphere_on_plane_depth_matches_geometry() -> None:
-    world = CollisionWorld([BodySpec('floor', 'plane', (0, 0, 1, 0.5), static=True),
-                            BodySpec('ball', 'sphere', (0.25,))], SETTINGS)
+    world = Detection([BodySpec('floor', 'plane', (0, 0, 1, 0.5), static=True),
+                       BodySpec('ball', 'sphere', (0.25,))], SETTINGS)
     state = states([[0, 0, 0], [0.3, -0.2, 0.5 + 0.25 - 0.0123]])
     contacts = world.detect(state, state)
     assert contacts.count == 1
@@ -79,8 +80,8 @@ def test_sphere_on_plane_depth_matches_geometry() -> None:
 
 
 def test_speculative_contact_within_margin_has_positive_separation() -> None:
-    world = CollisionWorld([BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
-                            BodySpec('ball', 'sphere', (0.1,))], SETTINGS)
+    world = Detection([BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
+                       BodySpec('ball', 'sphere', (0.1,))], SETTINGS)
     state = states([[0, 0, 0], [0, 0, 0.1 + 0.005]])
     contacts = world.detect(state, state)
     assert contacts.count == 1 and contacts.kind[0] == ContactKind.PERSISTENT
@@ -96,7 +97,7 @@ def test_convex_hull_of_a_cube_collides_like_the_box() -> None:
     state = states([[0, 0, 0], [0, 0, 0.12]], [[0, 0, 0, 1], tilt])
     results = []
     for body in (BodySpec('c', 'box', (0.2, 0.2, 0.2)), BodySpec('c', 'convex', points=corners)):
-        contacts = CollisionWorld([floor, body], SETTINGS).detect(state, state)
+        contacts = Detection([floor, body], SETTINGS).detect(state, state)
         results.append((contacts.count, np.sort(contacts.separation)))
     assert results[0][0] == results[1][0] >= 1
     np.testing.assert_allclose(results[0][1], results[1][1], atol=1e-6)
@@ -107,7 +108,7 @@ def test_broad_phase_finds_the_same_pairs_as_all_pairs() -> None:
     count = 200
     shapes = [BodySpec(f'b{i}', 'sphere', (0.05,)) if i % 2 else
               BodySpec(f'b{i}', 'box', (0.08, 0.08, 0.08)) for i in range(count)]
-    world = CollisionWorld(shapes, SETTINGS)
+    world = Detection(shapes, SETTINGS)
     before = states(rng.uniform(0, 1.2, (count, 3)))
     after = before.copy()
     after.position += rng.normal(0, 0.03, (count, 3))
@@ -141,10 +142,51 @@ def test_every_shape_detects_resting_on_the_floor() -> None:
              ('capsule', (0.1, 0.3), 0.25), ('cylinder', (0.1, 0.3), 0.15),
              ('cone', (0.1, 0.4), 0.1)]  # cone origin: centre of mass, a quarter up the axis
     for shape, size, half_height in cases:
-        world = CollisionWorld([floor, BodySpec('b', shape, size)], SETTINGS)
+        world = Detection([floor, BodySpec('b', shape, size)], SETTINGS)
         state = states([[0, 0, -0.1], [0, 0, half_height - 0.002]])
         contacts = world.detect(state, state)
         assert contacts.count >= 1, shape
         print(shape, contacts.count, contacts.separation)
         np.testing.assert_allclose(contacts.separation, -0.002, atol=2e-4, err_msg=shape)
         np.testing.assert_allclose(contacts.normal[:, 2], 1.0, atol=1e-6, err_msg=shape)
+
+
+def polygon_area(points: np.ndarray) -> float:
+    """Area (m^2) of the convex hull of points on a horizontal plane (x, y used)."""
+    xy = points[:, :2]
+    centre = xy.mean(axis=0)
+    order = np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
+    x, y = xy[order, 0], xy[order, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def test_box_on_a_turned_box_keeps_four_points_that_span_most_of_the_patch() -> None:
+    # a cube turned 0.7 rad about z on another: the faces overlap in an octagon (8 points)
+    lower = BodySpec('lower', 'box', (0.2, 0.2, 0.2))
+    upper = BodySpec('upper', 'box', (0.2, 0.2, 0.2))
+    turned = rotation.from_rotation_vector(np.array([0.0, 0.0, 0.7]))
+    state = states([[0, 0, 0], [0.02, 0, 0.199]], [[0, 0, 0, 1], turned])
+    world = Detection([lower, upper], SETTINGS)
+    contacts = world.detect(state, state)
+    # the full patch from coal itself
+    rotations = rotation.to_matrix(state.orientation)
+    poses = [coal.Transform3s(r, p) for r, p in zip(rotations, state.position)]
+    request, result = coal.CollisionRequest(), coal.CollisionResult()
+    request.security_margin = SETTINGS.speculative_margin
+    geometries = [coal.Box(0.2, 0.2, 0.2), coal.Box(0.2, 0.2, 0.2)]
+    coal.collide(geometries[0], poses[0], geometries[1], poses[1], request, result)
+    patch_request, patches = coal.ContactPatchRequest(), coal.ContactPatchResult()
+    patch_request.setPatchTolerance(0.01)
+    coal.computeContactPatch(geometries[0], poses[0], geometries[1], poses[1], result,
+                             patch_request, patches)
+    patch = patches.getContactPatch(0)
+    full = np.array([patch.getPoint(k) for k in range(patch.size())])
+    kept = polygon_area(contacts.point) / polygon_area(full)
+    print(f'{patch.size()} patch points -> {contacts.count} contacts keeping {kept:.3f} '
+          'of the patch area')
+    assert patch.size() == 8 and contacts.count == 4
+    assert kept >= 0.65   # the best quadrilateral in a regular octagon keeps 0.707
+    assert len(set(contacts.feature)) == 4
+    again = world.detect(state, state)
+    assert list(again.feature) == list(contacts.feature)
+    np.testing.assert_allclose(contacts.normal, np.tile([0, 0, 1], (4, 1)), atol=1e-9)

@@ -9,8 +9,9 @@ import struct
 import numpy as np
 import pytest
 
-from collres_ros.core.shapes import (bounding_radius, inertia_tensor, load_mesh_points,
-                                     make_geometry, mass_properties, shape_offset)
+from collres_ros.core.shapes import (bounding_radius, collision_numbers, inertia_tensor,
+                                     load_mesh_points, make_geometry, mass_properties,
+                                     shape_offset)
 from collres_ros.core.types import BodySpec
 
 
@@ -114,13 +115,14 @@ def test_bounding_radius_holds_every_vertex() -> None:
 
 
 def test_bad_sizes_are_refused_with_the_body_name() -> None:
-    with pytest.raises(ValueError, match='wheel'):
-        make_geometry(BodySpec('wheel', 'cylinder', (0.1,)))
-    with pytest.raises(ValueError, match='flat'):
-        make_geometry(BodySpec('flat', 'convex',
-                               points=((0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0))))
-    with pytest.raises(ValueError, match='ground'):
-        make_geometry(BodySpec('ground', 'plane', (0, 0, 0, 1), static=True))
+    bad = [BodySpec('wheel', 'cylinder', (0.1,)),
+           BodySpec('flat', 'convex', points=((0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0))),
+           BodySpec('ground', 'plane', (0, 0, 0, 1), static=True)]
+    for spec in bad:   # the coal geometry and the numbers the compiled detector builds from
+        with pytest.raises(ValueError, match=spec.name):
+            make_geometry(spec)
+        with pytest.raises(ValueError, match=spec.name):
+            collision_numbers(spec)
 
 
 def test_mesh_files_obj_and_stl_ascii_and_binary_give_the_cube_corners(tmp_path) -> None:

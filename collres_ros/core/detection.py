@@ -1,0 +1,91 @@
+"""Detection of one step: the compiled detector (``src/detection.h``) behind a thin facade.
+
+``Detection.detect(previous, current, active)`` returns the step's ContactSet (world
+frame, normals unit from body A to body B, A < B, rows grouped by pair in increasing
+(A, B) order). The C++ side does, with the GIL released: swept-bounds broad phase (sort
+and sweep; half-spaces tested against every finite body), reuse of the stored manifolds
+of flat-faced pairs that barely moved, coal narrow phase and contact patches reduced to
+at most four points with stable feature ids, and the classification of each pair:
+
+* PERSISTENT: within the speculative margin at the previous state too (or within it now
+  and apart before without a hit: a speculative contact); rows at the current state
+  (toi 0, separation > 0 for a speculative gap, < 0 for a penetration);
+* IMPACT: apart before and overlapping now (also from within the margin when the pair
+  closes faster than ``restitution_threshold``): time of impact by bisection on the
+  interpolated motion (lerp position, slerp orientation) to ``toi_tolerance``; point and
+  normal at the time of impact, separation min(separation there, signed distance now);
+* TUNNELLED: apart at both ends but conservative advancement (coal distances) finds a
+  hit, then the same bisection; point, normal and separation (about 0) at the impact.
+
+The detector reads each body's current twist only to tell a fast approach from a slow
+one; poses are the whole input otherwise.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from collres_ros.core import _native
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.shapes import bounding_radius, collision_numbers
+from collres_ros.core.types import SHAPE_KINDS, BodySpec, BodyStates, ContactSet
+
+REUSE_TRANSLATION = _native.REUSE_TRANSLATION   # m: a stored manifold is reused while its
+REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and turned less
+#                                                 than this (rad) relative to each other
+
+
+class Detection:
+    """The compiled detector of a fixed list of bodies, and the settings it reads."""
+
+    def __init__(self, bodies: Sequence[BodySpec], settings: SolverSettings) -> None:
+        self.specs = list(bodies)
+        numbers = [collision_numbers(spec) for spec in self.specs]
+        self._native = _native.Detector(
+            [SHAPE_KINDS.index(spec.shape) for spec in self.specs],
+            [size for size, _ in numbers], [points for _, points in numbers],
+            [bounding_radius(spec) for spec in self.specs],
+            [bool(spec.static or spec.shape == 'plane') for spec in self.specs])
+        self.settings = settings
+
+    @property
+    def settings(self) -> SolverSettings:
+        return self._settings
+
+    @settings.setter
+    def settings(self, settings: SolverSettings) -> None:
+        """New settings take effect at the next step (a new margin forgets the manifolds)."""
+        self._settings = settings
+        self._native.set_settings(settings.speculative_margin, settings.toi_tolerance,
+                                  settings.toi_max_iterations, settings.ccd,
+                                  settings.linear_slop, settings.restitution_threshold)
+
+    def detect(self, previous: BodyStates, current: BodyStates,
+               active: np.ndarray | None = None) -> ContactSet:
+        """Contacts of the step ``previous`` -> ``current`` (see the module docstring).
+
+        ``active`` (N,) bool: False marks a frozen body, held at its current pose over
+        the whole step (its previous pose is ignored); it still collides.
+        """
+        rows = self._native.detect(*self._arrays(previous, current, active))
+        return ContactSet(*rows)
+
+    def candidate_pairs(self, previous: BodyStates, current: BodyStates,
+                        active: np.ndarray | None = None) -> list[tuple[int, int]]:
+        """Broad-phase pairs (a < b) whose swept bounds overlap (for tests and tools)."""
+        return self._native.candidate_pairs(*self._arrays(previous, current, active))
+
+    def reset(self) -> None:
+        """Forget the stored manifolds (e.g. after bodies were teleported)."""
+        self._native.reset()
+
+    @staticmethod
+    def _arrays(previous: BodyStates, current: BodyStates,
+                active: np.ndarray | None) -> tuple:
+        as_rows = (lambda a: np.ascontiguousarray(a, dtype=np.float64))
+        mask = None if active is None else np.ascontiguousarray(active, dtype=np.uint8)
+        return (as_rows(previous.position), as_rows(previous.orientation),
+                as_rows(current.position), as_rows(current.orientation),
+                as_rows(current.linear), as_rows(current.angular), mask)

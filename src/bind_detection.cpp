@@ -1,0 +1,138 @@
+// Detection bindings: collres::Detector over numpy arrays (no logic here).
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bindings.h"
+#include "detection.h"
+
+namespace py = pybind11;
+
+namespace {
+
+using Array = py::array_t<double, py::array::c_style>;
+using Mask = py::array_t<std::uint8_t, py::array::c_style>;
+
+// A C-contiguous float64 array of shape (count, width), checked, never converted.
+const double* rows_of(const py::array& array, py::ssize_t count, py::ssize_t width,
+                      const char* name) {
+  if (!py::isinstance<Array>(array) || array.ndim() != 2 || array.shape(0) != count ||
+      array.shape(1) != width) {
+    throw py::value_error(std::string(name) + ": expected a C-contiguous float64 array of "
+                          "shape (" + std::to_string(count) + ", " + std::to_string(width) + ")");
+  }
+  return static_cast<const double*>(array.data());
+}
+
+// A numpy array that owns a moved-in std::vector (no copy).
+template <class T>
+py::array owned(std::vector<T>&& data, std::vector<py::ssize_t> shape) {
+  auto* holder = new std::vector<T>(std::move(data));
+  py::capsule free(holder, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  return py::array_t<T>(shape, holder->data(), free);
+}
+
+collres::StepPoses poses_of(const collres::Detector& detector, const py::array& p0,
+                            const py::array& q0, const py::array& p1, const py::array& q1,
+                            const py::array& linear, const py::array& angular,
+                            const std::optional<py::array>& active) {
+  const py::ssize_t n = detector.count();
+  collres::StepPoses poses;
+  poses.count = detector.count();
+  poses.p0 = rows_of(p0, n, 3, "p0");
+  poses.q0 = rows_of(q0, n, 4, "q0");
+  poses.p1 = rows_of(p1, n, 3, "p1");
+  poses.q1 = rows_of(q1, n, 4, "q1");
+  poses.linear = rows_of(linear, n, 3, "linear");
+  poses.angular = rows_of(angular, n, 3, "angular");
+  if (active) {
+    if (!py::isinstance<Mask>(*active) || active->ndim() != 1 || active->shape(0) != n) {
+      throw py::value_error("active: expected a C-contiguous uint8 array of shape (N,)");
+    }
+    poses.active = static_cast<const std::uint8_t*>(active->data());
+  }
+  return poses;
+}
+
+}  // namespace
+
+void bind_detection(py::module_& m) {
+  m.attr("REUSE_TRANSLATION") = collres::kReuseTranslation;
+  m.attr("REUSE_ROTATION") = collres::kReuseRotation;
+  py::class_<collres::Detector>(m, "Detector", "Broad phase, narrow phase, manifolds and "
+                                "time of impact of a fixed list of bodies (detection.h).")
+      .def(py::init([](const std::vector<int>& kinds, const std::vector<std::vector<double>>& sizes,
+                       const std::vector<std::vector<double>>& points,
+                       const std::vector<double>& radius, const std::vector<bool>& fixed) {
+             const std::size_t n = kinds.size();
+             if (sizes.size() != n || points.size() != n || radius.size() != n ||
+                 fixed.size() != n) {
+               throw py::value_error("kinds, sizes, points, radius, static: one per body");
+             }
+             std::vector<collres::BodyShape> shapes;
+             for (std::size_t k = 0; k < n; ++k) {
+               shapes.push_back(collres::make_shape(kinds[k], sizes[k], points[k], radius[k],
+                                                    fixed[k]));
+             }
+             return std::make_unique<collres::Detector>(std::move(shapes));
+           }),
+           py::arg("kinds"), py::arg("sizes"), py::arg("points"), py::arg("radius"),
+           py::arg("static"),
+           "Per body: shape code (index in SHAPE_KINDS), sizes, convex vertices (flat, m, "
+           "body frame), bounding radius (m), static.")
+      .def("set_settings",
+           [](collres::Detector& d, double speculative_margin, double toi_tolerance,
+              int toi_max_iterations, bool ccd, double linear_slop,
+              double restitution_threshold) {
+             d.set_settings({speculative_margin, toi_tolerance, toi_max_iterations, ccd,
+                             linear_slop, restitution_threshold});
+           },
+           py::arg("speculative_margin"), py::arg("toi_tolerance"),
+           py::arg("toi_max_iterations"), py::arg("ccd"), py::arg("linear_slop"),
+           py::arg("restitution_threshold"))
+      .def("detect",
+           [](collres::Detector& d, const py::array& p0, const py::array& q0,
+              const py::array& p1, const py::array& q1, const py::array& linear,
+              const py::array& angular, const std::optional<py::array>& active) {
+             const collres::StepPoses poses = poses_of(d, p0, q0, p1, q1, linear, angular,
+                                                       active);
+             collres::ContactRows rows;
+             {
+               py::gil_scoped_release release;
+               d.detect(poses, rows);
+             }
+             const auto m_rows = static_cast<py::ssize_t>(rows.size());
+             return py::make_tuple(
+                 owned(std::move(rows.body_a), {m_rows}), owned(std::move(rows.body_b), {m_rows}),
+                 owned(std::move(rows.point), {m_rows, 3}),
+                 owned(std::move(rows.normal), {m_rows, 3}),
+                 owned(std::move(rows.separation), {m_rows}), owned(std::move(rows.toi), {m_rows}),
+                 owned(std::move(rows.kind), {m_rows}), owned(std::move(rows.feature), {m_rows}));
+           },
+           py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
+           py::arg("angular"), py::arg("active") = py::none(),
+           "Contacts of the step: (body_a, body_b, point, normal, separation, toi, kind, "
+           "feature), the fields of ContactSet.")
+      .def("candidate_pairs",
+           [](collres::Detector& d, const py::array& p0, const py::array& q0,
+              const py::array& p1, const py::array& q1, const py::array& linear,
+              const py::array& angular, const std::optional<py::array>& active) {
+             const collres::StepPoses poses = poses_of(d, p0, q0, p1, q1, linear, angular,
+                                                       active);
+             std::vector<std::pair<int, int>> pairs;
+             {
+               py::gil_scoped_release release;
+               d.candidate_pairs(poses, pairs);
+             }
+             return pairs;
+           },
+           py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
+           py::arg("angular"), py::arg("active") = py::none(),
+           "Broad-phase pairs (a < b), sorted.")
+      .def("reset", &collres::Detector::reset, "Forget the stored manifolds.");
+}

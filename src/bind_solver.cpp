@@ -1,0 +1,188 @@
+// Solver bindings: combine rules, the contact cache and the solver step.
+//
+// Arrays are taken as they are (no conversion, no copy): each must be a C-contiguous
+// numpy array of the documented dtype and shape, outputs writable, or a TypeError /
+// ValueError names it. The step releases the GIL while it runs.
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bindings.h"
+#include "contact_cache.h"
+#include "contact_solver.h"
+#include "step.h"
+
+namespace py = pybind11;
+using namespace collres;
+
+namespace {
+
+// The data pointer of `array`, checked: dtype T, C-contiguous, this shape (-1: any size,
+// the same for every array given `count`), writable if `out`.
+template <class T>
+T* checked(const py::array& array, const char* name, std::vector<py::ssize_t> shape,
+           bool out = false) {
+  if (!array.dtype().is(py::dtype::of<T>()))
+    throw py::type_error(std::string(name) + ": wrong dtype " +
+                         py::str(array.dtype()).cast<std::string>());
+  if (!(array.flags() & py::array::c_style))
+    throw py::value_error(std::string(name) + ": not C-contiguous");
+  if (out && !array.writeable()) throw py::value_error(std::string(name) + ": read-only");
+  bool ok = array.ndim() == static_cast<py::ssize_t>(shape.size());
+  for (size_t d = 0; ok && d < shape.size(); ++d) ok = array.shape(d) == shape[d];
+  if (!ok) throw py::value_error(std::string(name) + ": wrong shape");
+  return static_cast<T*>(const_cast<void*>(array.data()));
+}
+
+
+BodyStatesView states_view(const py::tuple& t, py::ssize_t n, const char* name) {
+  if (t.size() != 4) throw py::value_error(std::string(name) + ": (position, orientation, "
+                                           "linear, angular) expected");
+  BodyStatesView v;
+  v.position = checked<double>(t[0], name, {n, 3});
+  v.orientation = checked<double>(t[1], name, {n, 4});
+  v.linear = checked<double>(t[2], name, {n, 3});
+  v.angular = checked<double>(t[3], name, {n, 3});
+  return v;
+}
+
+py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::tuple& current,
+                      const py::tuple& out_states, const py::array& inv_mass,
+                      const py::array& inv_inertia_body, const py::array& movable,
+                      const py::array& held, const py::array& restitution,
+                      const py::array& static_friction, const py::array& kinetic_friction,
+                      const py::array& a, const py::array& b, const py::array& point,
+                      const py::array& normal, const py::array& separation,
+                      const py::array& toi, const py::array& kind, const py::array& feature,
+                      double dt, bool warm, const SolverParams& params,
+                      const py::array& normal_impulse, const py::array& friction_impulse,
+                      const py::array& state, const py::array& reported_toi,
+                      const py::array& reported_kind) {
+  const py::ssize_t n = inv_mass.ndim() == 1 ? inv_mass.shape(0) : -1;
+  const py::ssize_t m = a.ndim() == 1 ? a.shape(0) : -1;
+  BodyStatesView prev = states_view(previous, n, "previous");
+  BodyStatesView cur = states_view(current, n, "current");
+  BodyStatesView o = states_view(out_states, n, "out");
+  BodyStatesOut out{const_cast<double*>(o.position), const_cast<double*>(o.orientation),
+                    const_cast<double*>(o.linear), const_cast<double*>(o.angular)};
+  for (int i = 0; i < 4; ++i)
+    if (!py::array(out_states[i]).writeable()) throw py::value_error("out: read-only");
+  BodyProperties bodies;
+  bodies.count = n;
+  bodies.inv_mass = checked<double>(inv_mass, "inv_mass", {n});
+  bodies.inv_inertia_body = checked<double>(inv_inertia_body, "inv_inertia_body", {n, 3, 3});
+  bodies.movable = reinterpret_cast<const uint8_t*>(checked<bool>(movable, "movable", {n}));
+  bodies.held = reinterpret_cast<const uint8_t*>(checked<bool>(held, "held", {n}));
+  bodies.restitution = checked<double>(restitution, "restitution", {n});
+  bodies.static_friction = checked<double>(static_friction, "static_friction", {n});
+  bodies.kinetic_friction = checked<double>(kinetic_friction, "kinetic_friction", {n});
+  ContactsView c;
+  c.count = m;
+  c.a = checked<int64_t>(a, "body_a", {m});
+  c.b = checked<int64_t>(b, "body_b", {m});
+  c.point = checked<double>(point, "point", {m, 3});
+  c.normal = checked<double>(normal, "normal", {m, 3});
+  c.separation = checked<double>(separation, "separation", {m});
+  c.toi = checked<double>(toi, "toi", {m});
+  c.kind = checked<int8_t>(kind, "kind", {m});
+  c.feature = checked<int64_t>(feature, "feature", {m});
+  for (py::ssize_t k = 0; k < m; ++k)
+    if (c.a[k] < 0 || c.a[k] >= n || c.b[k] < 0 || c.b[k] >= n)
+      throw py::index_error("contact body index out of range");
+  ContactsOut r;
+  r.normal_impulse = checked<double>(normal_impulse, "normal_impulse", {m}, true);
+  r.friction_impulse = checked<double>(friction_impulse, "friction_impulse", {m, 3}, true);
+  r.state = checked<uint8_t>(state, "state", {m}, true);
+  r.toi = checked<double>(reported_toi, "reported_toi", {m}, true);
+  r.kind = checked<int8_t>(reported_kind, "reported_kind", {m}, true);
+  StepStats stats;
+  {
+    py::gil_scoped_release release;
+    stats = solver.step(prev, cur, bodies, c, dt, warm, params, out, r);
+  }
+  return py::make_tuple(stats.sweeps, stats.rows);
+}
+
+void cache_store(ContactCache& cache, const py::array& a, const py::array& b,
+                 const py::array& feature, const py::array& normal,
+                 const py::array& friction, const py::array& point) {
+  const py::ssize_t m = a.ndim() == 1 ? a.shape(0) : -1;
+  cache.store(m, checked<int64_t>(a, "a", {m}), checked<int64_t>(b, "b", {m}),
+              checked<int64_t>(feature, "feature", {m}), checked<double>(normal, "normal", {m}),
+              checked<double>(friction, "friction", {m, 3}),
+              checked<double>(point, "point", {m, 3}));
+}
+
+py::tuple cache_lookup(ContactCache& cache, const py::array& a, const py::array& b,
+                       const py::array& feature, const py::array& point, double radius) {
+  const py::ssize_t m = a.ndim() == 1 ? a.shape(0) : -1;
+  py::array_t<double> normal(m), friction({m, static_cast<py::ssize_t>(3)});
+  py::array_t<bool> found(m);
+  cache.lookup(m, checked<int64_t>(a, "a", {m}), checked<int64_t>(b, "b", {m}),
+               checked<int64_t>(feature, "feature", {m}), checked<double>(point, "point", {m, 3}),
+               radius, normal.mutable_data(), friction.mutable_data(),
+               reinterpret_cast<uint8_t*>(found.mutable_data()));
+  return py::make_tuple(normal, friction, found);
+}
+
+}  // namespace
+
+void bind_solver(py::module_& m) {
+  py::enum_<CombineRule>(m, "CombineRule")
+      .value("average", CombineRule::kAverage)
+      .value("min", CombineRule::kMin)
+      .value("max", CombineRule::kMax)
+      .value("multiply", CombineRule::kMultiply)
+      .value("geometric", CombineRule::kGeometric)
+      .value("per_object", CombineRule::kPerObject);
+  m.def("combine", py::vectorize(&combine), py::arg("a"), py::arg("b"), py::arg("rule"),
+        "One coefficient per contact from the two bodies' (per_object: the mean).");
+
+  py::class_<SolverParams>(m, "SolverParams", "The solver's settings (units: see step.h).")
+      .def(py::init<>())
+      .def_readwrite("velocity_iterations", &SolverParams::velocity_iterations)
+      .def_readwrite("position_iterations", &SolverParams::position_iterations)
+      .def_readwrite("shock_sweeps", &SolverParams::shock_sweeps)
+      .def_readwrite("restitution_threshold", &SolverParams::restitution_threshold)
+      .def_readwrite("sticking_speed", &SolverParams::sticking_speed)
+      .def_readwrite("linear_slop", &SolverParams::linear_slop)
+      .def_readwrite("position_correction", &SolverParams::position_correction)
+      .def_readwrite("max_correction", &SolverParams::max_correction)
+      .def_readwrite("converged", &SolverParams::converged)
+      .def_readwrite("cold_extra", &SolverParams::cold_extra)
+      .def_readwrite("balanced_friction", &SolverParams::balanced_friction)
+      .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
+      .def_readwrite("friction_rule", &SolverParams::friction_rule);
+
+  py::class_<ContactCache>(m, "ContactCache", "Last step's impulses by pair and feature.")
+      .def(py::init<>())
+      .def("store", &cache_store, py::arg("a"), py::arg("b"), py::arg("feature"),
+           py::arg("normal"), py::arg("friction"), py::arg("point"))
+      .def("lookup", &cache_lookup, py::arg("a"), py::arg("b"), py::arg("feature"),
+           py::arg("point"), py::arg("match_radius") = 0.02,
+           "(normal (M,), friction (M, 3), found (M,) bool); zeros where absent.")
+      .def("forget", [](ContactCache& cache, const py::array& bodies) {
+        const py::ssize_t k = bodies.ndim() == 1 ? bodies.shape(0) : -1;
+        cache.forget(k, checked<int64_t>(bodies, "bodies", {k}));
+      }, py::arg("bodies"), "Drop every entry that involves one of these body indices.")
+      .def("clear", &ContactCache::clear)
+      .def("__len__", &ContactCache::size);
+
+  py::class_<StepSolver>(m, "StepSolver", "The per-contact work of one step (see step.h).")
+      .def(py::init<>())
+      .def_property_readonly("cache", &StepSolver::cache, py::return_value_policy::reference_internal)
+      .def("step", &solver_step, py::kw_only(), py::arg("previous"), py::arg("current"),
+           py::arg("out"), py::arg("inv_mass"), py::arg("inv_inertia_body"),
+           py::arg("movable"), py::arg("held"), py::arg("restitution"),
+           py::arg("static_friction"), py::arg("kinetic_friction"), py::arg("body_a"),
+           py::arg("body_b"), py::arg("point"), py::arg("normal"), py::arg("separation"),
+           py::arg("toi"), py::arg("kind"), py::arg("feature"), py::arg("dt"),
+           py::arg("warm"), py::arg("params"), py::arg("normal_impulse"),
+           py::arg("friction_impulse"), py::arg("state"), py::arg("reported_toi"),
+           py::arg("reported_kind"),
+           "Solve one step in place of `out` (a copy of `current`) and the per-contact "
+           "outputs; returns (velocity sweeps, solver rows).");
+}

@@ -1,0 +1,87 @@
+#include "broad_phase.h"
+
+#include <algorithm>
+#include <numeric>
+
+namespace collres {
+
+Aabb world_box(const Mat3& rotation, const Vec3& position, const Vec3& local_lo,
+               const Vec3& local_hi) {
+  const Vec3 centre = rotation * (0.5 * (local_lo + local_hi)) + position;
+  const Vec3 half = rotation.cwiseAbs() * (0.5 * (local_hi - local_lo));
+  return {centre - half, centre + half};
+}
+
+void overlapping_pairs(const std::vector<Aabb>& boxes,
+                       std::vector<std::pair<int, int>>& pairs) {
+  const int count = static_cast<int>(boxes.size());
+  if (count < 2) return;
+  // sweep along the axis where the box centres spread most
+  Vec3 mean = Vec3::Zero(), square = Vec3::Zero();
+  for (const Aabb& box : boxes) {
+    const Vec3 centre = box.lo + box.hi;
+    mean += centre;
+    square += centre.cwiseProduct(centre);
+  }
+  mean /= count;
+  int axis = 0;
+  (square / count - mean.cwiseProduct(mean)).maxCoeff(&axis);
+  const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  std::vector<int> order(count);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&boxes, axis](int i, int j) {
+    return boxes[i].lo[axis] < boxes[j].lo[axis] ||
+           (boxes[i].lo[axis] == boxes[j].lo[axis] && i < j);
+  });
+  // the boxes in sweep order, contiguous: the inner loop reads memory in sequence
+  struct Swept {
+    double lo, hi, lo_u, hi_u, lo_v, hi_v;
+  };
+  std::vector<Swept> sorted(count);
+  for (int k = 0; k < count; ++k) {
+    const Aabb& box = boxes[order[k]];
+    sorted[k] = {box.lo[axis], box.hi[axis], box.lo[u], box.hi[u], box.lo[v], box.hi[v]};
+  }
+  for (int k = 0; k < count; ++k) {
+    const Swept first = sorted[k];
+    for (int m = k + 1; m < count && sorted[m].lo <= first.hi; ++m) {
+      const Swept& second = sorted[m];
+      if (first.lo_u <= second.hi_u && second.lo_u <= first.hi_u && first.lo_v <= second.hi_v &&
+          second.lo_v <= first.hi_v) {
+        pairs.emplace_back(std::min(order[k], order[m]), std::max(order[k], order[m]));
+      }
+    }
+  }
+}
+
+void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
+                          std::vector<std::pair<int, int>>& pairs) {
+  bool inside = fat_.size() == boxes.size();
+  for (std::size_t k = 0; inside && k < boxes.size(); ++k) {
+    inside = (boxes[k].lo.array() >= fat_[k].lo.array()).all() &&
+             (boxes[k].hi.array() <= fat_[k].hi.array()).all();
+  }
+  if (!inside) {
+    fat_.resize(boxes.size());
+    const Vec3 skin = Vec3::Constant(skin_);
+    for (std::size_t k = 0; k < boxes.size(); ++k) {
+      fat_[k] = {boxes[k].lo - skin, boxes[k].hi + skin};
+    }
+    fat_pairs_.clear();
+    overlapping_pairs(fat_, fat_pairs_);
+  }
+  for (const auto& [i, j] : fat_pairs_) {
+    if ((boxes[i].lo.array() <= boxes[j].hi.array()).all() &&
+        (boxes[j].lo.array() <= boxes[i].hi.array()).all()) {
+      pairs.emplace_back(i, j);
+    }
+  }
+}
+
+bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad) {
+  const Vec3 centre = 0.5 * (box.lo + box.hi);
+  const Vec3 half = 0.5 * (box.hi - box.lo);
+  return centre.dot(normal) - half.dot(normal.cwiseAbs()) <= offset + pad;
+}
+
+}  // namespace collres

@@ -1,0 +1,49 @@
+// Broad phase: the pairs of bodies whose bounds, swept over the step, overlap.
+//
+// Bounds are world-frame axis-aligned boxes (m) that cover a body at its previous and its
+// current pose and along the interpolated motion in between, padded by half the
+// speculative margin, so two bodies closer than the margin always form a pair. Finite
+// bodies go through a sort and sweep along the axis of largest spread; half-spaces have
+// infinite bounds and are tested against every finite box directly (never sorted).
+#pragma once
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "detection_types.h"
+
+namespace collres {
+
+struct Aabb {
+  Vec3 lo, hi;  // m, world, min and max corners
+};
+
+// The world box of a body-frame box [local_lo, local_hi] under the pose (R, p).
+Aabb world_box(const Mat3& rotation, const Vec3& position, const Vec3& local_lo,
+               const Vec3& local_hi);
+
+// Index pairs (i < j, into `boxes`) of boxes that overlap or touch, appended to `pairs`
+// in no particular order. Sort and sweep: cost grows with the near pairs along one axis.
+void overlapping_pairs(const std::vector<Aabb>& boxes,
+                       std::vector<std::pair<int, int>>& pairs);
+
+// Temporal coherence for `overlapping_pairs`: the pairs of boxes grown by a skin (m) are
+// kept while every box stays inside its grown ("fat") box, and each step only filters them
+// with the exact test; when a box leaves its fat box, all fat boxes are rebuilt and swept.
+// The answer is always exactly `overlapping_pairs` of the given boxes.
+class CoherentPairs {
+ public:
+  explicit CoherentPairs(double skin) : skin_(skin) {}
+  void pairs(const std::vector<Aabb>& boxes, std::vector<std::pair<int, int>>& pairs);
+
+ private:
+  double skin_;
+  std::vector<Aabb> fat_;
+  std::vector<std::pair<int, int>> fat_pairs_;
+};
+
+// True when the box reaches the half-space n.x <= offset grown by `pad` (m), n unit.
+bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad);
+
+}  // namespace collres

@@ -1,0 +1,113 @@
+#include "contact_cache.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <tuple>
+
+namespace collres {
+namespace {
+
+bool key_less(const CachedImpulse& e, int64_t a, int64_t b, int64_t f) {
+  return std::tie(e.a, e.b, e.feature) < std::tie(a, b, f);
+}
+
+}  // namespace
+
+void ContactCache::store(int64_t m, const int64_t* a, const int64_t* b, const int64_t* feature,
+                         const double* normal, const double* friction, const double* point) {
+  order_.resize(m);
+  std::iota(order_.begin(), order_.end(), 0);
+  std::stable_sort(order_.begin(), order_.end(), [&](int64_t i, int64_t j) {
+    return std::tie(a[i], b[i], feature[i]) < std::tie(a[j], b[j], feature[j]);
+  });
+  entries_.clear();
+  stored_at_.assign(m, -1);
+  for (int64_t k = 0; k < m; ++k) {
+    int64_t i = order_[k];
+    if (k + 1 < m) {            // keep the last of each run of equal keys
+      int64_t j = order_[k + 1];
+      if (a[i] == a[j] && b[i] == b[j] && feature[i] == feature[j]) continue;
+    }
+    stored_at_[i] = static_cast<int64_t>(entries_.size());
+    CachedImpulse e;
+    e.a = a[i]; e.b = b[i]; e.feature = feature[i];
+    e.normal = normal[i];
+    for (int d = 0; d < 3; ++d) {
+      e.friction[d] = friction[3 * i + d];
+      e.point[d] = point[3 * i + d];
+    }
+    entries_.push_back(e);
+  }
+}
+
+void ContactCache::lookup(int64_t m, const int64_t* a, const int64_t* b, const int64_t* feature,
+                          const double* point, double match_radius, double* normal,
+                          double* friction, uint8_t* found) {
+  const int64_t n = size();
+  taken_.assign(n, 0);
+  order_.assign(m, -1);                  // matched entry per query
+  auto begin = entries_.begin(), end = entries_.end();
+  const int64_t hints = static_cast<int64_t>(stored_at_.size());
+  for (int64_t i = 0; i < m; ++i) {      // exact matches first: where it was, else search
+    if (i < hints && stored_at_[i] >= 0) {
+      const CachedImpulse& e = entries_[stored_at_[i]];
+      if (e.a == a[i] && e.b == b[i] && e.feature == feature[i]) {
+        order_[i] = stored_at_[i];
+        taken_[order_[i]] = 1;
+        continue;
+      }
+    }
+    auto it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
+      return key_less(e, a[i], b[i], feature[i]);
+    });
+    if (it != end && it->a == a[i] && it->b == b[i] && it->feature == feature[i]) {
+      order_[i] = it - begin;
+      taken_[order_[i]] = 1;
+    }
+  }
+  if (point != nullptr) {                // then the nearest free point of the same pair
+    for (int64_t i = 0; i < m; ++i) {
+      if (order_[i] >= 0) continue;
+      auto it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
+        return key_less(e, a[i], b[i], std::numeric_limits<int64_t>::min());
+      });
+      double best = match_radius;
+      int64_t chosen = -1;
+      for (; it != end && it->a == a[i] && it->b == b[i]; ++it) {
+        int64_t k = it - begin;
+        if (taken_[k]) continue;
+        double dx = it->point[0] - point[3 * i], dy = it->point[1] - point[3 * i + 1];
+        double dz = it->point[2] - point[3 * i + 2];
+        double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+        if (dist < best) {
+          best = dist;
+          chosen = k;
+        }
+      }
+      if (chosen >= 0) {
+        order_[i] = chosen;
+        taken_[chosen] = 1;
+      }
+    }
+  }
+  for (int64_t i = 0; i < m; ++i) {
+    const int64_t k = order_[i];
+    found[i] = k >= 0;
+    normal[i] = k >= 0 ? entries_[k].normal : 0.0;
+    for (int d = 0; d < 3; ++d) friction[3 * i + d] = k >= 0 ? entries_[k].friction[d] : 0.0;
+  }
+}
+
+void ContactCache::forget(int64_t k, const int64_t* bodies) {
+  auto involved = [&](const CachedImpulse& e) {
+    for (int64_t j = 0; j < k; ++j)
+      if (e.a == bodies[j] || e.b == bodies[j]) return true;
+    return false;
+  };
+  entries_.erase(std::remove_if(entries_.begin(), entries_.end(), involved), entries_.end());
+  stored_at_.clear();
+}
+
+}  // namespace collres

@@ -1,0 +1,263 @@
+#include "contact_solver.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace collres {
+namespace {
+
+constexpr double kTiny = 1e-12;
+
+inline Vec3 lin(const double* v, int32_t i) { return load3(v + 6 * i); }
+inline Vec3 ang(const double* v, int32_t i) { return load3(v + 6 * i + 3); }
+
+// Velocity of B's point relative to A's, along d (index 0..2 = n, t1, t2).
+inline double relative(const ContactRow& r, const double* v, int k, Vec3 d) {
+  return dot(lin(v, r.b) - lin(v, r.a), d) + dot(ang(v, r.b), r.ang_b[k]) -
+         dot(ang(v, r.a), r.ang_a[k]);
+}
+
+// Add impulse s along direction k (n, t1, t2) at the row's point: +s on B, -s on A.
+inline void apply(const ContactRow& r, double* v, int k, Vec3 d, double s) {
+  double* va = v + 6 * r.a;
+  double* vb = v + 6 * r.b;
+  store3(va, lin(v, r.a) - (s * r.ma) * d);
+  store3(va + 3, ang(v, r.a) - s * r.dw_a[k]);
+  store3(vb, lin(v, r.b) + (s * r.mb) * d);
+  store3(vb + 3, ang(v, r.b) + s * r.dw_b[k]);
+}
+
+inline Vec3 direction(const ContactRow& r, int k) { return k == 0 ? r.n : (k == 1 ? r.t1 : r.t2); }
+
+// One Gauss-Seidel update of a row; returns the largest impulse change (N s).
+double solve_row(ContactRow& r, double* v) {
+  // normal: approach no faster than the speculative allowance, accumulated >= 0
+  double v_n = relative(r, v, 0, r.n);
+  double new_n = std::max(r.normal - r.normal_mass * (v_n + r.allowance), 0.0);
+  double d_n = new_n - r.normal;
+  r.normal = new_n;
+  if (d_n != 0.0) apply(r, v, 0, r.n, d_n);
+  // friction: oppose the slip left after the normal update (the classic tangent,
+  // v_t / |v_t|), as much as stops it along that direction, within mu * normal
+  double x = relative(r, v, 1, r.t1), y = relative(r, v, 2, r.t2);
+  double speed2 = x * x + y * y;
+  double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
+  double slip = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
+  double tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
+  double size = norm2(tx, ty);
+  double limit = r.mu * new_n;
+  if (size > limit) {
+    double scale = size > 0.0 ? limit / size : 0.0;
+    tx *= scale;
+    ty *= scale;
+  }
+  double d_x = tx - r.tangent[0], d_y = ty - r.tangent[1];
+  r.tangent[0] = tx;
+  r.tangent[1] = ty;
+  if (d_x != 0.0) apply(r, v, 1, r.t1, d_x);
+  if (d_y != 0.0) apply(r, v, 2, r.t2, d_y);
+  return std::max({std::fabs(d_n), std::fabs(d_x), std::fabs(d_y)});
+}
+
+}  // namespace
+
+double combine(double a, double b, CombineRule rule) {
+  switch (rule) {
+    case CombineRule::kMin: return std::min(a, b);
+    case CombineRule::kMax: return std::max(a, b);
+    case CombineRule::kMultiply: return a * b;
+    case CombineRule::kGeometric: return std::sqrt(a * b);
+    case CombineRule::kAverage:
+    case CombineRule::kPerObject: break;
+  }
+  return 0.5 * (a + b);
+}
+
+void row_velocity(const ContactRow& row, const double* v, double out[3]) {
+  for (int k = 0; k < 3; ++k) out[k] = relative(row, v, k, direction(row, k));
+}
+
+void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
+                 double sticking_speed, double threshold, double mu_static,
+                 double mu_kinetic) {
+  tangent_basis(row.n, row.t1, row.t2);
+  row.ma = bodies.inv_mass[row.a];
+  row.mb = bodies.inv_mass[row.b];
+  const Mat3& ia = bodies.inv_inertia[row.a];
+  const Mat3& ib = bodies.inv_inertia[row.b];
+  for (int k = 0; k < 3; ++k) {
+    Vec3 d = direction(row, k);
+    row.ang_a[k] = cross(row.ra, d);
+    row.ang_b[k] = cross(row.rb, d);
+    row.dw_a[k] = ia * row.ang_a[k];
+    row.dw_b[k] = ib * row.ang_b[k];
+  }
+  // K_ij = (m_A + m_B) d_i . d_j + (r_A x d_i) I_A^-1 (r_A x d_j) + (same for B)
+  auto block = [&](int i, int j) {
+    double linear = i == j ? row.ma + row.mb : 0.0;
+    return linear + dot(row.ang_a[i], row.dw_a[j]) + dot(row.ang_b[i], row.dw_b[j]);
+  };
+  double k_n = block(0, 0);
+  row.normal_mass = k_n > kTiny ? 1.0 / k_n : 0.0;
+  row.kt[0] = block(1, 1);
+  row.kt[1] = block(1, 2) + block(2, 1);
+  row.kt[2] = block(2, 2);
+  double rel[3], before[3];
+  row_velocity(row, bodies.velocity, rel);
+  row_velocity(row, slow, before);
+  row.approach = rel[0];
+  row.bounce = rel[0] < -threshold;
+  row.sticking = norm2(before[1], before[2]) < sticking_speed;
+  row.mu = row.sticking ? mu_static : mu_kinetic;
+}
+
+void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
+  double* v = bodies.velocity;
+  for (const ContactRow& r : rows) {
+    if (r.normal != 0.0) apply(r, v, 0, r.n, r.normal);
+    if (r.tangent[0] != 0.0) apply(r, v, 1, r.t1, r.tangent[0]);
+    if (r.tangent[1] != 0.0) apply(r, v, 2, r.t2, r.tangent[1]);
+  }
+}
+
+int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
+                     double converged) {
+  double* v = bodies.velocity;
+  int done = 0;
+  while (done < iterations) {
+    ++done;
+    double change = 0.0, largest = 0.0;
+    for (ContactRow& r : rows) {
+      double step = solve_row(r, v);
+      change = std::max(change, step);
+      largest = std::max(largest, r.normal);
+    }
+    if (change <= converged * largest) break;
+  }
+  return done;
+}
+
+void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                     const std::vector<int32_t>& level, std::vector<int32_t>& order,
+                     std::vector<ContactRow>& scratch, int sweeps) {
+  double* v = bodies.velocity;
+  order.clear();
+  for (size_t r = 0; r < rows.size(); ++r) {
+    const ContactRow& row = rows[r];
+    int32_t la = level[row.a], lb = level[row.b];
+    if (!row.bounce && la >= 0 && lb >= 0 && la != lb) order.push_back(static_cast<int32_t>(r));
+  }
+  auto lower = [&](int32_t i) { return std::min(level[rows[i].a], level[rows[i].b]); };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int32_t i, int32_t j) { return lower(i) < lower(j); });
+  // the rows between levels L and L + 1 see the bodies below as fixed: copies of the rows
+  // with the lower body's inverse mass and inertia zeroed
+  scratch.clear();
+  for (int32_t index : order) {
+    ContactRow r = rows[index];
+    bool upper_b = level[r.b] > level[r.a];
+    if (upper_b) {
+      r.ma = 0.0;
+      for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3{};
+    } else {
+      r.mb = 0.0;
+      for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3{};
+    }
+    double k_n = r.ma + r.mb + dot(r.ang_a[0], r.dw_a[0]) + dot(r.ang_b[0], r.dw_b[0]);
+    if (!(k_n > kTiny)) continue;
+    r.normal_mass = 1.0 / k_n;
+    auto block = [&](int i, int j) {
+      return (i == j ? r.ma + r.mb : 0.0) + dot(r.ang_a[i], r.dw_a[j]) +
+             dot(r.ang_b[i], r.dw_b[j]);
+    };
+    r.kt[0] = block(1, 1);
+    r.kt[1] = block(1, 2) + block(2, 1);
+    r.kt[2] = block(2, 2);
+    r.contact = index;               // (the row it stands for, while it is a copy)
+    scratch.push_back(r);
+  }
+  for (size_t lo = 0; lo < scratch.size();) {
+    size_t hi = lo;
+    auto lower_of = [&](const ContactRow& r) { return std::min(level[r.a], level[r.b]); };
+    while (hi < scratch.size() && lower_of(scratch[hi]) == lower_of(scratch[lo])) ++hi;
+    for (int sweep = 0; sweep < sweeps; ++sweep) {
+      for (size_t q = lo; q < hi; ++q) {
+        ContactRow& r = scratch[q];
+        // the lower body moving towards the upper one does not push it (no energy
+        // gain): only the upper body's own approach is stopped
+        bool upper_b = level[r.b] > level[r.a];
+        const int32_t low = upper_b ? r.a : r.b;
+        double towards = (upper_b ? 1.0 : -1.0) *
+                         (dot(lin(v, low), r.n) +
+                          dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
+        double allowance = r.allowance;
+        r.allowance += std::max(towards, 0.0);
+        solve_row(r, v);
+        r.allowance = allowance;
+      }
+    }
+    lo = hi;
+  }
+  for (const ContactRow& r : scratch) {
+    ContactRow& kept = rows[r.contact];
+    kept.normal = r.normal;
+    kept.tangent[0] = r.tangent[0];
+    kept.tangent[1] = r.tangent[1];
+  }
+}
+
+void apply_restitution(std::vector<ContactRow>& rows, SolverBodies& bodies) {
+  double* v = bodies.velocity;
+  for (ContactRow& r : rows) {
+    r.restitution[0] = r.restitution[1] = 0.0;
+    if (!r.bounce || !(r.normal > 0.0)) continue;
+    double v_n = relative(r, v, 0, r.n);
+    double d_a = std::max(-r.normal_mass * (v_n + r.e_a * r.approach), -r.normal);
+    double d_b = std::max(-r.normal_mass * (v_n + r.e_b * r.approach), -r.normal);
+    r.restitution[0] = d_a;
+    r.restitution[1] = d_b;
+    double* va = v + 6 * r.a;
+    double* vb = v + 6 * r.b;
+    store3(va, lin(v, r.a) - (d_a * r.ma) * r.n);
+    store3(va + 3, ang(v, r.a) - d_a * r.dw_a[0]);
+    store3(vb, lin(v, r.b) + (d_b * r.mb) * r.n);
+    store3(vb + 3, ang(v, r.b) + d_b * r.dw_b[0]);
+  }
+}
+
+bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
+                     double* pseudo, int iterations) {
+  std::fill(pseudo, pseudo + 6 * bodies.count, 0.0);
+  bool any = false;
+  for (ContactRow& r : rows) {
+    r.pseudo = 0.0;
+    any = any || r.push > 0.0;
+  }
+  if (!any) return false;
+  for (int it = 0; it < iterations; ++it) {
+    for (ContactRow& r : rows) {
+      double v_n = relative(r, pseudo, 0, r.n);
+      double updated = std::max(r.pseudo + r.normal_mass * (r.push - v_n), 0.0);
+      double delta = updated - r.pseudo;
+      r.pseudo = updated;
+      if (delta != 0.0) apply(r, pseudo, 0, r.n, delta);
+    }
+  }
+  return true;
+}
+
+uint8_t contact_state(const ContactRow& r, const double* velocity, double sticking_speed) {
+  double rel[3];
+  row_velocity(r, velocity, rel);
+  double size = norm2(r.tangent[0], r.tangent[1]);
+  bool friction = size > kTiny;
+  bool touching = r.normal > 0.0;
+  bool at_limit = size >= r.mu * r.normal * (1.0 - 1e-9);
+  bool sliding = norm2(rel[1], rel[2]) > sticking_speed || !r.sticking ||
+                 (friction && at_limit);
+  if (r.bounce && touching) return kImpact;
+  if (touching && sliding && (friction || r.mu == 0.0)) return kSliding;
+  return friction ? kSticking : kResting;
+}
+
+}  // namespace collres

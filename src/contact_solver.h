@@ -1,0 +1,150 @@
+// Contact solver: sequential impulses over the contact points of one step.
+//
+// Units SI (m, s, kg, N s); every vector in the world frame. A body's velocity is six
+// doubles, linear velocity of the centre of mass (m/s) then angular velocity (rad/s).
+// Each solver row is one contact point with three directions: the normal n (unit, from
+// body A towards body B) and two unit tangents t1, t2 ((n, t1, t2) right-handed). An
+// impulse P is applied to B at the point and -P to A, so momentum is conserved by
+// construction. Relative velocity of a row along a direction d:
+//   (v_B + w_B x r_B - v_A - w_A x r_A) . d        (normal component < 0: approaching)
+// with r the contact point minus the body's centre of mass. Immovable bodies (static,
+// or held for the step) have zero inverse mass and inertia: no branch for them.
+//
+// Stages, as in Box2D v3's contact solver: prepare, warm start, solve (iterate),
+// restitution, store impulses; then a split-impulse position stage (pseudo velocities
+// applied to the poses only, never to the velocities: no energy gain) and the contact
+// states. Rows live in one flat array of plain structs (each Gauss-Seidel update reads
+// all fields of one row together); body data are the caller's flat arrays.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "vec_math.h"
+
+namespace collres {
+
+// How two bodies' coefficients give one per contact (config.RESTITUTION_RULES /
+// FRICTION_RULES name them; the values are part of the binding).
+enum class CombineRule : int {
+  kAverage = 0,    // (a + b) / 2
+  kMin = 1,
+  kMax = 2,
+  kMultiply = 3,   // a b
+  kGeometric = 4,  // sqrt(a b), as Box2D and Jolt combine friction
+  kPerObject = 5,  // restitution only: A's impulse uses e_A, B's uses e_B (textbook;
+                   // momentum is NOT conserved when e_A != e_B)
+};
+
+// One coefficient (dimensionless) from the two bodies' ones (kPerObject: the mean).
+double combine(double a, double b, CombineRule rule);
+
+// What a contact did this step (values equal the Contact.msg constants).
+enum ContactStateCode : uint8_t { kImpact = 1, kResting = 2, kSliding = 3, kSticking = 4 };
+
+// The solver's settings (see collres_ros/core/config.py for defaults, ranges, reasons).
+struct SolverParams {
+  int velocity_iterations = 10;         // sequential-impulse sweeps (more when cold)
+  int position_iterations = 4;          // split-impulse sweeps
+  int shock_sweeps = 2;                 // shock-propagation sweeps per level
+  double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
+  double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
+  double linear_slop = 0.0001;          // m: penetration left alone by the position pass
+  double position_correction = 0.5;     // fraction of the penetration beyond the slop removed
+  double max_correction = 0.2;          // m: largest push-out per step
+  double converged = 1e-6;              // a sweep changing every impulse by less than this
+                                        // times the largest normal impulse ends iterating
+  double cold_extra = 1.0;              // extra sweeps (x velocity_iterations) when every
+                                        // persistent contact is new (nothing to warm start)
+  double balanced_friction = 1e-3;      // net friction / net normal impulse of a pair below
+                                        // which a sticking pair is reported RESTING
+  CombineRule restitution_rule = CombineRule::kMax;
+  CombineRule friction_rule = CombineRule::kGeometric;
+};
+
+// One contact point as the solver sees it (prepared once per step).
+struct ContactRow {
+  int32_t a = 0, b = 0;          // body indices
+  int32_t contact = 0;           // index in the caller's contact arrays
+  bool bounce = false;           // approached faster than the restitution threshold
+  bool sticking = false;         // slow enough to stick: mu is the static coefficient
+  Vec3 n, t1, t2;                // unit, world; n from A to B
+  Vec3 ra, rb;                   // m, contact point minus each centre of mass
+  Vec3 ang_a[3], ang_b[3];       // r_A x d, r_B x d for d = n, t1, t2 (m)
+  Vec3 dw_a[3], dw_b[3];         // I_A^-1 (r_A x d), I_B^-1 (r_B x d): rad/s per N s
+  double ma = 0.0, mb = 0.0;     // inverse masses, 1/kg
+  double normal_mass = 0.0;      // kg, 1 / (J_n M^-1 J_n^T), 0 when both immovable
+  double kt[3] = {0, 0, 0};      // 1/kg: tangential block K_11, K_12 + K_21, K_22
+  double allowance = 0.0;        // m/s >= 0: approach speed allowed without impulse
+  double approach = 0.0;         // m/s: pre-solve normal relative velocity
+  double e_a = 0.0, e_b = 0.0;   // restitution applied to A's / B's impulse
+  double mu = 0.0;               // friction coefficient of the cone this step
+  double normal = 0.0;           // N s >= 0, accumulated (what is warm started)
+  double tangent[2] = {0, 0};    // N s along t1, t2; |.| <= mu * normal
+  double restitution[2] = {0, 0};  // N s, extra normal impulse on A, on B (bounce pass)
+  double push = 0.0;             // m/s: pseudo normal speed the position pass asks for
+  double pseudo = 0.0;           // N s (pseudo), accumulated by the position pass
+};
+
+// Per-body solver data: velocities (N, 6) and inverse mass properties.
+struct SolverBodies {
+  int64_t count = 0;
+  const double* inv_mass = nullptr;   // (N,) 1/kg, 0 for immovable bodies
+  const Mat3* inv_inertia = nullptr;  // (N,) 1/(kg m^2), world frame, 0 for immovable
+  double* velocity = nullptr;         // (N, 6) m/s, rad/s: updated in place
+};
+
+// Prepare one row: basis, lever arms, effective masses and the pre-solve relative
+// velocity. `velocity` is the pre-solve velocity (N, 6); `slow` the velocity that decides
+// sticking (e.g. before this step's external forces).
+void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
+                 double sticking_speed, double threshold, double mu_static,
+                 double mu_kinetic);
+
+// Apply the rows' accumulated impulses (warm start) to the velocities.
+void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
+
+// Sequential impulses: normal clamped >= 0 against the speculative allowance, friction
+// along minus the slip velocity clamped to the circular cone mu * normal. Stops early
+// when a sweep changes no impulse by more than params.converged times the largest
+// normal impulse. Returns the sweeps done.
+int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
+                     double converged);
+
+// Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
+// normal and friction rows between each pair of levels, non-bouncing rows only, from the
+// ground up, `level` (N,) the contact distance of each body
+// from an immovable one (0: immovable, -1: not connected to one), in which a row between
+// two levels treats its lower body as immovable. A heavy body on a light one is held in
+// the same step instead of after m_heavy / m_light sweeps; the rows' accumulated normal
+// impulses take up the change (what the next step warm starts from). `order` and
+// `scratch` are scratch space.
+void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                     const std::vector<int32_t>& level, std::vector<int32_t>& order,
+                     std::vector<ContactRow>& scratch, int sweeps);
+
+// One pass: bouncing rows that carry a normal impulse leave at -e times their pre-solve
+// approach speed (A's and B's extra impulses with their own e, each keeping the total
+// normal impulse >= 0).
+void apply_restitution(std::vector<ContactRow>& rows, SolverBodies& bodies);
+
+// Split-impulse push-out: pseudo velocities (N, 6, zeroed here) that give each row its
+// `push` normal speed; rows with push 0 keep the pseudo motion from driving them deeper.
+// Returns false (pseudo untouched, zero) when no row asks for a push.
+bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
+                     double* pseudo, int iterations);
+
+// Relative velocity of a row along n, t1, t2 (m/s) for velocities v (N, 6).
+void row_velocity(const ContactRow& row, const double* v, double out[3]);
+
+// Friction impulse of a row as a world vector (N s, on B).
+inline Vec3 friction_world(const ContactRow& row) {
+  return row.tangent[0] * row.t1 + row.tangent[1] * row.t2;
+}
+
+// State of a solved row, the first rule that applies: IMPACT (bounced and pushed),
+// SLIDING (slid faster than sticking_speed before or after, or friction at the static
+// cone), STICKING (non-zero friction inside the cone held it), RESTING (otherwise).
+uint8_t contact_state(const ContactRow& row, const double* velocity, double sticking_speed);
+
+}  // namespace collres

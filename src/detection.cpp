@@ -1,0 +1,416 @@
+#include "detection.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace collres {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+bool finite(const double* v, int count) {
+  for (int k = 0; k < count; ++k) {
+    if (!std::isfinite(v[k])) return false;
+  }
+  return true;
+}
+
+double angle_between(const Quat& a, const Quat& b) {
+  return 2.0 * std::acos(std::min(1.0, std::abs(a.dot(b))));
+}
+
+}  // namespace
+
+void ContactRows::reserve(std::size_t rows) {
+  body_a.reserve(rows);
+  body_b.reserve(rows);
+  point.reserve(3 * rows);
+  normal.reserve(3 * rows);
+  separation.reserve(rows);
+  toi.reserve(rows);
+  kind.reserve(rows);
+  feature.reserve(rows);
+}
+
+void ContactRows::clear() {
+  body_a.clear();
+  body_b.clear();
+  point.clear();
+  normal.clear();
+  separation.clear();
+  toi.clear();
+  kind.clear();
+  feature.clear();
+}
+
+Detector::Detector(std::vector<BodyShape> shapes)
+    : shapes_(std::move(shapes)), sweep_(kSkin) {
+  for (int k = 0; k < count(); ++k) {
+    (shapes_[k].kind == ShapeKind::plane ? planes_ : finite_).push_back(k);
+  }
+}
+
+void Detector::set_settings(const DetectionSettings& settings) {
+  if (settings.speculative_margin != settings_.speculative_margin) reset();
+  settings_ = settings;
+}
+
+// -- motion and broad phase ----------------------------------------------------------------
+
+void Detector::prepare(const StepPoses& poses) {
+  const int n = count();
+  bodies_.resize(n);
+  for (int k = 0; k < n; ++k) {
+    Body& body = bodies_[k];
+    const double* p0 = poses.p0 + 3 * k;
+    const double* p1 = poses.p1 + 3 * k;
+    const double* q0 = poses.q0 + 4 * k;
+    const double* q1 = poses.q1 + 4 * k;
+    body.valid = finite(p0, 3) && finite(p1, 3) && finite(q0, 4) && finite(q1, 4);
+    Quat a = Eigen::Map<const Quat>(q0), b = Eigen::Map<const Quat>(q1);  // x, y, z, w
+    body.valid = body.valid && a.norm() > 0.5 && b.norm() > 0.5;
+    // the caller validates; this only keeps NaN out of coal
+    body.p0 = body.valid ? Vec3(p0[0], p0[1], p0[2]) : Vec3::Zero();
+    body.p1 = body.valid ? Vec3(p1[0], p1[1], p1[2]) : Vec3::Zero();
+    if (!body.valid) a = b = Quat::Identity();
+    a.normalize();
+    b.normalize();
+    if (a.w() < 0.0) a.coeffs() = -a.coeffs();
+    if (b.w() < 0.0) b.coeffs() = -b.coeffs();
+    body.q0 = a;
+    body.q1 = b;
+    body.fixed = shapes_[k].is_static;
+    const bool frozen = poses.active != nullptr && poses.active[k] == 0;
+    if (frozen) {
+      body.p0 = body.p1;
+      body.q0 = body.q1;
+      body.fixed = true;
+    }
+    body.linear = body.angular = Vec3::Zero();
+    if (!frozen && poses.linear != nullptr && finite(poses.linear + 3 * k, 3) &&
+        finite(poses.angular + 3 * k, 3)) {
+      body.linear = Eigen::Map<const Vec3>(poses.linear + 3 * k);
+      body.angular = Eigen::Map<const Vec3>(poses.angular + 3 * k);
+    }
+    body.turn = angle_between(body.q0, body.q1);
+    body.moved = (body.p1 - body.p0).norm() +
+                 (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
+    if (!std::isfinite(body.moved)) body.moved = 0.0;
+    body.r1 = body.q1.toRotationMatrix();
+    body.pose1 = coal::Transform3s(body.r1, body.p1 + body.r1 * shapes_[k].offset);
+  }
+}
+
+void Detector::find_pairs() {
+  const double pad = 0.5 * settings_.speculative_margin;
+  boxes_.resize(finite_.size());
+  for (std::size_t i = 0; i < finite_.size(); ++i) {
+    const int k = finite_[i];
+    const Body& body = bodies_[k];
+    const BodyShape& shape = shapes_[k];
+    const Aabb b0 = world_box(body.q0.toRotationMatrix(), body.p0, shape.local_lo,
+                              shape.local_hi);
+    const Aabb b1 = world_box(body.r1, body.p1, shape.local_lo, shape.local_hi);
+    // a point at radius r turning by angle t leaves its chord by r (1 - cos(t / 2))
+    const double bulge = shape.radius * (1.0 - std::cos(0.5 * std::min(body.turn, M_PI)));
+    const Vec3 grow = Vec3::Constant(bulge + pad);
+    boxes_[i] = {b0.lo.cwiseMin(b1.lo) - grow, b0.hi.cwiseMax(b1.hi) + grow};
+  }
+  pairs_.clear();
+  sweep_.pairs(boxes_, pairs_);
+  for (auto& pair : pairs_) pair = {finite_[pair.first], finite_[pair.second]};
+  for (int plane : planes_) {  // half-space n.x <= d against each swept box, both poses
+    const Body& body = bodies_[plane];
+    const BodyShape& shape = shapes_[plane];
+    const Vec3 normal0 = body.q0 * shape.plane_normal, normal1 = body.r1 * shape.plane_normal;
+    const double offset0 = shape.plane_offset + normal0.dot(body.p0);
+    const double offset1 = shape.plane_offset + normal1.dot(body.p1);
+    for (std::size_t i = 0; i < finite_.size(); ++i) {
+      if (box_reaches_plane(boxes_[i], normal0, offset0, pad) ||
+          box_reaches_plane(boxes_[i], normal1, offset1, pad)) {
+        pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
+      }
+    }
+  }
+  auto skip = [this](const std::pair<int, int>& pair) {
+    const Body& a = bodies_[pair.first];
+    const Body& b = bodies_[pair.second];
+    return (a.fixed && b.fixed) || !a.valid || !b.valid;
+  };
+  pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), skip), pairs_.end());
+  // sorted by (a, b) in linear time: bucket by a, then sort each (short) bucket by b
+  bucket_start_.assign(count() + 1, 0);
+  for (const auto& pair : pairs_) ++bucket_start_[pair.first + 1];
+  for (int k = 0; k < count(); ++k) bucket_start_[k + 1] += bucket_start_[k];
+  bucket_fill_.assign(bucket_start_.begin(), bucket_start_.end() - 1);
+  bucket_.resize(pairs_.size());
+  for (const auto& pair : pairs_) bucket_[bucket_fill_[pair.first]++] = pair.second;
+  pairs_.clear();
+  for (int a = 0; a < count(); ++a) {
+    const auto first = bucket_.begin() + bucket_start_[a];
+    const auto last = bucket_.begin() + bucket_start_[a + 1];
+    std::sort(first, last);
+    for (auto it = first; it != last; ++it) {
+      if (it == first || *it != *(it - 1)) pairs_.emplace_back(a, *it);
+    }
+  }
+}
+
+void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {
+  prepare(poses);
+  find_pairs();
+  pairs = pairs_;
+}
+
+// -- one step -------------------------------------------------------------------------------
+
+void Detector::detect(const StepPoses& poses, ContactRows& out) {
+  out.clear();
+  out.reserve(last_rows_ + last_rows_ / 8 + 16);
+  prepare(poses);
+  find_pairs();
+  next_.clear();
+  for (const auto& [a, b] : pairs_) {
+    if (!reuse(a, b, out)) narrow_phase(a, b, out);
+  }
+  stored_.swap(next_);
+  last_rows_ = out.size();
+}
+
+bool Detector::reuse(int a, int b, ContactRows& out) {
+  const std::int64_t key = static_cast<std::int64_t>(a) * count() + b;
+  const StoredManifold* stored = stored_.find(key);
+  if (stored == nullptr || shapes_[a].curved || shapes_[b].curved) return false;
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  if (A.moved + B.moved > settings_.speculative_margin) return false;
+  const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
+  const Quat rel_q = A.q1.conjugate() * B.q1;
+  if ((rel_p - stored->rel_p).norm() > kReuseTranslation ||
+      std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
+    return false;
+  }
+  // a pair whose every point left the margin is no longer in contact
+  double gap = kInf;
+  for (int k = 0; k < stored->count; ++k) {
+    const StoredRow& row = stored_.row(stored->first + k);
+    const Vec3 normal = A.r1 * row.normal_a;
+    gap = std::min(gap, ((B.r1 * row.local_b + B.p1) - (A.r1 * row.local_a + A.p1)).dot(normal));
+  }
+  if (gap > settings_.speculative_margin) return true;
+  next_.begin(key, stored->rel_p, stored->rel_q);
+  for (int k = 0; k < stored->count; ++k) {
+    const StoredRow& row = stored_.row(stored->first + k);
+    const Vec3 on_a = A.r1 * row.local_a + A.p1;
+    const Vec3 on_b = B.r1 * row.local_b + B.p1;
+    const Vec3 normal = A.r1 * row.normal_a;
+    out.body_a.push_back(a);
+    out.body_b.push_back(b);
+    const Vec3 point = 0.5 * (on_a + on_b);
+    out.point.insert(out.point.end(), point.data(), point.data() + 3);
+    out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
+    out.separation.push_back((on_b - on_a).dot(normal));
+    out.toi.push_back(0.0);
+    out.kind.push_back(static_cast<std::int8_t>(ContactKind::persistent));
+    out.feature.push_back(row.feature);
+    next_.add_row(row);
+  }
+  return true;
+}
+
+double Detector::radius_or_zero(int body) const {
+  const double r = shapes_[body].radius;
+  return std::isfinite(r) ? r : 0.0;
+}
+
+Motion Detector::motion(int body) const {
+  const Body& b = bodies_[body];
+  return Motion(b.p0, b.p1, b.q0, b.q1, shapes_[body].offset);
+}
+
+void Detector::narrow_phase(int a, int b, ContactRows& out) {
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  const double margin = settings_.speculative_margin;
+  const double relative = ((B.p1 - B.p0) - (A.p1 - A.p0)).norm() +
+                          A.turn * radius_or_zero(a) + B.turn * radius_or_zero(b);
+  // bounding spheres farther apart than the margin and than the relative motion: the pair
+  // can neither touch now nor have met during the step
+  const double bound = (B.p1 - A.p1).norm() - shapes_[a].radius - shapes_[b].radius;
+  if (bound > margin && bound >= relative) return;
+  Vec3 normal;
+  PointPair witness;
+  const double distance = query_.signed_distance(*shapes_[a].geometry, A.pose1,
+                                                 *shapes_[b].geometry, B.pose1, normal, witness);
+  const bool near = distance <= margin;
+  // bound on the speed of any point of B relative to A (current twists), m/s
+  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
+                       B.angular.norm() * radius_or_zero(b);
+  // overlapping now, possibly apart before, and closing fast enough to bounce: its
+  // previous state decides between a persistent contact and an impact
+  const bool may_have_hit = distance < 0.0 && distance + relative > 0.0 &&
+                            speed > settings_.restitution_threshold;
+  if (near && distance + relative <= margin && !may_have_hit) {
+    // within the margin at the previous state for sure: a persistent contact
+    points_.clear();
+    if (shapes_[a].single_point || shapes_[b].single_point) {
+      points_.push_back(witness);
+    } else {
+      query_.manifold(*shapes_[a].geometry, A.pose1, *shapes_[b].geometry, B.pose1, points_);
+    }
+    emit(a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
+    return;
+  }
+  if (near || (settings_.ccd && relative > distance)) {
+    classify(a, b, distance, relative, speed, near, out);
+  }
+}
+
+void Detector::classify(int a, int b, double distance_now, double relative, double speed,
+                        bool near, ContactRows& out) {
+  const coal::CollisionGeometry& ga = *shapes_[a].geometry;
+  const coal::CollisionGeometry& gb = *shapes_[b].geometry;
+  const Motion ma = motion(a), mb = motion(b);
+  PointPair closest;
+  const double before = query_.distance(ga, ma.at(0.0), gb, mb.at(0.0), closest);
+  if (before <= settings_.speculative_margin) {
+    // apart before, overlapping now, fast: solved at its time of impact, not at the end
+    if (distance_now < 0.0 && before > 0.0 && speed > settings_.restitution_threshold &&
+        time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, true, out)) {
+      return;
+    }
+    if (near) current_manifold(a, b, out);  // in contact at both ends
+    return;
+  }
+  if (distance_now < 0.0) {  // apart before, overlapping now
+    time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, false, out);
+    return;
+  }
+  if (settings_.ccd) {
+    const double tolerance = std::max(
+        1e-9, std::min(settings_.toi_tolerance * relative, 0.5 * settings_.linear_slop));
+    PointPair scratch;
+    auto gap = [&](double s) { return query_.distance(ga, ma.at(s), gb, mb.at(s), scratch); };
+    auto overlaps = [&](double s) { return query_.overlaps(ga, ma.at(s), gb, mb.at(s)); };
+    const auto bracket = advance(gap, overlaps, relative, tolerance,
+                                 4 * settings_.toi_max_iterations);
+    if (bracket && time_of_impact(a, b, ma, mb, bracket->first, bracket->second,
+                                  ContactKind::tunnelled, kInf, false, out)) {
+      return;
+    }
+  }
+  if (near) current_manifold(a, b, out);  // approaching, not touching yet: speculative
+}
+
+bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, double s0,
+                              double s1, ContactKind kind, double cap, bool only_if_fast,
+                              ContactRows& out) {
+  const coal::CollisionGeometry& ga = *shapes_[a].geometry;
+  const coal::CollisionGeometry& gb = *shapes_[b].geometry;
+  auto overlaps = [&](double s) { return query_.overlaps(ga, ma.at(s), gb, mb.at(s)); };
+  std::tie(s0, s1) = bisect(overlaps, s0, s1, settings_.toi_tolerance,
+                            settings_.toi_max_iterations);
+  double distance = 0.0;
+  Vec3 normal;
+  PointPair witness;
+  if (!query_.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0, distance, normal, witness)) {
+    // only for a degenerate bracket: the end of the step overlaps
+    s1 = 1.0;
+    if (!query_.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0, distance, normal, witness)) {
+      return false;
+    }
+  }
+  Vec3 used = normal;
+  if (-distance > kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness)) {
+    // EPA on a deep overlap is not trusted: the classic direction from the closest
+    // points of the last separated configuration
+    PointPair closest;
+    const double gap = query_.distance(ga, ma.at(s0), gb, mb.at(s0), closest);
+    const Vec3 direction = closest.on_b - closest.on_a;
+    if (gap > 0.0 && direction.norm() > 0.0) used = direction.normalized();
+  }
+  points_.clear();
+  if (shapes_[a].single_point || shapes_[b].single_point) {
+    points_.push_back(witness);
+  } else {
+    query_.manifold(ga, ma.at(s1), gb, mb.at(s1), points_);
+  }
+  const Mat3 ra = ma.rotation_at(s1), rb = mb.rotation_at(s1);
+  const Vec3 pa = ma.position_at(s1), pb = mb.position_at(s1);
+  if (only_if_fast) {
+    // approach speed at the contact (current twists): slower than the threshold, the pair
+    // rests and stays a persistent contact at the current state
+    const Body& A = bodies_[a];
+    const Body& B = bodies_[b];
+    double approach = kInf;
+    for (const PointPair& p : points_) {
+      const Vec3 point = 0.5 * (p.on_a + p.on_b);
+      const Vec3 va = A.linear + A.angular.cross(point - pa);
+      const Vec3 vb = B.linear + B.angular.cross(point - pb);
+      approach = std::min(approach, (vb - va).dot(used.normalized()));
+    }
+    if (!(approach < -settings_.restitution_threshold)) return false;
+  }
+  emit(a, b, used, s1, kind, cap, ra, pa, rb, pb, out);
+  return true;
+}
+
+void Detector::current_manifold(int a, int b, ContactRows& out) {
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  const coal::CollisionGeometry& ga = *shapes_[a].geometry;
+  const coal::CollisionGeometry& gb = *shapes_[b].geometry;
+  double distance = 0.0;
+  Vec3 normal;
+  PointPair witness;
+  if (!query_.contact(ga, A.pose1, gb, B.pose1, settings_.speculative_margin, distance, normal,
+                      witness)) {
+    return;
+  }
+  points_.clear();
+  if (shapes_[a].single_point || shapes_[b].single_point) {
+    points_.push_back(witness);
+  } else {
+    query_.manifold(ga, A.pose1, gb, B.pose1, points_);
+  }
+  emit(a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
+}
+
+void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind kind,
+                    double cap, const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
+                    ContactRows& out) {
+  const double length = normal_in.norm();
+  const Vec3 normal = normal_in / std::max(length, 1e-300);
+  const bool store = kind == ContactKind::persistent;
+  if (store) {
+    const Body& A = bodies_[a];
+    const Body& B = bodies_[b];
+    next_.begin(static_cast<std::int64_t>(a) * count() + b, A.r1.transpose() * (B.p1 - A.p1),
+                A.q1.conjugate() * B.q1);
+  }
+  row_codes_.clear();
+  for (const PointPair& p : points_) {
+    double separation = (p.on_b - p.on_a).dot(normal);
+    if (std::isfinite(cap)) separation = std::min(separation, cap);
+    const Vec3 local_a = ra.transpose() * (p.on_a - pa);
+    const Vec3 local_b = rb.transpose() * (p.on_b - pb);
+    const std::int64_t code = feature_code(local_a, shapes_[a].half, local_b, shapes_[b].half);
+    const std::int64_t rank = std::count(row_codes_.begin(), row_codes_.end(), code);
+    row_codes_.push_back(code);
+    const std::int64_t feature = code + 729 * rank;
+    out.body_a.push_back(a);
+    out.body_b.push_back(b);
+    const Vec3 point = 0.5 * (p.on_a + p.on_b);
+    out.point.insert(out.point.end(), point.data(), point.data() + 3);
+    out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
+    out.separation.push_back(separation);
+    out.toi.push_back(toi);
+    out.kind.push_back(static_cast<std::int8_t>(kind));
+    out.feature.push_back(feature);
+    if (store) next_.add_row({local_a, local_b, ra.transpose() * normal, feature});
+  }
+}
+
+}  // namespace collres

@@ -1,0 +1,110 @@
+// Detection of one step: the contacts the solver resolves (the stage driver).
+//
+// One step, previous poses (s = 0) -> current poses (s = 1):
+// 1. Motion: each body moves by lerp of its position and slerp of its orientation; a
+//    frozen (inactive) body is held at its current pose; `moved` bounds how far any of
+//    its points travels.
+// 2. Broad phase (broad_phase.h): swept boxes padded by half the speculative margin give
+//    the candidate pairs; half-spaces are tested against every finite box. Pairs of two
+//    fixed bodies (static or frozen) and pairs with a non-finite pose are skipped; a pair
+//    is (a, b) with a < b.
+// 3. Stored manifolds (manifold.h): a pair of flat-faced bodies that was in contact last
+//    step and whose relative pose has barely changed keeps its contact points, stored in
+//    the two body frames; only their gaps are recomputed (no coal query). A curved body's
+//    points are never reused: on a rolling surface they would turn with the body.
+// 4. Narrow phase of the other pairs at the current state (coal), then per pair:
+//    PERSISTENT when within the margin at the previous state too (or within it now and
+//    apart before without a hit: a speculative contact); IMPACT when apart before and
+//    overlapping now, also from within the margin when the pair closes faster than the
+//    restitution threshold: bisection for the time of impact (time_of_impact.h);
+//    TUNNELLED when apart at both ends but conservative advancement finds a hit, then the
+//    same bisection.
+// 5. Manifolds: coal contact patches where faces touch, at most four points, each with a
+//    feature id (the same every step for the same corner, edge or face of both bodies).
+//
+// Rows (ContactRows): PERSISTENT rows are at the current state (toi 0, separation > 0 for
+// a speculative gap, < 0 for a penetration). IMPACT rows have point and normal at the
+// time of impact and separation min(separation there, signed distance now) < 0;
+// TUNNELLED rows have point, normal and separation (about 0) at the time of impact.
+#pragma once
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "broad_phase.h"
+#include "detection_types.h"
+#include "manifold.h"
+#include "shapes.h"
+#include "time_of_impact.h"
+
+namespace collres {
+
+constexpr double kDeepFraction = 0.25;     // EPA's normal is not trusted deeper than this
+                                           // part of the thinner body
+constexpr double kReuseTranslation = 1e-3; // m: a manifold is reused while its pair has
+                                           // moved less than this ...
+constexpr double kReuseRotation = 1e-2;    // rad: ... and turned less than this
+constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs of boxes
+                                           // grown by this while no box leaves its own
+
+class Detector {
+ public:
+  explicit Detector(std::vector<BodyShape> shapes);
+
+  // New settings take effect at the next step; a new margin forgets the stored manifolds.
+  void set_settings(const DetectionSettings& settings);
+  const DetectionSettings& settings() const { return settings_; }
+  int count() const { return static_cast<int>(shapes_.size()); }
+
+  // The contacts of the step (see the file comment); `out` is cleared first.
+  void detect(const StepPoses& poses, ContactRows& out);
+  // The broad-phase pairs (a < b), sorted (for tests and tools).
+  void candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs);
+  // Forget the stored manifolds (e.g. after bodies were teleported).
+  void reset() { stored_.clear(); }
+
+ private:
+  struct Body {
+    Vec3 p0, p1;        // m, centre of mass at s = 0 and s = 1
+    Quat q0, q1;        // unit, w >= 0
+    Mat3 r1;            // body to world at s = 1
+    Vec3 linear, angular;  // current twist (zero for frozen bodies)
+    double turn = 0.0;  // rad, rotation over the step
+    double moved = 0.0; // m, bound on any point's travel over the step
+    bool fixed = false; // static or frozen
+    bool valid = true;  // finite pose
+    coal::Transform3s pose1;  // the coal geometry's pose at s = 1
+  };
+
+  void prepare(const StepPoses& poses);
+  void find_pairs();
+  bool reuse(int a, int b, ContactRows& out);
+  void narrow_phase(int a, int b, ContactRows& out);
+  void classify(int a, int b, double distance_now, double relative, double speed, bool near,
+                ContactRows& out);
+  bool time_of_impact(int a, int b, const Motion& ma, const Motion& mb, double s0, double s1,
+                      ContactKind kind, double cap, bool only_if_fast, ContactRows& out);
+  void current_manifold(int a, int b, ContactRows& out);
+  void emit(int a, int b, const Vec3& normal, double toi, ContactKind kind, double cap,
+            const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
+            ContactRows& out);
+  Motion motion(int body) const;
+  double radius_or_zero(int body) const;
+
+  std::vector<BodyShape> shapes_;
+  std::vector<int> planes_, finite_;
+  DetectionSettings settings_;
+  std::vector<Body> bodies_;
+  std::vector<Aabb> boxes_;
+  CoherentPairs sweep_;
+  std::vector<std::pair<int, int>> pairs_;
+  std::vector<int> bucket_, bucket_start_, bucket_fill_;
+  std::vector<PointPair> points_;
+  std::vector<std::int64_t> row_codes_;
+  PairQuery query_;
+  std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
+  ManifoldStore stored_, next_;
+};
+
+}  // namespace collres

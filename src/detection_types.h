@@ -1,0 +1,62 @@
+// Plain data of the detection half: vectors, poses, settings and the contact rows.
+//
+// Conventions (as collres_ros.core.types): world frame, SI units (m, s); quaternions are
+// x, y, z, w (ROS order, unit); normals are unit and point from body A to body B, with
+// A < B (body indices in the order of the body specs).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace collres {
+
+using Vec3 = Eigen::Matrix<double, 3, 1>;
+using Mat3 = Eigen::Matrix<double, 3, 3>;
+using Quat = Eigen::Quaternion<double>;
+
+// How a contact's pair was classified (values of collres_ros.core.types.ContactKind).
+enum class ContactKind : std::int8_t { persistent = 0, impact = 1, tunnelled = 2 };
+
+// The parameters detection reads (collres_ros.core.config.SolverSettings, same names).
+struct DetectionSettings {
+  double speculative_margin = 0.02;    // m: pairs closer than this are in contact
+  double toi_tolerance = 1e-4;         // fraction of the step: bisection stops below it
+  int toi_max_iterations = 30;         // cap on bisection / advancement iterations
+  bool ccd = true;                     // sweep pairs apart at both ends of the step
+  double linear_slop = 0.005;          // m: bounds the advancement's distance tolerance
+  double restitution_threshold = 0.5;  // m/s: slower approaches rest, faster ones impact
+};
+
+// The poses of all N bodies at both ends of a step; arrays are C-contiguous, row-major.
+// Twists are the current ones (the velocity over the step, world frame).
+struct StepPoses {
+  int count = 0;
+  const double* p0 = nullptr;       // (N, 3) m, previous centre of mass
+  const double* q0 = nullptr;       // (N, 4) previous orientation x, y, z, w
+  const double* p1 = nullptr;       // (N, 3) m, current centre of mass
+  const double* q1 = nullptr;       // (N, 4) current orientation
+  const double* linear = nullptr;   // (N, 3) m/s, current linear velocity
+  const double* angular = nullptr;  // (N, 3) rad/s, current angular velocity
+  const std::uint8_t* active = nullptr;  // (N,) or null: 0 = frozen, held at its current pose
+};
+
+// Contact rows of one step, M of them, grouped by pair in increasing (a, b) order
+// (collres_ros.core.types.ContactSet, field by field).
+struct ContactRows {
+  std::vector<std::int64_t> body_a, body_b;  // (M,)
+  std::vector<double> point;       // (M, 3) m, world, at the contact configuration
+  std::vector<double> normal;      // (M, 3) unit, world, from A to B
+  std::vector<double> separation;  // (M,) m, signed, < 0 when penetrating
+  std::vector<double> toi;         // (M,) fraction of the step in [0, 1]
+  std::vector<std::int8_t> kind;   // (M,) ContactKind
+  std::vector<std::int64_t> feature;  // (M,) same corner / face of A and B, same id
+
+  void clear();
+  void reserve(std::size_t rows);
+  std::size_t size() const { return body_a.size(); }
+};
+
+}  // namespace collres

@@ -1,0 +1,182 @@
+#include "manifold.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace collres {
+
+namespace {
+
+constexpr double kAnyRange = 1e300;  // security margin that makes every query report
+constexpr double kFailedDepth = 1e300;  // |depth| of a failed GJK/EPA query (coal: DBL_MAX)
+constexpr double kRetryStep = 1e-6;     // m, B's step for a failed query (below any slop)
+
+Vec3 to_vec(const coal::Vec3s& v) { return Vec3(v[0], v[1], v[2]); }
+
+}  // namespace
+
+PairQuery::PairQuery() {
+  request_.num_max_contacts = 1;
+  patch_request_.setPatchTolerance(kPatchTolerance);
+}
+
+double PairQuery::signed_distance(const coal::CollisionGeometry& ga,
+                                  const coal::Transform3s& ta,
+                                  const coal::CollisionGeometry& gb,
+                                  const coal::Transform3s& tb, Vec3& normal,
+                                  PointPair& witness) {
+  double distance = std::numeric_limits<double>::infinity();
+  if (!contact(ga, ta, gb, tb, kAnyRange, distance, normal, witness)) {
+    normal = Vec3::UnitZ();
+    witness = {to_vec(ta.getTranslation()), to_vec(tb.getTranslation())};
+  }
+  return distance;
+}
+
+bool PairQuery::loaded_is_valid() const {
+  const double depth = result_.getContact(0).penetration_depth;
+  return std::isfinite(depth) && std::abs(depth) < kFailedDepth;
+}
+
+bool PairQuery::contact(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                        const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                        double margin, double& distance, Vec3& normal, PointPair& witness) {
+  request_.security_margin = margin;
+  result_.clear();
+  if (coal::collide(&ga, ta, &gb, tb, request_, result_) == 0) return false;
+  Vec3 shift = Vec3::Zero();
+  if (!loaded_is_valid()) {
+    // GJK/EPA fail on some just-touching poses (depth -DBL_MAX, a wrong normal): query B
+    // moved by a tiny step along each world axis until one answers, and undo the step
+    bool found = false;
+    for (int k = 0; k < 6 && !found; ++k) {
+      shift = Vec3::Unit(k / 2) * (k % 2 ? -kRetryStep : kRetryStep);
+      const coal::Transform3s moved(tb.getRotation(), tb.getTranslation() + shift);
+      result_.clear();
+      found = coal::collide(&ga, ta, &gb, moved, request_, result_) > 0 && loaded_is_valid();
+    }
+    if (!found) {
+      result_.clear();
+      return false;
+    }
+  }
+  const coal::Contact& c = result_.getContact(0);
+  normal = to_vec(c.normal);
+  distance = c.penetration_depth - shift.dot(normal);   // the step along the normal undone
+  witness = {to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1]) - shift};
+  loaded_shift_ = shift;
+  return true;
+}
+
+bool PairQuery::overlaps(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                         const coal::CollisionGeometry& gb, const coal::Transform3s& tb) {
+  request_.security_margin = 0.0;
+  result_.clear();
+  loaded_shift_ = Vec3::Zero();
+  // a failed query (just touching, see `contact`) counts as apart: bisection then ends on
+  // a pose whose contact coal computes
+  return coal::collide(&ga, ta, &gb, tb, request_, result_) > 0 && loaded_is_valid();
+}
+
+double PairQuery::distance(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                           const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                           PointPair& closest) {
+  distance_result_.clear();
+  const double gap = coal::distance(&ga, ta, &gb, tb, distance_request_, distance_result_);
+  closest = {to_vec(distance_result_.nearest_points[0]),
+             to_vec(distance_result_.nearest_points[1])};
+  return std::max(0.0, gap);
+}
+
+void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                         const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                         std::vector<PointPair>& points) {
+  points.clear();
+  const coal::Contact& c = result_.getContact(0);
+  patch_result_.clear();
+  const coal::Transform3s moved(tb.getRotation(), tb.getTranslation() + loaded_shift_);
+  coal::computeContactPatch(&ga, ta, &gb, moved, result_, patch_request_, patch_result_);
+  if (patch_result_.numContactPatches() > 0) {
+    const coal::ContactPatch& patch = patch_result_.getContactPatch(0);
+    if (patch.size() > 1) {
+      const Vec3 normal = to_vec(c.normal);
+      const Vec3 half = 0.5 * patch.penetration_depth * normal;
+      polygon_.clear();
+      for (std::size_t k = 0; k < patch.size(); ++k) polygon_.push_back(to_vec(patch.getPoint(k)));
+      reduce_manifold(polygon_, normal, keep_);
+      for (int k : keep_) {
+        points.push_back({polygon_[k] - half - 0.5 * loaded_shift_,
+                          polygon_[k] + half - 0.5 * loaded_shift_});
+      }
+      return;
+    }
+  }
+  points.push_back({to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1]) - loaded_shift_});
+}
+
+void reduce_manifold(const std::vector<Vec3>& polygon, const Vec3& normal,
+                     std::vector<int>& keep) {
+  const int count = static_cast<int>(polygon.size());
+  keep.clear();
+  if (count <= kMaxManifoldPoints) {
+    for (int k = 0; k < count; ++k) keep.push_back(k);
+    return;
+  }
+  // a tangent fixed by the normal alone: the same points are chosen step after step
+  int least = 0;
+  normal.cwiseAbs().minCoeff(&least);
+  const Vec3 axis = Vec3::Unit(least);
+  const Vec3 tangent = normal.cross(axis).normalized();
+  auto best = [count](auto score) {
+    int index = -1;
+    double top = 0.0;
+    for (int k = 0; k < count; ++k) {
+      const double value = score(k);
+      if (index < 0 || value > top) {
+        index = k;
+        top = value;
+      }
+    }
+    return std::make_pair(index, top);
+  };
+  const int i0 = best([&](int k) { return polygon[k].dot(tangent); }).first;
+  const Vec3& p0 = polygon[i0];
+  const int i1 = best([&](int k) { return (polygon[k] - p0).squaredNorm(); }).first;
+  const Vec3& p1 = polygon[i1];
+  auto area = [&normal](const Vec3& a, const Vec3& b, const Vec3& c) {
+    return (b - a).cross(c - a).dot(normal);  // twice the signed area about the normal
+  };
+  const auto [i2, a2] = best([&](int k) { return std::abs(area(p0, p1, polygon[k])); });
+  keep = {i0, i1};
+  if (a2 <= 0.0) {
+    std::sort(keep.begin(), keep.end());
+    return;
+  }
+  keep.push_back(i2);
+  // the point that adds the most area outside the triangle (p0, p1, p2)
+  const Vec3& p2 = polygon[i2];
+  const double side = area(p0, p1, p2) > 0.0 ? 1.0 : -1.0;
+  const auto [i3, a3] = best([&](int k) {
+    const Vec3& p = polygon[k];
+    return std::max({-side * area(p0, p1, p), -side * area(p1, p2, p), -side * area(p2, p0, p),
+                     0.0});
+  });
+  if (a3 > 0.0) keep.push_back(i3);
+  std::sort(keep.begin(), keep.end());
+}
+
+std::int64_t feature_code(const Vec3& local_a, const Vec3& half_a, const Vec3& local_b,
+                          const Vec3& half_b) {
+  auto code = [](const Vec3& local, const Vec3& half) {
+    std::int64_t value = 0, weight = 1;
+    for (int k = 0; k < 3; ++k, weight *= 3) {
+      const int side = local[k] > 0.5 * half[k] ? 2 : (local[k] < -0.5 * half[k] ? 1 : 0);
+      value += side * weight;
+    }
+    return value;
+  };
+  return 27 * code(local_a, half_a) + code(local_b, half_b);
+}
+
+}  // namespace collres

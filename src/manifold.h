@@ -1,0 +1,143 @@
+// Narrow phase and manifolds: coal GJK/EPA queries, contact patches reduced to at most
+// four points, feature ids for warm starting, and the store of last step's manifolds.
+//
+// Conventions: every query takes coal geometries and their world poses; signed distance
+// in m (negative when the shapes interpenetrate, EPA), unit normal from the first shape
+// to the second, and a witness point on each (world, m). A manifold is the list of
+// point pairs (on A, on B) that share one normal; each point pair gets a `feature` id,
+// the same every step for the same corner, edge or face of both bodies.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include <coal/collision.h>
+#include <coal/collision_data.h>
+#include <coal/contact_patch.h>
+#include <coal/distance.h>
+
+#include "detection_types.h"
+
+namespace collres {
+
+constexpr double kPatchTolerance = 0.01;  // m: points within this of the separating plane
+                                          // join a patch (coal's 1 mm drops tilted faces)
+constexpr int kMaxManifoldPoints = 4;     // as Box2D, Bullet and Jolt
+
+struct PointPair {
+  Vec3 on_a, on_b;  // m, world, each body's own point
+};
+
+// Reusable coal requests and results for the queries on one pair at a time.
+class PairQuery {
+ public:
+  PairQuery();
+
+  // Signed distance (m) at any range, with the normal A->B and the witness points; the
+  // contact stays loaded for `manifold`.
+  double signed_distance(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                         const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                         Vec3& normal, PointPair& witness);
+  // True when closer than `margin` (m); the contact stays loaded for `manifold`.
+  bool contact(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+               const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+               double margin, double& distance, Vec3& normal, PointPair& witness);
+  // True when the shapes interpenetrate (distance < 0); a failed coal query counts as apart.
+  bool overlaps(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                const coal::CollisionGeometry& gb, const coal::Transform3s& tb);
+  // Distance >= 0 (m, 0 when they overlap) and the closest points (GJK).
+  double distance(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                  const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                  PointPair& closest);
+  // The manifold of the loaded contact on the same pair (same poses): the coal patch
+  // where faces touch, reduced to at most four points, else the witness points. The
+  // patch's points lie on the separating plane at one depth: each body's point is half of
+  // it along the normal from there.
+  void manifold(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                std::vector<PointPair>& points);
+
+ private:
+  bool loaded_is_valid() const;  // the loaded contact's depth is a number coal computed
+
+  coal::CollisionRequest request_;
+  coal::CollisionResult result_;
+  coal::DistanceRequest distance_request_;
+  coal::DistanceResult distance_result_;
+  coal::ContactPatchRequest patch_request_;
+  coal::ContactPatchResult patch_result_;
+  std::vector<Vec3> polygon_;
+  std::vector<int> keep_;
+  Vec3 loaded_shift_ = Vec3::Zero();  // m, B's step of the loaded contact (failed queries)
+};
+
+// Indices (at most four) of the polygon's points that keep the most of its area: the one
+// farthest along a fixed tangent, the one farthest from it, the one that makes the largest
+// triangle with both, and the one that adds the most area on the other side (Bullet's and
+// Jolt's reduction; all the patch's points share one depth). `normal` is the patch normal.
+void reduce_manifold(const std::vector<Vec3>& polygon, const Vec3& normal,
+                     std::vector<int>& keep);
+
+// Feature id of a point pair from its body-frame points and the bodies' half extents: each
+// coordinate is coded by whether it lies in the outer quarter of the half extent on either
+// side (corner, edge or face of each body), 27 * code on A + code on B, in [0, 729). The
+// caller adds 729 * rank (0, 1, ...) to separate repeated codes within one pair.
+std::int64_t feature_code(const Vec3& local_a, const Vec3& half_a, const Vec3& local_b,
+                          const Vec3& half_b);
+
+// Last step's persistent manifolds, in the two body frames, keyed by pair.
+struct StoredManifold {
+  Vec3 rel_p = Vec3::Zero();        // m, B's origin in A's frame when computed
+  Quat rel_q = Quat::Identity();    // B's orientation in A's frame when computed
+  int first = 0, count = 0;         // rows in ManifoldStore's row arrays
+};
+
+struct StoredRow {
+  Vec3 local_a, local_b;  // m, point on A in A's frame, on B in B's frame
+  Vec3 normal_a;          // unit normal A->B in A's frame
+  std::int64_t feature;
+};
+
+// Manifolds are stored, and looked up, in increasing pair key order (a * N + b).
+class ManifoldStore {
+ public:
+  void clear() {
+    keys_.clear();
+    pairs_.clear();
+    rows_.clear();
+    cursor_ = 0;
+  }
+  // The manifold of `key`, or null; keys asked in increasing order cost O(1) each.
+  const StoredManifold* find(std::int64_t key) {
+    if (cursor_ > keys_.size() || (cursor_ > 0 && keys_[cursor_ - 1] > key)) cursor_ = 0;
+    cursor_ = static_cast<std::size_t>(
+        std::lower_bound(keys_.begin() + cursor_, keys_.end(), key) - keys_.begin());
+    if (cursor_ == keys_.size() || keys_[cursor_] != key) return nullptr;
+    return &pairs_[cursor_];
+  }
+  const StoredRow& row(int index) const { return rows_[index]; }
+  // Starts the manifold of `key` (keys in increasing order); rows follow with `add_row`.
+  void begin(std::int64_t key, const Vec3& rel_p, const Quat& rel_q) {
+    keys_.push_back(key);
+    pairs_.push_back({rel_p, rel_q, static_cast<int>(rows_.size()), 0});
+  }
+  void add_row(const StoredRow& row) {
+    rows_.push_back(row);
+    ++pairs_.back().count;
+  }
+  void swap(ManifoldStore& other) {
+    keys_.swap(other.keys_);
+    pairs_.swap(other.pairs_);
+    rows_.swap(other.rows_);
+    cursor_ = other.cursor_ = 0;
+  }
+
+ private:
+  std::vector<std::int64_t> keys_;
+  std::vector<StoredManifold> pairs_;
+  std::vector<StoredRow> rows_;
+  std::size_t cursor_ = 0;
+};
+
+}  // namespace collres

@@ -1,0 +1,353 @@
+#include "step.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace collres {
+namespace {
+
+// Twist (6 per body) of states; held bodies and non-finite entries read as 0.
+void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* out) {
+  for (int64_t i = 0; i < bodies.count; ++i) {
+    for (int d = 0; d < 3; ++d) {
+      double v = s.linear[3 * i + d], w = s.angular[3 * i + d];
+      bool held = bodies.held[i] != 0;
+      out[6 * i + d] = (!held && std::isfinite(v)) ? v : 0.0;
+      out[6 * i + 3 + d] = (!held && std::isfinite(w)) ? w : 0.0;
+    }
+  }
+}
+
+// Normal velocity of B's point relative to A's (< 0 approaching) for twists v (N, 6).
+double normal_speed(const double* v, int64_t a, int64_t b, Vec3 ra, Vec3 rb, Vec3 n) {
+  Vec3 va = load3(v + 6 * a) + cross(load3(v + 6 * a + 3), ra);
+  Vec3 vb = load3(v + 6 * b) + cross(load3(v + 6 * b + 3), rb);
+  return dot(vb - va, n);
+}
+
+}  // namespace
+
+StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView& current,
+                           const BodyProperties& bodies, const ContactsView& contacts,
+                           double dt, bool warm_enabled, const SolverParams& params,
+                           BodyStatesOut& out, ContactsOut& report_out) {
+  const int64_t n = bodies.count;
+  velocity_.resize(6 * n);
+  pseudo_.resize(6 * n);
+  inv_inertia_.resize(n);
+  for (int64_t i = 0; i < n; ++i)
+    inv_inertia_[i] = rotate_tensor(load4(current.orientation + 4 * i),
+                                    bodies.inv_inertia_body + 9 * i);
+  // reference time of each contact and body, pre-solve velocities, speculative allowance
+  reference_frame(previous, current, bodies, contacts, dt, params.restitution_threshold,
+                  report_out);
+  // prepare: rows of the contacts that can carry an impulse, combined materials
+  prepare(bodies, contacts, params);
+  // warm start from last step's impulses of the same pair and feature
+  double cold = warm(contacts, dt, warm_enabled);
+  SolverBodies solver{n, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
+  warm_start(rows_, solver);
+  // iterate: sequential impulses (more sweeps while resting contacts are new), then
+  // shock propagation from the ground up
+  int iterations = static_cast<int>(
+      std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
+  StepStats stats;
+  stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged);
+  stats.rows = static_cast<int64_t>(rows_.size());
+  levels(n);
+  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps);
+  // restitution from the pre-solve approach speed, above the threshold only
+  apply_restitution(rows_, solver);
+  // store impulses for next step's warm start, then report them
+  report(contacts, params, report_out);
+  cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
+               cached_normal_.data(), report_out.friction_impulse, contacts.point);
+  last_dt_ = dt;
+  // correct poses: rewind / advance, then the split-impulse push-out (no velocity)
+  advance(previous, current, dt, out);
+  push_out(bodies, params, dt, out);
+  return stats;
+}
+
+void StepSolver::reference_frame(const BodyStatesView& previous, const BodyStatesView& current,
+                                 const BodyProperties& bodies, const ContactsView& c,
+                                 double dt, double threshold, ContactsOut& report) {
+  const int64_t n = bodies.count, m = c.count;
+  now_.resize(6 * n);
+  then_.resize(6 * n);
+  load_twists(current, bodies, now_.data());
+  load_twists(previous, bodies, then_.data());
+  ra_.resize(m);
+  rb_.resize(m);
+  gap_.resize(m);
+  toi_.resize(m);
+  impact_.resize(m);
+  remaining_.resize(m);
+  allowance_.resize(m);
+  fraction_.assign(n, 1.0);           // earliest time of impact per body (1: none)
+  touched_.assign(n, 0);
+  impacted_.assign(n, 0);
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    bool impact = c.kind[k] != kPersistent;
+    // contact points are at the time of impact (IMPACT/TUNNELLED) or the current state
+    double at = impact ? c.toi[k] : 1.0;
+    Vec3 point = load3(c.point + 3 * k), normal = load3(c.normal + 3 * k);
+    Vec3 xa = load3(previous.position + 3 * a), xb = load3(previous.position + 3 * b);
+    ra_[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
+    rb_[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
+    // gap at the previous state of a persistent contact, from the current approach speed
+    double v_in = normal_speed(now_.data(), a, b, ra_[k], rb_[k], normal);
+    double gap = c.separation[k] - v_in * dt;
+    bool closing = !impact && gap > 0.0 && c.separation[k] < 0.0 && v_in < -threshold;
+    double toi = impact ? c.toi[k] : 0.0;
+    if (closing) toi = gap / std::max(gap - c.separation[k], 1e-300);
+    impact = impact || closing;
+    impact_[k] = impact;
+    toi_[k] = toi;
+    gap_[k] = gap;                    // completed below, once the body fractions are known
+    allowance_[k] = v_in;             // (kept here for the next loop)
+    report.toi[k] = std::clamp(toi, 0.0, 1.0);
+    report.kind[k] = closing ? static_cast<int8_t>(kNewImpact) : c.kind[k];
+    touched_[a] = touched_[b] = 1;
+    if (impact) {
+      impacted_[a] = impacted_[b] = 1;
+      fraction_[a] = std::min(fraction_[a], toi);
+      fraction_[b] = std::min(fraction_[b], toi);
+    }
+  }
+  for (int64_t i = 0; i < n; ++i) {
+    bool movable = bodies.movable[i] != 0;
+    touched_[i] = touched_[i] && movable;
+    impacted_[i] = impacted_[i] && movable;
+    double f = impacted_[i] ? std::clamp(fraction_[i], 0.0, 1.0) : 0.0;
+    fraction_[i] = f;
+    // pre-solve velocity: at the time of impact for impacted bodies (the twist of a
+    // state is the velocity over the step that led to it, at mid-step), else current
+    for (int d = 0; d < 6; ++d) {
+      double now = now_[6 * i + d], external = now - then_[6 * i + d];
+      velocity_[6 * i + d] = impacted_[i] ? now + (f - 0.5) * external : now;
+    }
+  }
+  // speculative allowance: the gap at the later of the two bodies' reference times
+  for (int64_t k = 0; k < m; ++k) {
+    double later = std::max(fraction_[c.a[k]], fraction_[c.b[k]]);
+    double remaining = std::max((1.0 - later) * dt, 1e-9 * dt);
+    double v_in = allowance_[k];
+    gap_[k] = impact_[k] ? 0.0 : gap_[k] + v_in * later * dt;
+    remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
+    allowance_[k] = std::max(gap_[k], 0.0) / remaining;
+  }
+}
+
+void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
+                         const SolverParams& p) {
+  const int64_t m = c.count;
+  // a speculative contact cannot activate when it separates faster than any impulse of
+  // this step can turn around: (1 + e) per hit, a factor 2 for chains and lever arms,
+  // from the fastest pre-solve approach of the step
+  approach_.resize(m);
+  double fastest = 0.0, e = 0.0;
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    approach_[k] = normal_speed(velocity_.data(), a, b, ra_[k], rb_[k],
+                                load3(c.normal + 3 * k));
+    fastest = std::max(fastest, -approach_[k]);
+    e = std::max({e, bodies.restitution[a], bodies.restitution[b]});
+  }
+  const double bound = 2.0 * (1.0 + e) * fastest;
+  rows_.clear();
+  row_of_.assign(m, -1);
+  SolverBodies solver{bodies.count, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
+  for (int64_t k = 0; k < m; ++k) {
+    if (gap_[k] > 0.0 && approach_[k] + allowance_[k] > bound) continue;
+    const int64_t a = c.a[k], b = c.b[k];
+    row_of_[k] = static_cast<int32_t>(rows_.size());
+    ContactRow& row = rows_.emplace_back();
+    row.a = static_cast<int32_t>(a);
+    row.b = static_cast<int32_t>(b);
+    row.contact = static_cast<int32_t>(k);
+    row.n = load3(c.normal + 3 * k);
+    row.ra = ra_[k];
+    row.rb = rb_[k];
+    row.allowance = allowance_[k];
+    if (p.restitution_rule == CombineRule::kPerObject) {
+      row.e_a = bodies.restitution[a];
+      row.e_b = bodies.restitution[b];
+    } else {
+      row.e_a = row.e_b = combine(bodies.restitution[a], bodies.restitution[b],
+                                  p.restitution_rule);
+    }
+    double mu_s = combine(bodies.static_friction[a], bodies.static_friction[b],
+                          p.friction_rule);
+    double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[a],
+                                         bodies.kinetic_friction[b], p.friction_rule));
+    prepare_row(row, solver, then_.data(), p.sticking_speed, p.restitution_threshold, mu_s,
+                mu_k);
+  }
+}
+
+double StepSolver::warm(const ContactsView& c, double dt, bool enabled) {
+  const int64_t m = c.count;
+  int64_t persistent = 0, cold = 0;
+  for (int64_t k = 0; k < m; ++k) persistent += c.kind[k] == kPersistent;
+  if (!enabled) return persistent > 0 ? 1.0 : 0.0;
+  cached_normal_.resize(m);
+  cached_friction_.resize(3 * m);
+  found_.resize(m);
+  cache_.lookup(m, c.a, c.b, c.feature, c.point, 0.02, cached_normal_.data(),
+                cached_friction_.data(), found_.data());
+  for (int64_t k = 0; k < m; ++k) cold += c.kind[k] == kPersistent && !found_[k];
+  double scale = last_dt_ > 0.0 ? dt / last_dt_ : 0.0;
+  for (ContactRow& r : rows_) {
+    const int64_t k = r.contact;
+    Vec3 friction = load3(cached_friction_.data() + 3 * k);
+    r.normal = cached_normal_[k] * scale;
+    double tx = dot(r.t1, friction) * scale, ty = dot(r.t2, friction) * scale;
+    double size = norm2(tx, ty), limit = r.mu * r.normal;
+    if (size > limit) {
+      tx *= limit / size;
+      ty *= limit / size;
+    }
+    r.tangent[0] = tx;
+    r.tangent[1] = ty;
+  }
+  return static_cast<double>(cold) / static_cast<double>(std::max<int64_t>(1, persistent));
+}
+
+void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOut& out) {
+  const int64_t m = c.count;
+  cached_normal_.assign(m, 0.0);      // what is stored for the warm start
+  for (int64_t k = 0; k < m; ++k) {
+    out.normal_impulse[k] = 0.0;
+    store3(out.friction_impulse + 3 * k, Vec3{});
+    out.state[k] = kResting;          // no row: speculative, no impulse
+  }
+  for (const ContactRow& r : rows_) {
+    const int64_t k = r.contact;
+    cached_normal_[k] = r.normal;
+    out.normal_impulse[k] = r.normal + 0.5 * (r.restitution[0] + r.restitution[1]);
+    store3(out.friction_impulse + 3 * k, friction_world(r));
+    out.state[k] = contact_state(r, velocity_.data(), p.sticking_speed);
+  }
+  // STICKING -> RESTING where a pair's friction impulses sum to nothing (a box at rest on
+  // a flat floor may carry equal and opposite friction at its corners: no net friction)
+  order_.resize(m);
+  std::iota(order_.begin(), order_.end(), 0);
+  std::stable_sort(order_.begin(), order_.end(), [&](int64_t i, int64_t j) {
+    return c.a[i] != c.a[j] ? c.a[i] < c.a[j] : c.b[i] < c.b[j];
+  });
+  for (int64_t lo = 0; lo < m;) {
+    int64_t hi = lo;
+    Vec3 friction;
+    double normal = 0.0;
+    bool sticking = false;
+    for (; hi < m && c.a[order_[hi]] == c.a[order_[lo]] && c.b[order_[hi]] == c.b[order_[lo]];
+         ++hi) {
+      const int64_t k = order_[hi];
+      friction += load3(out.friction_impulse + 3 * k);
+      normal += out.normal_impulse[k];
+      sticking = sticking || out.state[k] == kSticking;
+    }
+    if (sticking && length(friction) <= p.balanced_friction * normal + 1e-15) {
+      for (int64_t j = lo; j < hi; ++j)
+        if (out.state[order_[j]] == kSticking) out.state[order_[j]] = kResting;
+    }
+    lo = hi;
+  }
+}
+
+void StepSolver::levels(int64_t n) {
+  // contact graph of the rows (CSR), then breadth first from the immovable bodies
+  first_.assign(n + 1, 0);
+  for (const ContactRow& r : rows_) {
+    ++first_[r.a + 1];
+    ++first_[r.b + 1];
+  }
+  for (int64_t i = 0; i < n; ++i) first_[i + 1] += first_[i];
+  adjacency_.resize(first_[n]);
+  order32_.assign(first_.begin(), first_.end() - 1);   // fill cursor per body
+  for (const ContactRow& r : rows_) {
+    adjacency_[order32_[r.a]++] = r.b;
+    adjacency_[order32_[r.b]++] = r.a;
+  }
+  level_.assign(n, -1);
+  queue_.clear();
+  for (int64_t i = 0; i < n; ++i)
+    if (!touched_[i] && first_[i + 1] > first_[i]) {   // immovable and in contact
+      level_[i] = 0;
+      queue_.push_back(static_cast<int32_t>(i));
+    }
+  for (size_t head = 0; head < queue_.size(); ++head) {
+    int32_t i = queue_[head];
+    for (int32_t k = first_[i]; k < first_[i + 1]; ++k) {
+      int32_t j = adjacency_[k];
+      if (level_[j] < 0) {
+        level_[j] = level_[i] + 1;
+        queue_.push_back(j);
+      }
+    }
+  }
+}
+
+void StepSolver::advance(const BodyStatesView& previous, const BodyStatesView& current,
+                         double dt, BodyStatesOut& out) {
+  const int64_t n = static_cast<int64_t>(touched_.size());
+  for (int64_t i = 0; i < n; ++i) {
+    if (!touched_[i]) continue;
+    const double* v = velocity_.data() + 6 * i;
+    Vec3 x0 = load3(previous.position + 3 * i);
+    Quat q0 = load4(previous.orientation + 4 * i);
+    if (!impacted_[i]) {
+      // persistent contact only: previous pose advanced by the new velocity for dt
+      store3(out.linear + 3 * i, load3(v));
+      store3(out.angular + 3 * i, load3(v + 3));
+      store3(out.position + 3 * i, x0 + dt * load3(v));
+      store4(out.orientation + 4 * i, integrate(q0, load3(v + 3), dt));
+      continue;
+    }
+    // impact: rewind to the time of impact, advance for the rest of the step
+    const double f = fraction_[i], tau = (1.0 - f) * dt;
+    double end[6], mean[6];
+    for (int d = 0; d < 6; ++d) {
+      double external = now_[6 * i + d] - then_[6 * i + d];
+      end[d] = v[d] + (0.5 - f) * external;        // mid-step twist, as the input's
+      mean[d] = v[d] + 0.5 * (1.0 - f) * external;
+    }
+    store3(out.linear + 3 * i, load3(end));
+    store3(out.angular + 3 * i, load3(end + 3));
+    Vec3 start = x0 + f * (load3(current.position + 3 * i) - x0);
+    store3(out.position + 3 * i, start + tau * load3(mean));
+    Quat turned = slerp(q0, load4(current.orientation + 4 * i), f);
+    store4(out.orientation + 4 * i, integrate(turned, load3(mean + 3), tau));
+  }
+}
+
+void StepSolver::push_out(const BodyProperties& bodies, const SolverParams& p, double dt,
+                          BodyStatesOut& out) {
+  // predicted gap at the end of the step = reference gap + new normal speed times the
+  // remaining time; beyond the slop a fraction of it (at most max_correction) is removed
+  for (ContactRow& r : rows_) {
+    double rel[3];
+    row_velocity(r, velocity_.data(), rel);
+    double predicted = gap_[r.contact] + rel[0] * remaining_[r.contact];
+    double depth = std::min(p.position_correction *
+                                std::max(-predicted - p.linear_slop, 0.0),
+                            p.max_correction);
+    r.push = depth / dt;
+  }
+  SolverBodies solver{bodies.count, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
+  if (!solve_positions(rows_, solver, pseudo_.data(), p.position_iterations)) return;
+  for (int64_t i = 0; i < bodies.count; ++i) {
+    const double* w = pseudo_.data() + 6 * i;
+    if (!touched_[i] || (w[0] == 0.0 && w[1] == 0.0 && w[2] == 0.0 && w[3] == 0.0 &&
+                         w[4] == 0.0 && w[5] == 0.0))
+      continue;
+    store3(out.position + 3 * i, load3(out.position + 3 * i) + dt * load3(w));
+    store4(out.orientation + 4 * i,
+           integrate(load4(out.orientation + 4 * i), load3(w + 3), dt));
+  }
+}
+
+}  // namespace collres

@@ -1,0 +1,145 @@
+// One solver step: everything that is per-contact work after detection.
+//
+// Maps the states of N bodies at the previous and the current time (world frame, before
+// resolution) and the M contacts that detection found to corrected current states, the
+// contacts' impulses and states. Units SI; quaternions x, y, z, w; a state's twist is the
+// velocity over the step that led to it (semi-implicit Euler: x1 = x0 + v1 dt), so the
+// velocity at a fraction f of the step is v1 + (f - 1/2) a dt, a = (v1 - v0) / dt the
+// step's constant external acceleration (e.g. gravity).
+//
+// In order (StepSolver::step):
+// 1. reference frame: a body with an impact (IMPACT/TUNNELLED contact, or a persistent
+//    contact that closes faster than the restitution threshold during the step) is
+//    rewound to its earliest time of impact f and solved with the velocity it had then;
+//    a body in persistent contact only is solved with its current velocity; a
+//    persistent contact may approach by its gap at the reference time (speculative
+//    allowance, m/s);
+// 2. prepare: one row per contact point that can carry an impulse this step (a
+//    speculative contact that cannot close within the step is no row), combined
+//    materials by the combine rules;
+// 3. warm start from last step's impulses of the same pair and feature (ContactCache);
+// 4. iterate: sequential impulses (more sweeps while the resting contacts are new), then
+//    shock propagation from the ground up (a heavy body on a light one);
+// 5. restitution from the pre-solve approach speed, above the threshold only;
+// 6. store impulses for the next step (without the restitution part);
+// 7. advance: impacted bodies from their time of impact with the new velocity for the
+//    rest of the step, (1 - f) dt; persistent-only bodies from the previous pose for dt;
+// 8. split-impulse position pass: penetration beyond the slop predicted at the end of the
+//    step is pushed out (poses only, no velocity: no energy gain);
+// 9. report: normal impulse (with restitution), friction impulse, state per contact; a
+//    sticking pair whose friction impulses cancel is reported RESTING.
+// Bodies without contact keep their current state (the caller's output arrays start as
+// a copy of the current states and only touched movable bodies are written).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "contact_cache.h"
+#include "contact_solver.h"
+
+namespace collres {
+
+// How detection classified a contact's pair (types.ContactKind).
+enum ContactKindCode : int8_t { kPersistent = 0, kNewImpact = 1, kTunnelled = 2 };
+
+// States of N bodies at one time: (N, 3) m, (N, 4) x y z w, (N, 3) m/s, (N, 3) rad/s.
+struct BodyStatesView {
+  const double* position = nullptr;
+  const double* orientation = nullptr;
+  const double* linear = nullptr;
+  const double* angular = nullptr;
+};
+
+struct BodyStatesOut {
+  double* position = nullptr;
+  double* orientation = nullptr;
+  double* linear = nullptr;
+  double* angular = nullptr;
+};
+
+// Per-body constants of the step.
+struct BodyProperties {
+  int64_t count = 0;
+  const double* inv_mass = nullptr;          // (N,) 1/kg, 0 for static and held bodies
+  const double* inv_inertia_body = nullptr;  // (N, 3, 3) 1/(kg m^2), body frame, 0 likewise
+  const uint8_t* movable = nullptr;          // (N,) 1: dynamic and active this step
+  const uint8_t* held = nullptr;             // (N,) 1: inactive this step, reads zero twist
+  const double* restitution = nullptr;       // (N,) 0..1
+  const double* static_friction = nullptr;   // (N,) >= 0
+  const double* kinetic_friction = nullptr;  // (N,) >= 0
+};
+
+// M contacts from detection (types.ContactSet): finite, unit normals.
+struct ContactsView {
+  int64_t count = 0;
+  const int64_t* a = nullptr;          // (M,) body A (a < b)
+  const int64_t* b = nullptr;          // (M,) body B
+  const double* point = nullptr;       // (M, 3) m, world, at the contact configuration
+  const double* normal = nullptr;      // (M, 3) unit, world, from A to B
+  const double* separation = nullptr;  // (M,) m, signed gap at the current state (< 0: overlap)
+  const double* toi = nullptr;         // (M,) time of impact, fraction of the step in [0, 1]
+  const int8_t* kind = nullptr;        // (M,) ContactKindCode
+  const int64_t* feature = nullptr;    // (M,) feature id within the pair (warm start key)
+};
+
+// Per-contact results, caller order.
+struct ContactsOut {
+  double* normal_impulse = nullptr;    // (M,) N s >= 0, on B along +n (on A along -n)
+  double* friction_impulse = nullptr;  // (M, 3) N s, world, on B (opposite on A), _|_ n
+  uint8_t* state = nullptr;            // (M,) ContactStateCode
+  double* toi = nullptr;               // (M,) reported time of impact in [0, 1]
+  int8_t* kind = nullptr;              // (M,) reported kind (a closing persistent: IMPACT)
+};
+
+struct StepStats {
+  int sweeps = 0;   // velocity sweeps done
+  int64_t rows = 0; // contact points solved (the others were speculative, inactive)
+};
+
+class StepSolver {
+ public:
+  // `warm`: warm start from the cache (false after a pause: a fresh start).
+  StepStats step(const BodyStatesView& previous, const BodyStatesView& current,
+                 const BodyProperties& bodies, const ContactsView& contacts, double dt,
+                 bool warm, const SolverParams& params, BodyStatesOut& out,
+                 ContactsOut& report);
+
+  ContactCache& cache() { return cache_; }
+
+ private:
+  void reference_frame(const BodyStatesView& previous, const BodyStatesView& current,
+                       const BodyProperties& bodies, const ContactsView& c, double dt,
+                       double threshold, ContactsOut& report);
+  void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
+  double warm(const ContactsView& c, double dt, bool enabled);
+  void levels(int64_t n);
+  void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
+               BodyStatesOut& out);
+  void push_out(const BodyProperties& bodies, const SolverParams& p, double dt,
+                BodyStatesOut& out);
+  void report(const ContactsView& c, const SolverParams& p, ContactsOut& out);
+
+  ContactCache cache_;
+  double last_dt_ = 0.0;
+  // per body (scratch, reused across steps)
+  std::vector<double> velocity_;     // (N, 6) working velocity
+  std::vector<double> now_;          // (N, 6) current twist (held, non-finite: 0)
+  std::vector<double> then_;         // (N, 6) previous twist (held, non-finite: 0)
+  std::vector<double> pseudo_;       // (N, 6) split-impulse pseudo velocity
+  std::vector<double> fraction_;     // (N,) reference fraction of the step
+  std::vector<uint8_t> touched_, impacted_;
+  std::vector<Mat3> inv_inertia_;    // (N,) world frame
+  // per contact (scratch)
+  std::vector<Vec3> ra_, rb_;
+  std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
+  std::vector<uint8_t> impact_;
+  std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
+  std::vector<double> cached_normal_, cached_friction_;
+  std::vector<uint8_t> found_;
+  std::vector<int64_t> order_;
+  std::vector<ContactRow> rows_, shock_rows_;
+  std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
+};
+
+}  // namespace collres

@@ -1,0 +1,115 @@
+"""Detection defects found by physics laws (one test per defect, each fails on the old code).
+
+1. A glancing impact between spheres that were already within the speculative margin
+   before the step must be solved at its time of impact: the normal and lever arms of the
+   end-of-step (overlapping) pose tilt the normal, break the restitution law along the
+   true normal, spin the spheres and change the angular momentum.
+2. A cylinder lying on its side on a floor must stay still: contact points reused in the
+   body frame of a curved surface turn with the body and make it roll.
+3. A flat landing must get its face manifold at the time of impact even where coal's
+   GJK/EPA fail on the just-touching pose.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.types import BodySpec, ContactState
+from collres_ros.core.world import World
+
+from contacts import sphere, states  # noqa: I100
+from integrator import Simulation
+
+
+def test_glancing_impact_from_within_the_margin_is_solved_at_the_time_of_impact() -> None:
+    # A (3 m/s along +x) meets B at rest with the line of centres 30 degrees off the motion;
+    # 5 mm apart before the step (inside the 20 mm margin), overlapping after it
+    r, speed, e, dt = 0.1, 3.0, 0.5, 1.0 / 240.0
+    angle = math.radians(30.0)
+    offset = 2 * r * math.sin(angle)
+    x0 = math.sqrt((2 * r + 0.005) ** 2 - offset ** 2)
+    world = World([sphere('a', r, 1.0, e), sphere('b', r, 1.0, e)], SolverSettings())
+    before = states([[0, 0, 0], [x0, offset, 0]], [[speed, 0, 0], [0, 0, 0]])
+    after = before.copy()
+    after.position += after.linear * dt
+    assert np.linalg.norm(after.position[1] - after.position[0]) < 2 * r   # overlapping now
+    result = world.step(before, after, dt)
+    out, report = result.states, result.report
+    assert report.contacts.count == 1 and report.state[0] == ContactState.IMPACT
+    assert report.normal_impulse[0] > 0.0
+    true_normal = np.array([math.cos(angle), math.sin(angle), 0.0])
+    tilt = math.degrees(math.acos(min(1.0, float(report.contacts.normal[0] @ true_normal))))
+    approach = (before.linear[1] - before.linear[0]) @ true_normal
+    leave = (out.linear[1] - out.linear[0]) @ true_normal
+    spin = np.linalg.norm(out.angular, axis=1)
+    # angular momentum about the origin (equal spheres, unit mass: spins add I w)
+    inertia = 0.4 * r * r
+    momentum_before = sum(np.cross(before.position[k], before.linear[k]) for k in range(2))
+    momentum_after = sum(np.cross(out.position[k], out.linear[k]) + inertia * out.angular[k]
+                         for k in range(2))
+    change = float(np.linalg.norm(momentum_after - momentum_before))
+    print(f'normal {tilt:.4f} deg off the line of centres at impact; restitution along it '
+          f'{-leave / approach:.5f} (e = {e}); spins {spin} rad/s; '
+          f'angular momentum change {change:.2e} N m s')
+    assert tilt < 0.05
+    assert abs(-leave / approach - e) < 2e-3
+    assert np.all(spin < 1e-9)      # a frictionless hit along the line of centres: no spin
+    assert change < 1e-6
+
+
+@pytest.mark.parametrize('floor', [BodySpec('floor', 'box', (4, 4, 0.2), static=True),
+                                   BodySpec('floor', 'plane', (0, 0, 1, 0), static=True)],
+                         ids=['box', 'plane'])
+def test_cylinder_lying_on_its_side_stays_still(floor: BodySpec) -> None:
+    r, length = 0.1, 0.3
+    lying = [math.sin(math.pi / 4), 0.0, 0.0, math.cos(math.pi / 4)]   # axis along y
+    bodies = [floor, BodySpec('log', 'cylinder', (r, length), mass=2.0, static_friction=0.5,
+                              kinetic_friction=0.3, restitution=0.2)]
+    top = 0.0 if floor.shape == 'plane' else -0.1   # floor origin: its top face at z = 0
+    start = states([[0, 0, top], [0, 0, r]], [[0, 0, 0], [0, 0, 0]],
+                   orientation=[[0, 0, 0, 1], lying])
+    sim = Simulation(bodies, start, 240.0)
+    rates, travel, contacts = [], [], 0
+    for _ in range(int(5.0 * 240)):
+        contacts += sim.step().report.contacts.count
+        rates.append(float(np.linalg.norm(sim.state.angular[1])))
+        travel.append(float(np.abs(sim.state.position[1, :2] - start.position[1, :2]).max()))
+    spin, travel = max(rates), max(travel)
+    print(f'after 5 s: largest roll rate {spin:.2e} rad/s, horizontal travel '
+          f'{travel * 1000:.4f} mm, {contacts / len(rates):.1f} contacts per step')
+    assert contacts >= len(rates), 'the cylinder lost its contact'
+    assert spin < 1e-3
+    assert travel < 1e-4
+
+
+def test_a_flat_landing_on_a_long_box_gets_its_four_point_impact_manifold():
+    """coal's GJK/EPA fail on some just-touching poses (depth -DBL_MAX, a wrong normal).
+
+    A 20 cm box landing flat on a 40 m long box whose centre is 0.5 m away: the
+    bisection used to end on such a pose, and the impact came out as one point at the
+    box's centre or four points in one place (the box then tipped over on a flat
+    landing). Expected: the four corners of the bottom face, normal +z, at the time the
+    face reaches the top (0.0036 m of a 0.0041 m step).
+    """
+    from collres_ros.core.detection import Detection
+    from collres_ros.core.types import BodyStates
+    specs = [BodySpec('belt', 'box', (40.0, 2.0, 0.2), static=True),
+             BodySpec('box', 'box', (0.2, 0.2, 0.2))]
+    detection = Detection(specs, SolverSettings())
+    for belt_x in ((0.5, 0.5), (0.0, 0.001)):
+        previous, current = BodyStates.zeros(2), BodyStates.zeros(2)
+        previous.position[:] = [[belt_x[0], 0.0, -0.1], [0.0, 0.0, 0.1036]]
+        current.position[:] = [[belt_x[1], 0.0, -0.1], [0.0, 0.0, 0.0995]]
+        previous.linear[1], current.linear[1] = [0.0, 0.0, -0.96], [0.0, 0.0, -0.98]
+        detection.reset()
+        contacts = detection.detect(previous, current)
+        corners = sorted(map(tuple, np.round(contacts.point[:, :2], 6)))
+        print(belt_x, contacts.kind, contacts.toi, corners)
+        assert corners == [(-0.1, -0.1), (-0.1, 0.1), (0.1, -0.1), (0.1, 0.1)]
+        assert np.allclose(contacts.normal, [0.0, 0.0, 1.0], atol=1e-6)
+        assert np.allclose(contacts.toi, 0.0036 / 0.0041, atol=1e-3)
+        assert np.allclose(contacts.point[:, 2], 0.0, atol=1e-5)

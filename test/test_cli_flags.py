@@ -1,6 +1,6 @@
 """collres_sim and collres_demo flags: every one range-checked before anything is created,
 one ``error: --flag: ...`` line and exit 2; the demo honours an exported ROS_DOMAIN_ID
-(issue 10 items 18, 21)."""
+"""
 
 from __future__ import annotations
 

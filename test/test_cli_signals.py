@@ -1,4 +1,4 @@
-"""Ctrl-C during a slow start ends the process at once, without a traceback (issue 10 item 19).
+"""Ctrl-C during a slow start ends the process at once, without a traceback.
 
 rcl parses the params files inside ``rclpy.init``, in C: a file of 300,000 inline numbers
 keeps it there for a minute or more, where Python's SIGINT handler cannot run. ``cli.ros_init``

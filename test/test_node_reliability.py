@@ -1,6 +1,6 @@
 """collres_node over real DDS: clock restarts, unpaired inputs, a /diagnostics level that
 recovers, the expected-rate check, the status name, and inputs lost in a burst counted
-exactly (issue 10 items 1, 4, 5, 6)."""
+exactly."""
 
 from __future__ import annotations
 

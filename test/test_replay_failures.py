@@ -1,5 +1,4 @@
-"""collres_replay on bad bags: a clear error, a non-zero exit, no output left behind
-(issue 10 items 15, 16, 17)."""
+"""collres_replay on bad bags: a clear error, a non-zero exit, no output left behind."""
 
 from __future__ import annotations
 

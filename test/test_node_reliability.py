@@ -112,9 +112,11 @@ def test_a_source_restart_resets_the_per_body_sync_once(ros_domain, tmp_path, st
             peer.publish(f'bodies/ball/{kind}', part(k * DT, kind))
     assert peer.wait(lambda: answered(peer, 'bodies/ball/pose/corrected', 39 * DT), 15.0), \
         node.output()[-2000:]
-    assert peer.wait(lambda: values(peer).get('count.time_jump') == '1'
+    # (messages the node's queue lost can open a forward gap too: counted, not a reset)
+    assert peer.wait(lambda: int(values(peer).get('count.time_jump', 0)) >= 1
                      and values(peer).get('stale_bodies') == 'box', 10.0), \
-        (status(peer).message, [(kv.key, kv.value) for kv in status(peer).values])
+        (status(peer).message, {kv.key: kv.value for kv in status(peer).values},
+         node.output()[-3000:])
     log = node.output()
     print(log[-1500:])
     assert log.count('jumped backwards') == 1 and 'Traceback' not in log
@@ -222,10 +224,11 @@ def test_log_lines_stay_short_and_say_what_happened(ros_domain, tmp_path, stoppe
     stopped((node, peer))
     wait_up(peer, node, [('body_states', BodyStateArray)])
     for stamp in (T0, T0 + DT, T0 + 100 * S):            # the last one: a large gap
-        peer.publish('body_states', batch(stamp, [state('body_000'), state('u' * 10_000)]))
+        peer.publish('body_states', batch(stamp, [state('body_000'), state('u' * 200)]))
         assert peer.wait(lambda: answered(peer, 'body_states/corrected', stamp), 15.0)
-    assert peer.wait(lambda: 'large_gap' in node.output() and 'unknown_body' in node.output(),
-                     10.0), node.output()[-2000:]
+    peer.publish('body_states', batch(T0 + 101 * S, [state('u' * 10_000)]))   # refused whole
+    assert peer.wait(lambda: 'large_gap' in node.output() and 'unknown_body' in node.output()
+                     and 'too_large' in node.output(), 10.0), node.output()[-2000:]
     log = node.output()
     print(log[:3000])
     assert max(len(line) for line in log.splitlines()) < 300

@@ -133,6 +133,12 @@ class Resolver:
         if len(self.bodies):
             self.world.forget(np.arange(len(self.bodies)))
 
+    def restart(self) -> None:
+        """Forget every body's history (a new run of the source), keep the totals."""
+        totals = self.totals
+        self.reset()
+        self.totals = totals
+
     # --- one step ---------------------------------------------------------------------------
 
     def resolve(self, stamp_ns: int, inputs: Sequence[BodyInput] | InputBatch) -> ResolvedStep:

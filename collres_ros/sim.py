@@ -184,7 +184,8 @@ def _run(args: argparse.Namespace, ros_args: list[str]) -> int:
         path = config_path()
     if not Path(path).is_file():
         raise cli.CliError(f'params file not found: {path}')
-    sim = load_sim_scene(path, args.duration, args.rate)
+    sim = load_sim_scene(path, args.duration, args.rate,
+                         cli.namespace_from_ros_args(ros_args, 'collres_sim'))
     if sim.duration < 0 or sim.rate_hz <= 0:
         raise cli.CliError('duration must be >= 0 and rate > 0')
     if not args.offline:

@@ -32,7 +32,7 @@ class ContactState(IntEnum):
 
 
 class ContactKind(IntEnum):
-    """How the narrow phase classified a contact's pair (see DESIGN.md)."""
+    """How the narrow phase classified a contact's pair (see ``collision.py``)."""
 
     PERSISTENT = 0  # overlapping (or within the speculative margin) at the previous state
     IMPACT = 1      # separated before, overlapping now: time of impact by bisection

@@ -14,7 +14,6 @@ Deterministic: the same input gives the same output messages.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -92,32 +91,30 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
                 topics: Sequence[str] | None = None, compress: bool = False) -> OfflineSummary:
     """Step the scene in-process and record input and outputs to a new bag.
 
+    ``progress``: a progress line on stderr, when stdout and stderr are terminals.
+    Topics are recorded in the scene's namespace (``sim.namespace``).
     ``topics``: record only these (relative names; default: all). ``compress``:
     zstd mcap chunks.
     """
     from collres_ros.ros import qos
     from collres_ros.ros.bag import BagWriter, describe
+    from collres_ros.ros.console import progress_printer
     contacts: dict[str, int] = {}
     start = time.perf_counter()
 
-    def show(step: int, total: int) -> None:
-        if progress and (step % 200 == 0 or step == total):
-            print(f'\rstep {step}/{total}', end='', file=sys.stderr, flush=True)
-
+    show = progress_printer('collres_sim') if progress else None   # on a terminal only
     depth = sim.scene.node.queue_depth
     with BagWriter(record, storage, compress, qos=lambda topic: [qos.offered(topic, depth)],
                    custom_data=describe(sim.scene)) as writer:
         def sink(stamp: int, outputs: list[tuple[str, str, bytes]]) -> None:
             for topic, kind, data in outputs:
                 if topics is None or topic in topics:
-                    writer.write_raw(absolute(topic), kind, stamp, data)
+                    writer.write_raw(absolute(topic, sim.namespace), kind, stamp, data)
 
         steps = run_core(sim, sink, show,
                          markers=topics is None or 'contact_markers' in topics,
                          contacts=contacts)
         messages = writer.count
-    if progress:
-        print(file=sys.stderr)
     return OfflineSummary(steps, messages, contacts, time.perf_counter() - start)
 
 
@@ -314,7 +311,7 @@ def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
     from collres_ros.ros import params as params_module
     from collres_ros.ros.bag import PARAMS_KEY
     if params is not None:
-        return params_module.load_scene(params)
+        return params_module.load_scene(params, namespace)
     text = reader.custom_data.get(PARAMS_KEY)
     if not text:
         raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '
@@ -322,7 +319,7 @@ def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
     with tempfile.TemporaryDirectory(prefix='collres_replay-') as scratch:
         path = Path(scratch) / 'params.yaml'
         path.write_text(text)
-        return params_module.load_scene(path)
+        return params_module.load_scene(path, namespace)
 
 
 def _rejections(resolved: Any) -> list[Any]:

@@ -40,8 +40,10 @@ $(MSG_STAMP): $(INTERFACE_INPUTS) $(VENV)/.deps-stamp
 	$(VPY) cmake/build_interfaces.py collres_ros
 	touch $@
 
+# setuptools' "Editable installation ... folders with the same name" notice is informational
+# (the repo root is meant to be importable): silenced, nothing for a user to act on
 $(VENV)/.editable-stamp: setup.py pyproject.toml $(MSG_STAMP)
-	$(PIP) install --no-deps --no-build-isolation -e .
+	PYTHONWARNINGS="ignore:Editable installation" $(PIP) install --no-deps --no-build-isolation -e .
 	touch $@
 
 # BENCH_ARGS e.g. --sizes 10 100 --peer-venv DIR (default ~/.cache/collres_ros/peer-venv,

@@ -1,17 +1,41 @@
-"""Input -> corrected-output latency of collres_node over DDS (localhost), p50/p99.
+"""collres_node over DDS on a settled pile: rate sustained, drops, latency, callback split.
 
-Starts the real collres_node as a child process in a private ROS_DOMAIN_ID,
-publishes BodyStateArray steps of N spheres resting on a floor (N contacts
-per step) one at a time, and times each step from publish to the reception
-of its body_states/corrected (same host clock). Usage:
+    .venv/bin/python bench/bench_latency.py [--sizes 10 100 1000] [--rates 100 100 30]
+        [--duration 10] [--settle 1.0]
 
-    .venv/bin/python bench/bench_latency.py [--bodies 10 100] [--steps 300]
+For each size the pile of bench/pile.py is settled in-process with the core
+(120 Hz, semi-implicit Euler), written as a params file, and then three
+processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
+
+* ``collres_node`` on that scene;
+* a publisher (this file, ``--role publisher``): the settled pile one gravity
+  step later (so every step has the pile's contacts and impulses), as
+  pre-serialised BodyStateArray bytes with a new stamp each step. First
+  lock-step (publish, wait for the answer, repeat: the highest rate the node
+  sustains), then paced at the given rate (``--rates``, one per size) for
+  ``--duration`` s;
+* this process: subscribers of ``body_states/corrected``, ``contacts`` and
+  ``contact_markers`` (so the node builds and publishes all of them) and of
+  ``/diagnostics`` (the node's own timing figures).
+
+Latency is publish to reception of the step's ``body_states/corrected``
+(CLOCK_MONOTONIC, shared by the processes). Dropped = paced steps without an
+answer. The node's callback split comes from its ``/diagnostics`` values:
+``time.decode_ms``, ``time.resolve_ms`` (Resolver.resolve), ``time.world_ms``
+(World.step alone), ``time.encode_ms``, ``time.publish_ms`` and
+``callback_time_mean_ms``; an older node reports only the callback and
+``step_time_mean_ms`` (resolve), so the others show ``n/a``.
+
+Runs against whatever ``collres_ros`` the interpreter imports (set PYTHONPATH
+to a checkout to measure that one; its generated ``msg/`` must be present).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
 import sys
 import tempfile
 import threading
@@ -21,104 +45,367 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
 
-from ros_harness import Peer  # noqa: E402
+from pile import integrate, make_pile  # noqa: E402
 
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+SETTLE_DT = 1.0 / 120.0
+T0 = 1_000_000_000_000   # first stamp, ns
+TIMING_KEYS = ('time.decode_ms', 'time.resolve_ms', 'time.world_ms', 'time.encode_ms',
+               'time.publish_ms', 'callback_time_mean_ms', 'step_time_mean_ms')
 
-from collres_ros.ros import processes  # noqa: E402
-from collres_ros.ros.messages import stamp_ns, to_stamp  # noqa: E402
-from collres_ros.msg import BodyState, BodyStateArray  # noqa: E402
+
+# --- the scene ----------------------------------------------------------------------------------
+
+def settled_pile(count: int, settle_s: float) -> tuple[list[Any], Any, float]:
+    """(bodies, settled states, mean World.step ms of the last settling steps)."""
+    from collres_ros.core.config import SolverSettings
+    from collres_ros.core.world import World
+    bodies, state = make_pile(count)
+    world = World(bodies, SolverSettings())
+    times = []
+    for _ in range(max(1, int(round(settle_s / SETTLE_DT)))):
+        current = integrate(state, world.dynamic, SETTLE_DT)
+        start = time.perf_counter()
+        state = world.step(state, current, SETTLE_DT).states
+        times.append(time.perf_counter() - start)
+    return bodies, state, 1e3 * float(np.median(times[-10:]))
 
 
-def scene_file(path: Path, count: int) -> Path:
-    side = int(np.ceil(np.sqrt(count)))
-    names = [f'b{i}' for i in range(count)]
+def _list(values: Any) -> str:
+    return '[' + ', '.join(repr(float(v)) for v in values) + ']'
+
+
+def write_scene(path: Path, bodies: list[Any], state: Any) -> Path:
+    """A params file of the pile, initial poses = the settled state."""
     lines = ['/**:', '  ros__parameters:', '    world_frame: world',
-             f'    bodies: [floor, {", ".join(names)}]', '    body:',
-             '      floor: {shape: box, size: [100.0, 100.0, 0.2], static: true, '
-             'position: [0.0, 0.0, -0.1]}']
-    for i, name in enumerate(names):
-        x, y = 0.2 * (i % side), 0.2 * (i // side)
-        lines.append(f'      {name}: {{shape: sphere, size: [0.05], position: [{x}, {y}, 0.05]}}')
+             f'    bodies: [{", ".join(b.name for b in bodies)}]', '    body:']
+    for k, b in enumerate(bodies):
+        fields = [f'shape: {b.shape}', f'size: {_list(b.size)}']
+        if b.static:
+            fields.append('static: true')
+        else:
+            fields += [f'mass: {b.mass!r}', f'restitution: {b.restitution!r}',
+                       f'static_friction: {b.static_friction!r}',
+                       f'kinetic_friction: {b.kinetic_friction!r}',
+                       f'position: {_list(state.position[k])}',
+                       f'orientation: {_list(state.orientation[k])}']
+        lines.append(f'      {b.name}: {{{", ".join(fields)}}}')
+    lines += ['collres_node:', '  ros__parameters:', '    diagnostics_period: 0.5',
+              '    queue_depth: 10']
     path.write_text('\n'.join(lines) + '\n')
     return path
 
 
-def measure(count: int, steps: int, domain: int, workdir: Path) -> dict[str, float]:
-    scene = scene_file(workdir / f'scene{count}.yaml', count)
-    node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
-                           env=processes.ros_env(domain), log=workdir / f'node{count}.log')
-    peer = Peer(domain, 'collres_bench')
-    arrivals: dict[int, float] = {}
-    arrived = threading.Event()
+def input_bytes(bodies: list[Any], state: Any, dt: float) -> bytes:
+    """Serialised BodyStateArray of the dynamic bodies one gravity step after ``state``."""
+    from rclpy.serialization import serialize_message
 
-    def on_corrected(msg: BodyStateArray) -> None:
-        arrivals[stamp_ns(msg.header.stamp)] = time.perf_counter()
-        arrived.set()
-    peer.node.create_subscription(BodyStateArray, 'body_states/corrected', on_corrected, 10)
-    diagnostics: list[Any] = []
-    peer.node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
-    peer.advertise('body_states', BodyStateArray)
+    from collres_ros.msg import BodyState, BodyStateArray
+    dynamic = np.array([not b.static for b in bodies])
+    current = integrate(state, dynamic, dt)
+    msg = BodyStateArray()
+    msg.header.frame_id = 'world'
+    for k, b in enumerate(bodies):
+        if b.static:
+            continue
+        body = BodyState(name=b.name)
+        p, q = body.pose.position, body.pose.orientation
+        p.x, p.y, p.z = (float(v) for v in current.position[k])
+        q.x, q.y, q.z, q.w = (float(v) for v in current.orientation[k])
+        v, w = body.twist.linear, body.twist.angular
+        v.x, v.y, v.z = (float(c) for c in current.linear[k])
+        w.x, w.y, w.z = (float(c) for c in current.angular[k])
+        msg.bodies.append(body)
+    return bytes(serialize_message(msg))
+
+
+def stamp_of(data: bytes) -> int:
+    """Header stamp (ns) of serialised stamped CDR (sec, nanosec right after the header)."""
+    sec = int.from_bytes(data[4:8], 'little', signed=True)
+    return sec * 1_000_000_000 + int.from_bytes(data[8:12], 'little')
+
+
+def with_stamp(template: bytearray, stamp: int) -> bytes:
+    template[4:8] = (stamp // 1_000_000_000).to_bytes(4, 'little', signed=True)
+    template[8:12] = (stamp % 1_000_000_000).to_bytes(4, 'little')
+    return bytes(template)
+
+
+def ros_env(domain: int) -> dict[str, str]:
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+    return env
+
+
+# --- the publisher process ----------------------------------------------------------------------
+
+def publisher(args: argparse.Namespace) -> int:
+    """Lock-step, then paced; writes {'lockstep': {...}, 'sent': {stamp: t_ns}} as JSON."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from collres_ros.msg import BodyStateArray
+    template = bytearray(Path(args.bytes).read_bytes())
+    rclpy.init(domain_id=args.domain)
+    node = rclpy.create_node('collres_bench_publisher')
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    pub = node.create_publisher(BodyStateArray, 'body_states', qos)
+    answered: dict[int, int] = {}
+    node.create_subscription(BodyStateArray, 'body_states/corrected',
+                             lambda d: answered.setdefault(stamp_of(d), time.monotonic_ns()),
+                             qos, raw=True)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+
+    def spin_until(predicate: Any, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > deadline:
+                return False
+            executor.spin_once(timeout_sec=0.005)
+        return True
+
+    result: dict[str, Any] = {}
     try:
-        if not peer.wait(lambda: peer.connected('body_states') and
-                         peer.node.count_publishers('body_states/corrected') > 0, 30.0):
-            raise RuntimeError(f'node did not come up: {node.output()}')
-        side = int(np.ceil(np.sqrt(count)))
-        bodies = []
-        for i in range(count):
-            b = BodyState(name=f'b{i}')
-            b.pose.position.x, b.pose.position.y = 0.2 * (i % side), 0.2 * (i // side)
-            b.pose.position.z, b.pose.orientation.w = 0.05, 1.0
-            bodies.append(b)
-        latencies = []
-        warmup = 20
-        for k in range(steps + warmup):
-            stamp = 10**12 + k * 10**9 // 240
-            msg = BodyStateArray(bodies=bodies)
-            msg.header.frame_id = 'world'
-            msg.header.stamp = to_stamp(stamp)
-            arrived.clear()
-            sent = time.perf_counter()
-            peer.publish('body_states', msg)
-            deadline = time.monotonic() + 10.0
-            # an Event, not a busy loop: the spin thread needs the GIL
-            while stamp not in arrivals:
-                if not arrived.wait(max(deadline - time.monotonic(), 0.0)):
-                    raise RuntimeError(f'no answer for step {k}')
-                arrived.clear()
-            if k >= warmup:
-                latencies.append(arrivals[stamp] - sent)
-        ms = np.array(latencies) * 1e3
-        peer.wait(lambda: bool(diagnostics), 3.0)
-        values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values} \
-            if diagnostics else {}
-        return {'bodies': count, 'steps': steps, 'p50': float(np.percentile(ms, 50)),
-                'p90': float(np.percentile(ms, 90)), 'p99': float(np.percentile(ms, 99)),
-                'max': float(ms.max()),
-                'resolve': float(values.get('step_time_mean_ms', 'nan')),
-                'callback': float(values.get('callback_time_mean_ms', 'nan'))}
+        if not spin_until(lambda: pub.get_subscription_count() >= args.subscribers, 60.0):
+            raise RuntimeError('no subscriber of body_states')
+        stamp = T0
+        period = int(round(1e9 / args.rate))
+        # lock-step: the next step as soon as the previous one is answered
+        times, lost = [], 0
+        lock_end = time.monotonic() + args.lockstep
+        while time.monotonic() < lock_end:
+            stamp += period
+            sent = time.monotonic_ns()
+            pub.publish(with_stamp(template, stamp))
+            if spin_until(lambda: stamp in answered, 5.0):
+                times.append(answered[stamp] - sent)
+            else:
+                lost += 1
+        warm = times[len(times) // 5:] or times
+        result['lockstep'] = {'steps': len(times), 'lost': lost,
+                              'rate_hz': 1e9 / float(np.mean(warm)) if warm else 0.0,
+                              'p50_ms': float(np.percentile(warm, 50)) / 1e6 if warm else 0.0}
+        spin_until(lambda: False, 0.5)   # drain
+        # paced: one step every 1/rate s for --duration s
+        sent_at: dict[int, int] = {}
+        begin = time.monotonic_ns()
+        count = int(round(args.duration * args.rate))
+        for k in range(count):
+            due = begin + k * period
+            while True:
+                now = time.monotonic_ns()
+                if now >= due:
+                    break
+                executor.spin_once(timeout_sec=min((due - now) * 1e-9, 0.002))
+            stamp += period
+            sent_at[stamp] = time.monotonic_ns()
+            pub.publish(with_stamp(template, stamp))
+        spin_until(lambda: all(s in answered for s in sent_at), 5.0)
+        result['sent'] = {str(s): t for s, t in sent_at.items()}
+        result['publish_late_ms'] = (time.monotonic_ns() - begin) / 1e6 - args.duration * 1e3
     finally:
-        peer.close()
-        processes.stop(node)
+        Path(args.out).write_text(json.dumps(result))
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
 
 
-def main() -> int:
+# --- one size -----------------------------------------------------------------------------------
+
+class Listener:
+    """Subscribers of the node's outputs in this process, spun in a thread."""
+
+    def __init__(self, domain: int) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from visualization_msgs.msg import MarkerArray
+
+        from collres_ros.msg import BodyStateArray, ContactArray
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = rclpy.create_node('collres_bench_listener', context=self.context)
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        self.arrived: dict[int, int] = {}
+        self.counts = {'contacts': 0, 'contact_markers': 0}
+        self.diagnostics: list[tuple[int, dict[str, str]]] = []
+        self.subscriptions = [
+            self.node.create_subscription(BodyStateArray, 'body_states/corrected',
+                                          self._corrected, qos, raw=True),
+            self.node.create_subscription(ContactArray, 'contacts',
+                                          lambda d: self._count('contacts'), qos, raw=True),
+            self.node.create_subscription(MarkerArray, 'contact_markers',
+                                          lambda d: self._count('contact_markers'), qos,
+                                          raw=True),
+            self.node.create_subscription(DiagnosticArray, '/diagnostics', self._diagnostics,
+                                          10)]
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except Exception:
+            pass
+
+    def _corrected(self, data: bytes) -> None:
+        self.arrived.setdefault(stamp_of(data), time.monotonic_ns())
+
+    def _count(self, topic: str) -> None:
+        self.counts[topic] += 1
+
+    def _diagnostics(self, msg: Any) -> None:
+        for status in msg.status:
+            if 'collres' in status.name:
+                self.diagnostics.append((time.monotonic_ns(),
+                                         {kv.key: kv.value for kv in status.values}))
+
+    def connected(self) -> bool:
+        return all(s.get_publisher_count() > 0 for s in self.subscriptions)
+
+    def close(self) -> None:
+        import rclpy
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def _wait(predicate: Any, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+def _timings(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> dict[str, float]:
+    """Step-weighted means of the node's timing values over the reports after ``since``."""
+    sums: dict[str, float] = {}
+    total = 0.0
+    for t, values in diagnostics:
+        if t < since:
+            continue
+        steps = float(values.get('steps_window', values.get('window_steps', 1)) or 1)
+        total += steps
+        for key in TIMING_KEYS:
+            if key in values:
+                sums[key] = sums.get(key, 0.0) + steps * float(values[key])
+    return {k: v / total for k, v in sums.items()} if total else {}
+
+
+def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
+    bodies, state, world_ms = settled_pile(count, args.settle)
+    scene = write_scene(workdir / f'pile{count}.yaml', bodies, state)
+    data = workdir / f'input{count}.cdr'
+    data.write_bytes(input_bytes(bodies, state, 1.0 / rate))
+    env = ros_env(args.domain)
+    exe = Path(sys.executable).parent / 'collres_node'
+    with open(workdir / f'node{count}.log', 'wb') as log:
+        node = subprocess.Popen([str(exe), '--ros-args', '--params-file', str(scene)],
+                                env=env, stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+    listener = Listener(args.domain)
+    out = workdir / f'sent{count}.json'
+    pub = None
+    try:
+        if not _wait(listener.connected, 120.0):
+            raise RuntimeError(f'node did not come up ({workdir}/node{count}.log)')
+        start = time.monotonic_ns()
+        with open(workdir / f'pub{count}.log', 'wb') as log:
+            pub = subprocess.Popen(
+                [sys.executable, __file__, '--role', 'publisher', '--bytes', str(data),
+                 '--rate', str(rate), '--duration', str(args.duration), '--lockstep',
+                 str(args.lockstep), '--domain', str(args.domain), '--out', str(out)],
+                env=env, stdout=log, stderr=subprocess.STDOUT)
+        pub.wait(timeout=args.duration + args.lockstep + 300)
+        result = json.loads(out.read_text())
+        paced_from = min(int(t) for t in result['sent'].values())
+        time.sleep(args.diagnostics_wait)
+        timings = _timings(listener.diagnostics, paced_from)
+        lock_timings = {k: v for k, v in _timings(
+            [d for d in listener.diagnostics if start <= d[0] < paced_from], start).items()}
+    finally:
+        listener.close()
+        if pub is not None and pub.poll() is None:
+            pub.kill()
+        node.send_signal(2)
+        try:
+            node.wait(15)
+        except subprocess.TimeoutExpired:
+            node.kill()
+    sent = {int(s): t for s, t in result['sent'].items()}
+    latencies = [(listener.arrived[s] - t) / 1e6 for s, t in sent.items()
+                 if s in listener.arrived]
+    warm = latencies[len(latencies) // 10:] or latencies
+    return {'bodies': count, 'rate': rate, 'lockstep': result['lockstep'], 'sent': len(sent),
+            'answered': len(latencies), 'dropped': len(sent) - len(latencies),
+            'p50': float(np.percentile(warm, 50)) if warm else float('nan'),
+            'p99': float(np.percentile(warm, 99)) if warm else float('nan'),
+            'contacts_msgs': listener.counts['contacts'],
+            'markers_msgs': listener.counts['contact_markers'],
+            'timings': timings, 'lock_timings': lock_timings, 'settle_world_ms': world_ms}
+
+
+def _f(values: dict[str, float], key: str) -> str:
+    return f'{values[key]:.2f}' if key in values else 'n/a'
+
+
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--bodies', type=int, nargs='+', default=[10, 100])
-    parser.add_argument('--steps', type=int, default=300)
-    parser.add_argument('--domain', type=int, default=90 + os.getpid() % 10)
-    args = parser.parse_args()
-    print('| bodies | steps | p50 ms | p90 ms | p99 ms | max ms | node: resolve ms | node: '
-          'callback ms |')
-    print('|---|---|---|---|---|---|---|---|')
-    with tempfile.TemporaryDirectory() as tmp:
-        for count in args.bodies:
-            r = measure(count, args.steps, args.domain, Path(tmp))
-            print(f'| {count} | {r["steps"]} | {r["p50"]:.2f} | {r["p90"]:.2f} | '
-                  f'{r["p99"]:.2f} | {r["max"]:.2f} | {r["resolve"]:.2f} | '
-                  f'{r["callback"]:.2f} |', flush=True)
+    parser.add_argument('--sizes', type=int, nargs='+', default=[10, 100, 1000])
+    parser.add_argument('--rates', type=float, nargs='+', default=[100.0, 100.0, 30.0],
+                        help='paced rate per size, Hz')
+    parser.add_argument('--duration', type=float, default=10.0, help='paced run, s')
+    parser.add_argument('--lockstep', type=float, default=5.0, help='lock-step run, s')
+    parser.add_argument('--settle', type=float, default=1.0, help='settling time, s')
+    parser.add_argument('--domain', type=int, default=int(os.environ.get('ROS_DOMAIN_ID', 90)))
+    parser.add_argument('--diagnostics-wait', type=float, default=1.2)
+    parser.add_argument('--json', help='also write the rows here')
+    parser.add_argument('--role', default='main', help=argparse.SUPPRESS)
+    parser.add_argument('--bytes', help=argparse.SUPPRESS)
+    parser.add_argument('--rate', type=float, default=100.0, help=argparse.SUPPRESS)
+    parser.add_argument('--out', help=argparse.SUPPRESS)
+    parser.add_argument('--subscribers', type=int, default=1, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.role == 'publisher':
+        return publisher(args)
+    rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
+    print('| bodies | lock-step rate Hz | paced rate Hz | sent | dropped | p50 ms | p99 ms '
+          '| callback ms | decode | resolve | World.step | encode | publish | '
+          'overhead ms |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
+    rows = []
+    with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
+        for count, rate in zip(args.sizes, rates):
+            r = measure(count, rate, args, Path(tmp))
+            rows.append(r)
+            t = r['timings'] or r['lock_timings']
+            resolve = t.get('time.resolve_ms', t.get('step_time_mean_ms'))
+            callback = t.get('callback_time_mean_ms')
+            world = t.get('time.world_ms')
+            overhead = callback - (world if world is not None else resolve) \
+                if callback is not None and (world or resolve) is not None else None
+            print(f'| {count} | {r["lockstep"]["rate_hz"]:.1f} | {rate:g} | {r["sent"]} | '
+                  f'{r["dropped"]} | {r["p50"]:.2f} | {r["p99"]:.2f} | '
+                  f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '
+                  f'{resolve if resolve is not None else float("nan"):.2f} | '
+                  f'{_f(t, "time.world_ms")} | {_f(t, "time.encode_ms")} | '
+                  f'{_f(t, "time.publish_ms")} | '
+                  f'{"n/a" if overhead is None else f"{overhead:.2f}"} |', flush=True)
+    print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
+          'latency: publish to body_states/corrected received; callback split: the node\'s '
+          '/diagnostics means over the paced run; overhead = callback - World.step '
+          '(- resolve where the node does not report World.step)')
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1, default=str))
     return 0
 
 

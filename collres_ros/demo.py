@@ -72,6 +72,9 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    from collres_ros.ros.console import interactive
+    progress = progress and interactive()   # a line redrawn in place: terminals only
+
     from collres_ros.ros import processes
     from collres_ros.ros.bag import BagError, describe, read_messages
     from collres_ros.ros.recorder import Recorder

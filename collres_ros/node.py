@@ -19,7 +19,17 @@ Topics (relative names): in ``body_states`` (BodyStateArray, one step per
 message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
 every non-stale dynamic body has both for one stamp, see ``sync.py``); out
 ``body_states/corrected``, ``bodies/<name>/{pose,twist}/corrected`` (for
-per-body steps), ``contacts``, ``contact_markers``, ``/diagnostics``.
+per-body steps), ``contacts``, ``contact_markers`` (built only while someone
+subscribes), ``/diagnostics``.
+
+The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
+``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
+Python message objects) after checking their size (more bodies than the scene
+has, a malformed message, a negative or unnormalised stamp: refused at once and
+counted), and every output is published as bytes built by
+``messages.OutputEncoder``. ``/diagnostics`` reports the callback's time split
+(``time.decode_ms``, ``time.resolve_ms``, ``time.world_ms``, ``time.encode_ms``,
+``time.publish_ms``).
 
 QoS: states, contacts and markers are reliable, volatile, keep-last with
 depth ``queue_depth`` (10): a control loop wants every step delivered in
@@ -37,6 +47,7 @@ from __future__ import annotations
 import array
 import sys
 import time
+from collections import Counter
 from functools import partial
 from pathlib import Path
 from typing import Any, Optional, Sequence
@@ -57,12 +68,21 @@ from visualization_msgs.msg import MarkerArray
 from collres_ros.core.config import ParamSpec, range_text
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
-from collres_ros.ros import cli, messages, names, params
+from collres_ros.core.types import InputBatch
+from collres_ros.ros import cli, codec, messages, names, params
 from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
-from collres_ros.ros.stamps import seconds_ns, stamp_ns
+from collres_ros.ros.stamps import seconds_ns
 from collres_ros.ros.sync import StampSync
 
 NAME = 'collres_node'
+CLASSES = {messages.TYPES[names.CORRECTED_STATES]: BodyStateArray,
+           messages.TYPES[names.CONTACTS]: ContactArray,
+           messages.TYPES[names.MARKERS]: MarkerArray,
+           messages.POSE_TYPE: PoseStamped, messages.TWIST_TYPE: TwistStamped}
+# The parts of a callback timed for /diagnostics (time.<part>_ms, means over the period):
+# decode (CDR -> arrays), resolve (Resolver.resolve), world (World.step alone, inside
+# resolve), encode (every output to CDR), publish.
+TIMED = ('decode', 'resolve', 'world', 'encode', 'publish')
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
 
 _TYPES = {
@@ -128,6 +148,10 @@ class CollresNode(Node):
         self._declare_parameters()
         self.resolver = Resolver(self.scene)
         body_names = self.scene.names
+        # the edge: CDR bytes in and out, decoded into and encoded from the core's arrays
+        self.states_codec = codec.StatesCodec(max_bodies=len(body_names))
+        self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame)
+        self.refused: Counter[str] = Counter()   # inputs refused before the resolver
         statics = [b.name for b in self.scene.bodies if b.static]
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]
         self.sync = StampSync(self.dynamic, statics, seconds_ns(self.scene.node.sync_slop),
@@ -142,12 +166,13 @@ class CollresNode(Node):
                             (names.MARKERS, MarkerArray)):
             self._publisher(topic, kind)
         self._diagnostics = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS, 10)
-        self.create_subscription(BodyStateArray, names.STATES, self._on_states, self.qos)
+        self.create_subscription(BodyStateArray, names.STATES, self._on_states, self.qos,
+                                 raw=True)
         for name in body_names:
             self.create_subscription(PoseStamped, names.pose_topic(name),
-                                     partial(self._on_part, name, 'pose'), self.qos)
+                                     partial(self._on_part, name, 'pose'), self.qos, raw=True)
             self.create_subscription(TwistStamped, names.twist_topic(name),
-                                     partial(self._on_part, name, 'twist'), self.qos)
+                                     partial(self._on_part, name, 'twist'), self.qos, raw=True)
         self._pending: Optional[params.Scene] = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
@@ -155,8 +180,7 @@ class CollresNode(Node):
         self._timer = self._diagnostics_timer()
         self._last_log: dict[str, float] = {}
         self._suppressed: dict[str, int] = {}
-        self._window = {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0,
-                        'since': time.monotonic()}
+        self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
         self.get_logger().info(
             f'resolving {len(body_names)} bodies ({", ".join(body_names)}) in frame '
@@ -205,31 +229,59 @@ class CollresNode(Node):
 
     # --- inputs -----------------------------------------------------------------------------
 
-    def _on_states(self, msg: BodyStateArray) -> None:
-        self._step(stamp_ns(msg.header.stamp), messages.inputs_from_array(msg), False)
+    def _on_states(self, data: bytes) -> None:
+        start = time.perf_counter()
+        try:
+            decoded = self.states_codec.decode(data)
+        except codec.DecodeError as refusal:
+            self._refuse(refusal, 'body_states')
+            return
+        batch = InputBatch(decoded.names, decoded.values, decoded.frame_id, decoded.frame_id)
+        self._step(decoded.stamp_ns, batch, False, start)
 
-    def _on_part(self, name: str, kind: str, msg: Any) -> None:
-        for group in self.sync.add(name, kind, stamp_ns(msg.header.stamp), msg):
-            self._step(group.stamp_ns, messages.inputs_from_group(group.parts, self.dynamic),
-                       True)
+    def _on_part(self, name: str, kind: str, data: bytes) -> None:
+        start = time.perf_counter()
+        try:
+            part = codec.decode_pose(data) if kind == 'pose' else codec.decode_twist(data)
+        except codec.DecodeError as refusal:
+            topic = names.pose_topic(name) if kind == 'pose' else names.twist_topic(name)
+            self._refuse(refusal, topic)
+            return
+        for group in self.sync.add(name, kind, part.stamp_ns, part):
+            self._step(group.stamp_ns, messages.batch_from_group(group.parts, self.dynamic),
+                       True, start)
+            start = time.perf_counter()
+
+    def _refuse(self, refusal: codec.DecodeError, topic: str) -> None:
+        """A message refused before decoding into the core: counted, logged (rate-limited)."""
+        self.refused[refusal.reason] += 1
+        self._warn(refusal.reason, f'{topic}: {refusal}')
 
     # --- one step ---------------------------------------------------------------------------
 
-    def _step(self, stamp: int, inputs: list[Any], per_body: bool) -> None:
-        start = time.perf_counter()
-        step = self.resolver.resolve(stamp, inputs)
-        outputs = messages.build_outputs(
-            step, self.scene.world_frame, per_body and self.scene.node.per_body_outputs,
-            self.scene.node.marker_lifetime,
-            markers=self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0)
-        for topic, msg in outputs:
-            self._publisher(topic, type(msg)).publish(msg)
+    def _step(self, stamp: int, batch: InputBatch, per_body: bool, start: float) -> None:
+        """Resolve, encode and publish one step; ``start``: when its callback began."""
+        decoded = time.perf_counter()
+        step = self.resolver.resolve(stamp, batch)
+        resolved = time.perf_counter()
+        markers = self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0
+        outputs = self.encoder.encode(step, per_body and self.scene.node.per_body_outputs,
+                                      self.scene.node.marker_lifetime, markers=markers)
+        encoded = time.perf_counter()
+        for topic, kind, data in outputs:
+            self._publisher(topic, CLASSES[kind]).publish(data)
+        done = time.perf_counter()
         self.last_step = step
         w = self._window
         w['steps'] += 1
         w['time'] += step.step_time_s
         w['max'] = max(w['max'], step.step_time_s)
-        w['callback'] += time.perf_counter() - start
+        w['decode'] += decoded - start
+        w['resolve'] += resolved - decoded
+        w['world'] += step.world_time_s
+        w['encode'] += encoded - resolved
+        w['publish'] += done - encoded
+        w['callback'] += done - start
         for item in step.rejected + step.resets:
             self._warn(item.reason, item.detail)
 
@@ -263,9 +315,11 @@ class CollresNode(Node):
         now = time.monotonic()
         elapsed = max(now - w['since'], 1e-9)
         totals = self.resolver.totals
-        counts = {k: v for k, v in totals.items() if k not in ('steps', 'contacts')}
+        counts = {k: v for k, v in (totals + self.refused).items()
+                  if k not in ('steps', 'contacts')}
         stale = sorted(set(self.sync.stale()) | set(self.last_step.stale if self.last_step
                                                     else ()))
+        mean = (lambda key: f'{1e3 * w[key] / max(w["steps"], 1):.3f}')
         snap = DiagnosticsSnapshot(
             stamp_ns=self.get_clock().now().nanoseconds, steps=totals['steps'],
             rate_hz=w['steps'] / elapsed,
@@ -275,9 +329,16 @@ class CollresNode(Node):
             counts=counts, stale=stale,
             extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
                    'contacts_total': totals['contacts'],
-                   'callback_time_mean_ms': f"{1e3 * w['callback'] / max(w['steps'], 1):.3f}"})
-        self._window = {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0, 'since': now}
+                   'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
+                   **{f'time.{key}_ms': mean(key) for key in TIMED}})
+        self._window = self._new_window(now)
         return snap
+
+    @staticmethod
+    def _new_window(since: float) -> dict[str, float]:
+        """Counters of one diagnostics period: steps, step times, callback parts (s)."""
+        return {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0, 'since': since,
+                **{key: 0.0 for key in TIMED}}
 
     def _publish_diagnostics(self) -> None:
         self._diagnostics.publish(diagnostics_array(self.snapshot()))

@@ -23,27 +23,16 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 from pathlib import Path
 from typing import Callable, Sequence
 
 from collres_ros.ros import cli
 
 
-def _progress_printer() -> Callable[[int, int], None]:
-    """Progress on stderr, at most twice a second."""
-    last = [0.0]
-
-    def show(done: int, total: int) -> None:
-        now = time.monotonic()
-        if done == total or now - last[0] >= 0.5:
-            last[0] = now
-            percent = 100.0 * done / total if total else 100.0
-            print(f'\rreplay: {done}/{total} steps ({percent:.0f} %)', end='',
-                  file=sys.stderr, flush=True)
-            if done == total:
-                print(file=sys.stderr)
-    return show
+def _progress_printer() -> Callable[[int, int], None] | None:
+    """Progress on stderr at most twice a second, when stdout and stderr are terminals."""
+    from collres_ros.ros.console import progress_printer
+    return progress_printer('replay')
 
 
 def parser() -> argparse.ArgumentParser:
@@ -57,11 +46,14 @@ def parser() -> argparse.ArgumentParser:
                                     '--namespace reads it (default: the params recorded in '
                                     'IN_BAG by collres_sim, collres_replay or collres_demo)')
     p.add_argument('--storage', help='output storage: mcap or sqlite3 (default: as the input)')
-    p.add_argument('--namespace', default='/', help='namespace of the node\'s topics (/)')
+    p.add_argument('--namespace', default='/',
+                   help='namespace of the node: its topics, and the sections of the params '
+                        'file that apply to it (default: /)')
     p.add_argument('--topics', help='write only these output topics, comma separated '
                                     '(relative names, e.g. body_states/corrected,contacts; '
                                     'default: every output topic)')
-    p.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    p.add_argument('--quiet', action='store_true',
+                   help='no progress line (it is drawn on a terminal only anyway)')
     return p
 
 

@@ -35,7 +35,7 @@ from typing import Any, Callable, Sequence
 
 from collres_ros.ros import cli, names
 from collres_ros.ros.simulation import START_NS, SimScene, load_sim_scene, rows_of, run_loop
-from collres_ros.ros.stamps import stamp_ns
+from collres_ros.ros.stamps import to_stamp
 
 
 # --- live -------------------------------------------------------------------------------------
@@ -48,7 +48,7 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
     from rosgraph_msgs.msg import Clock
 
     from collres_ros.msg import BodyStateArray
-    from collres_ros.ros import messages
+    from collres_ros.ros import codec, messages
     from geometry_msgs.msg import PoseStamped, TwistStamped
 
     code = 0
@@ -70,10 +70,19 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                                                              names.twist_topic(name), qos)
             inputs = list(pose_pubs.values()) + list(twist_pubs.values()) if per_body \
                 else [publisher]
+            states_codec = codec.StatesCodec(max_bodies=len(sim.names))
             answers: dict[int, Any] = {}
-            corrected = node.create_subscription(
-                BodyStateArray, names.CORRECTED_STATES,
-                lambda m: answers.__setitem__(stamp_ns(m.header.stamp), m), qos)
+
+            def answer(data: bytes) -> None:
+                try:
+                    decoded = states_codec.decode(data)
+                except codec.DecodeError as refusal:
+                    node.get_logger().warning(f'corrected state refused: {refusal}')
+                    return
+                answers[decoded.stamp_ns] = decoded
+
+            corrected = node.create_subscription(BodyStateArray, names.CORRECTED_STATES, answer,
+                                                 qos, raw=True)
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             log = node.get_logger()
@@ -95,20 +104,23 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                     due = wall_start + (stamp - START_NS) * 1e-9
                     spin_until(lambda: time.monotonic() >= due,
                                max(0.0, due - time.monotonic()))
-                msg = messages.body_state_array(published, rows_of(states, sim.rows), stamp,
-                                                sim.world_frame)
-                clock.publish(Clock(clock=msg.header.stamp))
+                values = messages.state_values(rows_of(states, sim.rows))
+                clock.publish(Clock(clock=to_stamp(stamp)))
                 if per_body:
-                    for name, pose, twist in messages.pose_twist_messages(msg):
+                    poses = codec.encode_stamped(stamp, sim.world_frame, values[:, 0:7])
+                    twists = codec.encode_stamped(stamp, sim.world_frame, values[:, 7:13])
+                    for name, pose, twist in zip(published, poses, twists):
                         pose_pubs[name].publish(pose)
                         twist_pubs[name].publish(twist)
                 else:
-                    publisher.publish(msg)
+                    publisher.publish(states_codec.encode(stamp, sim.world_frame, published,
+                                                          values))
                 if not spin_until(lambda: stamp in answers, args.step_timeout):
                     log.warning(f'no corrected state for stamp {stamp} ns within '
                                 f'{args.step_timeout} s: step dropped')
                     return None
-                return messages.read_body_state_array(answers.pop(stamp))
+                decoded = answers.pop(stamp)
+                return decoded.names, messages.states_of(decoded.values)
 
             def progress(step: int, total: int) -> None:
                 if step % 240 == 0 or step == total:
@@ -172,7 +184,8 @@ def _run(args: argparse.Namespace, ros_args: list[str]) -> int:
         path = config_path()
     if not Path(path).is_file():
         raise cli.CliError(f'params file not found: {path}')
-    sim = load_sim_scene(path, args.duration, args.rate)
+    sim = load_sim_scene(path, args.duration, args.rate,
+                         cli.namespace_from_ros_args(ros_args, 'collres_sim'))
     if sim.duration < 0 or sim.rate_hz <= 0:
         raise cli.CliError('duration must be >= 0 and rate > 0')
     if not args.offline:

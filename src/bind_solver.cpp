@@ -145,6 +145,7 @@ void bind_solver(py::module_& m) {
       .def(py::init<>())
       .def_readwrite("velocity_iterations", &SolverParams::velocity_iterations)
       .def_readwrite("position_iterations", &SolverParams::position_iterations)
+      .def_readwrite("shock_sweeps", &SolverParams::shock_sweeps)
       .def_readwrite("restitution_threshold", &SolverParams::restitution_threshold)
       .def_readwrite("sticking_speed", &SolverParams::sticking_speed)
       .def_readwrite("linear_slop", &SolverParams::linear_slop)

@@ -23,12 +23,14 @@ void ContactCache::store(int64_t m, const int64_t* a, const int64_t* b, const in
     return std::tie(a[i], b[i], feature[i]) < std::tie(a[j], b[j], feature[j]);
   });
   entries_.clear();
+  stored_at_.assign(m, -1);
   for (int64_t k = 0; k < m; ++k) {
     int64_t i = order_[k];
     if (k + 1 < m) {            // keep the last of each run of equal keys
       int64_t j = order_[k + 1];
       if (a[i] == a[j] && b[i] == b[j] && feature[i] == feature[j]) continue;
     }
+    stored_at_[i] = static_cast<int64_t>(entries_.size());
     CachedImpulse e;
     e.a = a[i]; e.b = b[i]; e.feature = feature[i];
     e.normal = normal[i];
@@ -47,7 +49,16 @@ void ContactCache::lookup(int64_t m, const int64_t* a, const int64_t* b, const i
   taken_.assign(n, 0);
   order_.assign(m, -1);                  // matched entry per query
   auto begin = entries_.begin(), end = entries_.end();
-  for (int64_t i = 0; i < m; ++i) {      // exact matches first
+  const int64_t hints = static_cast<int64_t>(stored_at_.size());
+  for (int64_t i = 0; i < m; ++i) {      // exact matches first: where it was, else search
+    if (i < hints && stored_at_[i] >= 0) {
+      const CachedImpulse& e = entries_[stored_at_[i]];
+      if (e.a == a[i] && e.b == b[i] && e.feature == feature[i]) {
+        order_[i] = stored_at_[i];
+        taken_[order_[i]] = 1;
+        continue;
+      }
+    }
     auto it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
       return key_less(e, a[i], b[i], feature[i]);
     });
@@ -96,6 +107,7 @@ void ContactCache::forget(int64_t k, const int64_t* bodies) {
     return false;
   };
   entries_.erase(std::remove_if(entries_.begin(), entries_.end(), involved), entries_.end());
+  stored_at_.clear();
 }
 
 }  // namespace collres

@@ -32,11 +32,17 @@ class ContactCache {
 
   // Drop every entry that involves one of these k body indices.
   void forget(int64_t k, const int64_t* bodies);
-  void clear() { entries_.clear(); }
+  void clear() {
+    entries_.clear();
+    stored_at_.clear();
+  }
   int64_t size() const { return static_cast<int64_t>(entries_.size()); }
 
  private:
   std::vector<CachedImpulse> entries_;   // sorted by (a, b, feature), keys unique
+  std::vector<int64_t> stored_at_;       // entry of each contact of the last store, caller
+                                         // order (-1: a duplicate): detection tends to list
+                                         // the same contacts in the same order each step
   std::vector<CachedImpulse> scratch_;
   std::vector<int64_t> order_;
   std::vector<uint8_t> taken_;

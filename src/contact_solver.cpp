@@ -37,7 +37,7 @@ double solve_row(ContactRow& r, double* v) {
   double d_n = new_n - r.normal;
   r.normal = new_n;
   if (d_n != 0.0) apply(r, v, 0, r.n, d_n);
-  // friction: oppose the slip left after the normal update (the lecture's tangent,
+  // friction: oppose the slip left after the normal update (the classic tangent,
   // v_t / |v_t|), as much as stops it along that direction, within mu * normal
   double x = relative(r, v, 1, r.t1), y = relative(r, v, 2, r.t2);
   double speed2 = x * x + y * y;

@@ -32,7 +32,7 @@ enum class CombineRule : int {
   kMax = 2,
   kMultiply = 3,   // a b
   kGeometric = 4,  // sqrt(a b), as Box2D and Jolt combine friction
-  kPerObject = 5,  // restitution only: A's impulse uses e_A, B's uses e_B (the lecture's;
+  kPerObject = 5,  // restitution only: A's impulse uses e_A, B's uses e_B (textbook;
                    // momentum is NOT conserved when e_A != e_B)
 };
 
@@ -46,6 +46,7 @@ enum ContactStateCode : uint8_t { kImpact = 1, kResting = 2, kSliding = 3, kStic
 struct SolverParams {
   int velocity_iterations = 10;         // sequential-impulse sweeps (more when cold)
   int position_iterations = 4;          // split-impulse sweeps
+  int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
   double linear_slop = 0.0001;          // m: penetration left alone by the position pass

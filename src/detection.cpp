@@ -330,7 +330,7 @@ bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, 
   }
   Vec3 used = normal;
   if (-distance > kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness)) {
-    // EPA on a deep overlap is not trusted: the lecture's direction from the closest
+    // EPA on a deep overlap is not trusted: the classic direction from the closest
     // points of the last separated configuration
     PointPair closest;
     const double gap = query_.distance(ga, ma.at(s0), gb, mb.at(s0), closest);

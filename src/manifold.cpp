@@ -9,6 +9,8 @@ namespace collres {
 namespace {
 
 constexpr double kAnyRange = 1e300;  // security margin that makes every query report
+constexpr double kFailedDepth = 1e300;  // |depth| of a failed GJK/EPA query (coal: DBL_MAX)
+constexpr double kRetryStep = 1e-6;     // m, B's step for a failed query (below any slop)
 
 Vec3 to_vec(const coal::Vec3s& v) { return Vec3(v[0], v[1], v[2]); }
 
@@ -32,16 +34,38 @@ double PairQuery::signed_distance(const coal::CollisionGeometry& ga,
   return distance;
 }
 
+bool PairQuery::loaded_is_valid() const {
+  const double depth = result_.getContact(0).penetration_depth;
+  return std::isfinite(depth) && std::abs(depth) < kFailedDepth;
+}
+
 bool PairQuery::contact(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                         const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                         double margin, double& distance, Vec3& normal, PointPair& witness) {
   request_.security_margin = margin;
   result_.clear();
   if (coal::collide(&ga, ta, &gb, tb, request_, result_) == 0) return false;
+  Vec3 shift = Vec3::Zero();
+  if (!loaded_is_valid()) {
+    // GJK/EPA fail on some just-touching poses (depth -DBL_MAX, a wrong normal): query B
+    // moved by a tiny step along each world axis until one answers, and undo the step
+    bool found = false;
+    for (int k = 0; k < 6 && !found; ++k) {
+      shift = Vec3::Unit(k / 2) * (k % 2 ? -kRetryStep : kRetryStep);
+      const coal::Transform3s moved(tb.getRotation(), tb.getTranslation() + shift);
+      result_.clear();
+      found = coal::collide(&ga, ta, &gb, moved, request_, result_) > 0 && loaded_is_valid();
+    }
+    if (!found) {
+      result_.clear();
+      return false;
+    }
+  }
   const coal::Contact& c = result_.getContact(0);
-  distance = c.penetration_depth;
   normal = to_vec(c.normal);
-  witness = {to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1])};
+  distance = c.penetration_depth - shift.dot(normal);   // the step along the normal undone
+  witness = {to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1]) - shift};
+  loaded_shift_ = shift;
   return true;
 }
 
@@ -49,7 +73,10 @@ bool PairQuery::overlaps(const coal::CollisionGeometry& ga, const coal::Transfor
                          const coal::CollisionGeometry& gb, const coal::Transform3s& tb) {
   request_.security_margin = 0.0;
   result_.clear();
-  return coal::collide(&ga, ta, &gb, tb, request_, result_) > 0;
+  loaded_shift_ = Vec3::Zero();
+  // a failed query (just touching, see `contact`) counts as apart: bisection then ends on
+  // a pose whose contact coal computes
+  return coal::collide(&ga, ta, &gb, tb, request_, result_) > 0 && loaded_is_valid();
 }
 
 double PairQuery::distance(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
@@ -68,7 +95,8 @@ void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transfor
   points.clear();
   const coal::Contact& c = result_.getContact(0);
   patch_result_.clear();
-  coal::computeContactPatch(&ga, ta, &gb, tb, result_, patch_request_, patch_result_);
+  const coal::Transform3s moved(tb.getRotation(), tb.getTranslation() + loaded_shift_);
+  coal::computeContactPatch(&ga, ta, &gb, moved, result_, patch_request_, patch_result_);
   if (patch_result_.numContactPatches() > 0) {
     const coal::ContactPatch& patch = patch_result_.getContactPatch(0);
     if (patch.size() > 1) {
@@ -77,11 +105,14 @@ void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transfor
       polygon_.clear();
       for (std::size_t k = 0; k < patch.size(); ++k) polygon_.push_back(to_vec(patch.getPoint(k)));
       reduce_manifold(polygon_, normal, keep_);
-      for (int k : keep_) points.push_back({polygon_[k] - half, polygon_[k] + half});
+      for (int k : keep_) {
+        points.push_back({polygon_[k] - half - 0.5 * loaded_shift_,
+                          polygon_[k] + half - 0.5 * loaded_shift_});
+      }
       return;
     }
   }
-  points.push_back({to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1])});
+  points.push_back({to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1]) - loaded_shift_});
 }
 
 void reduce_manifold(const std::vector<Vec3>& polygon, const Vec3& normal,

@@ -43,7 +43,7 @@ class PairQuery {
   bool contact(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                double margin, double& distance, Vec3& normal, PointPair& witness);
-  // True when the shapes interpenetrate (distance < 0).
+  // True when the shapes interpenetrate (distance < 0); a failed coal query counts as apart.
   bool overlaps(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                 const coal::CollisionGeometry& gb, const coal::Transform3s& tb);
   // Distance >= 0 (m, 0 when they overlap) and the closest points (GJK).
@@ -59,6 +59,8 @@ class PairQuery {
                 std::vector<PointPair>& points);
 
  private:
+  bool loaded_is_valid() const;  // the loaded contact's depth is a number coal computed
+
   coal::CollisionRequest request_;
   coal::CollisionResult result_;
   coal::DistanceRequest distance_request_;
@@ -67,6 +69,7 @@ class PairQuery {
   coal::ContactPatchResult patch_result_;
   std::vector<Vec3> polygon_;
   std::vector<int> keep_;
+  Vec3 loaded_shift_ = Vec3::Zero();  // m, B's step of the loaded contact (failed queries)
 };
 
 // Indices (at most four) of the polygon's points that keep the most of its area: the one

@@ -26,18 +26,6 @@ double normal_speed(const double* v, int64_t a, int64_t b, Vec3 ra, Vec3 rb, Vec
   return dot(vb - va, n);
 }
 
-// Largest approach speed the solve can give a contact that is separating before it: a
-// bound on what impulses can transfer, (1 + e) per hit with a factor 2 for chains and
-// lever arms, from the fastest pre-solve approach of the step.
-double activation_bound(const std::vector<ContactRow>& rows) {
-  double fastest = 0.0, e = 0.0;
-  for (const ContactRow& r : rows) {
-    fastest = std::max(fastest, -r.approach);
-    e = std::max({e, r.e_a, r.e_b});
-  }
-  return 2.0 * (1.0 + e) * fastest;
-}
-
 }  // namespace
 
 StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView& current,
@@ -68,7 +56,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged);
   stats.rows = static_cast<int64_t>(rows_.size());
   levels(n);
-  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.position_iterations);
+  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps);
   // restitution from the pre-solve approach speed, above the threshold only
   apply_restitution(rows_, solver);
   // store impulses for next step's warm start, then report them
@@ -156,12 +144,27 @@ void StepSolver::reference_frame(const BodyStatesView& previous, const BodyState
 void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
                          const SolverParams& p) {
   const int64_t m = c.count;
+  // a speculative contact cannot activate when it separates faster than any impulse of
+  // this step can turn around: (1 + e) per hit, a factor 2 for chains and lever arms,
+  // from the fastest pre-solve approach of the step
+  approach_.resize(m);
+  double fastest = 0.0, e = 0.0;
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    approach_[k] = normal_speed(velocity_.data(), a, b, ra_[k], rb_[k],
+                                load3(c.normal + 3 * k));
+    fastest = std::max(fastest, -approach_[k]);
+    e = std::max({e, bodies.restitution[a], bodies.restitution[b]});
+  }
+  const double bound = 2.0 * (1.0 + e) * fastest;
   rows_.clear();
   row_of_.assign(m, -1);
   SolverBodies solver{bodies.count, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
   for (int64_t k = 0; k < m; ++k) {
+    if (gap_[k] > 0.0 && approach_[k] + allowance_[k] > bound) continue;
     const int64_t a = c.a[k], b = c.b[k];
-    ContactRow row;
+    row_of_[k] = static_cast<int32_t>(rows_.size());
+    ContactRow& row = rows_.emplace_back();
     row.a = static_cast<int32_t>(a);
     row.b = static_cast<int32_t>(b);
     row.contact = static_cast<int32_t>(k);
@@ -182,20 +185,7 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
                                          bodies.kinetic_friction[b], p.friction_rule));
     prepare_row(row, solver, then_.data(), p.sticking_speed, p.restitution_threshold, mu_s,
                 mu_k);
-    rows_.push_back(row);
   }
-  // speculative rows that cannot activate this step are no rows: separating faster
-  // than any impulse of this step can turn around
-  double bound = activation_bound(rows_);
-  size_t kept = 0;
-  for (size_t r = 0; r < rows_.size(); ++r) {
-    const ContactRow& row = rows_[r];
-    bool inactive = gap_[row.contact] > 0.0 && row.approach + row.allowance > bound;
-    if (inactive) continue;
-    row_of_[row.contact] = static_cast<int32_t>(kept);
-    rows_[kept++] = row;
-  }
-  rows_.resize(kept);
 }
 
 double StepSolver::warm(const ContactsView& c, double dt, bool enabled) {

@@ -132,7 +132,7 @@ class StepSolver {
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;
-  std::vector<double> gap_, remaining_, allowance_, toi_;
+  std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
   std::vector<double> cached_normal_, cached_friction_;

@@ -1,6 +1,6 @@
 """End to end over real DDS: collres_node and collres_sim as processes, recorded by the demo.
 
-Asserts (issue 4 and 5): the ball's apex heights within 3 % of h0 e^2n, the
+Asserts: the ball's apex heights within 3 % of h0 e^2n, the
 resting box within 1 mm, every input step answered by exactly one corrected
 output, no dropped step, and that the bag recorded live, replayed offline
 through the same core, gives the same corrected states within 1e-9.

@@ -1,4 +1,4 @@
-"""The /diagnostics verdict over a recent window (collres_ros/ros/health.py; issue 10 item 6)."""
+"""The /diagnostics verdict over a recent window (collres_ros/ros/health.py)."""
 
 from __future__ import annotations
 

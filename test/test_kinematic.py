@@ -20,18 +20,23 @@ SCENES = Path(__file__).resolve().parent / 'scenes'
 G = 9.81
 
 
-def run(scene: str) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]], list[list]]:
+def run(scene: str | Path) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]], list[list]]:
     """(t s, {body: {position, orientation, linear, angular} (T, k)}, contacts per step)."""
     pytest.importorskip('rclpy')
     from collres_ros.ros.offline import run_core
     from collres_ros.ros.simulation import load_sim_scene
-    sim = load_sim_scene(SCENES / f'{scene}.yaml')
+    sim = load_sim_scene(scene if isinstance(scene, Path) else SCENES / f'{scene}.yaml')
     stamps: list[int] = []
     rows: dict[str, dict[str, list]] = {}
     contacts: list[list] = []
 
-    def sink(stamp: int, outputs: list) -> None:
-        out = dict(outputs)
+    from rclpy.serialization import deserialize_message
+
+    from collres_ros.ros.bag import message_class
+
+    def sink(stamp: int, outputs: list) -> None:   # (topic, wire type, CDR bytes)
+        out = {topic: deserialize_message(data, message_class(kind))
+               for topic, kind, data in outputs}
         stamps.append(stamp)
         for body in out['body_states/corrected'].bodies:
             fields = ('position', 'orientation', 'linear', 'angular')
@@ -85,18 +90,40 @@ def test_a_kinematic_body_is_static_and_published_but_never_adopted() -> None:
     assert adopted.position[belt, 0] == 0.0 and adopted.position[sim.names.index('box'), 0] == 7.0
 
 
-def test_a_box_dropped_on_a_belt_reaches_the_belt_speed_and_then_rides_with_it() -> None:
-    t, states, contacts = run('conveyor')
+DROP_ON_MOVING_BODY = (
+    'the compiled core: a restitution-0 box landing on a moving kinematic body gets one '
+    'contact point at the impact and rebounds (0.36 m/s here), then overshoots the belt '
+    'speed by 7 %; landing on a still floor, and sliding on the moving belt, are right')
+
+
+@pytest.mark.parametrize('release', [
+    pytest.param('dropped', marks=pytest.mark.xfail(strict=True, reason=DROP_ON_MOVING_BODY)),
+    'placed'])
+def test_a_box_on_a_belt_reaches_the_belt_speed_and_then_rides_with_it(
+        tmp_path: Path, release: str) -> None:
+    """Dropped from 5 cm, or placed on the belt at rest: slides at mu_k g, then held."""
+    scene = SCENES / 'conveyor.yaml'
+    if release == 'placed':
+        scene = tmp_path / 'placed.yaml'
+        text = (SCENES / 'conveyor.yaml').read_text()
+        assert 'position: [0.0, 0.0, 0.15]' in text
+        scene.write_text(text.replace('position: [0.0, 0.0, 0.15]', 'position: [0.0, 0.0, 0.1]'))
+    t, states, contacts = run(scene)
     belt, box = states['belt'], states['box']
     speed = 1.0
     mu_k = 0.4
     # the belt moves at its prescribed speed: x = v t
     assert belt['position'][:, 0] == pytest.approx(speed * t, abs=1e-9)
     assert belt['linear'][:, 0] == pytest.approx(np.full(len(t), speed))
+    first = next(k for k, c in enumerate(contacts) if c)
+    rebound = float(box['linear'][first:, 2].max())
+    print(f'largest upward speed after the first contact {rebound:.4f} m/s (restitution 0)')
+    assert rebound < 0.05, 'a restitution-0 box rebounded'
     slip = speed - box['linear'][:, 0]
     reached = int(np.argmax(np.abs(slip) < 1e-3))
-    # the impact's friction impulse mu_k m g t_fall, then mu_k g while sliding: the belt
-    # speed is reached v / (mu_k g) after the release (the fall, 0.1 s, is shorter)
+    # placed: mu_k g from the start; dropped: the impact's friction impulse mu_k m g t_fall,
+    # then mu_k g while sliding: either way the belt speed is reached v / (mu_k g) after
+    # the release (the fall, 0.1 s, is shorter)
     expected = speed / (mu_k * G)
     print(f'belt speed reached after {t[reached]:.4f} s, expected v / (mu_k g) = '
           f'{expected:.4f} s')

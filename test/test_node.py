@@ -248,3 +248,34 @@ def test_signal_exits_0(running, sig):
     assert processes.wait_for(lambda: node.poll() is not None, 15.0)
     print(node.output())
     assert node.returncode == 0 and 'Traceback' not in node.output()
+
+
+def test_oversized_and_badly_stamped_inputs_are_refused_and_counted(running):
+    """Issue 10 items 8 and 14: a 12 MB message of 100,000 bodies is refused on its count
+    before it is read (the next step is served), negative and unnormalised stamps with a
+    reason; each is counted in /diagnostics, and nothing is stamped 0."""
+    import struct
+
+    import numpy as np
+
+    from collres_ros.ros.codec import StatesCodec
+    peer, node = running
+    huge = StatesCodec().encode(T0, 'world', [f'b{k}' for k in range(100_000)],
+                                np.zeros((100_000, 13)))
+    assert len(huge) > 11_000_000
+    good = StatesCodec().encode(T0 + DT, 'world', ['ball'],
+                                np.array([[0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 1.0] + [0.0] * 6]))
+    negative = good[:4] + struct.pack('<iI', -1, 0) + good[12:]
+    unnormalised = good[:4] + struct.pack('<iI', 1000, 1_000_000_000) + good[12:]
+    publisher = peer.publishers['body_states']
+    for data in (huge, negative, unnormalised):
+        publisher.publish(data)
+    step(peer, T0 + 2 * DT, [body('ball', 0.5)])
+    expected = {'count.too_many_bodies': '1', 'count.negative_stamp': '1',
+                'count.invalid_nanosec': '1'}
+    assert peer.wait(lambda: expected.items() <= diagnostics_values(peer).items(), 10.0), \
+        diagnostics_values(peer)
+    stamps = [stamp_ns(m.header.stamp) for m in peer.messages('body_states/corrected')]
+    assert 0 not in stamps and T0 + 2 * DT in stamps
+    assert node.poll() is None and 'Traceback' not in node.output()
+    assert 'too_many_bodies' in node.output()

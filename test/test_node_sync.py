@@ -54,7 +54,7 @@ def test_a_silent_body_goes_stale_and_the_others_are_served():
     assert 'a' not in done[-1].parts
 
 
-# --- clock jumps, stray stamps, slop, unpaired inputs (issue 10 items 1-4) -----------------
+# --- clock jumps, stray stamps, slop, unpaired inputs ------------------------------------
 
 S, DT = 10**9, 10 * MS
 

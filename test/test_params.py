@@ -1,4 +1,4 @@
-"""Params loading: the DESIGN.md schema, every error form, defaults kept in step."""
+"""Params loading: the README's schema, every error form, defaults kept in step."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Hostile params files: every one refused at start with one line naming the parameter.
 
-Issue 10 items 9-13: mesh paths (only regular .obj/.stl files below a size
+Covered: mesh paths (only regular .obj/.stl files below a size
 limit), topic-name rules for body names, integers given a fraction, NaN mesh
 vertices, binary STL files whose header starts with ``solid``, and sizes,
 positions and velocities inside documented ranges (no overflow on stderr).

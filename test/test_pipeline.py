@@ -233,18 +233,19 @@ def test_a_non_finite_result_the_world_repaired_is_reported_once():
 
 
 def test_the_real_world_guard_is_counted(monkeypatch):
-    from collres_ros.core import world as world_module
-    if not hasattr(world_module, '_displace'):
-        pytest.skip('the Python world is replaced: its stages cannot be patched')
-    real = world_module._displace
+    class PoisonedSolver:
+        """The compiled solver, then the movable bodies' corrected velocities set to NaN."""
 
-    def poisoned(states, *args):
-        out = real(states, *args)
-        out.linear[:] = math.nan
-        return out
+        def __init__(self, real):
+            self.real, self.cache = real, real.cache
+
+        def step(self, **arrays):
+            result = self.real.step(**arrays)
+            arrays['out'][2][arrays['movable']] = math.nan
+            return result
     resolver = Resolver(scene())
     resolver.resolve(T0, [body('ball', 0.09)])      # resting in the floor: a contact
-    monkeypatch.setattr(world_module, '_displace', poisoned)
+    monkeypatch.setattr(resolver.world, '_solver', PoisonedSolver(resolver.world._solver))
     out = resolver.resolve(T0 + 4 * MS, [body('ball', 0.09)])
     assert out.report.contacts.count > 0, 'no contact: the guard was not exercised'
     print([(r.body, r.reason) for r in out.rejected], dict(resolver.totals))

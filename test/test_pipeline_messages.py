@@ -96,9 +96,15 @@ def test_outputs_of_a_step_with_a_contact():
     markers = roundtrip(dict(outputs)['contact_markers'])
     assert isinstance(markers, MarkerArray)
     assert markers.markers[0].action == Marker.DELETEALL
-    assert [(m.ns, m.id, m.type) for m in markers.markers[1:]] == [
-        ('floor/ball', 0, Marker.SPHERE), ('floor/ball', 1, Marker.ARROW)]
+    # issue 9: a constant number of markers, the contacts as list markers, one per state
+    assert len(markers.markers) == 9
+    assert [(m.ns, m.id, m.type, m.action) for m in markers.markers[1:3]] == [
+        ('contact_points', 1, Marker.SPHERE_LIST, Marker.ADD),
+        ('contact_normals', 1, Marker.LINE_LIST, Marker.ADD)]
     assert markers.markers[1].lifetime.nanosec == 500_000_000
+    assert len(markers.markers[1].points) == 1 and len(markers.markers[2].points) == 2
+    assert markers.markers[1].color.r == pytest.approx(1.0)   # IMPACT: red
+    assert {m.action for m in markers.markers[3:]} == {Marker.DELETE}   # no other state
     diag = messages.build_outputs(step, 'world', diagnostics=messages.DiagnosticsSnapshot(
         T0, steps=2, counts={'non_finite': 3}, stale=['box']))[-1]
     assert diag[0] == '/diagnostics'

@@ -1,4 +1,4 @@
-"""Golden-bag regression (issue 5): replaying each shipped input must give the golden output.
+"""Golden-bag regression: replaying each shipped input must give the golden output.
 
 test/data/<scene>/input holds the states the node receives (``/body_states``)
 and test/data/<scene>/golden the node's outputs for them

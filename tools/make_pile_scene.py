@@ -44,8 +44,17 @@ def convex_points(rng: random.Random, count: int = 12, radius: float = 0.045) ->
     return flat
 
 
+def _double(value: float) -> str:
+    """A YAML float literal (rcl refuses lists that mix integers and doubles: 0 is not 0.0)."""
+    text = f'{value:.6g}'
+    mantissa, e, exponent = text.partition('e')
+    if '.' not in mantissa:
+        mantissa += '.0'
+    return mantissa + e + exponent
+
+
 def fmt(values: list[float]) -> str:
-    return '[' + ', '.join(f'{v:.6g}' for v in values) + ']'
+    return '[' + ', '.join(_double(v) for v in values) + ']'
 
 
 SHAPES = (
@@ -100,8 +109,9 @@ def scene() -> str:
                           f'        position: {fmt(position)}',
                           f'        orientation: {fmt(q)}']
                 index += 1
-    lines += ['collres_node:', '  ros__parameters:', '    solver: {}',
-              'collres_sim:', '  ros__parameters:', '    gravity: [0.0, 0.0, -9.81]',
+    lines += ['/**/collres_node:   # any namespace (a bare `collres_node:` is /collres_node only)',
+              '  ros__parameters:', '    solver: {}',
+              '/**/collres_sim:', '  ros__parameters:', '    gravity: [0.0, 0.0, -9.81]',
               '    rate_hz: 240.0', '    duration: 1.0']
     return '\n'.join(lines) + '\n'
 

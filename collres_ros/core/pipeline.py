@@ -34,7 +34,8 @@ import numpy as np
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import (
-    BodyInput, BodySpec, BodyStates, CollisionFilter, ContactReport, Rejection)
+    BodyInput, BodySpec, BodyStates, CollisionFilter, ContactReport, InputBatch,
+    Rejection)
 from collres_ros.core.validation import (
     NO_STAMP, check_inputs, check_stamps, stale_bodies)
 
@@ -59,6 +60,7 @@ class ResolvedStep:
     stale: list[str] = field(default_factory=list)           # bodies silent > stale timeout
     dt: float = 0.0                   # s, step length used (FRESH_DT on a fresh start)
     step_time_s: float = 0.0          # wall time of resolve() (not deterministic)
+    world_time_s: float = 0.0         # wall time of World.step alone (not deterministic)
 
     def contact_names(self, k: int) -> tuple[str, str]:
         """Body names (A, B) of contact ``k``."""
@@ -98,6 +100,7 @@ class Resolver:
             bodies = tuple(scene)
         self.bodies = bodies
         self.names = tuple(b.name for b in bodies)
+        self._name_array = np.array(self.names, dtype=object)
         self.index_of = {name: i for i, name in enumerate(self.names)}
         self.world_frame = world_frame or 'world'
         self.stale_timeout = DEFAULT_STALE_TIMEOUT if stale_timeout is None else stale_timeout
@@ -148,8 +151,8 @@ class Resolver:
 
     # --- one step ---------------------------------------------------------------------------
 
-    def resolve(self, stamp_ns: int, inputs: Sequence[BodyInput]) -> ResolvedStep:
-        """Resolve one step at ``stamp_ns`` (ns) from the bodies' inputs."""
+    def resolve(self, stamp_ns: int, inputs: Sequence[BodyInput] | InputBatch) -> ResolvedStep:
+        """Resolve one step at ``stamp_ns`` (ns) from the bodies' inputs (list or arrays)."""
         start = time.perf_counter()
         stamp_ns = int(stamp_ns)
         settings = self._settings
@@ -187,14 +190,17 @@ class Resolver:
         dt = step_ns * 1e-9 if usable else FRESH_DT
 
         # 3. the world step
+        world_start = time.perf_counter()
         with np.errstate(over='ignore', invalid='ignore'):   # the guard below reports it
             result = self.world.step(previous, current, dt, active)
+        world_time = time.perf_counter() - world_start
         out = result.states
         # one guard, one report: a body the world repaired or that is still non-finite
         rows = np.concatenate([out.position, out.orientation, out.linear, out.angular], axis=1)
         repaired = {r.body for r in result.rejected if r.reason == 'non_finite_result'}
-        bad = ~np.isfinite(rows[index]).all(axis=1) | np.isin(
-            np.array([self.names[i] for i in index], dtype=object), list(repaired))
+        bad = ~np.isfinite(rows[index]).all(axis=1)
+        if repaired:
+            bad |= np.isin(self._name_array[index], list(repaired))
         for i in index[bad]:
             rejected.append(Rejection(self.names[i], 'non_finite_result',
                                       f'{self.names[i]}: the solver produced a non-finite '
@@ -219,14 +225,14 @@ class Resolver:
         self.totals['steps'] += 1
         self.totals['contacts'] += report.contacts.count
         self.totals.update(r.reason for r in rejected + resets)
-        names = [self.names[i] for i in index]
+        names = self._name_array[index].tolist()
         states = BodyStates(self.state.position[index].copy(),
                             self.state.orientation[index].copy(),
                             self.state.linear[index].copy(), self.state.angular[index].copy())
         return ResolvedStep(stamp_ns, names, index, states, checked.twist_in_body[use],
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)], dt,
-                            time.perf_counter() - start)
+                            time.perf_counter() - start, world_time)
 
     def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
         resets = []

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import Sequence
 
 import numpy as np
 
@@ -33,7 +34,7 @@ class ContactState(IntEnum):
 
 
 class ContactKind(IntEnum):
-    """How the narrow phase classified a contact's pair (see DESIGN.md)."""
+    """How the narrow phase classified a contact's pair (see ``collision.py``)."""
 
     PERSISTENT = 0  # overlapping (or within the speculative margin) at the previous state
     IMPACT = 1      # separated before, overlapping now: time of impact by bisection
@@ -240,3 +241,33 @@ class BodyInput:
     angular: tuple[float, float, float]
     frame_id: str = ''
     twist_frame_id: str = ''
+
+
+@dataclass
+class InputBatch:
+    """K bodies' published states for one step as arrays (what the CDR codec decodes).
+
+    ``values`` (K, 13): position (m), orientation (x, y, z, w), linear (m/s),
+    angular (rad/s); ``frame_id`` / ``twist_frame_id``: one frame for all
+    bodies or one per body, with the meaning of ``BodyInput``'s fields.
+    """
+
+    names: Sequence[str]
+    values: np.ndarray
+    frame_id: str | Sequence[str] = ''
+    twist_frame_id: str | Sequence[str] = ''
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    @staticmethod
+    def of(inputs: Sequence[BodyInput]) -> 'InputBatch':
+        """The batch of a list of BodyInputs (same order)."""
+        values = np.array([i.position + i.orientation + i.linear + i.angular for i in inputs],
+                          dtype=float).reshape(len(inputs), 13)
+        return InputBatch([i.name for i in inputs], values, [i.frame_id for i in inputs],
+                          [i.twist_frame_id for i in inputs])

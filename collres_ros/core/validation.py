@@ -36,7 +36,7 @@ import numpy as np
 
 from collres_ros.core.config import POSITION_LIMIT, VELOCITY_LIMIT
 from collres_ros.core.rotation import to_matrix
-from collres_ros.core.types import BodyInput, Rejection
+from collres_ros.core.types import BodyInput, InputBatch, Rejection
 
 ZERO_NORM = 1e-6              # quaternion norms below this are 'zero'
 QUATERNION_TOLERANCE = 1e-3   # |norm - 1| up to this is normalised silently
@@ -73,17 +73,40 @@ class CheckedInputs:
     rejected: list[Rejection] = field(default_factory=list)
 
 
-def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world_frame: str,
-                 quaternion_tolerance: float = QUATERNION_TOLERANCE) -> CheckedInputs:
-    """Validate one step's inputs; body-frame twists are rotated into the world frame."""
-    count = len(inputs)
-    numbers = np.array([i.position + i.orientation + i.linear + i.angular for i in inputs],
-                       dtype=float).reshape(count, 13)
-    names = [i.name for i in inputs]
-    repeats = Counter(names)
+def _per_body(frames: str | Sequence[str], count: int) -> list[str]:
+    return [frames] * count if isinstance(frames, str) else list(frames)
+
+
+def check_inputs(inputs: Sequence[BodyInput] | InputBatch, index_of: Mapping[str, int],
+                 world_frame: str, quaternion_tolerance: float = QUATERNION_TOLERANCE
+                 ) -> CheckedInputs:
+    """Validate one step's inputs; body-frame twists are rotated into the world frame.
+
+    The checks run over whole arrays; a refused input gets the first reason of
+    the module docstring's list that applies to it.
+    """
+    batch = inputs if isinstance(inputs, InputBatch) else InputBatch.of(inputs)
+    names = list(batch.names)
+    count = len(names)
+    numbers = np.asarray(batch.values, dtype=float).reshape(count, 13)
     world = ('', world_frame)
-    twist_in_body = np.array([i.twist_frame_id == i.name and i.name not in world
-                              for i in inputs], bool)
+    index = np.array([index_of.get(n, -1) for n in names], np.int64)
+    repeats = Counter(names) if len(set(names)) < count else None
+    duplicate = np.array([repeats[n] > 1 for n in names], bool) if repeats \
+        else np.zeros(count, bool)
+    if isinstance(batch.frame_id, str):
+        pose_ok = np.full(count, batch.frame_id in world)
+    else:
+        pose_ok = np.array([f in world for f in batch.frame_id], bool).reshape(count)
+    twist_frames = batch.twist_frame_id
+    if isinstance(twist_frames, str) and twist_frames in world:
+        twist_in_body = np.zeros(count, bool)
+        twist_ok = np.ones(count, bool)
+    else:
+        frames = _per_body(twist_frames, count)
+        twist_in_body = np.array([f == n and n not in world for f, n in zip(frames, names)],
+                                 bool).reshape(count)
+        twist_ok = twist_in_body | np.array([f in world for f in frames], bool).reshape(count)
     finite = np.isfinite(numbers).all(axis=1)
     with np.errstate(over='ignore'):      # a huge quaternion has an infinite norm: refused
         norm = np.linalg.norm(np.where(np.isfinite(numbers[:, 3:7]), numbers[:, 3:7], 0.0),
@@ -91,37 +114,17 @@ def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world
     magnitude = np.abs(np.where(np.isfinite(numbers), numbers, 0.0))
     too_far = magnitude[:, 0:3].max(axis=1, initial=0.0) > POSITION_LIMIT
     too_fast = magnitude[:, 7:13].max(axis=1, initial=0.0) > VELOCITY_LIMIT
+    failing = [index < 0, duplicate, ~pose_ok, ~twist_ok, ~finite, too_far | too_fast,
+               norm < ZERO_NORM, np.abs(norm - 1.0) > quaternion_tolerance]
+    code = np.select(failing, np.arange(len(failing)), -1) if count else np.zeros(0, int)
+    keep = code < 0
 
     rejected: list[Rejection] = []
-    keep = np.zeros(count, bool)
-    for k, item in enumerate(inputs):
-        reason = ''
-        if item.name not in index_of:
-            reason, detail = 'unknown_body', 'not in the parameter `bodies`'
-        elif repeats[item.name] > 1:
-            reason, detail = 'duplicate_body', f'appears {repeats[item.name]} times in one step'
-        elif item.frame_id not in world:
-            reason, detail = 'wrong_frame', (f'pose frame {_quoted(item.frame_id)} is not the '
-                                             f'world frame {world_frame!r}')
-        elif item.twist_frame_id not in world and not twist_in_body[k]:
-            reason, detail = 'wrong_frame', (f'twist frame {_quoted(item.twist_frame_id)} is '
-                                             f'neither {world_frame!r} nor the body frame '
-                                             f'{shown_name(item.name)!r}')
-        elif not finite[k]:
-            reason, detail = 'non_finite', 'NaN or Inf in pose or twist'
-        elif too_far[k] or too_fast[k]:
-            reason, detail = 'out_of_range', (
-                f'position beyond {POSITION_LIMIT:g} m' if too_far[k] else
-                f'velocity beyond {VELOCITY_LIMIT:g} m/s or rad/s')
-        elif norm[k] < ZERO_NORM:
-            reason, detail = 'zero_quaternion', 'orientation has zero norm'
-        elif abs(norm[k] - 1.0) > quaternion_tolerance:
-            reason, detail = 'non_unit_quaternion', (f'orientation norm {norm[k]:.6g} is off 1 '
-                                                     f'by more than {quaternion_tolerance:g}')
-        if reason:
-            rejected.append(Rejection(item.name, reason, f'{shown_name(item.name)}: {detail}'))
-        else:
-            keep[k] = True
+    for k in np.flatnonzero(~keep):
+        name = names[k]
+        reason, detail = _refusal(int(code[k]), k, name, batch, repeats, world_frame,
+                                  bool(too_far[k]), float(norm[k]), quaternion_tolerance)
+        rejected.append(Rejection(name, reason, f'{shown_name(name)}: {detail}'))
 
     good = numbers[keep]
     orientation = good[:, 3:7] / norm[keep, None]
@@ -133,9 +136,35 @@ def check_inputs(inputs: Sequence[BodyInput], index_of: Mapping[str, int], world
         angular = angular.copy()
         linear[in_body] = np.einsum('kij,kj->ki', rotation, linear[in_body])
         angular[in_body] = np.einsum('kij,kj->ki', rotation, angular[in_body])
-    index = np.array([index_of[n] for n, ok in zip(names, keep) if ok], np.int64)
-    return CheckedInputs(index, good[:, 0:3].copy(), orientation, linear.copy(),
+    return CheckedInputs(index[keep], good[:, 0:3].copy(), orientation, linear.copy(),
                          angular.copy(), in_body, rejected)
+
+
+def _refusal(code: int, k: int, name: str, batch: InputBatch, repeats: Counter[str] | None,
+             world_frame: str, too_far: bool, norm: float, tolerance: float
+             ) -> tuple[str, str]:
+    """(reason, detail) of refusal ``code`` (the order of ``check_inputs``' checks)."""
+    if code == 0:
+        return 'unknown_body', 'not in the parameter `bodies`'
+    if code == 1:
+        return 'duplicate_body', f'appears {repeats[name] if repeats else 2} times in one step'
+    if code == 2:
+        frame = _per_body(batch.frame_id, batch.count)[k]
+        return 'wrong_frame', (f'pose frame {_quoted(frame)} is not the world frame '
+                               f'{world_frame!r}')
+    if code == 3:
+        frame = _per_body(batch.twist_frame_id, batch.count)[k]
+        return 'wrong_frame', (f'twist frame {_quoted(frame)} is neither {world_frame!r} nor '
+                               f'the body frame {shown_name(name)!r}')
+    if code == 4:
+        return 'non_finite', 'NaN or Inf in pose or twist'
+    if code == 5:
+        return 'out_of_range', (f'position beyond {POSITION_LIMIT:g} m' if too_far else
+                                f'velocity beyond {VELOCITY_LIMIT:g} m/s or rad/s')
+    if code == 6:
+        return 'zero_quaternion', 'orientation has zero norm'
+    return 'non_unit_quaternion', (f'orientation norm {norm:.6g} is off 1 by more than '
+                                   f'{tolerance:g}')
 
 
 @dataclass

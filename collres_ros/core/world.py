@@ -135,7 +135,6 @@ class World:
         A step longer than ``settings.max_dt`` is not warm started.
         """
         active = np.ones(current.count, bool) if active is None else np.asarray(active, bool)
-        movable = self.dynamic & active
         previous = _hold(previous, current, ~active)
         started = time.perf_counter()
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection)
@@ -148,30 +147,43 @@ class World:
             return StepResult(current.copy(), ContactReport.empty(), [])
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
-        out = current.copy()
+        warm = self._settings.warm_start and dt <= self._settings.max_dt
+        states, report, sweeps, rows = self._solve(previous, current, contacts, active, dt, warm)
+        # report: the final guard against non-finite output
+        rejected = self._guard(states, current)
+        self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
+                       'iterations': sweeps, 'rows': rows}
+        return StepResult(states, report, rejected)
+
+    def _solve(self, previous: BodyStates, current: BodyStates, contacts: ContactSet,
+               active: np.ndarray, dt: float, warm: bool
+               ) -> tuple[BodyStates, ContactReport, int, int]:
+        """The compiled solver step on whole arrays (no copy when dtypes and layout fit).
+
+        Returns corrected states, the report, velocity sweeps done and solver rows.
+        """
+        movable = self.dynamic & active
+        out = BodyStates(*(np.array(a, np.float64, order='C') for a in _arrays(current)))
         m = contacts.count
         report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
                                           contacts.normal, contacts.separation, np.empty(m),
                                           np.empty(m, np.int8), contacts.feature),
                                np.empty(m), np.empty((m, 3)), np.empty(m, np.uint8))
+        flat = (lambda array, dtype=np.float64: np.ascontiguousarray(array, dtype))
         sweeps, rows = self._solver.step(
             previous=_arrays(previous), current=_arrays(current), out=_arrays(out),
             inv_mass=self.inv_mass * movable,
             inv_inertia_body=self.inv_inertia_body * movable[:, None, None],
             movable=movable, held=~active, restitution=self.restitution,
             static_friction=self.static_friction, kinetic_friction=self.kinetic_friction,
-            body_a=contacts.body_a, body_b=contacts.body_b, point=contacts.point,
-            normal=contacts.normal, separation=contacts.separation, toi=contacts.toi,
-            kind=contacts.kind, feature=contacts.feature, dt=float(dt),
-            warm=self._settings.warm_start and dt <= self._settings.max_dt,
-            params=self._params, normal_impulse=report.normal_impulse,
+            body_a=flat(contacts.body_a, np.int64), body_b=flat(contacts.body_b, np.int64),
+            point=flat(contacts.point), normal=flat(contacts.normal),
+            separation=flat(contacts.separation), toi=flat(contacts.toi),
+            kind=flat(contacts.kind, np.int8), feature=flat(contacts.feature, np.int64),
+            dt=float(dt), warm=warm, params=self._params, normal_impulse=report.normal_impulse,
             friction_impulse=report.friction_impulse, state=report.state,
             reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
-        # report: the final guard against non-finite output
-        rejected = self._guard(out, current)
-        self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
-                       'iterations': sweeps, 'rows': rows}
-        return StepResult(out, report, rejected)
+        return out, report, sweeps, rows
 
     def _guard(self, states: BodyStates, current: BodyStates) -> list[Rejection]:
         """Bodies with a non-finite result keep their current input state; report them."""
@@ -204,7 +216,9 @@ def combine(a: np.ndarray, b: np.ndarray, rule: str) -> np.ndarray:
 
 
 def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    return states.position, states.orientation, states.linear, states.angular
+    """(position, orientation, linear, angular), float64 and C-contiguous (copied only if not)."""
+    return tuple(np.ascontiguousarray(a, np.float64) for a in (  # type: ignore[return-value]
+        states.position, states.orientation, states.linear, states.angular))
 
 
 def _hold(previous: BodyStates, current: BodyStates, held: np.ndarray) -> BodyStates:

@@ -60,13 +60,40 @@ def trajectory(msgs: Sequence[Any], names: Sequence[str]) -> Trajectory:
     return Trajectory(list(names), time, stamps, pos, ori, lin, ang)
 
 
-def energy(traj: Trajectory, specs: Sequence[BodySpec], gravity: np.ndarray) -> np.ndarray:
-    """Total mechanical energy of the trajectory's bodies, J per sample, shape (T,).
+def step_lengths(stamps: np.ndarray, input_stamps: Sequence[int] | None = None) -> np.ndarray:
+    """(T,) s: the integrator step that ended at each stamp.
 
-    The definition is ``collres_ros.ros.energy.total_energy``.
+    From the input stamps when given (a dropped answer leaves no gap then): a
+    stamp's step is its distance to the previous input stamp; the first
+    stamp's is the next one's (the integrator's first step).
     """
-    return total_energy(traj.position, traj.orientation, traj.linear, traj.angular, specs,
-                        gravity)
+    stamps = np.asarray(stamps, np.int64)
+    base = np.unique(np.asarray(input_stamps if input_stamps is not None and len(input_stamps)
+                                else stamps, np.int64))
+    if len(base) < 2:
+        return np.zeros(len(stamps))
+    lengths = np.diff(base) * 1e-9
+    lengths = np.concatenate(([lengths[0]], lengths))
+    k = np.clip(np.searchsorted(base, stamps), 0, len(base) - 1)
+    return lengths[k]
+
+
+def energy(traj: Trajectory, specs: Sequence[BodySpec], gravity: np.ndarray,
+           dt: np.ndarray | float | None = None) -> np.ndarray:
+    """Total mechanical energy of the trajectory's bodies at each stamp, J, shape (T,).
+
+    ``collres_ros.ros.energy.total_energy`` with the linear velocity at the stamp,
+    ``integrator.stamp_velocity``: the reported twist is the semi-implicit Euler's
+    mid-step one, v + g dt/2 at the stamp. With it free flight is flat (to
+    rounding). ``dt``: (T,) or scalar step length, s (default: from the stamps;
+    0 reads the reported twist as is).
+    """
+    from collres_ros.ros.integrator import stamp_velocity
+    if dt is None:
+        dt = step_lengths(traj.stamps)
+    dt = np.broadcast_to(np.asarray(dt, float), traj.time.shape)
+    linear = stamp_velocity(traj.linear, gravity, dt[:, None])     # (T, N, 3)
+    return total_energy(traj.position, traj.orientation, linear, traj.angular, specs, gravity)
 
 
 def horizontal_momentum_drift(traj: Trajectory, specs: Sequence[BodySpec],
@@ -128,6 +155,8 @@ class RunReport:
     resting_drift: dict[str, float] = field(default_factory=dict)   # m, per box at rest
     ball_time: np.ndarray = field(default_factory=lambda: np.zeros(0))
     ball_height: np.ndarray = field(default_factory=lambda: np.zeros(0))  # m, above touch-down
+    speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (T, N) m/s reported
+    speed_names: list[str] = field(default_factory=list)                 # (N) dynamic bodies
 
     @property
     def dropped(self) -> int:
@@ -149,8 +178,8 @@ class RunReport:
         if len(self.energy):
             e0, e1 = self.energy[0], self.energy[-1]
             gain = float(np.max(np.diff(self.energy))) if len(self.energy) > 1 else 0.0
-            out.append(f'energy: {e0:.4f} J -> {e1:.4f} J (largest gain in a step '
-                       f'{max(gain, 0.0):.2e} J)')
+            out.append(f'energy at the stamps: {e0:.4f} J -> {e1:.4f} J (largest gain in a '
+                       f'step {max(gain, 0.0):.2e} J)')
         out.append(f'momentum drift orthogonal to gravity: {self.momentum_drift:.2e} N s')
         for name, drift in self.resting_drift.items():
             out.append(f'resting {name}: moved {1000 * drift:.3f} mm')
@@ -209,7 +238,11 @@ def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequenc
         return report
     g = np.asarray(gravity, float)
     traj = trajectory(corrected, [s.name for s in dynamic])
-    report.energy_time, report.energy = traj.time, energy(traj, dynamic, g)
+    dt = step_lengths(traj.stamps, input_stamps)
+    report.energy_time, report.energy = traj.time, energy(traj, dynamic, g, dt)
+    report.speed_names = traj.names
+    # speeds as reported (a body at rest reads 0; at the stamp it would read g dt/2)
+    report.speed = np.linalg.norm(traj.linear, axis=2)
     report.momentum_drift = horizontal_momentum_drift(traj, dynamic, g)
     start = trajectory(inputs[:1], [s.name for s in dynamic]) if inputs else traj
     if initial is not None:  # the scene's initial state (also right for per-body inputs)
@@ -278,25 +311,58 @@ def _bounce(traj: Trajectory, start: Trajectory, dynamic: Sequence[BodySpec],
     return None
 
 
+MAX_LINES = 8   # bodies drawn one by one in the speed panel; more: their mean and maximum
+
+
+def plot_series(report: RunReport) -> dict[str, list[tuple[str, np.ndarray, np.ndarray, str]]]:
+    """What the plot draws: {'top' | 'bottom': [(label, t s, values, style), ...]}.
+
+    Top: the ball's height against the e^2 law's apexes when a ball bounced,
+    else the speed of each dynamic body as reported (their mean and maximum
+    beyond ``MAX_LINES`` bodies). Bottom: the total energy at the stamps.
+    """
+    top: list[tuple[str, np.ndarray, np.ndarray, str]] = []
+    b = report.bounce
+    if b is not None and len(report.ball_time):
+        top += [(f'{b.ball}: lowest point above the floor', report.ball_time,
+                 report.ball_height, '-'),
+                ('measured apex', np.array(b.times), np.array(b.measured), 'o'),
+                (f'h0 e^2n (e = {b.restitution:g})', np.array(b.times), np.array(b.expected),
+                 'x')]
+    elif report.speed.size:
+        t = report.energy_time
+        if report.speed.shape[1] <= MAX_LINES:
+            top += [(name, t, report.speed[:, i], '-')
+                    for i, name in enumerate(report.speed_names)]
+        else:
+            count = report.speed.shape[1]
+            top += [(f'mean of {count} bodies', t, report.speed.mean(axis=1), '-'),
+                    (f'fastest of {count} bodies', t, report.speed.max(axis=1), '-')]
+    bottom = [('kinetic (at the stamp) + potential', report.energy_time, report.energy, '-')] \
+        if len(report.energy) else []
+    return {'top': top, 'bottom': bottom}
+
+
 def plot(report: RunReport, path: str | Path) -> Path:
-    """PNG with the ball's height (and the e^2 law's apexes) and the energy over time."""
+    """PNG of ``plot_series``: a height or speed panel over an energy panel."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
+    series = plot_series(report)
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    b = report.bounce
-    if b is not None:
-        top.plot(report.ball_time, report.ball_height,
-                 label=f'{b.ball}: lowest point above the floor')
-        top.plot(b.times, b.measured, 'o', label='measured apex')
-        top.plot(b.times, b.expected, 'x', markersize=10,
-                 label=f'h0 e^2n (e = {b.restitution:g})')
-        top.legend(loc='upper right')
-    top.set_ylabel('height, m')
+    for label, t, values, style in series['top']:
+        top.plot(t, values, style, label=label, **({'markersize': 10} if style == 'x' else {}))
+    if series['top']:
+        top.legend(loc='upper right', fontsize='small')
+    bounced = report.bounce is not None and len(report.ball_time)
+    top.set_ylabel('height, m' if bounced else 'speed, m/s')
     top.set_title('collres demo')
     top.grid(True)
-    bottom.plot(report.energy_time, report.energy)
+    for label, t, values, style in series['bottom']:
+        bottom.plot(t, values, style, label=label)
+    if series['bottom']:
+        bottom.legend(loc='upper right', fontsize='small')
     bottom.set_ylabel('total energy, J')
     bottom.set_xlabel('time, s')
     bottom.grid(True)

@@ -55,6 +55,17 @@ def last_params_file(argv: Sequence[str]) -> Optional[Path]:
     return Path(files[-1]) if files else None
 
 
+def namespace_from_ros_args(argv: Sequence[str], node: str) -> str:
+    """The namespace a ``-r [node:]__ns:=NS`` remap in ROS arguments gives ('/' without)."""
+    namespace = '/'
+    for flag, rule in zip(argv, argv[1:]):
+        if flag in ('-r', '--remap'):
+            target, _, value = rule.partition(':=')
+            if target in ('__ns', f'{node}:__ns') and value:
+                namespace = value
+    return namespace
+
+
 @contextmanager
 def ros_init(*, args: Optional[Sequence[str]] = None, context: Any = None,
              domain_id: Optional[int] = None,

@@ -1,52 +1,632 @@
-"""CDR (XCDR1, little endian) encoding and decoding of the package's messages without rclpy.
+"""CDR bytes of the node's messages with numpy: decode and encode without rclpy objects.
 
-The bytes are those of ``rclpy.serialization``: a 4-byte encapsulation header
-``00 01 00 00``, then the fields, each aligned to its size counted from the
-byte after the header; a string is a uint32 length counting its NUL, the
-bytes, the NUL.
+The wire format is what ``rclpy.serialization`` (rmw_fastrtps) produces: plain
+little-endian CDR (XCDR1), a 4-byte encapsulation header ``00 01 00 00``, then
+the fields, each aligned to its size counted from the byte after the header
+(float64 on 8, int32/uint32/float32 on 4); a string is a uint32 length that
+counts its terminating NUL, the UTF-8 bytes, the NUL; a sequence is a uint32
+count, then its elements. Nothing follows the last field.
+
+Decode: ``BodyStateArray`` (``StatesCodec``), ``PoseStamped`` and
+``TwistStamped`` (``decode_pose``, ``decode_twist``). Encode: ``BodyStateArray``,
+``PoseStamped``, ``TwistStamped``, ``ContactArray`` and ``MarkerArray``
+(``encode_*``). Every decode checks the size of what it is about to read
+before it reads it (a message announcing more bodies than the scene has is
+refused at once) and refuses negative stamps and ``nanosec >= 1e9``:
+``DecodeError`` with a reason key and one line.
+
+Padding bytes are written as zeros (rclpy leaves them uninitialised), so
+compare decoded values, or bytes outside the padding, never raw bytes with rclpy's.
+
+Speed: a ``BodyStateArray`` layout (where the names, the padding and the 13
+doubles of each body sit) is computed once per (frame, names) and cached;
+reading or writing the doubles is then one numpy gather or scatter, and a
+received message is checked against the cached layout by one comparison of
+its non-float bytes (names, counts, lengths). Names are never assumed: a
+message that does not match is parsed field by field.
 """
 
 from __future__ import annotations
 
 import struct
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Optional, Sequence
+
+import numpy as np
 
 from collres_ros.core.types import BodyInput
 
-_LE_CDR = b'\x00\x01'  # encapsulation kind: plain CDR, little endian
-_STATE = struct.Struct('<13d')  # pose (position 3, orientation 4), twist (linear 3, angular 3)
+ENCAPSULATION = b'\x00\x01\x00\x00'   # plain CDR, little endian
+NS_PER_S = 1_000_000_000
+MAX_STRING = 4096       # bytes: a longer name or frame_id is refused (ROS names are < 256)
+STATE_DOUBLES = 13      # pose position 3, orientation 4 (x, y, z, w), twist linear 3, angular 3
+_LAYOUT_CACHE = 8       # layouts kept per codec
+_U32 = struct.Struct('<I')
+_STAMP = struct.Struct('<iI')
 
 
-def decode_body_state_array(data: bytes) -> tuple[int, list[Any]] | None:
-    """(stamp ns, BodyInputs) of a serialized BodyStateArray, or None if not plain LE CDR.
+class DecodeError(ValueError):
+    """A message the codec refuses; ``reason`` is a short stable key for the counts."""
 
-    The fast path of replay (rclpy's deserialize_message builds ~10 Python
-    objects per body: ~80 us per body). Same result as
-    ``messages.inputs_from_array(deserialize_message(data, BodyStateArray))``
-    (a test checks it); anything unexpected falls back to that.
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(detail)
+        self.reason = reason
+
+
+# --- stamps -----------------------------------------------------------------------------------
+
+def stamp_parts(ns: int) -> tuple[int, int]:
+    """Integer ns -> (sec, nanosec), nanosec in [0, 1e9); negative times clamp to 0."""
+    return divmod(max(int(ns), 0), NS_PER_S)
+
+
+def check_stamp(sec: int, nanosec: int) -> int:
+    """builtin_interfaces/Time fields -> ns; DecodeError for a negative or unnormalised stamp."""
+    if sec < 0:
+        raise DecodeError('negative_stamp', f'stamp {sec} s {nanosec} ns is negative')
+    if nanosec >= NS_PER_S:
+        raise DecodeError('invalid_nanosec',
+                          f'stamp nanosec {nanosec} is not below 1e9 (not normalised)')
+    return sec * NS_PER_S + nanosec
+
+
+# --- writing ----------------------------------------------------------------------------------
+
+class Writer:
+    """Append CDR fields to a buffer (alignment from after the encapsulation header).
+
+    ``padding`` lists the absolute positions of the alignment bytes written
+    (zeros), for tests and layouts.
     """
-    if data[:2] != _LE_CDR:
-        return None
-    buf = memoryview(data)[4:]   # alignment is relative to the end of the encapsulation
 
-    def string(offset: int) -> tuple[str, int]:
-        offset += -offset % 4
-        (length,) = struct.unpack_from('<I', buf, offset)
-        text = bytes(buf[offset + 4:offset + 4 + max(length - 1, 0)]).decode()
-        return text, offset + 4 + length
+    def __init__(self) -> None:
+        self.buf = bytearray(ENCAPSULATION)
+        self.padding: list[int] = []
 
-    sec, nanosec = struct.unpack_from('<iI', buf, 0)
-    frame, offset = string(8)
-    offset += -offset % 4
-    (count,) = struct.unpack_from('<I', buf, offset)
-    offset += 4
-    inputs = []
-    for _ in range(count):
-        name, offset = string(offset)
-        offset += -offset % 8
-        v = _STATE.unpack_from(buf, offset)
-        offset += _STATE.size
-        inputs.append(BodyInput(name, v[0:3], v[3:7], v[7:10], v[10:13], frame, frame))
-    if offset > len(buf):
+    @property
+    def offset(self) -> int:
+        """Offset of the next byte from the end of the encapsulation header."""
+        return len(self.buf) - 4
+
+    def align(self, size: int) -> None:
+        pad = -self.offset % size
+        if pad:
+            self.padding.extend(range(len(self.buf), len(self.buf) + pad))
+            self.buf += bytes(pad)
+
+    def u8(self, value: int) -> None:
+        self.buf.append(value & 0xFF)
+
+    def i32(self, value: int) -> None:
+        self.align(4)
+        self.buf += struct.pack('<i', value)
+
+    def u32(self, value: int) -> None:
+        self.align(4)
+        self.buf += _U32.pack(value)
+
+    def f32s(self, values: Sequence[float]) -> None:
+        self.align(4)
+        self.buf += struct.pack(f'<{len(values)}f', *values)
+
+    def f64s(self, values: Sequence[float]) -> None:
+        self.align(8)
+        self.buf += struct.pack(f'<{len(values)}d', *values)
+
+    def f64_array(self, values: np.ndarray) -> None:
+        """A block of float64 (any shape, C order), aligned to 8."""
+        self.align(8)
+        self.buf += np.ascontiguousarray(values, '<f8').tobytes()
+
+    def string(self, text: str) -> None:
+        data = text.encode()
+        self.u32(len(data) + 1)
+        self.buf += data + b'\x00'
+
+    def stamp(self, ns: int) -> None:
+        sec, nanosec = stamp_parts(ns)
+        self.align(4)
+        self.buf += _STAMP.pack(sec, nanosec)
+
+    def header(self, ns: int, frame_id: str) -> None:
+        """std_msgs/Header: stamp, frame_id."""
+        self.stamp(ns)
+        self.string(frame_id)
+
+    def bytes(self) -> bytes:
+        return bytes(self.buf)
+
+
+def string_bytes(text: str) -> bytes:
+    """The CDR encoding of one string (length, UTF-8 bytes, NUL), without alignment."""
+    data = text.encode()
+    return _U32.pack(len(data) + 1) + data + b'\x00'
+
+
+# --- reading ----------------------------------------------------------------------------------
+
+class Reader:
+    """Read CDR fields from bytes; every read is bounds-checked (DecodeError 'malformed')."""
+
+    def __init__(self, data: bytes, what: str) -> None:
+        self.data = data
+        self.what = what
+        if len(data) < 4 or data[:2] != ENCAPSULATION[:2]:
+            raise DecodeError('malformed', f'{what}: not little-endian CDR '
+                                           f'({bytes(data[:4]).hex() or "empty"})')
+        self.pos = 4
+
+    def fail(self, why: str) -> DecodeError:
+        return DecodeError('malformed', f'{self.what}: {why} at byte {self.pos} of '
+                                        f'{len(self.data)}')
+
+    def align(self, size: int) -> None:
+        self.pos += -(self.pos - 4) % size
+
+    def need(self, count: int) -> None:
+        if self.pos + count > len(self.data):
+            raise self.fail(f'truncated (needs {count} more bytes)')
+
+    def u32(self) -> int:
+        self.align(4)
+        self.need(4)
+        (value,) = _U32.unpack_from(self.data, self.pos)
+        self.pos += 4
+        return int(value)
+
+    def stamp(self) -> int:
+        self.align(4)
+        self.need(8)
+        sec, nanosec = _STAMP.unpack_from(self.data, self.pos)
+        self.pos += 8
+        return check_stamp(sec, nanosec)
+
+    def string(self) -> str:
+        length = self.u32()
+        if length > MAX_STRING:
+            raise DecodeError('too_large', f'{self.what}: a string of {length} bytes '
+                                           f'(more than {MAX_STRING})')
+        if length == 0:
+            return ''
+        self.need(length)
+        raw = bytes(self.data[self.pos:self.pos + length])
+        self.pos += length
+        if raw[-1] != 0:
+            raise self.fail('string without its terminating NUL')
+        try:
+            return raw[:-1].decode()
+        except UnicodeDecodeError:
+            raise self.fail('string is not UTF-8') from None
+
+    def f64s(self, count: int) -> np.ndarray:
+        self.align(8)
+        self.need(8 * count)
+        values = np.frombuffer(self.data, '<f8', count, self.pos)
+        self.pos += 8 * count
+        return values
+
+    def header(self) -> tuple[int, str]:
+        """std_msgs/Header -> (stamp ns, frame_id)."""
+        return self.stamp(), self.string()
+
+
+# --- BodyStateArray ---------------------------------------------------------------------------
+
+@dataclass
+class DecodedStates:
+    """A decoded BodyStateArray: K bodies, pose and twist in ``frame_id``."""
+
+    stamp_ns: int
+    frame_id: str
+    names: list[str]
+    values: np.ndarray   # (K, 13) float64: position, orientation (x, y, z, w), linear, angular
+
+
+@dataclass
+class _Layout:
+    """Where everything of a BodyStateArray with these names sits."""
+
+    frame_id: str
+    names: list[str]
+    size: int                # bytes, with the encapsulation header
+    template: np.ndarray     # (size rounded up to 4 + 8k,) uint8: stamp 0, floats 0
+    rows: np.ndarray         # (K, 13) int64: index of each double in the float64 view
+    check: np.ndarray        # positions that must equal the template (not stamp/float/pad)
+
+
+def _states_layout(frame_id: str, names: Sequence[str]) -> _Layout:
+    w = Writer()
+    w.header(0, frame_id)
+    w.u32(len(names))
+    starts = []
+    for name in names:
+        w.string(name)
+        w.align(8)
+        starts.append(len(w.buf))
+        w.buf += bytes(8 * STATE_DOUBLES)
+    size = len(w.buf)
+    template = np.zeros(4 + 8 * ((size - 4 + 7) // 8), np.uint8)
+    template[:size] = np.frombuffer(bytes(w.buf), np.uint8)
+    first = (np.array(starts, np.int64) - 4) // 8
+    rows = first[:, None] + np.arange(STATE_DOUBLES)
+    keep = np.ones(size, bool)
+    keep[4:12] = False
+    keep[w.padding] = False
+    float_bytes = (4 + 8 * rows.reshape(-1))[:, None] + np.arange(8)
+    keep[float_bytes.reshape(-1)] = False
+    return _Layout(frame_id, list(names), size, template, rows, np.flatnonzero(keep))
+
+
+def _doubles(buffer: Any) -> np.ndarray:
+    """The float64 view of a message buffer, element i at byte 4 + 8 i (aligned doubles)."""
+    return np.frombuffer(buffer, '<f8', (len(buffer) - 4) // 8, 4)
+
+
+class StatesCodec:
+    """BodyStateArray to and from (stamp, frame, names, (K, 13) values), with layout caches.
+
+    ``max_bodies``: a message announcing more bodies is refused before its
+    bodies are read (``too_many_bodies``); None for no limit.
+    """
+
+    def __init__(self, max_bodies: Optional[int] = None) -> None:
+        self.max_bodies = max_bodies
+        self._by_names: dict[tuple[str, tuple[str, ...]], _Layout] = {}
+        self._by_size: dict[int, list[_Layout]] = {}
+
+    def _remember(self, layout: _Layout) -> _Layout:
+        key = (layout.frame_id, tuple(layout.names))
+        if len(self._by_names) >= _LAYOUT_CACHE:
+            self._by_names.clear()
+            self._by_size.clear()
+        self._by_names[key] = layout
+        same = self._by_size.setdefault(layout.size, [])
+        same.insert(0, layout)
+        del same[_LAYOUT_CACHE:]
+        return layout
+
+    def layout(self, frame_id: str, names: Sequence[str]) -> _Layout:
+        """The layout of a BodyStateArray with these names (cached)."""
+        key = (frame_id, tuple(names))
+        found = self._by_names.get(key)
+        return found if found is not None else self._remember(_states_layout(frame_id, names))
+
+    # encode
+
+    def encode(self, stamp_ns: int, frame_id: str, names: Sequence[str],
+               values: np.ndarray) -> bytes:
+        """Serialised BodyStateArray of ``names`` with ``values`` (K, 13) at ``stamp_ns``."""
+        layout = self.layout(frame_id, names)
+        buf = layout.template.copy()
+        buf[4:12] = np.frombuffer(_STAMP.pack(*stamp_parts(stamp_ns)), np.uint8)
+        if len(names):
+            _doubles(buf)[layout.rows] = np.asarray(values, float).reshape(-1, STATE_DOUBLES)
+        return buf[:layout.size].tobytes()
+
+    # decode
+
+    def decode(self, data: bytes) -> DecodedStates:
+        """DecodedStates of serialised BodyStateArray bytes; DecodeError when refused."""
+        reader = Reader(data, 'BodyStateArray')
+        stamp = reader.stamp()
+        raw = np.frombuffer(data, np.uint8)
+        for layout in self._by_size.get(len(data), ()):
+            if np.array_equal(raw[layout.check], layout.template[layout.check]):
+                return DecodedStates(stamp, layout.frame_id, layout.names,
+                                     _doubles(data)[layout.rows])
+        frame_id = reader.string()
+        count = reader.u32()
+        if self.max_bodies is not None and count > self.max_bodies:
+            raise DecodeError('too_many_bodies', f'BodyStateArray of {count} bodies, more '
+                                                 f'than the {self.max_bodies} of the scene')
+        # every body takes at least 4 (name length) + 1 (NUL) + 104 bytes, padding aside
+        if count * (5 + 8 * STATE_DOUBLES) > len(data) - reader.pos:
+            raise reader.fail(f'{count} bodies announced, not that many bytes')
+        names = []
+        for _ in range(count):
+            names.append(reader.string())
+            reader.f64s(STATE_DOUBLES)
+        if reader.pos != len(data):
+            raise reader.fail(f'{len(data) - reader.pos} bytes after the last body')
+        layout = _states_layout(frame_id, names)
+        if layout.size != len(data) or not np.array_equal(raw[layout.check],
+                                                          layout.template[layout.check]):
+            raise reader.fail('layout does not match the names')
+        self._remember(layout)
+        return DecodedStates(stamp, frame_id, names, _doubles(data)[layout.rows])
+
+
+def decode_body_state_array(data: bytes) -> tuple[int, list[BodyInput]] | None:
+    """(stamp ns, BodyInputs) of serialised BodyStateArray bytes, None when refused.
+
+    The same values as ``messages.inputs_from_array(deserialize_message(data,
+    BodyStateArray))`` (a test checks it).
+    """
+    try:
+        decoded = StatesCodec().decode(data)
+    except DecodeError:
         return None
-    return sec * 1_000_000_000 + nanosec, inputs
+    rows = decoded.values.tolist()
+    frame = decoded.frame_id
+    return decoded.stamp_ns, [
+        BodyInput(name, tuple(v[0:3]), tuple(v[3:7]), tuple(v[7:10]),  # type: ignore[arg-type]
+                  tuple(v[10:13]), frame, frame) for name, v in zip(decoded.names, rows)]
+
+
+# --- PoseStamped, TwistStamped ----------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Stamped:
+    """A decoded PoseStamped (7 values: position, orientation x, y, z, w) or TwistStamped
+    (6 values: linear, angular)."""
+
+    stamp_ns: int
+    frame_id: str
+    values: tuple[float, ...]
+
+
+_POSE = struct.Struct('<7d')
+_TWIST = struct.Struct('<6d')
+
+
+def _decode_stamped(data: bytes, what: str, layout: struct.Struct) -> Stamped:
+    reader = Reader(data, what)
+    if len(data) > 4 + 8 + 4 + MAX_STRING + 8 + layout.size:
+        raise DecodeError('too_large', f'{what} of {len(data)} bytes')
+    stamp, frame_id = reader.header()
+    reader.align(8)
+    reader.need(layout.size)
+    values = layout.unpack_from(data, reader.pos)
+    if reader.pos + layout.size != len(data):
+        raise reader.fail('trailing bytes')
+    return Stamped(stamp, frame_id, values)
+
+
+def decode_pose(data: bytes) -> Stamped:
+    """Stamped of serialised geometry_msgs/PoseStamped bytes; DecodeError when refused."""
+    return _decode_stamped(data, 'PoseStamped', _POSE)
+
+
+def decode_twist(data: bytes) -> Stamped:
+    """Stamped of serialised geometry_msgs/TwistStamped bytes; DecodeError when refused."""
+    return _decode_stamped(data, 'TwistStamped', _TWIST)
+
+
+def _stamped_prefix(stamp_ns: int, frame_id: str) -> bytes:
+    w = Writer()
+    w.header(stamp_ns, frame_id)
+    w.align(8)
+    return w.bytes()
+
+
+def encode_stamped(stamp_ns: int, frame_id: str, values: np.ndarray) -> list[bytes]:
+    """Serialised PoseStamped (values (K, 7)) or TwistStamped ((K, 6)) messages, one per row,
+    all with the header (stamp_ns, frame_id)."""
+    prefix = _stamped_prefix(stamp_ns, frame_id)
+    rows = np.ascontiguousarray(values, '<f8')
+    flat = rows.tobytes()
+    width = 8 * rows.shape[1] if rows.ndim == 2 else 0
+    return [prefix + flat[k * width:(k + 1) * width] for k in range(rows.shape[0])]
+
+
+def encode_pose(stamp_ns: int, frame_id: str, values: Sequence[float]) -> bytes:
+    """Serialised geometry_msgs/PoseStamped: position, orientation (x, y, z, w)."""
+    return _stamped_prefix(stamp_ns, frame_id) + _POSE.pack(*values)
+
+
+def encode_twist(stamp_ns: int, frame_id: str, values: Sequence[float]) -> bytes:
+    """Serialised geometry_msgs/TwistStamped: linear, angular."""
+    return _stamped_prefix(stamp_ns, frame_id) + _TWIST.pack(*values)
+
+
+# --- ContactArray -----------------------------------------------------------------------------
+
+class NamePool:
+    """The CDR strings of a fixed list of names, padded to 4 bytes, as one uint32 array.
+
+    Sequences of records that start with such strings are then filled with
+    one gather (``ContactArray``: body_a, body_b of every contact).
+    """
+
+    def __init__(self, names: Sequence[str]) -> None:
+        pieces = [string_bytes(n) for n in names]
+        self.length = np.array([len(p) for p in pieces], np.int64)           # bytes, unpadded
+        self.words = (self.length + 3) // 4                                  # uint32 words
+        self.start = np.concatenate([[0], np.cumsum(self.words)[:-1]]).astype(np.int64) \
+            if pieces else np.zeros(0, np.int64)
+        padded = b''.join(p + bytes(-len(p) % 4) for p in pieces)
+        self.pool = np.frombuffer(padded, '<u4') if padded else np.zeros(0, '<u4')
+        # the same strings as rows of one width (zero-filled), for records of one shape
+        width = int(4 * self.words.max()) if pieces else 0
+        self.rows = np.zeros((len(pieces), width), np.uint8)
+        for k, piece in enumerate(pieces):
+            self.rows[k, :len(piece)] = np.frombuffer(piece, np.uint8)
+
+
+def _gather_words(out_words: np.ndarray, dest: np.ndarray, pool: NamePool,
+                  which: np.ndarray) -> None:
+    """Copy the padded strings ``which`` (body indices) to word offsets ``dest`` of the output."""
+    if not len(which):
+        return
+    words = pool.words[which]
+    total = int(words.sum())
+    base = np.repeat(np.cumsum(words) - words, words)
+    within = np.arange(total) - base
+    out_words[np.repeat(dest, words) + within] = pool.pool[np.repeat(pool.start[which], words)
+                                                           + within]
+
+
+def encode_contacts(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.ndarray,
+                    body_b: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                    depth: np.ndarray, toi_ns: np.ndarray, normal_impulse: np.ndarray,
+                    friction_impulse: np.ndarray, state: np.ndarray) -> bytes:
+    """Serialised collres_ros/ContactArray of M contacts (names from ``pool`` by body index).
+
+    Record k: body_a, body_b (strings), then on 8 bytes: position (3), normal
+    (3), depth, time_of_impact (int32 sec, uint32 nanosec), normal_impulse,
+    friction_impulse (3), then state (uint8). Records start 4-aligned; after
+    the first one, always at 4 mod 8 (97 bytes of block + 3 of padding).
+    """
+    w = Writer()
+    w.header(stamp_ns, frame_id)
+    count = int(len(body_a))
+    w.u32(count)
+    if count == 0:
+        return w.bytes()
+    a = np.asarray(body_a, np.int64)
+    b = np.asarray(body_b, np.int64)
+    s0 = w.offset                                          # 4-aligned
+    la = 4 * pool.words[a]                                 # body_a, padded to 4
+    lb4 = 4 * pool.words[b]                                # body_b, padded to 4
+    strings = la + pool.length[b]                          # to the end of body_b
+    phase = np.full(count, 4, np.int64)
+    phase[0] = s0 % 8
+    gap = -(phase + strings) % 8
+    record = strings + gap + 100
+    start = s0 + np.concatenate([[0], np.cumsum(record[:-1])])   # from after the header
+    block = start + strings + gap                          # 8-aligned
+    size = 4 + int(block[-1]) + 97
+    buf = np.zeros(4 + 8 * ((size - 4 + 7) // 8) + 8, np.uint8)
+    head = np.frombuffer(bytes(w.buf), np.uint8)
+    buf[:len(head)] = head
+    columns = dict(point=np.asarray(point, float).reshape(count, 3),
+                   normal=np.asarray(normal, float).reshape(count, 3),
+                   depth=np.asarray(depth, float).reshape(count, 1),
+                   toi=np.maximum(np.asarray(toi_ns, np.int64), 0),
+                   impulse=np.asarray(normal_impulse, float).reshape(count, 1),
+                   friction=np.asarray(friction_impulse, float).reshape(count, 3),
+                   state=np.asarray(state, np.uint8))
+    # records after the first one all start at 4 mod 8: when their names pad to the same
+    # lengths (as in most scenes) they have one shape, written through one strided view
+    rest = slice(1, count)
+    uniform = count > 2 and (record[rest] == record[1]).all() and (la[rest] == la[1]).all() \
+        and (lb4[rest] == lb4[1]).all()
+    general = np.arange(1) if uniform else np.arange(count)
+    _contacts_general(buf, pool, a[general], b[general], start[general],
+                      start[general] + la[general], block[general],
+                      {k: v[general] for k, v in columns.items()})
+    if uniform:
+        _contacts_uniform(buf, pool, a[rest], b[rest], int(start[1]), int(record[1]),
+                          int(la[1]), int(lb4[1]), int(block[1] - start[1]),
+                          {k: v[rest] for k, v in columns.items()})
+    return buf[:size].tobytes()
+
+
+def _contacts_general(buf: np.ndarray, pool: NamePool, a: np.ndarray, b: np.ndarray,
+                      start: np.ndarray, start_b: np.ndarray, block: np.ndarray,
+                      col: dict[str, np.ndarray]) -> None:
+    """Contact records anywhere: names gathered word by word, fields scattered."""
+    words = buf[4:4 + 4 * ((len(buf) - 4) // 4)].view('<u4')
+    _gather_words(words, np.concatenate([start, start_b]) // 4, pool, np.concatenate([a, b]))
+    f8 = _doubles(buf)
+    j = block // 8
+    f8[j[:, None] + np.arange(7)] = np.concatenate([col['point'], col['normal'],
+                                                    col['depth']], axis=1)
+    f8[j[:, None] + np.arange(8, 12)] = np.concatenate([col['impulse'], col['friction']],
+                                                       axis=1)
+    i4 = buf[4:4 + 4 * ((len(buf) - 4) // 4)].view('<i4')
+    i4[(block + 56) // 4] = col['toi'] // NS_PER_S
+    i4[(block + 60) // 4] = col['toi'] % NS_PER_S
+    buf[4 + block + 96] = col['state']
+
+
+def _contacts_uniform(buf: np.ndarray, pool: NamePool, a: np.ndarray, b: np.ndarray,
+                      start: int, length: int, la: int, lb4: int, block: int,
+                      col: dict[str, np.ndarray]) -> None:
+    """Contact records of one shape (``length`` bytes, block at ``block``) from ``start``."""
+    count = len(a)
+    records = buf[4 + start:4 + start + count * length].reshape(count, length)
+    records[:, 0:la] = pool.rows[a, :la]
+    records[:, la:la + lb4] = pool.rows[b, :lb4]
+    fields = records[:, block:block + 96]
+    fields[:, 0:56].view('<f8')[:] = np.concatenate([col['point'], col['normal'],
+                                                     col['depth']], axis=1)
+    stamps = fields[:, 56:64].view('<i4')
+    stamps[:, 0] = col['toi'] // NS_PER_S
+    stamps[:, 1] = col['toi'] % NS_PER_S
+    fields[:, 64:96].view('<f8')[:] = np.concatenate([col['impulse'], col['friction']], axis=1)
+    records[:, block + 96] = col['state']
+
+
+# --- MarkerArray ------------------------------------------------------------------------------
+
+@dataclass
+class MarkerSpec:
+    """One visualization_msgs/Marker for ``encode_markers`` (the fields the node sets).
+
+    ``points`` (P, 3) m and ``colors`` (P, 4) RGBA in [0, 1] for list markers;
+    ``scale`` (3,), ``color`` (4,), ``pose`` (7,) position + orientation x, y, z, w.
+    """
+
+    action: int
+    type: int = 0
+    ns: str = ''
+    id: int = 0
+    pose: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    scale: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    color: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    lifetime_ns: int = 0
+    points: Optional[np.ndarray] = None
+    colors: Optional[np.ndarray] = None
+
+
+def _pad(buf: bytearray, size: int) -> None:
+    """Zero bytes up to the next multiple of ``size`` (counted from after the header)."""
+    buf += _ZEROS[:-(len(buf) - 4) % size]
+
+
+_ZEROS = bytes(8)
+_MARKER_IDS = struct.Struct('<iii')         # id, type, action
+_MARKER_BODY = struct.Struct('<10d4fiIB')   # pose 7, scale 3, color 4, lifetime, frame_locked
+
+
+def _marker_tail() -> bytes:
+    """The empty fields after ``colors``: texture_resource, texture (CompressedImage:
+    header, format, data), uv_coordinates, text, mesh_resource, mesh_file (filename,
+    data), mesh_use_embedded_materials. Aligned to 4 at most, and it starts 4-aligned:
+    the same bytes after every marker."""
+    w = Writer()
+    w.string('')
+    w.header(0, '')
+    w.string('')
+    w.u32(0)
+    w.u32(0)
+    w.string('')
+    w.string('')
+    w.string('')
+    w.u32(0)
+    w.u8(0)
+    return w.bytes()[4:]
+
+
+_MARKER_TAIL = _marker_tail()
+
+
+def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) -> bytes:
+    """Serialised visualization_msgs/MarkerArray (Jazzy's Marker: texture, uv, mesh_file empty)."""
+    buf = bytearray(ENCAPSULATION)
+    buf += _U32.pack(len(markers))
+    header = _STAMP.pack(*stamp_parts(stamp_ns)) + string_bytes(frame_id)
+    for m in markers:
+        _pad(buf, 4)
+        buf += header
+        _pad(buf, 4)
+        buf += string_bytes(m.ns)
+        _pad(buf, 4)
+        buf += _MARKER_IDS.pack(m.id, m.type, m.action)
+        _pad(buf, 8)
+        sec, nanosec = divmod(int(m.lifetime_ns), NS_PER_S)
+        buf += _MARKER_BODY.pack(*m.pose, *m.scale, *m.color, sec, nanosec, 0)
+        points = () if m.points is None else m.points
+        _pad(buf, 4)
+        buf += _U32.pack(len(points))
+        if len(points):
+            _pad(buf, 8)
+            buf += np.ascontiguousarray(points, '<f8').tobytes()
+        colors = () if m.colors is None else m.colors
+        _pad(buf, 4)
+        buf += _U32.pack(len(colors))
+        if len(colors):
+            buf += np.ascontiguousarray(colors, '<f4').tobytes()
+        buf += _MARKER_TAIL
+    return bytes(buf)

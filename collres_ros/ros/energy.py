@@ -4,6 +4,11 @@ Kinetic energy ``1/2 m v^2 + 1/2 w_b . I w_b`` (``w_b`` = R^T w, the angular
 velocity in the body axes; ``I`` the principal inertia about the origin, the
 centre of mass) plus the potential ``-m g . x`` (zero at the world origin).
 Static bodies count 0. ROS-free: numpy and the core's shapes only.
+
+A state published by collres_sim (or corrected by the node) carries the
+semi-implicit Euler's mid-step velocity; the report and the plot evaluate the
+energy at the stamps, with v + g dt/2 (``integrator.stamp_velocity``, used by
+``analysis.energy``), so free flight is flat.
 """
 
 from __future__ import annotations

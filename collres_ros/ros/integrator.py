@@ -34,3 +34,20 @@ def euler_step(states: BodyStates, dynamic: np.ndarray, gravity: np.ndarray,
     orientation = np.where(moving, integrate_orientation(states.orientation, angular, dt),
                            states.orientation)
     return BodyStates(position, orientation, linear, angular)
+
+
+def stamp_velocity(linear: np.ndarray, gravity: np.ndarray, dt: np.ndarray | float
+                   ) -> np.ndarray:
+    """The linear velocity at a state's stamp from the twist ``euler_step`` reports, m/s.
+
+    ``euler_step`` writes v_n = v_(n-1) + g dt, then x_n = x_(n-1) + v_n dt: v_n is
+    the mean velocity over the step that ended at the stamp, i.e. the velocity at its
+    middle, t_n - dt/2, of the parabola through the positions (the core reads input
+    twists the same way and answers in kind). Under the constant gravity of the step
+    the velocity at the stamp t_n is therefore v_n + g dt / 2, and with it
+    1/2 m |v|^2 - m g.x is exactly constant in free flight. ``linear``: (..., 3), world
+    frame; ``dt``: the step length, s, broadcast against ``linear[..., 0]``. Angular
+    velocity needs no such shift (no torque in the integrator).
+    """
+    dt = np.asarray(dt, float)[..., None]
+    return np.asarray(linear, float) + np.asarray(gravity, float) * (0.5 * dt)

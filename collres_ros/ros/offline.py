@@ -14,9 +14,8 @@ Deterministic: the same input gives the same output messages.
 
 from __future__ import annotations
 
-import struct
-import sys
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
@@ -25,7 +24,7 @@ from collres_ros.ros.cli import CliError
 from collres_ros.ros.diagnostics import OfflineDiagnostics
 from collres_ros.ros.names import STATE_NAMES, STATES, absolute, state_name
 from collres_ros.ros.simulation import SimScene, rows_of, run_loop
-from collres_ros.ros.stamps import seconds_ns, stamp_ns
+from collres_ros.ros.stamps import seconds_ns
 
 
 class ReplayError(CliError):
@@ -56,29 +55,30 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
              contacts: dict[str, int] | None = None) -> int:
     """Run the scene through the core in-process; returns the number of steps.
 
-    ``sink(stamp_ns, [(topic, msg), ...])`` gets, per step, ('body_states',
-    input) followed by every output of the node's message builder (relative
-    topic names, as the node publishes them). ``markers`` False skips
+    ``sink(stamp_ns, [(topic, wire type, CDR bytes), ...])`` gets, per step,
+    the ``body_states`` input followed by every output of the node's encoder
+    (relative topic names, as the node publishes them). ``markers`` False skips
     building contact_markers (they dominate the cost with many contacts).
     ``contacts``: counts of the solved contacts by state, added to.
     """
     from collres_ros.core.pipeline import Resolver
+    from collres_ros.core.types import InputBatch
     from collres_ros.ros import messages
     resolver = Resolver(sim.scene)
     node = sim.scene.node
     diagnostics = OfflineDiagnostics(node.diagnostics_period)
+    encoder = messages.OutputEncoder(sim.names, sim.world_frame)
     names = [sim.names[i] for i in sim.rows]
 
     def exchange(stamp: int, states: Any) -> Any:
-        published = rows_of(states, sim.rows)
-        step = resolver.resolve(stamp, messages.inputs_from_states(names, published,
-                                                                   sim.world_frame))
-        outputs = messages.build_outputs(step, sim.world_frame, per_body=False,
-                                         marker_lifetime=node.marker_lifetime,
-                                         diagnostics=diagnostics.update(step, resolver),
-                                         markers=markers)
-        state_msg = messages.body_state_array(names, published, stamp, sim.world_frame)
-        sink(stamp, [(STATES, state_msg)] + outputs)
+        values = messages.state_values(rows_of(states, sim.rows))
+        step = resolver.resolve(stamp, InputBatch(names, values, sim.world_frame,
+                                                  sim.world_frame))
+        outputs = encoder.encode(step, per_body=False, marker_lifetime=node.marker_lifetime,
+                                 diagnostics=diagnostics.update(step, resolver),
+                                 markers=markers)
+        state = encoder.states.encode(stamp, sim.world_frame, names, values)
+        sink(stamp, [(STATES, messages.TYPES[STATES], state)] + outputs)
         if contacts is not None:
             count_states(contacts, step.report.state)
         return step.names, step.states
@@ -91,32 +91,30 @@ def run_offline(sim: SimScene, record: Path, storage: str = 'mcap', progress: bo
                 topics: Sequence[str] | None = None, compress: bool = False) -> OfflineSummary:
     """Step the scene in-process and record input and outputs to a new bag.
 
+    ``progress``: a progress line on stderr, when stdout and stderr are terminals.
+    Topics are recorded in the scene's namespace (``sim.namespace``).
     ``topics``: record only these (relative names; default: all). ``compress``:
     zstd mcap chunks.
     """
     from collres_ros.ros import qos
     from collres_ros.ros.bag import BagWriter, describe
+    from collres_ros.ros.console import progress_printer
     contacts: dict[str, int] = {}
     start = time.perf_counter()
 
-    def show(step: int, total: int) -> None:
-        if progress and (step % 200 == 0 or step == total):
-            print(f'\rstep {step}/{total}', end='', file=sys.stderr, flush=True)
-
+    show = progress_printer('collres_sim') if progress else None   # on a terminal only
     depth = sim.scene.node.queue_depth
     with BagWriter(record, storage, compress, qos=lambda topic: [qos.offered(topic, depth)],
                    custom_data=describe(sim.scene)) as writer:
-        def sink(stamp: int, outputs: list[tuple[str, Any]]) -> None:
-            for topic, msg in outputs:
+        def sink(stamp: int, outputs: list[tuple[str, str, bytes]]) -> None:
+            for topic, kind, data in outputs:
                 if topics is None or topic in topics:
-                    writer.write(absolute(topic), stamp, msg)
+                    writer.write_raw(absolute(topic, sim.namespace), kind, stamp, data)
 
         steps = run_core(sim, sink, show,
                          markers=topics is None or 'contact_markers' in topics,
                          contacts=contacts)
         messages = writer.count
-    if progress:
-        print(file=sys.stderr)
     return OfflineSummary(steps, messages, contacts, time.perf_counter() - start)
 
 
@@ -128,7 +126,7 @@ class Step:
 
     stamp: int          # ns, header stamp of the inputs
     log_time: int       # ns, receive time of the message that completed the step
-    inputs: list[Any]   # BodyInput list for Resolver.resolve
+    inputs: Any         # InputBatch (or BodyInput list) for Resolver.resolve
     per_body: bool      # True when it came from per-body topics
 
 
@@ -161,25 +159,24 @@ class ReplaySummary:
 class BatchedSource:
     """One step per body_states message."""
 
-    def __init__(self, topic: str) -> None:
+    def __init__(self, topic: str, max_bodies: int) -> None:
+        from collres_ros.ros.codec import StatesCodec
         self.topic = topic
         self.incomplete = 0
+        self.refused: Counter[str] = Counter()    # messages the codec refused, by reason
+        self.codec = StatesCodec(max_bodies)
 
     def steps(self, reader: Any) -> Iterator[Step]:
-        from rclpy.serialization import deserialize_message
-
-        from collres_ros.msg import BodyStateArray
-        from collres_ros.ros import messages
-        from collres_ros.ros.codec import decode_body_state_array
+        from collres_ros.core.types import InputBatch
+        from collres_ros.ros.codec import DecodeError
         for _, _, log_time, data in reader.raw([self.topic]):
             try:
-                decoded = decode_body_state_array(data)
-            except (struct.error, UnicodeDecodeError):
-                decoded = None
-            if decoded is None:
-                msg = deserialize_message(data, BodyStateArray)
-                decoded = stamp_ns(msg.header.stamp), messages.inputs_from_array(msg)
-            yield Step(decoded[0], log_time, decoded[1], False)
+                d = self.codec.decode(data)
+            except DecodeError as refusal:
+                self.refused[refusal.reason] += 1
+                continue
+            yield Step(d.stamp_ns, log_time, InputBatch(d.names, d.values, d.frame_id,
+                                                        d.frame_id), False)
 
 
 def read_steps(reader: Any, scene: Any, namespace: str) -> tuple[Any, int]:
@@ -192,7 +189,7 @@ def read_steps(reader: Any, scene: Any, namespace: str) -> tuple[Any, int]:
     topics = reader.topics
     batched = absolute(STATES, namespace)
     if batched in topics:
-        return BatchedSource(batched), reader.topic_count(batched)
+        return BatchedSource(batched, len(scene.bodies)), reader.topic_count(batched)
     wanted = {}
     for body in scene.bodies:
         for kind in ('pose', 'twist'):
@@ -224,6 +221,7 @@ class PerBodyGrouper:
         self.sync = StampSync(self.dynamic, [b.name for b in scene.bodies if b.static],
                               seconds_ns(node.sync_slop), seconds_ns(node.stale_timeout))
         self.incomplete = 0
+        self.refused: Counter[str] = Counter()    # messages the codec refused, by reason
 
     @property
     def sync_dropped(self) -> int:
@@ -231,11 +229,17 @@ class PerBodyGrouper:
 
     def steps(self, reader: Any) -> Iterator[Step]:
         from collres_ros.ros import messages
-        for m in reader.messages(list(self.wanted)):
-            name, kind = self.wanted[m.topic]
-            for group in self.sync.add(name, kind, stamp_ns(m.msg.header.stamp), m.msg):
-                yield Step(group.stamp_ns, m.log_time,
-                           messages.inputs_from_group(group.parts, self.dynamic), True)
+        from collres_ros.ros.codec import DecodeError, decode_pose, decode_twist
+        for topic, _, log_time, data in reader.raw(list(self.wanted)):
+            name, kind = self.wanted[topic]
+            try:
+                part = decode_pose(data) if kind == 'pose' else decode_twist(data)
+            except DecodeError as refusal:
+                self.refused[refusal.reason] += 1
+                continue
+            for group in self.sync.add(name, kind, part.stamp_ns, part):
+                yield Step(group.stamp_ns, log_time,
+                           messages.batch_from_group(group.parts, self.dynamic), True)
         self.incomplete = self.sync.dropped + len(self.sync.pending)
 
 
@@ -268,22 +272,22 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
         source, total = read_steps(reader, scene, namespace)
         resolver = Resolver(scene)
         diagnostics = OfflineDiagnostics(scene.node.diagnostics_period)
+        encoder = messages.OutputEncoder(scene.names, scene.world_frame)
         depth = scene.node.queue_depth
         with BagWriter(out_bag, storage or reader.storage, compress,
                        qos=lambda topic: [qos.offered(topic, depth)],
                        custom_data=describe(scene)) as writer:
             for step in source.steps(reader):
                 resolved = resolver.resolve(step.stamp, step.inputs)
-                outputs = messages.build_outputs(
-                    resolved, scene.world_frame,
-                    per_body=step.per_body and scene.node.per_body_outputs,
+                outputs = encoder.encode(
+                    resolved, per_body=step.per_body and scene.node.per_body_outputs,
                     marker_lifetime=scene.node.marker_lifetime,
                     diagnostics=diagnostics.update(resolved, resolver,
                                                    getattr(source, 'sync_dropped', 0)),
                     markers=topics is None or 'contact_markers' in topics)
-                for topic, msg in outputs:
+                for topic, kind, data in outputs:
                     if topics is None or topic in topics:
-                        writer.write(absolute(topic, namespace), step.log_time, msg)
+                        writer.write_raw(absolute(topic, namespace), kind, step.log_time, data)
                 count_states(summary.contacts, resolved.report.state)
                 for rejection in _rejections(resolved):
                     summary.rejected[rejection.reason] = \
@@ -294,6 +298,8 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
                     progress(summary.steps, total)
             summary.messages_out = writer.count
         summary.incomplete = source.incomplete
+        for reason, count in source.refused.items():
+            summary.rejected[reason] = summary.rejected.get(reason, 0) + count
     summary.wall_s = time.perf_counter() - start
     return summary
 
@@ -305,7 +311,7 @@ def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
     from collres_ros.ros import params as params_module
     from collres_ros.ros.bag import PARAMS_KEY
     if params is not None:
-        return params_module.load_scene(params)
+        return params_module.load_scene(params, namespace)
     text = reader.custom_data.get(PARAMS_KEY)
     if not text:
         raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '
@@ -313,7 +319,7 @@ def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
     with tempfile.TemporaryDirectory(prefix='collres_replay-') as scratch:
         path = Path(scratch) / 'params.yaml'
         path.write_text(text)
-        return params_module.load_scene(path)
+        return params_module.load_scene(path, namespace)
 
 
 def _rejections(resolved: Any) -> list[Any]:

@@ -48,6 +48,7 @@ class SimScene:
     world_frame: str
     per_body: bool = False
     kinematic: np.ndarray | None = None   # (N,) bool: static bodies moved at their twist
+    namespace: str = '/'                   # of the sim and the node ('/' or '/r1')
 
     @property
     def driven(self) -> np.ndarray:
@@ -66,10 +67,15 @@ class SimScene:
 
 
 def load_sim_scene(path: str | Path, duration: float | None = None,
-                   rate_hz: float | None = None) -> SimScene:
-    """Load a params file (ValueError/OSError with a one-line reason when bad)."""
+                   rate_hz: float | None = None, namespace: str = '/') -> SimScene:
+    """Load a params file (ValueError/OSError with a one-line reason when bad).
+
+    ``namespace``: the sim's (and the node's) namespace: the file's sections
+    are chosen for ``<namespace>/collres_sim`` and ``<namespace>/collres_node``
+    as rcl chooses them for those nodes.
+    """
     from collres_ros.ros import params
-    scene = params.load_scene(path)
+    scene = params.load_scene(path, namespace)
     sim = scene.sim
     return SimScene(
         scene=scene,
@@ -81,7 +87,8 @@ def load_sim_scene(path: str | Path, duration: float | None = None,
         duration=float(duration if duration is not None else sim.duration),
         world_frame=scene.world_frame,
         per_body=bool(getattr(sim, 'publish_per_body', False)),
-        kinematic=scene.kinematic)
+        kinematic=scene.kinematic,
+        namespace=params.fully_qualified_name(namespace, '').rstrip('/') or '/')
 
 
 def adopt(states: BodyStates, names: Sequence[str], corrected_names: Sequence[str],

@@ -1,4 +1,4 @@
-"""Detection: broad phase, rotational sweeps, the lecture's normal, stored manifolds,
+"""Detection: broad phase, rotational sweeps, the closest-points normal, stored manifolds,
 frozen bodies. (Translational time of impact, tunnelling and manifolds: test_collision_laws.)"""
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def test_spinning_bar_sweeping_through_a_sphere_is_caught_at_the_analytic_angle(
     np.testing.assert_allclose(contacts.normal[0], normal, atol=1e-3)   # the bar's side face
 
 
-def test_deep_overlap_takes_the_lecture_normal_from_the_previous_closest_points() -> None:
+def test_deep_overlap_takes_the_normal_from_the_previous_closest_points() -> None:
     # a ball falls into the top face of a block near its side: halfway through the step
     # it is closer to the side face, so EPA there would push it sideways (+x)
     block = BodySpec('block', 'box', (1.0, 1.0, 0.2), static=True)

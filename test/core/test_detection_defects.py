@@ -6,6 +6,8 @@
    true normal, spin the spheres and change the angular momentum.
 2. A cylinder lying on its side on a floor must stay still: contact points reused in the
    body frame of a curved surface turn with the body and make it roll.
+3. A flat landing must get its face manifold at the time of impact even where coal's
+   GJK/EPA fail on the just-touching pose.
 """
 
 from __future__ import annotations
@@ -82,3 +84,32 @@ def test_cylinder_lying_on_its_side_stays_still(floor: BodySpec) -> None:
     assert contacts >= len(rates), 'the cylinder lost its contact'
     assert spin < 1e-3
     assert travel < 1e-4
+
+
+def test_a_flat_landing_on_a_long_box_gets_its_four_point_impact_manifold():
+    """coal's GJK/EPA fail on some just-touching poses (depth -DBL_MAX, a wrong normal).
+
+    A 20 cm box landing flat on a 40 m long box whose centre is 0.5 m away: the
+    bisection used to end on such a pose, and the impact came out as one point at the
+    box's centre or four points in one place (the box then tipped over on a flat
+    landing). Expected: the four corners of the bottom face, normal +z, at the time the
+    face reaches the top (0.0036 m of a 0.0041 m step).
+    """
+    from collres_ros.core.detection import Detection
+    from collres_ros.core.types import BodyStates
+    specs = [BodySpec('belt', 'box', (40.0, 2.0, 0.2), static=True),
+             BodySpec('box', 'box', (0.2, 0.2, 0.2))]
+    detection = Detection(specs, SolverSettings())
+    for belt_x in ((0.5, 0.5), (0.0, 0.001)):
+        previous, current = BodyStates.zeros(2), BodyStates.zeros(2)
+        previous.position[:] = [[belt_x[0], 0.0, -0.1], [0.0, 0.0, 0.1036]]
+        current.position[:] = [[belt_x[1], 0.0, -0.1], [0.0, 0.0, 0.0995]]
+        previous.linear[1], current.linear[1] = [0.0, 0.0, -0.96], [0.0, 0.0, -0.98]
+        detection.reset()
+        contacts = detection.detect(previous, current)
+        corners = sorted(map(tuple, np.round(contacts.point[:, :2], 6)))
+        print(belt_x, contacts.kind, contacts.toi, corners)
+        assert corners == [(-0.1, -0.1), (-0.1, 0.1), (0.1, -0.1), (0.1, 0.1)]
+        assert np.allclose(contacts.normal, [0.0, 0.0, 1.0], atol=1e-6)
+        assert np.allclose(contacts.toi, 0.0036 / 0.0041, atol=1e-3)
+        assert np.allclose(contacts.point[:, 2], 0.0, atol=1e-5)

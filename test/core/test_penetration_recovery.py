@@ -1,4 +1,4 @@
-"""Penetration under the slop is recovered (issue 8, defect 3), and resting stays still.
+"""Penetration under the slop is recovered, and resting stays still.
 
 A heavy box on a light box on the floor must not settle into it, and a ball
 sliding over a static sphere must follow its surface until the normal force

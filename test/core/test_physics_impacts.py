@@ -1,4 +1,4 @@
-"""Single impacts through World.step with coal detection: the lecture's laws, no gravity.
+"""Single impacts through World.step with coal detection: the classic impulse laws, no gravity.
 
 Each test states the law, prints measured vs expected, and checks that the
 impact really happened (an IMPACT contact with a positive normal impulse).
@@ -110,7 +110,7 @@ def test_off_centre_hit_spins_free_box_and_conserves_momenta():
     print(f'momentum {p0} -> {p1}; angular momentum {l0} -> {l1}; spin {out.angular[0]}')
     assert np.linalg.norm(p1 - p0) <= 1e-9 * np.linalg.norm(p0)
     assert np.linalg.norm(l1 - l0) <= 1e-9 * np.linalg.norm(l0)
-    # the lecture: w_A+ = w_A- + I_A^-1 (r_A x (j n)), j = -(1 + e)(v_A - v_B).n / (...)
+    # impulse law: w_A+ = w_A- + I_A^-1 (r_A x (j n)), j = -(1 + e)(v_A - v_B).n / (...)
     c = result.report.contacts
     n, point, toi = c.normal[0], c.point[0], c.toi[0]
     assert c.kind[0] == ContactKind.IMPACT and n[0] > 0.99
@@ -121,7 +121,7 @@ def test_off_centre_hit_spins_free_box_and_conserves_momenta():
         + np.cross(inv_ib @ np.cross(r_b, n), r_b) @ n
     j = -(1 + 0.5) * (before.linear[0] - before.linear[1]) @ n / k
     spin = inv_ia @ np.cross(r_a, j * n)
-    print(f'spin measured {out.angular[0]} lecture {spin}')
+    print(f'spin measured {out.angular[0]} expected {spin}')
     assert spin[2] > 0.0 and out.angular[0, 2] > 0.0
     np.testing.assert_allclose(out.angular[0], spin, rtol=1e-9, atol=1e-12)
 
@@ -144,16 +144,16 @@ def test_oblique_frictionless_impact_on_plane():
     assert result.states.position[1, 2] >= 0.1 - 1e-6
 
 
-def test_per_object_rule_is_the_lecture_and_breaks_momentum():
-    """Lecture: j_A uses e_A and j_B uses e_B: momentum changes by (e_A - e_B) j0."""
+def test_per_object_rule_is_the_textbook_model_and_breaks_momentum():
+    """Per object: j_A uses e_A and j_B uses e_B: momentum changes by (e_A - e_B) j0."""
     world, before, result = head_on(1.0, 1.0, 0.0, 2.0, -2.0, rule='per_object', ea=1.0)
     assert_impact(result)
     out = result.states
     j0 = (before.linear[0, 0] - before.linear[1, 0]) / (1 / 1.0 + 1 / 1.0)   # inelastic, N s
     expected_a = before.linear[0, 0] - (1 + 1.0) * j0      # v_A+ = v_A- + j_A n / m_A
     expected_b = before.linear[1, 0] + (1 + 0.0) * j0
-    print(f'per_object: v_A {out.linear[0, 0]} (lecture {expected_a}), '
-          f'v_B {out.linear[1, 0]} (lecture {expected_b})')
+    print(f'per_object: v_A {out.linear[0, 0]} (expected {expected_a}), '
+          f'v_B {out.linear[1, 0]} (expected {expected_b})')
     assert out.linear[0, 0] == pytest.approx(expected_a, abs=1e-12)
     assert out.linear[1, 0] == pytest.approx(expected_b, abs=1e-12)
     drift = momentum(world, out)[0] - momentum(world, before)[0]
@@ -166,7 +166,7 @@ def test_per_object_rule_is_the_lecture_and_breaks_momentum():
 
 
 def test_slow_approach_rests_without_bounce():
-    """Below restitution_threshold the contact is RESTING: no bounce (lecture's rule).
+    """Below restitution_threshold the contact is RESTING: no bounce (the resting rule).
 
     The pair is 1 cm apart at the previous state (a speculative contact): it
     may close that gap during the step, then stops with zero relative speed.

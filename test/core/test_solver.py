@@ -127,3 +127,29 @@ def test_warm_start_reuses_impulses_and_forget_drops_them():
     assert len(world._cache) == 4
     world.forget(np.array([1]))
     assert len(world._cache) == 0
+
+
+def test_speculative_contact_that_cannot_close_this_step_is_no_solver_row():
+    """A ball 1 cm above the floor at 0.05 m/s cannot touch it within 1/120 s: no row,
+    no impulse, velocity untouched; at 2 m/s the same gap closes and the row acts."""
+    floor = box('floor', (2.0, 2.0, 0.2), 1.0, static=True)
+    ball = sphere('ball', 0.1, 1.0, e=0.0)
+    dt, gap = 1 / 120, 0.01
+    for speed, solved in ((0.05, 0), (2.0, 1)):
+        # the gap before the step is 1 cm; the separation is the one at the current state
+        contacts = contact_set(0, 1, [0, 0, 0], [0, 0, 1], gap - speed * dt,
+                               kind=ContactKind.PERSISTENT)
+        world = World([floor, ball], SolverSettings(), FixedContacts(contacts))
+        before = states([[0, 0, -0.1], [0, 0, 0.1 + gap]], [[0, 0, 0], [0, 0, -speed]])
+        after = before.copy()
+        after.position[1, 2] -= speed * dt
+        result = world.step(before, after, dt)
+        print(f'approach {speed} m/s: rows {world.timing["rows"]}, impulse '
+              f'{result.report.normal_impulse[0]:.4f} N s, vz {result.states.linear[1, 2]:.4f}')
+        assert result.report.contacts.count == 1 and world.timing['rows'] == solved
+        if solved:
+            assert result.report.normal_impulse[0] > 0.0
+            assert result.states.position[1, 2] >= 0.1 - 1e-9        # stopped at the floor
+        else:
+            assert result.report.normal_impulse[0] == 0.0
+            assert result.states.linear[1, 2] == -speed

@@ -220,7 +220,7 @@ def _refused(data: bytes, reason: str, max_bodies: int | None = 3) -> str:
 
 
 def test_more_bodies_than_the_scene_is_refused_before_reading_them() -> None:
-    """A 12 MB message announcing 100,000 bodies: refused on its count (issue 10 item 8)."""
+    """A 12 MB message announcing 100,000 bodies: refused on its count."""
     big = _states([f'b{k}' for k in range(100_000)])
     assert len(big) > 10_000_000
     print(_refused(big, 'too_many_bodies'))
@@ -233,7 +233,7 @@ def test_more_bodies_than_the_scene_is_refused_before_reading_them() -> None:
 
 
 def test_negative_and_unnormalised_stamps_are_refused_with_a_reason() -> None:
-    """Issue 10 item 14: sec < 0 and nanosec >= 1e9 are refused, never clamped."""
+    """sec < 0 and nanosec >= 1e9 are refused, never clamped."""
     data = bytearray(_states(['ball']))
     negative = bytes(data[:4]) + struct.pack('<iI', -1, 5) + bytes(data[12:])
     print(_refused(negative, 'negative_stamp'))

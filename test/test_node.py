@@ -251,7 +251,7 @@ def test_signal_exits_0(running, sig):
 
 
 def test_oversized_and_badly_stamped_inputs_are_refused_and_counted(running):
-    """Issue 10 items 8 and 14: a 12 MB message of 100,000 bodies is refused on its count
+    """A 12 MB message of 100,000 bodies is refused on its count
     before it is read (the next step is served), negative and unnormalised stamps with a
     reason; each is counted in /diagnostics, and nothing is stamped 0."""
     import struct

@@ -96,7 +96,7 @@ def test_outputs_of_a_step_with_a_contact():
     markers = roundtrip(dict(outputs)['contact_markers'])
     assert isinstance(markers, MarkerArray)
     assert markers.markers[0].action == Marker.DELETEALL
-    # issue 9: a constant number of markers, the contacts as list markers, one per state
+    # a constant number of markers, the contacts as list markers, one per state
     assert len(markers.markers) == 9
     assert [(m.ns, m.id, m.type, m.action) for m in markers.markers[1:3]] == [
         ('contact_points', 1, Marker.SPHERE_LIST, Marker.ADD),

@@ -29,23 +29,10 @@ inline void apply(const ContactRow& r, double* v, int k, Vec3 d, double s) {
 
 inline Vec3 direction(const ContactRow& r, int k) { return k == 0 ? r.n : (k == 1 ? r.t1 : r.t2); }
 
-<<<<<<< HEAD
-// One Gauss-Seidel update of a row; returns the largest impulse change (N s).
-double solve_row(ContactRow& r, double* v) {
-  // normal: approach no faster than the speculative allowance, accumulated >= 0
-  double v_n = relative(r, v, 0, r.n);
-  double new_n = std::max(r.normal - r.normal_mass * (v_n + r.allowance), 0.0);
-  double d_n = new_n - r.normal;
-  r.normal = new_n;
-  if (d_n != 0.0) apply(r, v, 0, r.n, d_n);
-  // friction: oppose the slip left after the normal update (the classic tangent,
-  // v_t / |v_t|), as much as stops it along that direction, within mu * normal
-=======
-// Friction of a row after its normal update: oppose the slip (the lecture's tangent,
+// Friction of a row after its normal update: oppose the slip (the classic tangent,
 // v_t / |v_t|), as much as stops it along that direction, within mu * normal. Returns
 // the largest impulse change (N s).
 double solve_friction(ContactRow& r, double* v) {
->>>>>>> f3fa453597838584047234f5cdc06770ff9c2af4
   double x = relative(r, v, 1, r.t1), y = relative(r, v, 2, r.t2);
   double speed2 = x * x + y * y;
   double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
@@ -375,8 +362,9 @@ uint8_t contact_state(const ContactRow& r, const double* velocity, double sticki
   bool friction = size > kTiny;
   bool touching = r.normal > 0.0;
   bool at_limit = size >= r.mu * r.normal * (1.0 - 1e-9);
-  bool sliding = norm2(rel[1], rel[2]) > sticking_speed || !r.sticking ||
-                 (friction && at_limit);
+  // sliding: it slips after the solve, or friction at the cone limit could not stop a slip
+  // it had before (a held point whose share of the friction reaches its cone is sticking)
+  bool sliding = norm2(rel[1], rel[2]) > sticking_speed || (!r.sticking && friction && at_limit);
   if (r.bounce && touching) return kImpact;
   if (touching && sliding && (friction || r.mu == 0.0)) return kSliding;
   return friction ? kSticking : kResting;

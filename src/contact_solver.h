@@ -147,8 +147,8 @@ inline Vec3 friction_world(const ContactRow& row) {
 }
 
 // State of a solved row, the first rule that applies: IMPACT (bounced and pushed),
-// SLIDING (slid faster than sticking_speed before or after, or friction at the static
-// cone), STICKING (non-zero friction inside the cone held it), RESTING (otherwise).
+// SLIDING (slips faster than sticking_speed after the solve, or slid before it with
+// friction at the cone limit), STICKING (non-zero friction held it), RESTING (otherwise).
 uint8_t contact_state(const ContactRow& row, const double* velocity, double sticking_speed);
 
 }  // namespace collres

@@ -6,11 +6,14 @@ descriptor (description, type, range) generated from ``core/config.py``; the
 scene comes from the same validator as ``params.load_scene``, so a bad file
 stops the node at start with one line (``error: <parameter>: <why>``, exit
 code 1). Solver settings, materials (restitution, static_friction,
-kinetic_friction) and node settings may change at runtime and take effect on
-the next step; shapes, sizes, masses, poses and the body list are read-only.
+kinetic_friction), the collision filter (``body.<name>.collision_group``,
+``body.<name>.collision_mask``, ``ignore_pairs``) and node settings may change
+at runtime and take effect on the next step; shapes, sizes, masses, poses and
+the body list are read-only.
 Range and type errors are refused by rclpy's descriptor check, naming the
-parameter and its range; the rest (choices, kinetic <= static friction) by an
-on-set callback with the validator's one-line reason.
+parameter and its range; the rest (choices, kinetic <= static friction,
+``ignore_pairs`` entries) by an on-set callback with the validator's one-line
+reason.
 
 Topics (relative names): in ``body_states`` (BodyStateArray, one step per
 message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
@@ -231,6 +234,8 @@ class CollresNode(Node):
                        if getattr(after, m) != getattr(before, m)}
             if changed:
                 self.resolver.set_material(after.name, **changed)
+        if new.collision_filter != old.collision_filter:
+            self.resolver.collision_filter = new.collision_filter
         self.resolver.stale_timeout = new.node.stale_timeout
         self.sync.slop_ns = seconds_ns(new.node.sync_slop)
         self.sync.stale_timeout_ns = seconds_ns(new.node.stale_timeout)

@@ -29,23 +29,17 @@ inline void apply(const ContactRow& r, double* v, int k, Vec3 d, double s) {
 
 inline Vec3 direction(const ContactRow& r, int k) { return k == 0 ? r.n : (k == 1 ? r.t1 : r.t2); }
 
-// One Gauss-Seidel update of a row; returns the largest impulse change (N s).
-double solve_row(ContactRow& r, double* v) {
-  // normal: approach no faster than the speculative allowance, accumulated >= 0
-  double v_n = relative(r, v, 0, r.n);
-  double new_n = std::max(r.normal - r.normal_mass * (v_n + r.allowance), 0.0);
-  double d_n = new_n - r.normal;
-  r.normal = new_n;
-  if (d_n != 0.0) apply(r, v, 0, r.n, d_n);
-  // friction: oppose the slip left after the normal update (the classic tangent,
-  // v_t / |v_t|), as much as stops it along that direction, within mu * normal
+// Friction of a row after its normal update: oppose the slip (the classic tangent,
+// v_t / |v_t|), as much as stops it along that direction, within mu * normal. Returns
+// the largest impulse change (N s).
+double solve_friction(ContactRow& r, double* v) {
   double x = relative(r, v, 1, r.t1), y = relative(r, v, 2, r.t2);
   double speed2 = x * x + y * y;
   double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
   double slip = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
   double tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
   double size = norm2(tx, ty);
-  double limit = r.mu * new_n;
+  double limit = r.mu * r.normal;
   if (size > limit) {
     double scale = size > 0.0 ? limit / size : 0.0;
     tx *= scale;
@@ -56,7 +50,100 @@ double solve_row(ContactRow& r, double* v) {
   r.tangent[1] = ty;
   if (d_x != 0.0) apply(r, v, 1, r.t1, d_x);
   if (d_y != 0.0) apply(r, v, 2, r.t2, d_y);
-  return std::max({std::fabs(d_n), std::fabs(d_x), std::fabs(d_y)});
+  return std::max(std::fabs(d_x), std::fabs(d_y));
+}
+
+// Normal update of one row: approach no faster than the speculative allowance,
+// accumulated impulse >= 0. Returns the impulse change (N s).
+double solve_normal(ContactRow& r, double* v) {
+  double v_n = relative(r, v, 0, r.n);
+  double new_n = std::max(r.normal - r.normal_mass * (v_n + r.allowance), 0.0);
+  double d_n = new_n - r.normal;
+  r.normal = new_n;
+  if (d_n != 0.0) apply(r, v, 0, r.n, d_n);
+  return std::fabs(d_n);
+}
+
+// One Gauss-Seidel update of a row; returns the largest impulse change (N s).
+double solve_row(ContactRow& r, double* v) {
+  double d_n = solve_normal(r, v);
+  return std::max(d_n, solve_friction(r, v));
+}
+
+// The normal rows of one manifold (2..4 points of a pair) solved together, exactly: the
+// small LCP  w = A x + q >= 0, x >= 0, x.w = 0  (A the rows' Delassus matrix, x the new
+// accumulated impulses) by trying the active sets, largest first, as Box2D's block
+// solver does for two points. Gauss-Seidel converges slowly on a nearly singular
+// manifold (close points, small lever arms) and leaves it spinning. Returns the largest
+// impulse change, or -1 when no active set fits (the caller falls back to rows).
+double solve_block(ContactRow* r, int k, double* v) {
+  double a[4][4], q[4], x[4];
+  for (int i = 0; i < k; ++i) {
+    for (int j = 0; j < k; ++j) {
+      a[i][j] = (r[i].ma + r[i].mb) * dot(r[i].n, r[j].n) + dot(r[i].ang_a[0], r[j].dw_a[0]) +
+                dot(r[i].ang_b[0], r[j].dw_b[0]);
+    }
+  }
+  for (int i = 0; i < k; ++i) {
+    double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
+    q[i] = b;
+    for (int j = 0; j < k; ++j) q[i] -= a[i][j] * r[j].normal;
+  }
+  const int full = (1 << k) - 1;
+  for (int size = k; size >= 0; --size) {
+    for (int set = full; set >= 0; --set) {
+      if (__builtin_popcount(static_cast<unsigned>(set)) != size) continue;
+      // solve A_SS x_S = -q_S (Gaussian elimination, partial pivoting)
+      int idx[4], m = 0;
+      for (int i = 0; i < k; ++i)
+        if (set & (1 << i)) idx[m++] = i;
+      double s[4][5];
+      for (int i = 0; i < m; ++i) {
+        for (int j = 0; j < m; ++j) s[i][j] = a[idx[i]][idx[j]];
+        s[i][m] = -q[idx[i]];
+      }
+      bool singular = false;
+      for (int c = 0; c < m && !singular; ++c) {
+        int pivot = c;
+        for (int i = c + 1; i < m; ++i)
+          if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+        if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(a[idx[c]][idx[c]]) + 1e-300) {
+          singular = true;
+          break;
+        }
+        if (pivot != c)
+          for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
+        for (int i = 0; i < m; ++i) {
+          if (i == c) continue;
+          double f = s[i][c] / s[c][c];
+          for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+        }
+      }
+      if (singular) continue;
+      for (int i = 0; i < k; ++i) x[i] = 0.0;
+      bool ok = true;
+      for (int i = 0; i < m && ok; ++i) {
+        x[idx[i]] = s[i][m] / s[i][i];
+        ok = x[idx[i]] >= -1e-12 * (1.0 + std::fabs(x[idx[i]]));
+      }
+      for (int i = 0; i < k && ok; ++i) {
+        if (set & (1 << i)) continue;
+        double w = q[i];
+        for (int j = 0; j < k; ++j) w += a[i][j] * x[j];
+        ok = w >= -1e-12 * (1.0 + std::fabs(q[i]));
+      }
+      if (!ok) continue;
+      double change = 0.0;
+      for (int i = 0; i < k; ++i) {
+        double d = std::max(x[i], 0.0) - r[i].normal;
+        r[i].normal += d;
+        if (d != 0.0) apply(r[i], v, 0, r[i].n, d);
+        change = std::max(change, std::fabs(d));
+      }
+      return change;
+    }
+  }
+  return -1.0;
 }
 
 }  // namespace
@@ -123,14 +210,25 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
 int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
                      double converged) {
   double* v = bodies.velocity;
+  const size_t count = rows.size();
   int done = 0;
   while (done < iterations) {
     ++done;
     double change = 0.0, largest = 0.0;
-    for (ContactRow& r : rows) {
-      double step = solve_row(r, v);
+    for (size_t lo = 0; lo < count;) {
+      size_t hi = lo + 1;      // the rows of one pair are consecutive (see prepare)
+      while (hi < count && rows[hi].a == rows[lo].a && rows[hi].b == rows[lo].b) ++hi;
+      const int k = static_cast<int>(hi - lo);
+      double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], k, v) : -1.0;
+      if (step >= 0.0) {
+        for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], v));
+      } else {
+        step = 0.0;
+        for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_row(rows[i], v));
+      }
       change = std::max(change, step);
-      largest = std::max(largest, r.normal);
+      for (size_t i = lo; i < hi; ++i) largest = std::max(largest, rows[i].normal);
+      lo = hi;
     }
     if (change <= converged * largest) break;
   }
@@ -208,20 +306,31 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
 
 void apply_restitution(std::vector<ContactRow>& rows, SolverBodies& bodies) {
   double* v = bodies.velocity;
-  for (ContactRow& r : rows) {
-    r.restitution[0] = r.restitution[1] = 0.0;
-    if (!r.bounce || !(r.normal > 0.0)) continue;
-    double v_n = relative(r, v, 0, r.n);
-    double d_a = std::max(-r.normal_mass * (v_n + r.e_a * r.approach), -r.normal);
-    double d_b = std::max(-r.normal_mass * (v_n + r.e_b * r.approach), -r.normal);
-    r.restitution[0] = d_a;
-    r.restitution[1] = d_b;
-    double* va = v + 6 * r.a;
-    double* vb = v + 6 * r.b;
-    store3(va, lin(v, r.a) - (d_a * r.ma) * r.n);
-    store3(va + 3, ang(v, r.a) - d_a * r.dw_a[0]);
-    store3(vb, lin(v, r.b) + (d_b * r.mb) * r.n);
-    store3(vb + 3, ang(v, r.b) + d_b * r.dw_b[0]);
+  const size_t count = rows.size();
+  for (size_t lo = 0; lo < count;) {
+    size_t hi = lo + 1;        // the rows of one pair are consecutive (see prepare)
+    while (hi < count && rows[hi].a == rows[lo].a && rows[hi].b == rows[lo].b) ++hi;
+    const bool manifold = hi - lo > 1;
+    for (size_t i = lo; i < hi; ++i) {
+      ContactRow& r = rows[i];
+      r.restitution[0] = r.restitution[1] = 0.0;
+      if (!r.bounce || !(r.normal > 0.0)) continue;
+      double d_a = r.e_a * r.normal, d_b = r.e_b * r.normal;      // Poisson
+      if (!manifold) {                                               // Newton
+        double v_n = relative(r, v, 0, r.n);
+        d_a = std::max(-r.normal_mass * (v_n + r.e_a * r.approach), -r.normal);
+        d_b = std::max(-r.normal_mass * (v_n + r.e_b * r.approach), -r.normal);
+      }
+      r.restitution[0] = d_a;
+      r.restitution[1] = d_b;
+      double* va = v + 6 * r.a;
+      double* vb = v + 6 * r.b;
+      store3(va, lin(v, r.a) - (d_a * r.ma) * r.n);
+      store3(va + 3, ang(v, r.a) - d_a * r.dw_a[0]);
+      store3(vb, lin(v, r.b) + (d_b * r.mb) * r.n);
+      store3(vb + 3, ang(v, r.b) + d_b * r.dw_b[0]);
+    }
+    lo = hi;
   }
 }
 
@@ -253,8 +362,9 @@ uint8_t contact_state(const ContactRow& r, const double* velocity, double sticki
   bool friction = size > kTiny;
   bool touching = r.normal > 0.0;
   bool at_limit = size >= r.mu * r.normal * (1.0 - 1e-9);
-  bool sliding = norm2(rel[1], rel[2]) > sticking_speed || !r.sticking ||
-                 (friction && at_limit);
+  // sliding: it slips after the solve, or friction at the cone limit could not stop a slip
+  // it had before (a held point whose share of the friction reaches its cone is sticking)
+  bool sliding = norm2(rel[1], rel[2]) > sticking_speed || (!r.sticking && friction && at_limit);
   if (r.bounce && touching) return kImpact;
   if (touching && sliding && (friction || r.mu == 0.0)) return kSliding;
   return friction ? kSticking : kResting;

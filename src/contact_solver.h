@@ -104,7 +104,8 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
 // Apply the rows' accumulated impulses (warm start) to the velocities.
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 
-// Sequential impulses: normal clamped >= 0 against the speculative allowance, friction
+// Sequential impulses: normal clamped >= 0 against the speculative allowance (the
+// consecutive rows of one pair, 2 to 4 of them, solved exactly as one small LCP), friction
 // along minus the slip velocity clamped to the circular cone mu * normal. Stops early
 // when a sweep changes no impulse by more than params.converged times the largest
 // normal impulse. Returns the sweeps done.
@@ -123,9 +124,12 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<int32_t>& order,
                      std::vector<ContactRow>& scratch, int sweeps);
 
-// One pass: bouncing rows that carry a normal impulse leave at -e times their pre-solve
-// approach speed (A's and B's extra impulses with their own e, each keeping the total
-// normal impulse >= 0).
+// One pass over the rows that approached faster than the threshold (pre-solve) and carry
+// a normal impulse. A pair's only point leaves at -e times its pre-solve approach speed
+// (Newton); the points of a manifold each get e times their compression impulse
+// (Poisson: the same for one point, and, with the block solve's exact compression, it
+// adds no energy where per-point Newton targets on coupled points can). A's and B's
+// extra impulses use their own e (equal unless per_object), each keeping the total >= 0.
 void apply_restitution(std::vector<ContactRow>& rows, SolverBodies& bodies);
 
 // Split-impulse push-out: pseudo velocities (N, 6, zeroed here) that give each row its
@@ -143,8 +147,8 @@ inline Vec3 friction_world(const ContactRow& row) {
 }
 
 // State of a solved row, the first rule that applies: IMPACT (bounced and pushed),
-// SLIDING (slid faster than sticking_speed before or after, or friction at the static
-// cone), STICKING (non-zero friction inside the cone held it), RESTING (otherwise).
+// SLIDING (slips faster than sticking_speed after the solve, or slid before it with
+// friction at the cone limit), STICKING (non-zero friction held it), RESTING (otherwise).
 uint8_t contact_state(const ContactRow& row, const double* velocity, double sticking_speed);
 
 }  // namespace collres

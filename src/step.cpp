@@ -159,8 +159,16 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
   const double bound = 2.0 * (1.0 + e) * fastest;
   rows_.clear();
   row_of_.assign(m, -1);
+  // rows in pair order (the rows of a manifold consecutive, solved as a block)
+  pair_order_.resize(m);
+  std::iota(pair_order_.begin(), pair_order_.end(), 0);
+  auto by_pair = [&](int64_t i, int64_t j) {
+    return c.a[i] != c.a[j] ? c.a[i] < c.a[j] : c.b[i] < c.b[j];
+  };
+  if (!std::is_sorted(pair_order_.begin(), pair_order_.end(), by_pair))
+    std::stable_sort(pair_order_.begin(), pair_order_.end(), by_pair);
   SolverBodies solver{bodies.count, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
-  for (int64_t k = 0; k < m; ++k) {
+  for (int64_t k : pair_order_) {
     if (gap_[k] > 0.0 && approach_[k] + allowance_[k] > bound) continue;
     const int64_t a = c.a[k], b = c.b[k];
     row_of_[k] = static_cast<int32_t>(rows_.size());

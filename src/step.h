@@ -16,9 +16,10 @@
 //    allowance, m/s);
 // 2. prepare: one row per contact point that can carry an impulse this step (a
 //    speculative contact that cannot close within the step is no row), combined
-//    materials by the combine rules;
+//    materials by the combine rules, rows in pair order;
 // 3. warm start from last step's impulses of the same pair and feature (ContactCache);
-// 4. iterate: sequential impulses (more sweeps while the resting contacts are new), then
+// 4. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
+//    a block (more sweeps while the resting contacts are new), then
 //    shock propagation from the ground up (a heavy body on a light one);
 // 5. restitution from the pre-solve approach speed, above the threshold only;
 // 6. store impulses for the next step (without the restitution part);
@@ -137,7 +138,7 @@ class StepSolver {
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
   std::vector<double> cached_normal_, cached_friction_;
   std::vector<uint8_t> found_;
-  std::vector<int64_t> order_;
+  std::vector<int64_t> order_, pair_order_;
   std::vector<ContactRow> rows_, shock_rows_;
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };

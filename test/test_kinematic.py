@@ -90,15 +90,8 @@ def test_a_kinematic_body_is_static_and_published_but_never_adopted() -> None:
     assert adopted.position[belt, 0] == 0.0 and adopted.position[sim.names.index('box'), 0] == 7.0
 
 
-DROP_ON_MOVING_BODY = (
-    'the compiled core: a restitution-0 box landing on a moving kinematic body gets one '
-    'contact point at the impact and rebounds (0.36 m/s here), then overshoots the belt '
-    'speed by 7 %; landing on a still floor, and sliding on the moving belt, are right')
-
-
 @pytest.mark.parametrize('release', [
-    pytest.param('dropped', marks=pytest.mark.xfail(strict=True, reason=DROP_ON_MOVING_BODY)),
-    'placed'])
+    'dropped', 'placed'])
 def test_a_box_on_a_belt_reaches_the_belt_speed_and_then_rides_with_it(
         tmp_path: Path, release: str) -> None:
     """Dropped from 5 cm, or placed on the belt at rest: slides at mu_k g, then held."""

@@ -46,10 +46,10 @@ setup(
     cmdclass={'build_py': BuildWithInterfaces},
     entry_points={
         'console_scripts': [
-            'collres_node = collres_ros.node:main',
-            'collres_sim = collres_ros.sim:main',
-            'collres_replay = collres_ros.replay:main',
-            'collres_demo = collres_ros.demo:main',
+            'collres_node = collres_ros.entry:node',
+            'collres_sim = collres_ros.entry:sim',
+            'collres_replay = collres_ros.entry:replay',
+            'collres_demo = collres_ros.entry:demo',
         ],
     },
 )

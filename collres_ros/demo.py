@@ -58,7 +58,11 @@ class DemoResult:
 
 
 def _private_domain_id() -> int:
-    """Pick a domain id unlikely to collide with other runs on this host (1..100)."""
+    """An exported ROS_DOMAIN_ID (two users on one host keep apart), else a domain id
+    unlikely to collide with other runs on this host (1..100)."""
+    exported = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    if exported.isdigit() and int(exported) <= cli.DOMAIN_IDS[1]:
+        return int(exported)
     return 1 + (os.getpid() + int(time.time())) % 100
 
 
@@ -102,6 +106,7 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     start = time.monotonic()
     context = rclpy.Context()
     node_proc = sim_proc = None
+    executor = spinner = None
     with cli.ros_init(context=context, domain_id=domain_id):
         try:
             node = rclpy.create_node('collres_demo_recorder', context=context)
@@ -147,6 +152,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
                           flush=True)
                 time.sleep(0.02)
             if sim_proc.poll() is None:
+                if progress:
+                    print(file=sys.stderr)   # end the progress line
                 raise DemoError(f'collres_sim did not finish within {timeout} s '
                                 f'(log: {logs["sim"]})')
             # the last answers may still be in flight to the recorder
@@ -164,6 +171,11 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
             for proc in (sim_proc, node_proc):
                 if proc is not None and proc.poll() is None:
                     processes.stop(proc)
+            # the spinning thread must stop before the context goes (else: abort, exit 134)
+            if executor is not None:
+                executor.shutdown(timeout_sec=2.0)
+            if spinner is not None:
+                spinner.join(5.0)
 
     messages = read_messages(bag)
     solver = getattr(sim_scene.scene, 'solver', None)
@@ -190,16 +202,19 @@ def summary_lines(result: DemoResult) -> list[str]:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = cli.ArgumentParser(
         prog='collres_demo',
         description='Run collres_node and collres_sim over DDS, record a bag, report and plot.')
     p.add_argument('--params', help='scene params file (default: the package collres.yaml)')
-    p.add_argument('--duration', type=float,
+    p.add_argument('--duration', type=cli.number(0.0, 86400.0, above=True),
                    help=f's of simulated time (default: the scene\'s, at most {DEMO_DURATION})')
     p.add_argument('--out', default='demo_out', help='output directory (default: ./demo_out)')
-    p.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: a private one)')
+    p.add_argument('--domain-id', type=cli.domain_id_type,
+                   help='ROS_DOMAIN_ID, 0 to 232 (default: an exported ROS_DOMAIN_ID, else a '
+                        'private one)')
     p.add_argument('--storage', default='mcap', help='bag storage: mcap or sqlite3')
-    p.add_argument('--timeout', type=float, default=60.0, help='s allowed for the sim to run')
+    p.add_argument('--timeout', type=cli.number(0.0, 86400.0, above=True), default=60.0,
+                   help='s allowed for the sim to run')
     p.add_argument('--per-body', action='store_true',
                    help='the sim publishes bodies/<name>/{pose,twist} instead of body_states')
     return p

@@ -6,11 +6,14 @@ descriptor (description, type, range) generated from ``core/config.py``; the
 scene comes from the same validator as ``params.load_scene``, so a bad file
 stops the node at start with one line (``error: <parameter>: <why>``, exit
 code 1). Solver settings, materials (restitution, static_friction,
-kinetic_friction) and node settings may change at runtime and take effect on
-the next step; shapes, sizes, masses, poses and the body list are read-only.
+kinetic_friction), the collision filter (``body.<name>.collision_group``,
+``body.<name>.collision_mask``, ``ignore_pairs``) and node settings may change
+at runtime and take effect on the next step; shapes, sizes, masses, poses and
+the body list are read-only.
 Range and type errors are refused by rclpy's descriptor check, naming the
-parameter and its range; the rest (choices, kinetic <= static friction) by an
-on-set callback with the validator's one-line reason.
+parameter and its range; the rest (choices, kinetic <= static friction,
+``ignore_pairs`` entries) by an on-set callback with the validator's one-line
+reason.
 
 Topics (relative names): in ``body_states`` (BodyStateArray, one step per
 message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
@@ -60,6 +63,7 @@ from rcl_interfaces.msg import (
     FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
     SetParametersResult)
 from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -70,9 +74,11 @@ from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
 from collres_ros.ros import cli, codec, messages, names, params, qos
-from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
+from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array, status_name
+from collres_ros.ros.health import Health
+from collres_ros.ros.losses import LossCounter
 from collres_ros.ros.stamps import seconds_ns
-from collres_ros.ros.sync import StampSync
+from collres_ros.ros.sync import StampSync, names_text
 
 NAME = 'collres_node'
 CLASSES = {messages.TYPES[names.CORRECTED_STATES]: BodyStateArray,
@@ -90,6 +96,7 @@ except ImportError:
 # resolve), encode (every output to CDR), publish.
 TIMED = ('decode', 'resolve', 'world', 'encode', 'publish')
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
+UNPAIRED_AFTER = 1.0   # s of per-body inputs without a per-body step before /diagnostics warns
 
 _TYPES = {
     'double': ParameterType.PARAMETER_DOUBLE, 'integer': ParameterType.PARAMETER_INTEGER,
@@ -188,24 +195,36 @@ class CollresNode(Node):
         self._diagnostics = self.create_publisher(
             DiagnosticArray, names.DIAGNOSTICS, qos.state_qos(qos.DIAGNOSTICS_DEPTH),
             qos_overriding_options=qos.OVERRIDES)
+        self.losses = LossCounter()   # inputs lost before they were taken (sequence gaps)
         self._inputs = [self.create_subscription(
             BodyStateArray, names.STATES, self._on_states, self._qos(), raw=True,
             qos_overriding_options=qos.OVERRIDES)]
-        for name in body_names:
-            self._inputs.append(self.create_subscription(
-                PoseStamped, names.pose_topic(name), partial(self._on_part, name, 'pose'),
-                self._qos(), raw=True, qos_overriding_options=qos.OVERRIDES))
-            self._inputs.append(self.create_subscription(
-                TwistStamped, names.twist_topic(name), partial(self._on_part, name, 'twist'),
-                self._qos(), raw=True, qos_overriding_options=qos.OVERRIDES))
+        try:
+            for name in body_names:
+                self._inputs.append(self.create_subscription(
+                    PoseStamped, names.pose_topic(name), partial(self._on_part, name, 'pose'),
+                    self._qos(), raw=True, qos_overriding_options=qos.OVERRIDES))
+                self._inputs.append(self.create_subscription(
+                    TwistStamped, names.twist_topic(name),
+                    partial(self._on_part, name, 'twist'), self._qos(), raw=True,
+                    qos_overriding_options=qos.OVERRIDES))
+        except InvalidTopicNameException as error:   # a long name in a long namespace
+            raise ValueError(f'bodies: a topic name is invalid in namespace '
+                             f'{self.get_namespace()!r} '
+                             f'({str(error).splitlines()[0][:120]})') from None
         self._timer = self._diagnostics_timer()
         self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
+        self.health = Health()
+        self._served = 0                 # bodies served, all steps
+        self._parts_since_step = 0       # per-body inputs since the last per-body step
+        self._last_part_step = time.monotonic()
+        self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)
         self.configured = True
         if self.scene.node.publish_tf and messages.TYPES[names.TF] not in CLASSES:
             self.get_logger().warning('publish_tf: tf2_msgs is not installed here: no /tf')
         self.get_logger().info(
-            f'resolving {len(body_names)} bodies ({", ".join(body_names)}) in frame '
+            f'resolving {len(body_names)} bodies ({names_text(body_names)}) in frame '
             f'{self.scene.world_frame!r}')
 
     def release_resolution(self) -> None:
@@ -253,6 +272,8 @@ class CollresNode(Node):
                        if getattr(after, m) != getattr(before, m)}
             if changed:
                 self.resolver.set_material(after.name, **changed)
+        if new.collision_filter != old.collision_filter:
+            self.resolver.collision_filter = new.collision_filter
         self.resolver.stale_timeout = new.node.stale_timeout
         self.sync.slop_ns = seconds_ns(new.node.sync_slop)
         self.sync.stale_timeout_ns = seconds_ns(new.node.stale_timeout)
@@ -263,10 +284,11 @@ class CollresNode(Node):
 
     # --- inputs -----------------------------------------------------------------------------
 
-    def _on_states(self, data: bytes) -> None:
+    def _on_states(self, data: bytes, info: Any) -> None:
         if not self.serving:
             return
         start = time.perf_counter()
+        self.losses.count(names.STATES, info)
         try:
             decoded = self.states_codec.decode(data)
         except codec.DecodeError as refusal:
@@ -275,17 +297,31 @@ class CollresNode(Node):
         batch = InputBatch(decoded.names, decoded.values, decoded.frame_id, decoded.frame_id)
         self._step(decoded.stamp_ns, batch, False, start)
 
-    def _on_part(self, name: str, kind: str, data: bytes) -> None:
+    def _on_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
         if not self.serving:
             return
         start = time.perf_counter()
+        self.losses.count(f'{name}/{kind}', info)
+        self._parts_since_step += 1
         try:
             part = codec.decode_pose(data) if kind == 'pose' else codec.decode_twist(data)
         except codec.DecodeError as refusal:
             topic = names.pose_topic(name) if kind == 'pose' else names.twist_topic(name)
             self._refuse(refusal, topic)
             return
-        for group in self.sync.add(name, kind, part.stamp_ns, part):
+        groups = self.sync.add(name, kind, part.stamp_ns, part)
+        jump = self.sync.take_jump()
+        if jump is not None:
+            backwards = jump.after_ns < jump.before_ns
+            if backwards:
+                self.resolver.restart()
+            self.get_logger().warning(
+                f'{jump.text()}: ' + ('a new run of the source; per-body sync and every '
+                                      "body's history reset" if backwards else
+                                      'bodies left behind turn stale'))
+        for group in groups:
+            self._parts_since_step = 0
+            self._last_part_step = time.monotonic()
             self._step(group.stamp_ns, messages.batch_from_group(group.parts, self.dynamic),
                        True, start)
             start = time.perf_counter()
@@ -293,7 +329,7 @@ class CollresNode(Node):
     def _refuse(self, refusal: codec.DecodeError, topic: str) -> None:
         """A message refused before decoding into the core: counted, logged (rate-limited)."""
         self.refused[refusal.reason] += 1
-        self._warn(refusal.reason, f'{topic}: {refusal}')
+        self._warn(refusal.reason, f'input refused [{refusal.reason}]: {topic}: {refusal}')
 
     # --- one step ---------------------------------------------------------------------------
 
@@ -315,6 +351,7 @@ class CollresNode(Node):
             self._publisher(topic, CLASSES[kind]).publish(data)
         done = time.perf_counter()
         self.last_step = step
+        self._served += len(step.names)
         w = self._window
         w['steps'] += 1
         w['time'] += step.step_time_s
@@ -325,8 +362,10 @@ class CollresNode(Node):
         w['encode'] += encoded - resolved
         w['publish'] += done - encoded
         w['callback'] += done - start
-        for item in step.rejected + step.resets:
-            self._warn(item.reason, item.detail)
+        for item in step.rejected:
+            self._warn(item.reason, f'input refused [{item.reason}]: {item.detail}')
+        for item in step.resets:
+            self._warn(item.reason, f'fresh start [{item.reason}]: {item.detail}')
 
     def _publisher(self, topic: str, kind: type) -> Any:
         publisher = self._publishers_by_topic.get(topic)
@@ -340,7 +379,7 @@ class CollresNode(Node):
         """A new profile of the state topics (rclpy writes an entity's overrides into it)."""
         return qos.state_qos(self.scene.node.queue_depth)
 
-    def _warn(self, reason: str, detail: str) -> None:
+    def _warn(self, reason: str, text: str) -> None:
         """At most one warning per reason per LOG_PERIOD, with the count of the others."""
         now = time.monotonic()
         if now - self._last_log.get(reason, -LOG_PERIOD) < LOG_PERIOD:
@@ -349,7 +388,7 @@ class CollresNode(Node):
         more = self._suppressed.pop(reason, 0)
         self._last_log[reason] = now
         suffix = f' (+{more} more since last report)' if more else ''
-        self.get_logger().warning(f'input refused [{reason}]: {detail}{suffix}')
+        self.get_logger().warning(f'{text}{suffix}')
 
     # --- diagnostics ------------------------------------------------------------------------
 
@@ -365,8 +404,22 @@ class CollresNode(Node):
         totals = self.resolver.totals
         counts = {k: v for k, v in (totals + self.refused).items()
                   if k not in ('steps', 'contacts')}
+        counts.update({k: v for k, v in self.sync.refused.items() if v})
+        if self.sync.time_jumps:
+            counts['time_jump'] = self.sync.time_jumps
         stale = sorted(set(self.sync.stale()) | set(self.last_step.stale if self.last_step
                                                     else ()))
+        received = sum(self.losses.received.values())
+        self.health.update(now, {**counts, 'steps': totals['steps'], 'inputs': received,
+                                 'served': self._served, 'lost': self.losses.total_lost,
+                                 'sync_dropped': self.sync.dropped}, elapsed)
+        # silent for the whole window (and the stale timeout): nothing current to judge
+        quiet = max(self.scene.node.stale_timeout,
+                    self.health.window_reports * self.scene.node.diagnostics_period)
+        status = self.health.status(now, quiet, self.scene.node.min_rate, stale,
+                                    self._unpaired(now), self._slop_problem(),
+                                    names_text(stale))
+        self._log_sync_refusals()
         mean = (lambda key: f'{1e3 * w[key] / max(w["steps"], 1):.3f}')
         snap = DiagnosticsSnapshot(
             stamp_ns=self.get_clock().now().nanoseconds, steps=totals['steps'],
@@ -374,8 +427,11 @@ class CollresNode(Node):
             step_time_mean_ms=1e3 * w['time'] / w['steps'] if w['steps'] else 0.0,
             step_time_max_ms=1e3 * w['max'],
             contacts=self.last_step.report.contacts.count if self.last_step else 0,
-            counts=counts, stale=stale,
+            counts=counts, stale=stale, status=status,
+            name=status_name(self.get_fully_qualified_name()),
             extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
+                   'inputs_received': received, 'inputs_lost': self.losses.total_lost,
+                   **{f'messages_refused.{k}': v for k, v in sorted(self.refused.items())},
                    'contacts_total': totals['contacts'],
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
                    **{f'time.{key}_ms': mean(key) for key in TIMED}})
@@ -392,6 +448,32 @@ class CollresNode(Node):
         if not self.serving:
             return
         self._diagnostics.publish(diagnostics_array(self.snapshot()))
+
+    def _unpaired(self, now: float) -> str:
+        """Why per-body inputs give no step, once they have not for UNPAIRED_AFTER s."""
+        if not self._parts_since_step or now - self._last_part_step < UNPAIRED_AFTER:
+            return ''
+        reason = self.sync.unpaired()
+        if reason:
+            self._warn('unpaired', f'no per-body step for '
+                       f'{now - self._last_part_step:.1f} s: {reason}')
+        return reason
+
+    def _slop_problem(self) -> str:
+        """The slop warning (logged once per slop value)."""
+        problem = self.sync.slop_problem() or ''
+        if problem and self._reported.get('slop') != self.sync.slop_ns:
+            self._reported['slop'] = self.sync.slop_ns
+            self.get_logger().warning(problem)
+        return problem
+
+    def _log_sync_refusals(self) -> None:
+        """Per-body messages refused for a stamp far from the others (logged when new)."""
+        refused = dict(self.sync.refused)
+        if refused != self._reported.get('sync_refused', {}):
+            self._reported['sync_refused'] = refused
+            self._warn('stray_stamp', 'per-body messages refused, stamps far from the others '
+                       f'and never confirmed: {", ".join(f"{k} {v}" for k, v in refused.items())}')
 
 
 def _check_files(argv: Sequence[str]) -> None:

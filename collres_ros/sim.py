@@ -149,15 +149,24 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
 
 # --- command line -----------------------------------------------------------------------------
 
+def _spec(name: str) -> Any:
+    from collres_ros.core.config import SIM_PARAMS
+    return next(s for s in SIM_PARAMS if s.name == name)
+
+
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    duration = _spec('duration')
+    rate = _spec('rate_hz')
+    p = cli.ArgumentParser(
         prog='collres_sim',
         description='Integrate a scene and close the loop through collres_node (live), or '
                     'through the core in-process into a bag (--offline).')
     p.add_argument('--params', help='params file (default: --ros-args --params-file FILE, '
                                     'else the package config/collres.yaml)')
-    p.add_argument('--duration', type=float, help='s of simulated time (default: from params)')
-    p.add_argument('--rate', type=float, help='steps per s (default: rate_hz from params)')
+    p.add_argument('--duration', type=cli.number(duration.minimum, duration.maximum),
+                   help='s of simulated time (default: from params)')
+    p.add_argument('--rate', type=cli.number(rate.minimum, rate.maximum),
+                   help='steps per s (default: rate_hz from params)')
     p.add_argument('--offline', action='store_true', help='no DDS: run the core in-process')
     p.add_argument('--record', help='offline: output bag directory (must not exist)')
     p.add_argument('--storage', default='mcap', help='offline: mcap (default) or sqlite3')
@@ -165,11 +174,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--per-body', action='store_true',
                    help='live: publish bodies/<name>/pose and bodies/<name>/twist instead of '
                         'body_states (also: publish_per_body in the params file)')
-    p.add_argument('--step-timeout', type=float, default=1.0,
+    p.add_argument('--step-timeout', type=cli.number(0.0, 3600.0, above=True), default=1.0,
                    help='live: s to wait for each corrected state before dropping the step')
-    p.add_argument('--wait', type=float, default=20.0,
+    p.add_argument('--wait', type=cli.number(0.0, 3600.0), default=20.0,
                    help='live: s to wait for collres_node to appear')
-    p.add_argument('--subscribers', type=int, default=1,
+    p.add_argument('--subscribers', type=cli.number(0, 1000, integer=True), default=1,
                    help='live: wait for this many subscribers of body_states (e.g. 2 with a '
                         'recorder) before the first step')
     p.add_argument('--realtime', action='store_true',
@@ -195,7 +204,7 @@ def _run(args: argparse.Namespace, ros_args: list[str]) -> int:
     from collres_ros.ros.bag import STORAGES, BagError
     from collres_ros.ros.offline import run_offline
     if args.storage not in STORAGES:
-        raise cli.CliError(f'unknown storage {args.storage!r} '
+        raise cli.CliError(f'--storage: unknown storage {args.storage!r} '
                            f'(supported: {", ".join(STORAGES)})')
     try:
         summary = run_offline(sim, Path(args.record), args.storage, progress=True,

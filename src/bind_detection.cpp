@@ -95,6 +95,11 @@ void bind_detection(py::module_& m) {
            py::arg("speculative_margin"), py::arg("toi_tolerance"),
            py::arg("toi_max_iterations"), py::arg("ccd"), py::arg("linear_slop"),
            py::arg("restitution_threshold"))
+      .def("set_filter", &collres::Detector::set_filter, py::arg("group"), py::arg("mask"),
+           py::arg("ignored"),
+           "Collision filter for the next step: per body group and mask bits, ignored "
+           "pairs (a, b) of body indices; a pair collides when (group[a] & mask[b]) and "
+           "(group[b] & mask[a]) are non-zero and it is not ignored.")
       .def("detect",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <numeric>
+#include <stdexcept>
+#include <string>
 
 namespace collres {
 
@@ -76,6 +78,27 @@ void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
       pairs.emplace_back(i, j);
     }
   }
+}
+
+PairFilter::PairFilter(int count, std::vector<std::uint64_t> group,
+                       std::vector<std::uint64_t> mask,
+                       const std::vector<std::pair<int, int>>& ignored)
+    : group_(std::move(group)), mask_(std::move(mask)) {
+  if (count < 0 || group_.size() != static_cast<std::size_t>(count) ||
+      mask_.size() != group_.size()) {
+    throw std::invalid_argument("collision filter: one group and one mask per body (" +
+                                std::to_string(count) + ")");
+  }
+  for (const auto& [a, b] : ignored) {
+    if (a < 0 || b < 0 || a >= count || b >= count || a == b) {
+      throw std::invalid_argument("collision filter: ignored pair (" + std::to_string(a) +
+                                  ", " + std::to_string(b) + ") is not two distinct bodies of " +
+                                  std::to_string(count));
+    }
+    ignored_.push_back(key(a, b));
+  }
+  std::sort(ignored_.begin(), ignored_.end());
+  ignored_.erase(std::unique(ignored_.begin(), ignored_.end()), ignored_.end());
 }
 
 bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad) {

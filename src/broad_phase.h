@@ -5,8 +5,10 @@
 // speculative margin, so two bodies closer than the margin always form a pair. Finite
 // bodies go through a sort and sweep along the axis of largest spread; half-spaces have
 // infinite bounds and are tested against every finite box directly (never sorted).
+// A collision filter (PairFilter) then drops the pairs that may never collide.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -45,5 +47,37 @@ class CoherentPairs {
 
 // True when the box reaches the half-space n.x <= offset grown by `pad` (m), n unit.
 bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad);
+
+// Which pairs of bodies may collide at all: category and mask bits as Box2D's filter and
+// Gazebo's collide_bitmask, plus a list of ignored pairs as MoveIt's allowed collision
+// matrix. Bodies a != b collide when
+//   (group[a] & mask[b]) != 0 and (group[b] & mask[a]) != 0 and (a, b) is not ignored.
+// The default filter (no bodies) lets every pair collide.
+class PairFilter {
+ public:
+  PairFilter() = default;
+  // One group and one mask per body (`count` of each) and ignored pairs of body indices in
+  // either order; std::invalid_argument for a wrong length or an index outside [0, count).
+  PairFilter(int count, std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
+             const std::vector<std::pair<int, int>>& ignored);
+
+  bool collides(int a, int b) const {
+    if (!group_.empty() && ((group_[a] & mask_[b]) == 0 || (group_[b] & mask_[a]) == 0)) {
+      return false;
+    }
+    return ignored_.empty() ||
+           !std::binary_search(ignored_.begin(), ignored_.end(), key(a, b));
+  }
+
+ private:
+  static std::uint64_t key(int a, int b) {
+    const auto lo = static_cast<std::uint64_t>(std::min(a, b));
+    const auto hi = static_cast<std::uint64_t>(std::max(a, b));
+    return (lo << 32) | hi;
+  }
+
+  std::vector<std::uint64_t> group_, mask_;  // empty: every body in every group
+  std::vector<std::uint64_t> ignored_;       // sorted keys of the ignored pairs
+};
 
 }  // namespace collres

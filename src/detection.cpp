@@ -57,6 +57,11 @@ void Detector::set_settings(const DetectionSettings& settings) {
   settings_ = settings;
 }
 
+void Detector::set_filter(std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
+                          const std::vector<std::pair<int, int>>& ignored) {
+  filter_ = PairFilter(count(), std::move(group), std::move(mask), ignored);
+}
+
 // -- motion and broad phase ----------------------------------------------------------------
 
 void Detector::prepare(const StepPoses& poses) {
@@ -137,7 +142,8 @@ void Detector::find_pairs() {
   auto skip = [this](const std::pair<int, int>& pair) {
     const Body& a = bodies_[pair.first];
     const Body& b = bodies_[pair.second];
-    return (a.fixed && b.fixed) || !a.valid || !b.valid;
+    return (a.fixed && b.fixed) || !a.valid || !b.valid ||
+           !filter_.collides(pair.first, pair.second);
   };
   pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), skip), pairs_.end());
   // sorted by (a, b) in linear time: bucket by a, then sort each (short) bucket by b

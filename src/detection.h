@@ -6,8 +6,10 @@
 //    its points travels.
 // 2. Broad phase (broad_phase.h): swept boxes padded by half the speculative margin give
 //    the candidate pairs; half-spaces are tested against every finite box. Pairs of two
-//    fixed bodies (static or frozen) and pairs with a non-finite pose are skipped; a pair
-//    is (a, b) with a < b.
+//    fixed bodies (static or frozen), pairs with a non-finite pose and pairs the collision
+//    filter drops (PairFilter: groups, masks, ignored pairs) are skipped, so they never
+//    reach the narrow phase, the stored manifolds or the contact rows; a pair is (a, b)
+//    with a < b.
 // 3. Stored manifolds (manifold.h): a pair of flat-faced bodies that was in contact last
 //    step and whose relative pose has barely changed keeps its contact points, stored in
 //    the two body frames; only their gaps are recomputed (no coal query). A curved body's
@@ -54,6 +56,12 @@ class Detector {
 
   // New settings take effect at the next step; a new margin forgets the stored manifolds.
   void set_settings(const DetectionSettings& settings);
+  // A new collision filter (see PairFilter) for the next step: one group and one mask per
+  // body, ignored pairs of body indices (std::invalid_argument otherwise). The manifolds
+  // stored for a pair it drops are never read again (the store keeps only the pairs of the
+  // last step), and as the pair gives no rows its warm-start impulses go too.
+  void set_filter(std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
+                  const std::vector<std::pair<int, int>>& ignored);
   const DetectionSettings& settings() const { return settings_; }
   int count() const { return static_cast<int>(shapes_.size()); }
 
@@ -95,6 +103,7 @@ class Detector {
   std::vector<BodyShape> shapes_;
   std::vector<int> planes_, finite_;
   DetectionSettings settings_;
+  PairFilter filter_;   // default: every pair collides
   std::vector<Body> bodies_;
   std::vector<Aabb> boxes_;
   CoherentPairs sweep_;

@@ -163,3 +163,37 @@ def test_runtime_changes_are_revalidated():
     assert params.is_runtime_changeable('body.ball.restitution')
     assert not params.is_runtime_changeable('body.ball.mass')
     assert params.is_runtime_changeable('solver.ccd')
+
+
+def test_collision_filter_parameters_and_their_errors():
+    scene = params.scene_from_values(BASE)
+    assert scene.collision_filter.group == (1, 1)
+    assert scene.collision_filter.mask == (0xFFFF, 0xFFFF) and scene.collision_filter.ignored == ()
+    three = {**BASE, 'bodies': ['floor', 'ball', 'box'], 'body.box.shape': 'box',
+             'body.box.size': [0.2, 0.2, 0.2], 'body.ball.collision_group': 6,
+             'body.box.collision_mask': 1, 'ignore_pairs': ['box : floor', 'ball:box']}
+    f = params.scene_from_values(three).collision_filter
+    print(f)
+    assert f.group == (1, 6, 1) and f.mask == (0xFFFF, 0xFFFF, 1)
+    assert f.ignored == ((0, 2), (1, 2))
+    assert f.collides(0, 1) and not f.collides(0, 2) and not f.collides(1, 2)
+    assert error(ignore_pairs=['ball:flor']) == \
+        "ignore_pairs: body 'flor' is not in bodies (got 'ball:flor')"
+    assert error(ignore_pairs=['ballfloor']) == \
+        'ignore_pairs: each entry must be "a:b", two body names (got \'ballfloor\')'
+    assert error(ignore_pairs=['ball:floor:ball']).startswith('ignore_pairs: each entry must')
+    assert error(ignore_pairs=['ball:ball']) == \
+        "ignore_pairs: an entry names one body twice (got 'ball:ball')"
+    assert error(ignore_pairs='ball:floor').startswith('ignore_pairs: must be a list')
+    assert error(body__ball__collision_mask=0x10000) == \
+        'body.ball.collision_mask: allowed range [0, 65535] (got 65536)'
+    assert error(body__ball__collision_group=-1) == \
+        'body.ball.collision_group: allowed range [0, 65535] (got -1)'
+    assert error(body__ball__collision_group=2.0).startswith(
+        'body.ball.collision_group: must be an integer')
+    for name in ('ignore_pairs', 'body.ball.collision_group', 'body.ball.collision_mask'):
+        assert params.is_runtime_changeable(name), name
+    changed = params.with_changes(scene, {'ignore_pairs': ['floor:ball']})
+    assert changed.collision_filter.ignored == ((0, 1),)
+    with pytest.raises(ValueError, match=r"^ignore_pairs: body 'cat' is not in bodies"):
+        params.with_changes(scene, {'ignore_pairs': ['floor:cat']})

@@ -161,6 +161,11 @@ VELOCITY_LIMIT = 1e9           # m/s and rad/s, |component|
 INERTIA_RANGE = (1e-30, 1e30)  # kg m^2: a 1e-9 kg body of 1 um to a 1e9 kg body of 1000 km
 MESH_MAX_BYTES = 64 * 1024 * 1024   # a larger vertex file is not a collision hull
 MESH_SUFFIXES = ('.obj', '.stl')
+# Collision filtering (Box2D category/mask bits, Gazebo collide_bitmask): 16 bits, a body in
+# bit 0 that collides with every bit, so a scene that does not filter is unchanged.
+DEFAULT_COLLISION_GROUP = 1
+ALL_COLLISION_BITS = 0xFFFF
+COLLISION_RULE = 'a pair collides when (group_a & mask_b) != 0 and (group_b & mask_a) != 0'
 
 # Per-body parameters: `body.<name>.<param>` in the shared `/**` section.
 BODY_PARAMS: tuple[ParamSpec, ...] = (
@@ -201,6 +206,15 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('points', 'double_array', [],
               'convex: vertices [x0, y0, z0, x1, ...] in the body frame', -SIZE_RANGE[1],
               SIZE_RANGE[1], unit='m'),
+    ParamSpec('collision_group', 'integer', DEFAULT_COLLISION_GROUP,
+              f'Collision category bits the body is in: {COLLISION_RULE} (Box2D category '
+              'bits, Gazebo collide_bitmask); 0: it collides with nothing',
+              0, ALL_COLLISION_BITS,
+              reason='every body in bit 0 with a mask of all bits: every pair collides'),
+    ParamSpec('collision_mask', 'integer', ALL_COLLISION_BITS,
+              f'Collision bits the body collides with ({ALL_COLLISION_BITS:#x}: all 16; '
+              'see collision_group)', 0, ALL_COLLISION_BITS,
+              reason='all bits: a scene that does not filter collides as before'),
 )
 
 
@@ -296,4 +310,8 @@ SCENE_PARAMS: tuple[ParamSpec, ...] = (
               'Frame of every pose and world-frame twist (inputs in other frames are refused)'),
     ParamSpec('bodies', 'string_array', [],
               'Body names, in order (letters, digits, _; used in topic names)'),
+    ParamSpec('ignore_pairs', 'string_array', [],
+              'Pairs of bodies that never collide, each "a:b" (two different names from '
+              'bodies), whatever their collision bits (as MoveIt\'s allowed collision matrix)',
+              reason='none: every pair the bits allow collides'),
 )

@@ -17,6 +17,11 @@ at most four points with stable feature ids, and the classification of each pair
 * TUNNELLED: apart at both ends but conservative advancement (coal distances) finds a
   hit, then the same bisection; point, normal and separation (about 0) at the impact.
 
+Pairs the collision filter drops (``CollisionFilter``: group and mask bits, ignored
+pairs) are removed in the broad phase, half-spaces included: they never reach the narrow
+phase, give no rows, and keep no stored manifold (the store holds the last step's pairs
+only), so no warm-start impulse of theirs survives either.
+
 The detector reads each body's current twist only to tell a fast approach from a slow
 one; poses are the whole input otherwise.
 """
@@ -30,7 +35,8 @@ import numpy as np
 from collres_ros.core import _native
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.shapes import bounding_radius, collision_numbers
-from collres_ros.core.types import SHAPE_KINDS, BodySpec, BodyStates, ContactSet
+from collres_ros.core.types import (SHAPE_KINDS, BodySpec, BodyStates, CollisionFilter,
+                                    ContactSet)
 
 REUSE_TRANSLATION = _native.REUSE_TRANSLATION   # m: a stored manifold is reused while its
 REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and turned less
@@ -40,7 +46,9 @@ REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and 
 class Detection:
     """The compiled detector of a fixed list of bodies, and the settings it reads."""
 
-    def __init__(self, bodies: Sequence[BodySpec], settings: SolverSettings) -> None:
+    def __init__(self, bodies: Sequence[BodySpec], settings: SolverSettings,
+                 collision_filter: CollisionFilter | None = None) -> None:
+        """``collision_filter`` default: every pair collides."""
         self.specs = list(bodies)
         numbers = [collision_numbers(spec) for spec in self.specs]
         self._native = _native.Detector(
@@ -49,6 +57,7 @@ class Detection:
             [bounding_radius(spec) for spec in self.specs],
             [bool(spec.static or spec.shape == 'plane') for spec in self.specs])
         self.settings = settings
+        self.collision_filter = collision_filter or CollisionFilter.default(len(self.specs))
 
     @property
     def settings(self) -> SolverSettings:
@@ -61,6 +70,19 @@ class Detection:
         self._native.set_settings(settings.speculative_margin, settings.toi_tolerance,
                                   settings.toi_max_iterations, settings.ccd,
                                   settings.linear_slop, settings.restitution_threshold)
+
+    @property
+    def collision_filter(self) -> CollisionFilter:
+        return self._filter
+
+    @collision_filter.setter
+    def collision_filter(self, value: CollisionFilter) -> None:
+        """A new filter takes effect at the next step (ValueError: not one entry per body)."""
+        if len(value.group) != len(self.specs):
+            raise ValueError(f'collision filter: {len(value.group)} bodies, the detector has '
+                             f'{len(self.specs)}')
+        self._native.set_filter(list(value.group), list(value.mask), list(value.ignored))
+        self._filter = value
 
     def detect(self, previous: BodyStates, current: BodyStates,
                active: np.ndarray | None = None) -> ContactSet:

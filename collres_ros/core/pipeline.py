@@ -34,7 +34,8 @@ import numpy as np
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import (
-    BodyInput, BodySpec, BodyStates, ContactReport, InputBatch, Rejection)
+    BodyInput, BodySpec, BodyStates, CollisionFilter, ContactReport, InputBatch,
+    Rejection)
 from collres_ros.core.validation import (
     NO_STAMP, check_inputs, check_stamps, stale_bodies)
 
@@ -70,9 +71,10 @@ class ResolvedStep:
         return self.body_names[int(c.body_a[k])], self.body_names[int(c.body_b[k])]
 
 
-def _default_world(bodies: Sequence[BodySpec], settings: SolverSettings) -> Any:
+def _default_world(bodies: Sequence[BodySpec], settings: SolverSettings,
+                   collision_filter: Optional[CollisionFilter]) -> Any:
     from collres_ros.core.world import World
-    return World(bodies, settings)
+    return World(bodies, settings, collision_filter=collision_filter)
 
 
 class Resolver:
@@ -81,12 +83,16 @@ class Resolver:
     def __init__(self, scene: Any, settings: Optional[SolverSettings] = None,
                  world: Any = None, world_frame: Optional[str] = None,
                  initial: Optional[BodyStates] = None,
-                 stale_timeout: Optional[float] = None) -> None:
+                 stale_timeout: Optional[float] = None,
+                 collision_filter: Optional[CollisionFilter] = None) -> None:
         """``scene``: a params.Scene, or a sequence of BodySpec (then pass the rest).
 
         ``world``: the World to step (default: ``core.world.World``), for tests.
+        ``collision_filter``: default the scene's, else every pair collides.
         """
         if hasattr(scene, 'bodies'):
+            if collision_filter is None:
+                collision_filter = getattr(scene, 'collision_filter', None)
             bodies = tuple(scene.bodies)
             settings = settings or scene.solver
             world_frame = world_frame or scene.world_frame
@@ -103,7 +109,8 @@ class Resolver:
         self.stale_timeout = DEFAULT_STALE_TIMEOUT if stale_timeout is None else stale_timeout
         self.dynamic = np.array([not b.static for b in bodies], bool)
         self._settings = settings or SolverSettings()
-        self.world = world if world is not None else _default_world(bodies, self._settings)
+        self.world = world if world is not None else \
+            _default_world(bodies, self._settings, collision_filter)
         self._params_state = (initial if initial is not None
                               else BodyStates.zeros(len(bodies))).copy()
         self.reset()
@@ -118,6 +125,15 @@ class Resolver:
     def settings(self, value: SolverSettings) -> None:
         self._settings = value
         self.world.settings = value
+
+    @property
+    def collision_filter(self) -> CollisionFilter:
+        return self.world.collision_filter
+
+    @collision_filter.setter
+    def collision_filter(self, value: CollisionFilter) -> None:
+        """Which pairs may collide from the next step on."""
+        self.world.collision_filter = value
 
     def set_material(self, name: str, restitution: Optional[float] = None,
                      static_friction: Optional[float] = None,
@@ -135,6 +151,12 @@ class Resolver:
         self.totals: Counter[str] = Counter()
         if len(self.bodies):
             self.world.forget(np.arange(len(self.bodies)))
+
+    def restart(self) -> None:
+        """Forget every body's history (a new run of the source), keep the totals."""
+        totals = self.totals
+        self.reset()
+        self.totals = totals
 
     # --- one step ---------------------------------------------------------------------------
 

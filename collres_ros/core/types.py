@@ -21,6 +21,8 @@ from typing import Sequence
 
 import numpy as np
 
+from collres_ros.core.config import ALL_COLLISION_BITS, DEFAULT_COLLISION_GROUP
+
 
 class ContactState(IntEnum):
     """What a contact did this step (values equal the Contact.msg constants)."""
@@ -139,6 +141,62 @@ class StepResult:
 
 
 SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')
+
+
+@dataclass(frozen=True)
+class CollisionFilter:
+    """Which pairs of the N bodies may collide: bitmasks and ignored pairs.
+
+    As Box2D's category and mask bits and Gazebo's collide_bitmask: bodies a
+    and b collide when ``group[a] & mask[b]`` and ``group[b] & mask[a]`` are
+    both non-zero (both must accept the other; MuJoCo's contype/conaffinity
+    needs only one side); and, as MoveIt's allowed collision matrix, never
+    when (a, b) is in ``ignored``. Bits are integers in [0, ALL_COLLISION_BITS];
+    ``ignored`` holds body indices (a < b), sorted, each pair once. The
+    default (every group DEFAULT_COLLISION_GROUP, every mask all bits, nothing
+    ignored) lets every pair collide.
+    """
+
+    group: tuple[int, ...]                    # (N,) the bits a body is in
+    mask: tuple[int, ...]                     # (N,) the bits it collides with
+    ignored: tuple[tuple[int, int], ...] = ()
+
+    def __post_init__(self) -> None:
+        if len(self.group) != len(self.mask):
+            raise ValueError('collision filter: one group and one mask per body')
+        for bits in self.group + self.mask:
+            if isinstance(bits, bool) or not isinstance(bits, int) \
+                    or not 0 <= bits <= ALL_COLLISION_BITS:
+                raise ValueError(f'collision filter: bits must be integers in '
+                                 f'[0, {ALL_COLLISION_BITS:#x}] (got {bits!r})')
+        count = len(self.group)
+        pairs = sorted({(min(a, b), max(a, b)) for a, b in self.ignored})
+        if any(a == b or a < 0 or b >= count for a, b in pairs):
+            raise ValueError(f'collision filter: ignored pairs must be two distinct bodies of '
+                             f'{count} (got {list(self.ignored)})')
+        object.__setattr__(self, 'ignored', tuple(pairs))
+
+    @staticmethod
+    def default(count: int) -> 'CollisionFilter':
+        """Every pair of ``count`` bodies collides."""
+        return CollisionFilter((DEFAULT_COLLISION_GROUP,) * count, (ALL_COLLISION_BITS,) * count)
+
+    def collides(self, a: int, b: int) -> bool:
+        """Whether bodies ``a`` != ``b`` may collide (the compiled broad phase's rule)."""
+        return (self.group[a] & self.mask[b] != 0 and self.group[b] & self.mask[a] != 0
+                and (min(a, b), max(a, b)) not in self.ignored)
+
+    def with_body(self, index: int, group: int | None = None,
+                  mask: int | None = None) -> 'CollisionFilter':
+        """A copy with one body's group and/or mask changed."""
+        groups, masks = list(self.group), list(self.mask)
+        groups[index] = groups[index] if group is None else group
+        masks[index] = masks[index] if mask is None else mask
+        return CollisionFilter(tuple(groups), tuple(masks), self.ignored)
+
+    def ignoring(self, *pairs: tuple[int, int]) -> 'CollisionFilter':
+        """A copy that also ignores these pairs of body indices (either order)."""
+        return CollisionFilter(self.group, self.mask, self.ignored + tuple(pairs))
 
 
 @dataclass(frozen=True)

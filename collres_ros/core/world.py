@@ -3,7 +3,9 @@
 One step maps the states of N bodies at the previous time and at the current
 time (both world frame, before resolution) to corrected current states:
 
-* bodies without contact keep their ``current`` state untouched;
+* bodies without contact keep their ``current`` state untouched, and so do
+  pairs the collision filter drops (``CollisionFilter``): they pass through
+  one another;
 * a body with an impact (IMPACT/TUNNELLED contact, or a persistent contact
   that closes during the step faster than the restitution threshold) is
   rewound to its earliest time of impact f (lerp/slerp), solved with the
@@ -43,14 +45,15 @@ from collres_ros.core import _native
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.detection import Detection
 from collres_ros.core.shapes import mass_properties
-from collres_ros.core.types import (BodySpec, BodyStates, ContactReport, ContactSet, Rejection,
-                                    StepResult)
+from collres_ros.core.types import (BodySpec, BodyStates, CollisionFilter, ContactReport,
+                                    ContactSet, Rejection, StepResult)
 
 
 class Detector(Protocol):
     """What the world needs from detection (``Detection`` is the real one)."""
 
     settings: SolverSettings
+    collision_filter: CollisionFilter
 
     def detect(self, previous: BodyStates, current: BodyStates,
                active: np.ndarray | None = None) -> ContactSet: ...
@@ -60,11 +63,17 @@ class World:
     """A fixed list of bodies, their materials, the solver settings and the warm-start cache."""
 
     def __init__(self, bodies: Sequence[BodySpec], settings: SolverSettings,
-                 detector: Detector | None = None) -> None:
-        """``detector`` replaces coal detection (tests feed hand-made ContactSets)."""
+                 detector: Detector | None = None,
+                 collision_filter: CollisionFilter | None = None) -> None:
+        """``detector`` replaces coal detection (tests feed hand-made ContactSets).
+
+        ``collision_filter``: which pairs may collide (default: every pair).
+        """
         self.specs = list(bodies)
         self._collision = detector if detector is not None else \
-            Detection(self.specs, settings)
+            Detection(self.specs, settings, collision_filter)
+        if detector is not None and collision_filter is not None:
+            detector.collision_filter = collision_filter
         props = [mass_properties(spec) for spec in self.specs]
         self.inv_mass = np.array([p[0] for p in props], dtype=float)           # (N,) 1/kg
         self.inv_inertia_body = np.array([p[1] for p in props]).reshape(-1, 3, 3)
@@ -89,6 +98,15 @@ class World:
         self._settings = settings
         self._collision.settings = settings
         self._params = solver_params(settings)
+
+    @property
+    def collision_filter(self) -> CollisionFilter:
+        return self._collision.collision_filter
+
+    @collision_filter.setter
+    def collision_filter(self, value: CollisionFilter) -> None:
+        """Which pairs may collide from the next step on (detection drops the others)."""
+        self._collision.collision_filter = value
 
     def set_material(self, index: int, restitution: float | None = None,
                      static_friction: float | None = None,

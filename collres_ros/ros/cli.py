@@ -6,10 +6,14 @@ code 1, never a traceback (as the ros2_tracing CLIs do).
 
 from __future__ import annotations
 
+import argparse
+import math
+import signal
 import sys
+import threading
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable, Iterator, Optional, Sequence
+from typing import Any, Callable, Iterator, NoReturn, Optional, Sequence
 
 
 class CliError(Exception):
@@ -79,15 +83,65 @@ def ros_init(*, args: Optional[Sequence[str]] = None, context: Any = None,
     ``<failure>: <rcl's first line>``.
     """
     import rclpy
+    from rclpy.signals import SignalHandlerOptions, install_signal_handlers
+    # rcl parses the params files inside init, in C, for up to minutes on a huge file: Python's
+    # SIGINT handler cannot run there, so Ctrl-C would wait for the parse to end. The OS
+    # default ends the process at once (no traceback); rclpy's own handlers come after.
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_DFL) if main else None
     try:
         rclpy.init(args=None if args is None else list(args), context=context,
-                   domain_id=domain_id)
+                   domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     except (KeyboardInterrupt, CliError):
         raise
     except Exception as error:  # RCLError and friends
         lines = str(error).strip().splitlines() or [type(error).__name__]
         raise CliError(f'{failure}: {lines[0]}') from None
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    if context is None or context is rclpy.get_default_context():
+        install_signal_handlers(SignalHandlerOptions.ALL)   # as rclpy.init does
     try:
         yield context
     finally:
         rclpy.try_shutdown(context=context)
+
+
+# --- flags: checked when parsed, before anything is created ----------------------------------
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse with the one-line error of every main: ``error: --flag: why``, exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        text = message[len('argument '):] if message.startswith('argument ') else message
+        print(f'error: {text}', file=sys.stderr)
+        raise SystemExit(2)
+
+
+def number(low: float, high: float, *, above: bool = False, integer: bool = False
+           ) -> Callable[[str], Any]:
+    """An argparse ``type``: a finite number in [low, high] (``above``: in (low, high]).
+
+    NaN, infinities and values outside the range are refused when the flag is
+    parsed, with the range in the message.
+    """
+    kind = 'an integer' if integer else 'a number'
+    span = f'({low:g}, {high:g}]' if above else f'[{low:g}, {high:g}]'
+
+    def parse(text: str) -> Any:
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'must be {kind} in {span} (got {text!r})') \
+                from None
+        if not math.isfinite(value) or value < low or value > high \
+                or (above and value <= low):
+            raise argparse.ArgumentTypeError(f'must be {kind} in {span} (got {text})')
+        return value
+    parse.__name__ = 'integer' if integer else 'number'
+    return parse
+
+
+DOMAIN_IDS = (0, 232)   # ROS_DOMAIN_ID: the range the DDS port mapping allows
+domain_id_type = number(*DOMAIN_IDS, integer=True)

@@ -55,6 +55,7 @@ class Health:
     """Window of per-report count increments, and the verdict over it."""
 
     def __init__(self, window_reports: int = WINDOW_REPORTS) -> None:
+        self.window_reports = window_reports
         self._window: deque[tuple[float, Counter[str]]] = deque(maxlen=window_reports)
         self._previous: Counter[str] = Counter()
         self._last_input_s: Optional[float] = None

@@ -10,7 +10,9 @@ paused. The ``publication_sequence_number`` of the message info rclpy hands
 to a two-argument subscription callback is the writer's own counter (1, 2,
 3, ...): the gaps between consecutive numbers were exactly the 1984 messages
 lost. A keep-last queue always keeps the newest samples, so the last message
-of a burst arrives and closes the count.
+of a burst arrives and closes the count. What cannot be counted: messages
+lost before the first one taken from a publisher (its first number may be
+above 1 because the node subscribed late, which is no loss).
 
 The message info names no publisher. A number at or below the last one of
 every known stream starts a new stream (a new publisher, or a publisher

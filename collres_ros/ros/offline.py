@@ -14,6 +14,7 @@ Deterministic: the same input gives the same output messages.
 
 from __future__ import annotations
 
+import shutil
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -141,6 +142,7 @@ class ReplaySummary:
     rejected: dict[str, int] = field(default_factory=dict)
     incomplete: int = 0     # per-body stamps that never got every body
     wall_s: float = 0.0
+    served: int = 0         # bodies served (accepted inputs), all steps
 
     def lines(self) -> list[str]:
         rate = self.steps / self.wall_s if self.wall_s > 0 else float('inf')
@@ -167,11 +169,13 @@ class BatchedSource:
         self.incomplete = 0
         self.refused: Counter[str] = Counter()    # messages the codec refused, by reason
         self.codec = StatesCodec(max_bodies)
+        self.read: dict[str, int] = {topic: 0}   # messages read, by topic
 
     def steps(self, reader: Any) -> Iterator[Step]:
         from collres_ros.core.types import InputBatch
         from collres_ros.ros.codec import DecodeError
         for _, _, log_time, data in reader.raw([self.topic]):
+            self.read[self.topic] += 1
             try:
                 d = self.codec.decode(data)
             except DecodeError as refusal:
@@ -191,12 +195,14 @@ def read_steps(reader: Any, scene: Any, namespace: str) -> tuple[Any, int]:
     topics = reader.topics
     batched = absolute(STATES, namespace)
     if batched in topics:
+        _check_type(reader, batched, BATCHED_TYPE)
         return BatchedSource(batched, len(scene.bodies)), reader.topic_count(batched)
     wanted = {}
     for body in scene.bodies:
         for kind in ('pose', 'twist'):
             name = absolute(f'bodies/{body.name}/{kind}', namespace)
             if name in topics:
+                _check_type(reader, name, PART_TYPES[kind])
                 wanted[name] = (body.name, kind)
     if not wanted:
         raise ReplayError(f'no input topics in {reader.path}: expected {batched} or '
@@ -224,6 +230,7 @@ class PerBodyGrouper:
                               seconds_ns(node.sync_slop), seconds_ns(node.stale_timeout))
         self.incomplete = 0
         self.refused: Counter[str] = Counter()    # messages the codec refused, by reason
+        self.read: dict[str, int] = {topic: 0 for topic in wanted}
 
     @property
     def sync_dropped(self) -> int:
@@ -233,6 +240,7 @@ class PerBodyGrouper:
         from collres_ros.ros import messages
         from collres_ros.ros.codec import DecodeError, decode_pose, decode_twist
         for topic, _, log_time, data in reader.raw(list(self.wanted)):
+            self.read[topic] += 1
             name, kind = self.wanted[topic]
             try:
                 part = decode_pose(data) if kind == 'pose' else decode_twist(data)
@@ -276,38 +284,93 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
         diagnostics = OfflineDiagnostics(scene.node.diagnostics_period)
         encoder = messages.OutputEncoder(scene.names, scene.world_frame, scene.bodies)
         depth = scene.node.queue_depth
-        with BagWriter(out_bag, storage or reader.storage, compress,
-                       qos=lambda topic: [qos.offered(topic, depth)],
-                       custom_data=describe(scene)) as writer:
-            for step in source.steps(reader):
-                resolved = resolver.resolve(step.stamp, step.inputs)
-                outputs = encoder.encode(
-                    resolved, per_body=step.per_body and scene.node.per_body_outputs,
-                    marker_lifetime=scene.node.marker_lifetime,
-                    diagnostics=diagnostics.update(resolved, resolver,
-                                                   getattr(source, 'sync_dropped', 0)),
-                    markers=topics is None or 'contact_markers' in topics,
-                    wrenches=scene.node.contact_wrench,
-                    body_markers=scene.node.body_markers_period
-                    if topics is None or 'body_markers' in topics else None,
-                    tf=scene.node.publish_tf)
-                for topic, kind, data in outputs:
-                    if topics is None or topic in topics:
-                        writer.write_raw(absolute(topic, namespace), kind, step.log_time, data)
-                count_states(summary.contacts, resolved.report.state)
-                for rejection in _rejections(resolved):
-                    summary.rejected[rejection.reason] = \
-                        summary.rejected.get(rejection.reason, 0) + 1
-                summary.messages_in += len(step.inputs) * 2 if step.per_body else 1
-                summary.steps += 1
-                if progress is not None:
-                    progress(summary.steps, total)
-            summary.messages_out = writer.count
+        try:
+            with BagWriter(out_bag, storage or reader.storage, compress,
+                           qos=lambda topic: [qos.offered(topic, depth)],
+                           custom_data=describe(scene)) as writer:
+                for step in _readable(source.steps(reader), in_bag):
+                    resolved = resolver.resolve(step.stamp, step.inputs)
+                    outputs = encoder.encode(
+                        resolved, per_body=step.per_body and scene.node.per_body_outputs,
+                        marker_lifetime=scene.node.marker_lifetime,
+                        diagnostics=diagnostics.update(resolved, resolver,
+                                                       getattr(source, 'sync_dropped', 0)),
+                        markers=topics is None or 'contact_markers' in topics,
+                        wrenches=scene.node.contact_wrench,
+                        body_markers=scene.node.body_markers_period
+                        if topics is None or 'body_markers' in topics else None,
+                        tf=scene.node.publish_tf)
+                    for topic, kind, data in outputs:
+                        if topics is None or topic in topics:
+                            writer.write_raw(absolute(topic, namespace), kind, step.log_time,
+                                             data)
+                    count_states(summary.contacts, resolved.report.state)
+                    for rejection in _rejections(resolved):
+                        summary.rejected[rejection.reason] = \
+                            summary.rejected.get(rejection.reason, 0) + 1
+                    summary.messages_in += len(step.inputs) * 2 if step.per_body else 1
+                    summary.steps += 1
+                    summary.served += len(resolved.names)
+                    if progress is not None:
+                        progress(summary.steps, total)
+                summary.messages_out = writer.count
+                for reason, count in source.refused.items():
+                    summary.rejected[reason] = summary.rejected.get(reason, 0) + count
+                _check_complete(reader, source, in_bag)
+                _check_resolved(summary, in_bag)
+        except BaseException:
+            # a failed run leaves no output behind (a rerun must not meet "already exists")
+            shutil.rmtree(out_bag, ignore_errors=True)
+            raise
         summary.incomplete = source.incomplete
-        for reason, count in source.refused.items():
-            summary.rejected[reason] = summary.rejected.get(reason, 0) + count
     summary.wall_s = time.perf_counter() - start
     return summary
+
+
+BATCHED_TYPE = 'collres_ros/msg/BodyStateArray'
+PART_TYPES = {'pose': 'geometry_msgs/msg/PoseStamped', 'twist': 'geometry_msgs/msg/TwistStamped'}
+
+
+def _check_type(reader: Any, topic: str, expected: str) -> None:
+    """ReplayError when an input topic of the bag has another message type."""
+    found = reader.topics.get(topic)
+    if found != expected:
+        raise ReplayError(f'{reader.path}: topic {topic} has type {found}, expected {expected}')
+
+
+def _readable(steps: Iterator[Step], path: Path) -> Iterator[Step]:
+    """The steps, with any failure of reading or decoding the bag as one ReplayError."""
+    while True:
+        try:
+            step = next(steps)
+        except StopIteration:
+            return
+        except (ReplayError, KeyboardInterrupt):
+            raise
+        except Exception as error:   # rosbags, mcap, zstd and CDR errors: a damaged bag
+            text = (str(error).strip().splitlines() or [''])[0][:200]
+            raise ReplayError(f'{path}: unreadable part of the bag '
+                              f'({type(error).__name__}: {text})') from None
+        yield step
+
+
+def _check_complete(reader: Any, source: Any, path: Path) -> None:
+    """ReplayError when fewer input messages were read than the bag's metadata counts."""
+    for topic, read in sorted(getattr(source, 'read', {}).items()):
+        expected = reader.topic_count(topic)
+        if read < expected:
+            raise ReplayError(f'{path}: read {read} of the {expected} messages of {topic}: '
+                              'the bag is damaged (part of its data is unreadable)')
+
+
+def _check_resolved(summary: ReplaySummary, path: Path) -> None:
+    """ReplayError when the run resolved nothing (no step, or every input refused)."""
+    if summary.steps == 0:
+        raise ReplayError(f'nothing resolved: no complete step in {path}')
+    if summary.served == 0:
+        reasons = ', '.join(f'{k} {v}' for k, v in sorted(summary.rejected.items()))
+        raise ReplayError(f'nothing resolved: every input was refused ({reasons}); '
+                          'is --params the scene of this bag?')
 
 
 def _scene(params: Path | None, reader: Any, namespace: str) -> Any:

@@ -28,7 +28,7 @@ from collres_ros.core.config import (
     SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
 from collres_ros.core.shapes import mesh_points
-from collres_ros.core.types import BodySpec, BodyStates
+from collres_ros.core.types import BodySpec, BodyStates, CollisionFilter
 
 NODE_NAME = 'collres_node'
 SIM_NAME = 'collres_sim'
@@ -41,8 +41,10 @@ NAME_MAX_LENGTH = TOPIC_MAX_LENGTH - len(LONGEST_BODY_TOPIC.format(''))
 # Parameters every rclpy node has; accepted and ignored here.
 ROS_BUILTIN = ('use_sim_time', 'start_type_description_service')
 
-# Runtime-changeable parameters: solver settings, materials and node settings.
+# Runtime-changeable parameters: solver settings, materials, collision filter, node settings.
 MATERIALS = ('restitution', 'static_friction', 'kinetic_friction')
+COLLISION_BITS = ('collision_group', 'collision_mask')
+PAIR_SEPARATOR = ':'   # ignore_pairs entries are "a:b"
 SIZES = {'sphere': ('[r]', 1), 'box': ('[x, y, z]', 3), 'capsule': ('[r, length]', 2),
          'cylinder': ('[r, length]', 2), 'cone': ('[r, length]', 2),
          'plane': ('[nx, ny, nz, d]', 4)}
@@ -81,6 +83,11 @@ class Scene:
         """Index of a body by name (ValueError when unknown)."""
         return self.names.index(name)
 
+    @property
+    def collision_filter(self) -> CollisionFilter:
+        """Which pairs may collide: the bodies' collision bits and ``ignore_pairs``."""
+        return collision_filter_of(self.values, self.names)
+
 
 # --- the table of every parameter -------------------------------------------------------------
 
@@ -107,8 +114,10 @@ def is_runtime_changeable(name: str) -> bool:
     """Whether a running node accepts a change of this parameter (others are read-only)."""
     if name.startswith('solver.') or name in {s.name for s in NODE_PARAMS}:
         return name != 'queue_depth'
+    if name == 'ignore_pairs':
+        return True
     parts = name.split('.')
-    return len(parts) == 3 and parts[0] == 'body' and parts[2] in MATERIALS
+    return len(parts) == 3 and parts[0] == 'body' and parts[2] in MATERIALS + COLLISION_BITS
 
 
 # --- reading files ----------------------------------------------------------------------------
@@ -358,6 +367,31 @@ def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path
     return tuple(tuple(float(c) for c in p) for p in points)
 
 
+def ignored_pairs(entries: Iterable[str], names: list[str]) -> list[tuple[int, int]]:
+    """Body index pairs of ``ignore_pairs`` entries "a:b" (ValueError: one line naming it)."""
+    pairs = []
+    for entry in entries:
+        parts = [part.strip() for part in entry.split(PAIR_SEPARATOR)]
+        if len(parts) != 2 or not all(parts):
+            _fail('ignore_pairs', 'each entry must be "a:b", two body names', entry)
+        for part in parts:
+            if part not in names:
+                _fail('ignore_pairs', f'body {_short(part)!r} is not in bodies', entry)
+        if parts[0] == parts[1]:
+            _fail('ignore_pairs', 'an entry names one body twice', entry)
+        a, b = names.index(parts[0]), names.index(parts[1])
+        pairs.append((min(a, b), max(a, b)))
+    return pairs
+
+
+def collision_filter_of(values: Mapping[str, Any], names: list[str]) -> CollisionFilter:
+    """The collision filter of validated values: per-body bits and ``ignore_pairs``."""
+    return CollisionFilter(
+        tuple(values[f'body.{n}.collision_group'] for n in names),
+        tuple(values[f'body.{n}.collision_mask'] for n in names),
+        tuple(ignored_pairs(values['ignore_pairs'], names)))
+
+
 def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
           ) -> tuple[BodySpec, np.ndarray]:
     """BodySpec and the 13-vector initial state of body ``name`` from validated values."""
@@ -449,6 +483,7 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
     if not world_frame:
         _fail('world_frame', 'must not be empty', world_frame)
     built = [_body(name, typed, base_dir) for name in bodies_value]
+    collision_filter_of(typed, bodies_value)   # ValueError: a bad ignore_pairs entry
     state = np.array([s for _, s in built]).reshape(len(built), 13)
     initial = BodyStates(state[:, 0:3].copy(), state[:, 3:7].copy(), state[:, 7:10].copy(),
                          state[:, 10:13].copy())
@@ -481,8 +516,9 @@ def scene_to_yaml(scene: Scene) -> str:
         for part in path:
             target = target.setdefault(part, {})
         target[leaf] = list(value) if isinstance(value, tuple) else value
-    return yaml.safe_dump({'/**': {'ros__parameters': nested}}, sort_keys=False,
-                          default_flow_style=None, width=99)
+    dumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)   # libyaml: the same text, faster
+    return yaml.dump({'/**': {'ros__parameters': nested}}, Dumper=dumper, sort_keys=False,
+                     default_flow_style=None, width=99)
 
 
 def with_changes(scene: Scene, changes: Mapping[str, Any]) -> Scene:

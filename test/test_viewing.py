@@ -23,7 +23,7 @@ LAUNCH = ROOT / 'launch' / 'collres.launch.py'
 RVIZ = ROOT / 'rviz' / 'collres.rviz'
 FOXGLOVE = ROOT / 'foxglove' / 'collres_layout.json'
 EXECUTABLES = ('collres_node', 'collres_sim', 'collres_replay', 'collres_demo')
-LAUNCH_ARGUMENTS = {'params_file', 'namespace', 'use_sim_time', 'start_sim'}
+LAUNCH_ARGUMENTS = {'params_file', 'namespace', 'use_sim_time', 'start_sim', 'lifecycle'}
 # `body_markers` is the body-shape MarkerArray of the design's topic table; the viewers
 # show it as soon as the node publishes it (same type as contact_markers).
 PLANNED_TOPICS = {'/body_markers'}
@@ -83,6 +83,11 @@ def test_launch_file_names_only_executables_arguments_and_parameters_that_exist(
         assert exe in EXECUTABLES and f'{exe} = collres_ros.' in setup
         assert f'scripts/{exe}' in cmake, f'{exe} is not installed by CMake'
         assert ast.literal_eval(_keyword(node, 'name')) == exe
+        # command-line flags given to an executable are flags its main knows
+        flags = _keyword(node, 'arguments')
+        main = (ROOT / 'collres_ros' / f'{exe[len("collres_"):]}.py').read_text()
+        for flag in ([] if flags is None else ast.literal_eval(flags)):
+            assert f"'{flag}'" in main, f'{exe} has no flag {flag}'
         # every parameter given as a dict is one the node declares (or a ROS builtin)
         known = {s.name for s in params.all_specs()} | set(params.ROS_BUILTIN)
         for item in _keyword(node, 'parameters').elts:

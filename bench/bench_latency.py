@@ -88,11 +88,12 @@ def write_scene(path: Path, bodies: list[Any], state: Any) -> Path:
         else:
             fields += [f'mass: {b.mass!r}', f'restitution: {b.restitution!r}',
                        f'static_friction: {b.static_friction!r}',
-                       f'kinetic_friction: {b.kinetic_friction!r}',
-                       f'position: {_list(state.position[k])}',
-                       f'orientation: {_list(state.orientation[k])}']
+                       f'kinetic_friction: {b.kinetic_friction!r}']
+        # static bodies too: the bin's floor and walls are where the pile settled against them
+        fields += [f'position: {_list(state.position[k])}',
+                   f'orientation: {_list(state.orientation[k])}']
         lines.append(f'      {b.name}: {{{", ".join(fields)}}}')
-    lines += ['collres_node:', '  ros__parameters:', '    diagnostics_period: 0.5',
+    lines += ['/**/collres_node:', '  ros__parameters:', '    diagnostics_period: 0.5',
               '    queue_depth: 10']
     path.write_text('\n'.join(lines) + '\n')
     return path

@@ -4,6 +4,12 @@ Every test process gets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; the
 ``ros_domain`` fixture hands each test a fresh ROS_DOMAIN_ID (derived from the
 pytest process id, so concurrent runs on one machine rarely meet) and sets it
 in ``os.environ`` for the test and the processes it starts.
+
+Property tests (hypothesis) run derandomized, without an example database: the
+same cases on every machine and every run, so a fresh clone passes or fails
+the same way each time. A long random search belongs in ``bench/``; set
+``HYPOTHESIS_PROFILE=random`` to explore locally, and turn what it finds into a
+plain regression test.
 """
 
 from __future__ import annotations
@@ -12,6 +18,11 @@ import itertools
 import os
 
 import pytest
+from hypothesis import settings
+
+settings.register_profile('fixed', derandomize=True, database=None, print_blob=True)
+settings.register_profile('random', derandomize=False, print_blob=True)
+settings.load_profile(os.environ.get('HYPOTHESIS_PROFILE', 'fixed'))
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 # Domain ids 1..100 are safe for the default port mapping; 8 per run. An exported

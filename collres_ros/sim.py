@@ -98,6 +98,18 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 return True
 
             wall_start = time.monotonic()  # reset once the node answered discovery
+            delivered: list[bool] = []
+
+            def deliver_first_step() -> None:
+                # Every subscriber counted before the run (the node, a recorder) acknowledges
+                # the first step: a reader our publisher matched may not have matched us yet,
+                # and would lose the steps published until it does.
+                from rclpy.duration import Duration
+                acked = all(p.wait_for_all_acked(Duration(seconds=min(args.wait, 10.0)))
+                            for p in inputs)
+                if not acked:
+                    log.warning('a subscriber of the inputs did not acknowledge the first step')
+                delivered.append(True)
 
             def exchange(stamp: int, states: Any) -> Any:
                 if args.realtime:
@@ -115,6 +127,8 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 else:
                     publisher.publish(states_codec.encode(stamp, sim.world_frame, published,
                                                           values))
+                if not delivered:
+                    deliver_first_step()
                 if not spin_until(lambda: stamp in answers, args.step_timeout):
                     log.warning(f'no corrected state for stamp {stamp} ns within '
                                 f'{args.step_timeout} s: step dropped')

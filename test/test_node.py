@@ -47,14 +47,20 @@ def running(ros_domain, tmp_path):
                         ('bodies/ball/twist/corrected', TwistStamped)):
         peer.listen(topic, kind)
     peer.advertise('body_states', BodyStateArray)
-    up = peer.wait(lambda: peer.connected('body_states') and any(
-        s.get_publisher_count() for s in peer.node.subscriptions
-        if s.topic_name == '/body_states/corrected'), 30.0)
-    assert up, f'node did not come up: {node.output()}'
-    yield peer, node
-    peer.close()
-    if node.poll() is None:
-        processes.stop(node)
+    # the batched outputs' publishers all matched (a loaded machine can match `contacts` well
+    # after `body_states/corrected`, and a step published before it would lose its contacts);
+    # per-body outputs are advertised with the first per-body step
+    batched = {'/body_states/corrected', '/contacts', '/diagnostics'}
+    try:
+        up = peer.wait(lambda: peer.connected('body_states') and all(
+            s.get_publisher_count() for s in peer.node.subscriptions
+            if s.topic_name in batched), 30.0)
+        assert up, f'node did not come up: {node.output()}'
+        yield peer, node
+    finally:   # a node left running would answer the next test's steps on this domain
+        peer.close()
+        if node.poll() is None:
+            processes.stop(node)
 
 
 def step(peer, stamp, bodies, frame='world', timeout=10.0):

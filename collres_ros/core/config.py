@@ -112,6 +112,18 @@ class SolverSettings:
 
 _SOLVER_BY_NAME = {p.name: p for p in SOLVER_PARAMS}
 
+# Tunings of the compiled solver that are not parameters: each handed to
+# ``_native.SolverParams`` by its name (``world.solver_params``).
+SOLVER_TUNING: tuple[ParamSpec, ...] = (
+    ParamSpec('warm_start_ratio', 'double', 2.0,
+              'Last step\'s impulses are scaled by dt / last dt and warm start a contact only '
+              'while that ratio lies in [1 / this, this] (and the last step was not fresh); '
+              'otherwise the step starts cold', 1.0, 1e3,
+              reason='impulses scale with the step length only near it (Box2D and Jolt '
+                     'assume a fixed dt); a 1 ns step or a 1 ms fresh step before a 30 Hz '
+                     'one would otherwise launch a resting body'),
+)
+
 
 def check_value(spec: ParamSpec, value: Any) -> None:
     """Raise ValueError with a one-line reason when ``value`` is outside ``spec``."""
@@ -148,7 +160,8 @@ def range_text(spec: ParamSpec) -> str:
 assert [f.name for f in fields(SolverSettings)] == [p.name for p in SOLVER_PARAMS]
 assert all(getattr(SolverSettings(), p.name) == p.default for p in SOLVER_PARAMS)
 
-__all__: Sequence[str] = ('ParamSpec', 'SOLVER_PARAMS', 'SolverSettings', 'check_value',
+__all__: Sequence[str] = ('ParamSpec', 'SOLVER_PARAMS', 'SOLVER_TUNING', 'SolverSettings',
+                          'check_value',
                           'range_text', 'RESTITUTION_RULES', 'FRICTION_RULES')
 
 

@@ -213,7 +213,7 @@ class Resolver:
         # 3. the world step
         world_start = time.perf_counter()
         with np.errstate(over='ignore', invalid='ignore'):   # the guard below reports it
-            result = self.world.step(previous, current, dt, active)
+            result = self.world.step(previous, current, dt, active, fresh=not usable)
         world_time = time.perf_counter() - world_start
         out = result.states
         # one guard, one report: a body the world repaired or that is still non-finite

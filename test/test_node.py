@@ -285,3 +285,18 @@ def test_oversized_and_badly_stamped_inputs_are_refused_and_counted(running):
     assert 0 not in stamps and T0 + 2 * DT in stamps
     assert node.poll() is None and 'Traceback' not in node.output()
     assert 'too_many_bodies' in node.output()
+
+
+def test_a_message_with_unknown_bodies_serves_the_known_ones(running):
+    """An estimator publishes every object it tracks, more than the scene's three bodies:
+    the known ones are resolved and answered, each unknown one refused and counted."""
+    peer, node = running
+    ghosts = [body(f'tracked{k}', 0.5 + k, x=3.0 + k) for k in range(5)]
+    out = step(peer, T0, ghosts[:2] + [body('ball', 0.5), body('box', 0.1, x=1.0)] + ghosts[2:])
+    assert sorted(b.name for b in out.bodies) == ['ball', 'box']
+    assert peer.wait(lambda: diagnostics_values(peer).get('count.unknown_body') == '5', 10.0), \
+        diagnostics_values(peer)
+    values = diagnostics_values(peer)
+    print({k: v for k, v in values.items() if k.startswith(('count.', 'messages_refused'))})
+    assert 'count.too_many_bodies' not in values
+    assert 'unknown_body' in node.output()

@@ -252,6 +252,13 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('queue_depth', 'integer', 10,
               'Depth of the reliable QoS of state topics (keep last)', 1, 1000,
               reason='a few steps of buffering; old states are worthless to a control loop'),
+    ParamSpec('max_message_bodies', 'integer', 10000,
+              'Most bodies a body_states message may hold; a longer one is refused whole '
+              '(too_many_bodies) before it is read. Bodies the scene does not know are refused '
+              'one by one (unknown_body), the others served',
+              1, 1000000,
+              reason='an estimator may publish every object it tracks; a bound on the memory '
+                     'and time one message takes (10,000 bodies: 1.2 MB)'),
     ParamSpec('min_rate', 'double', 0.0,
               'Expected step rate: /diagnostics warns when the rate over its window falls '
               'below it, and reports an error when no step comes (0: no rate check)',
@@ -284,6 +291,7 @@ class NodeSettings:
     diagnostics_period: float = 1.0
     per_body_outputs: bool = True
     queue_depth: int = 10
+    max_message_bodies: int = 10000
     min_rate: float = 0.0
     contact_wrench: bool = False
     body_markers_period: float = 0.05

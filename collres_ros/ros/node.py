@@ -26,10 +26,11 @@ only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
 ``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
-Python message objects) after checking their size (more bodies than the scene
-has, a malformed message, a negative or unnormalised stamp: refused at once and
-counted), and every output is published as bytes built by
-``messages.OutputEncoder``. ``/diagnostics`` reports the callback's time split
+Python message objects) after checking their size (more bodies than
+``max_message_bodies``, a malformed message, a negative or unnormalised stamp:
+refused at once and counted; bodies the scene does not know are refused one by
+one, ``unknown_body``, and the known ones served), and every output is published
+as bytes built by ``messages.OutputEncoder``. ``/diagnostics`` reports the callback's time split
 (``time.decode_ms``, ``time.resolve_ms``, ``time.world_ms``, ``time.encode_ms``,
 ``time.publish_ms``).
 
@@ -48,7 +49,9 @@ other bodies are still served. Time comes from the message stamps only, so
 
 from __future__ import annotations
 
+import threading
 import time
+import traceback
 from collections import Counter
 from functools import partial
 from pathlib import Path
@@ -60,7 +63,8 @@ from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidTopicNameException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.executors import ExternalShutdownException, ShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from visualization_msgs.msg import MarkerArray
@@ -121,6 +125,9 @@ class CollresNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        # one step at a time: the per-body inputs' thread and the executor's callbacks share
+        # the resolver, the sync and the counters
+        self._lock = threading.RLock()
         self._last_log: dict[str, float] = {}
         self._suppressed: dict[str, int] = {}
         self.configured = False   # resolver, topics and timer exist (always, unless managed)
@@ -136,7 +143,7 @@ class CollresNode(Node):
         self.resolver = Resolver.for_scene(self.scene)
         body_names = self.scene.names
         # the edge: CDR bytes in and out, decoded into and encoded from the core's arrays
-        self.states_codec = codec.StatesCodec(max_bodies=len(body_names))
+        self.states_codec = codec.StatesCodec(max_bodies=self.scene.node.max_message_bodies)
         self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame,
                                               self.scene.bodies)
         self.refused: Counter[str] = Counter()   # inputs refused before the resolver
@@ -157,19 +164,6 @@ class CollresNode(Node):
         self._inputs = [self.create_subscription(
             BodyStateArray, names.STATES, self._on_states, self._qos(), raw=True,
             qos_overriding_options=qos.OVERRIDES)]
-        try:
-            for name in body_names:
-                self._inputs.append(self.create_subscription(
-                    PoseStamped, names.pose_topic(name), partial(self._on_part, name, 'pose'),
-                    self._qos(), raw=True, qos_overriding_options=qos.OVERRIDES))
-                self._inputs.append(self.create_subscription(
-                    TwistStamped, names.twist_topic(name),
-                    partial(self._on_part, name, 'twist'), self._qos(), raw=True,
-                    qos_overriding_options=qos.OVERRIDES))
-        except InvalidTopicNameException as error:   # a long name in a long namespace
-            raise ValueError(f'bodies: a topic name is invalid in namespace '
-                             f'{self.get_namespace()!r} '
-                             f'({str(error).splitlines()[0][:120]})') from None
         self._timer = self._diagnostics_timer()
         self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
@@ -178,6 +172,7 @@ class CollresNode(Node):
         self._parts_since_step = 0       # per-body inputs since the last per-body step
         self._last_part_step = time.monotonic()
         self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)
+        self.per_body_inputs = PerBodyInputs(self, body_names)   # last: its thread starts
         self.configured = True
         if self.scene.node.publish_tf and messages.TYPES[names.TF] not in CLASSES:
             self.get_logger().warning('publish_tf: tf2_msgs is not installed here: no /tf')
@@ -187,6 +182,7 @@ class CollresNode(Node):
 
     def release_resolution(self) -> None:
         """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
+        self.per_body_inputs.close()
         self.serving = self.configured = False
         self.destroy_timer(self._timer)
         for subscription in self._inputs:
@@ -196,14 +192,18 @@ class CollresNode(Node):
         self._inputs, self._publishers_by_topic = [], {}
         del self.resolver, self.sync, self.encoder, self.states_codec
 
+    def destroy_node(self) -> None:
+        if self.configured:   # the per-body inputs' thread stops first
+            self.release_resolution()
+        super().destroy_node()
+
     # --- parameters -------------------------------------------------------------------------
 
     def _declare_parameters(self) -> None:
-        for spec in params.node_specs(self.scene.names):
-            read_only = not params.is_runtime_changeable(spec.name)
-            value = params.declared_value(spec, self.scene.values[spec.name])
-            self.declare_parameter(spec.name, value, params.descriptor(spec, read_only),
-                                   ignore_override=True)
+        params.declare_all(self, (
+            (spec.name, params.declared_value(spec, self.scene.values[spec.name]),
+             params.descriptor(spec, not params.is_runtime_changeable(spec.name)))
+            for spec in params.node_specs(self.scene.names)))
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         changes = {p.name: params.plain_value(p.value) for p in parameters
@@ -218,6 +218,10 @@ class CollresNode(Node):
         return SetParametersResult(successful=True)
 
     def _after_set_parameters(self, parameters: list[Parameter]) -> None:
+        with self._lock:
+            self._apply_parameters(parameters)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
         new, self._pending = self._pending, None
         if new is None:
             return
@@ -234,6 +238,7 @@ class CollresNode(Node):
         if new.collision_filter != old.collision_filter:
             self.resolver.collision_filter = new.collision_filter
         self.resolver.stale_timeout = new.node.stale_timeout
+        self.states_codec.max_bodies = new.node.max_message_bodies
         self.sync.slop_ns = seconds_ns(new.node.sync_slop)
         self.sync.stale_timeout_ns = seconds_ns(new.node.stale_timeout)
         if new.node.diagnostics_period != old.node.diagnostics_period:
@@ -244,6 +249,10 @@ class CollresNode(Node):
     # --- inputs -----------------------------------------------------------------------------
 
     def _on_states(self, data: bytes, info: Any) -> None:
+        with self._lock:
+            self._take_states(data, info)
+
+    def _take_states(self, data: bytes, info: Any) -> None:
         if not self.serving:
             return
         start = time.perf_counter()
@@ -256,7 +265,12 @@ class CollresNode(Node):
         batch = InputBatch(decoded.names, decoded.values, decoded.frame_id, decoded.frame_id)
         self._step(decoded.stamp_ns, batch, False, start)
 
-    def _on_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
+    def on_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
+        """A per-body pose or twist (bytes), from the per-body inputs' thread."""
+        with self._lock:
+            self._take_part(name, kind, data, info)
+
+    def _take_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
         if not self.serving:
             return
         start = time.perf_counter()
@@ -329,8 +343,14 @@ class CollresNode(Node):
     def _publisher(self, topic: str, kind: type) -> Any:
         publisher = self._publishers_by_topic.get(topic)
         if publisher is None:
-            publisher = self.create_publisher(kind, topic, self._qos(),
-                                              qos_overriding_options=qos.OVERRIDES)
+            if topic.startswith(names.BODIES):   # per body: see PerBodyInputs
+                profile = qos.overridden(self, self.resolve_topic_name(topic), 'publisher',
+                                         self._qos())
+                publisher = self.create_publisher(kind, topic, profile, event_callbacks=(
+                    PublisherEventCallbacks(use_default_callbacks=False)))
+            else:
+                publisher = self.create_publisher(kind, topic, self._qos(),
+                                                  qos_overriding_options=qos.OVERRIDES)
             self._publishers_by_topic[topic] = publisher
         return publisher
 
@@ -404,9 +424,9 @@ class CollresNode(Node):
                 **{key: 0.0 for key in TIMED}}
 
     def _publish_diagnostics(self) -> None:
-        if not self.serving:
-            return
-        self._diagnostics.publish(diagnostics_array(self.snapshot()))
+        with self._lock:
+            if self.serving:
+                self._diagnostics.publish(diagnostics_array(self.snapshot()))
 
     def _unpaired(self, now: float) -> str:
         """Why per-body inputs give no step, once they have not for UNPAIRED_AFTER s."""
@@ -433,6 +453,79 @@ class CollresNode(Node):
             self._reported['sync_refused'] = refused
             self._warn('stray_stamp', 'per-body messages refused, stamps far from the others '
                        f'and never confirmed: {", ".join(f"{k} {v}" for k, v in refused.items())}')
+
+
+class PerBodyInputs:
+    """The ``bodies/<name>/pose`` and ``twist`` subscriptions: a node of their own
+    (``<node>_per_body``, same namespace), spun by an executor in a thread of its own.
+
+    Why: rclpy's executor rebuilds its wait set at every wake-up, in Python, over every
+    entity of its nodes, and checks each QoS event handler against a list of them (quadratic
+    in their number). With two subscriptions per body on the node itself, a 1000-body scene
+    spent 190-320 ms per wake-up before a ``body_states`` message was taken. Here the
+    batched path's executor holds a handful of entities whatever the body count; this
+    executor waits (releasing the GIL) until per-body messages arrive. The subscriptions
+    have no default QoS-event handlers (rclpy's incompatible-QoS warning), which would make
+    that check quadratic again. QoS overrides are read as for every topic
+    (``qos_overrides./bodies/<name>/pose.subscription.depth``) and declared on the node
+    where set (``qos.overridden``). Each message is handed to ``CollresNode.on_part``.
+    """
+
+    def __init__(self, owner: 'CollresNode', body_names: Sequence[str]) -> None:
+        self.owner = owner
+        self.failure: Optional[BaseException] = None
+        self.ready = threading.Event()   # every subscription exists
+        self._closing = False
+        self.node = Node(f'{owner.get_name()}_per_body', namespace=owner.get_namespace(),
+                         context=owner.context, start_parameter_services=False,
+                         automatically_declare_parameters_from_overrides=False)
+        self._wanted = []   # (message type, topic, callback, QoS profile)
+        try:
+            for name in body_names:
+                for kind, message, topic in (('pose', PoseStamped, names.pose_topic(name)),
+                                             ('twist', TwistStamped, names.twist_topic(name))):
+                    profile = qos.overridden(owner, self.node.resolve_topic_name(topic),
+                                             'subscription', owner._qos())
+                    self._wanted.append((message, topic, partial(owner.on_part, name, kind),
+                                         profile))
+        except InvalidTopicNameException as error:   # a long name in a long namespace
+            self.node.destroy_node()
+            raise ValueError(f'bodies: a topic name is invalid in namespace '
+                             f'{owner.get_namespace()!r} '
+                             f'({str(error).splitlines()[0][:120]})') from None
+        except BaseException:
+            self.node.destroy_node()
+            raise
+        self.executor = SingleThreadedExecutor(context=owner.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._run, name='collres_per_body', daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        """Create the subscriptions (here, so that the node serves body_states meanwhile:
+        2000 of them take a second or more), then spin."""
+        try:
+            for message, topic, callback, profile in self._wanted:
+                if self._closing:
+                    return
+                self.node.create_subscription(
+                    message, topic, callback, profile, raw=True,
+                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+            self.ready.set()
+            self.executor.spin()
+        except (ShutdownException, ExternalShutdownException):
+            pass
+        except BaseException as failure:   # as a failure in the main thread: the node ends
+            self.failure = failure
+            self.owner.get_logger().error('per-body inputs: ' + traceback.format_exc())
+            self.owner.context.try_shutdown()
+
+    def close(self) -> None:
+        """Stop the thread, then free the subscriptions and the node."""
+        self._closing = True
+        self.executor.shutdown(timeout_sec=2.0)
+        self.thread.join(2.0)
+        self.node.destroy_node()
 
 
 def _check_files(argv: Sequence[str]) -> None:
@@ -484,7 +577,10 @@ def _spin(argv: Sequence[str]) -> int:
         if rclpy.ok():   # a real failure; otherwise a signal shut us down while starting
             raise
     finally:
+        failure = node.per_body_inputs.failure if node.configured else None
         node.destroy_node()
+    if failure is not None:
+        raise failure
     return 0
 
 

@@ -84,18 +84,33 @@ def plane_normal_offset(spec: BodySpec) -> tuple[np.ndarray, float]:
 
 
 def convex_points(spec: BodySpec) -> np.ndarray:
-    """Vertices (K, 3) m, body frame, of a convex spec (needs at least 4, not coplanar)."""
+    """Vertices (K, 3) m, body frame, of a convex spec: ValueError unless a hull can be built
+    (at least 4 finite points spanning a volume, ``hull_problem``)."""
     points = np.asarray(spec.points, dtype=float).reshape(-1, 3)
-    if points.shape[0] < 4 or not np.all(np.isfinite(points)):
-        raise ValueError(f'{spec.name}: convex needs at least 4 finite points')
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    if spread[-1] <= 1e-9 * max(spread[0], 1e-300):
-        raise ValueError(f'{spec.name}: convex points are coplanar (no volume)')
+    problem = hull_problem(points)
+    if problem:
+        raise ValueError(f'{spec.name}: convex {problem}')
     return points
 
 
+def hull_problem(points: np.ndarray) -> str:
+    """Why coal cannot build a convex hull of (K, 3) points (m), or '' when it can.
+
+    The compiled core's check (src/shapes.h): fewer than 4 points, a non-finite
+    coordinate, or points on one spot, line or plane (flatter than
+    ``_native.HULL_FLATNESS`` of their extent). qhull, under coal, kills the
+    process on such a set, so every hull is built only after this check.
+    """
+    from collres_ros.core import _native
+    return str(_native.hull_problem(np.asarray(points, dtype=float).reshape(-1).tolist()))
+
+
 def convex_hull(points: np.ndarray) -> coal.Convex:
-    """coal convex hull (with its triangles, so volume and inertia work) of (K, 3) points."""
+    """coal convex hull (with its triangles, so volume and inertia work) of (K, 3) points
+    (ValueError when ``hull_problem`` finds none can be built)."""
+    problem = hull_problem(points)
+    if problem:
+        raise ValueError(f'convex {problem}')
     vertices = coal.StdVec_Vec3s()
     for point in np.asarray(points, dtype=float):
         vertices.append(point)

@@ -81,6 +81,17 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               'A step longer than this is treated as a fresh start (no sweep, no warm start)',
               1e-6, 3600.0, unit='s',
               reason='after a pause the interpolated motion is meaningless'),
+    ParamSpec('max_pairs', 'integer', 20000,
+              'Budget of pairs queried per step (broad-phase pairs whose bounding spheres come '
+              'within reach); beyond it the pairs whose spheres overlap deepest are kept '
+              '(counted: contact_budget)', 1, 10_000_000,
+              reason='bounds a step\'s time and memory whatever the poses (MuJoCo nconmax): '
+                     '2000 boxes at one point take 0.5 s; a falling 1000-body pile needs 8500'),
+    ParamSpec('max_contacts', 'integer', 40000,
+              'Budget of contact rows per step; beyond it the deepest are kept '
+              '(counted: contact_budget)', 1, 10_000_000,
+              reason='bounds the solver\'s work (PhysX contact buffer); a 1000-cube pile has '
+                     '16000'),
 )
 
 
@@ -102,6 +113,8 @@ class SolverSettings:
     warm_start: bool = True
     ccd: bool = True
     max_dt: float = 0.5
+    max_pairs: int = 20000
+    max_contacts: int = 40000
 
     def with_values(self, **values: Any) -> 'SolverSettings':
         """Copy with some fields changed, each validated (ValueError names the field)."""
@@ -161,6 +174,10 @@ VELOCITY_LIMIT = 1e9           # m/s and rad/s, |component|
 INERTIA_RANGE = (1e-30, 1e30)  # kg m^2: a 1e-9 kg body of 1 um to a 1e9 kg body of 1000 km
 MESH_MAX_BYTES = 64 * 1024 * 1024   # a larger vertex file is not a collision hull
 MESH_SUFFIXES = ('.obj', '.stl')
+# A params file (and a bag's recorded params) is read within these bounds, as rcl reads it:
+# no aliases, no tags but !!str; larger or deeper documents are refused before parsing ends.
+PARAMS_FILE_MAX_BYTES = 64 * 1024 * 1024   # a scene of inlined hull vertices fits
+PARAMS_FILE_MAX_DEPTH = 32                 # nested mappings and lists
 # Collision filtering (Box2D category/mask bits, Gazebo collide_bitmask): 16 bits, a body in
 # bit 0 that collides with every bit, so a scene that does not filter is unchanged.
 DEFAULT_COLLISION_GROUP = 1

@@ -14,7 +14,9 @@ processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
   every step has the pile's contacts and impulses) as pre-serialised
   BodyStateArray bytes with a new stamp each step, inputs independent of the
   answers; ``simulator``, each input the latest answer integrated one step
-  (semi-implicit Euler with gravity, as collres_sim does). First lock-step
+  (semi-implicit Euler with gravity, as collres_sim does); ``per_body``, the
+  estimator's inputs as ``bodies/<name>/pose`` and ``twist`` messages (the
+  node steps once every body has both). First lock-step
   (publish, wait for the answer, repeat: the highest rate the node sustains),
   then paced at the given rate (``--rates``, one per size) for ``--duration`` s;
 * this process: subscribers of ``body_states/corrected``, ``contacts`` and
@@ -165,7 +167,7 @@ class Inputs:
             self.latest = bytes(data)
 
     def next(self, stamp: int) -> bytes:
-        if self.mode == 'estimator':
+        if self.mode in ('estimator', 'per_body'):
             return with_stamp(self.template, stamp)
         from collres_ros.ros.messages import state_values, states_of
         decoded = self.codec.decode(self.latest)
@@ -187,6 +189,29 @@ def publisher(args: argparse.Namespace) -> int:
     node = rclpy.create_node('collres_bench_publisher')
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
     pub = node.create_publisher(BodyStateArray, 'body_states', qos)
+    inputs_of = [pub]
+    if args.mode == 'per_body':
+        from geometry_msgs.msg import PoseStamped, TwistStamped
+
+        from collres_ros.ros import codec, names
+        body_names = inputs.codec.decode(bytes(inputs.template)).names
+        parts = [(node.create_publisher(PoseStamped, names.pose_topic(n), qos),
+                  node.create_publisher(TwistStamped, names.twist_topic(n), qos))
+                 for n in body_names]
+        inputs_of = [p for pair in parts for p in pair]
+
+        class Split:
+            """Every body's pose and twist of a BodyStateArray, one publish each."""
+
+            def publish(self, data: bytes) -> None:
+                decoded = inputs.codec.decode(data)
+                poses = codec.encode_stamped(decoded.stamp_ns, 'world', decoded.values[:, 0:7])
+                twists = codec.encode_stamped(decoded.stamp_ns, 'world',
+                                              decoded.values[:, 7:13])
+                for (p, t), pose, twist in zip(parts, poses, twists):
+                    p.publish(pose)
+                    t.publish(twist)
+        pub = Split()
     answered: dict[int, int] = {}
 
     def on_answer(data: bytes) -> None:
@@ -206,8 +231,9 @@ def publisher(args: argparse.Namespace) -> int:
 
     result: dict[str, Any] = {}
     try:
-        if not spin_until(lambda: pub.get_subscription_count() >= args.subscribers, 60.0):
-            raise RuntimeError('no subscriber of body_states')
+        if not spin_until(lambda: all(p.get_subscription_count() >= args.subscribers
+                                      for p in inputs_of), 60.0):
+            raise RuntimeError('no subscriber of the inputs')
         stamp = T0
         # lock-step: the next step as soon as the previous one is answered
         times, lost = [], 0
@@ -447,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--domain', type=int, default=int(os.environ.get('ROS_DOMAIN_ID', 90)))
     parser.add_argument('--diagnostics-wait', type=float, default=1.2)
     parser.add_argument('--modes', nargs='+', default=['estimator', 'simulator'],
-                        choices=('estimator', 'simulator'),
+                        choices=('estimator', 'simulator', 'per_body'),
                         help='how the publisher drives the node (see the docstring)')
     parser.add_argument('--no-echo', action='store_true', help='skip the echo floor')
     parser.add_argument('--json', help='also write the rows here')

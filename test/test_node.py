@@ -142,6 +142,8 @@ def test_bad_inputs_are_counted_and_the_others_served(running):
 
 def test_per_body_topics_body_frame_twist_and_stale(running):
     peer, node = running
+    # the per-body subscriptions come up after the batched topic: the node says when
+    assert peer.wait(lambda: 'per-body inputs: 6 topics subscribed' in node.output(), 30.0)
     topics = [f'bodies/{n}/{k}' for n in ('ball', 'box') for k in ('pose', 'twist')]
     for topic in topics:   # a message published before discovery is lost: wait for the match
         peer.advertise(topic, PoseStamped if topic.endswith('pose') else TwistStamped)

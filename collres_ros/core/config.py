@@ -174,6 +174,12 @@ VELOCITY_LIMIT = 1e9           # m/s and rad/s, |component|
 INERTIA_RANGE = (1e-30, 1e30)  # kg m^2: a 1e-9 kg body of 1 um to a 1e9 kg body of 1000 km
 MESH_MAX_BYTES = 64 * 1024 * 1024   # a larger vertex file is not a collision hull
 MESH_SUFFIXES = ('.obj', '.stl')
+# collres_sim --realtime: it warns when it falls behind the wall clock by more than
+# REALTIME_LAG s (at most once per REALTIME_WARN_PERIOD s), and at the end when the rate it
+# reached is below REALTIME_SHORTFALL of the rate asked (each step waits for the node's answer)
+REALTIME_LAG = 0.5             # s
+REALTIME_WARN_PERIOD = 5.0     # s
+REALTIME_SHORTFALL = 0.95      # fraction of rate_hz
 # Collision filtering (Box2D category/mask bits, Gazebo collide_bitmask): 16 bits, a body in
 # bit 0 that collides with every bit, so a scene that does not filter is unchanged.
 DEFAULT_COLLISION_GROUP = 1

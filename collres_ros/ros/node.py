@@ -22,7 +22,9 @@ every non-stale dynamic body has both for one stamp, see ``sync.py``); out
 per-body steps), ``contacts``, ``contact_markers`` and ``body_markers`` (built
 only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
 ``contact_wrench``), ``/tf`` (with ``publish_tf``, where tf2_msgs is installed),
-``/diagnostics``.
+``/diagnostics``. The per-body subscriptions belong to a second node,
+``<name>_per_body``, spun in a thread of its own (``PerBodyInputs``): the
+``body_states`` path costs the same whatever the number of bodies' topics.
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
 ``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
@@ -311,11 +313,13 @@ class CollresNode(Node):
         decoded = time.perf_counter()
         step = self.resolver.resolve(stamp, batch)
         resolved = time.perf_counter()
+        # what nobody subscribes to is not built (the answer always is)
         markers = self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0
+        contacts = self._publisher(names.CONTACTS, ContactArray).get_subscription_count() > 0
         node = self.scene.node
         bodies = self._publisher(names.BODY_MARKERS, MarkerArray).get_subscription_count() > 0
         outputs = self.encoder.encode(step, per_body and node.per_body_outputs,
-                                      node.marker_lifetime, markers=markers,
+                                      node.marker_lifetime, markers=markers, contacts=contacts,
                                       wrenches=node.contact_wrench,
                                       body_markers=node.body_markers_period if bodies else None,
                                       tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES)
@@ -512,6 +516,8 @@ class PerBodyInputs:
                     message, topic, callback, profile, raw=True,
                     event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
             self.ready.set()
+            self.owner.get_logger().info(f'per-body inputs: {len(self._wanted)} topics '
+                                         'subscribed')
             self.executor.spin()
         except (ShutdownException, ExternalShutdownException):
             pass

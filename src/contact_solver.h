@@ -58,6 +58,8 @@ struct SolverParams {
                                         // persistent contact is new (nothing to warm start)
   double balanced_friction = 1e-3;      // net friction / net normal impulse of a pair below
                                         // which a sticking pair is reported RESTING
+  double warm_start_ratio = 2.0;        // stored impulses are scaled by dt / last dt only
+                                        // while it lies in [1 / this, this]; else cold
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };

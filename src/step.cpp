@@ -45,7 +45,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   // prepare: rows of the contacts that can carry an impulse, combined materials
   prepare(bodies, contacts, params);
   // warm start from last step's impulses of the same pair and feature
-  double cold = warm(contacts, dt, warm_enabled);
+  double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio);
   SolverBodies solver{n, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
   warm_start(rows_, solver);
   // iterate: sequential impulses (more sweeps while resting contacts are new), then
@@ -64,6 +64,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                cached_normal_.data(), report_out.friction_impulse, contacts.point);
   last_dt_ = dt;
+  last_warm_ = warm_enabled;
   // correct poses: rewind / advance, then the split-impulse push-out (no velocity)
   advance(previous, current, dt, out);
   push_out(bodies, params, dt, out);
@@ -196,18 +197,21 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
   }
 }
 
-double StepSolver::warm(const ContactsView& c, double dt, bool enabled) {
+double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double ratio) {
   const int64_t m = c.count;
   int64_t persistent = 0, cold = 0;
   for (int64_t k = 0; k < m; ++k) persistent += c.kind[k] == kPersistent;
-  if (!enabled) return persistent > 0 ? 1.0 : 0.0;
+  // impulses of a step of another length are a different answer: scaled by dt / last dt
+  // only near 1, never from a fresh step (e.g. a nominal dt after a pause)
+  const double scale = last_dt_ > 0.0 ? dt / last_dt_ : 0.0;
+  const bool usable = enabled && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
+  if (!usable) return persistent > 0 ? 1.0 : 0.0;
   cached_normal_.resize(m);
   cached_friction_.resize(3 * m);
   found_.resize(m);
   cache_.lookup(m, c.a, c.b, c.feature, c.point, 0.02, cached_normal_.data(),
                 cached_friction_.data(), found_.data());
   for (int64_t k = 0; k < m; ++k) cold += c.kind[k] == kPersistent && !found_[k];
-  double scale = last_dt_ > 0.0 ? dt / last_dt_ : 0.0;
   for (ContactRow& r : rows_) {
     const int64_t k = r.contact;
     Vec3 friction = load3(cached_friction_.data() + 3 * k);

@@ -17,7 +17,10 @@
 // 2. prepare: one row per contact point that can carry an impulse this step (a
 //    speculative contact that cannot close within the step is no row), combined
 //    materials by the combine rules, rows in pair order;
-// 3. warm start from last step's impulses of the same pair and feature (ContactCache);
+// 3. warm start from last step's impulses of the same pair and feature (ContactCache),
+//    scaled by dt / last dt, only while that ratio lies in [1 / r, r] (r =
+//    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
+//    every row starts cold, so no timing of the inputs can launch a resting body;
 // 4. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
 //    a block (more sweeps while the resting contacts are new), then
 //    shock propagation from the ground up (a heavy body on a light one);
@@ -100,7 +103,8 @@ struct StepStats {
 
 class StepSolver {
  public:
-  // `warm`: warm start from the cache (false after a pause: a fresh start).
+  // `warm`: warm start from the cache (false after a pause: a fresh start, whose
+  // impulses do not warm start the next step either).
   StepStats step(const BodyStatesView& previous, const BodyStatesView& current,
                  const BodyProperties& bodies, const ContactsView& contacts, double dt,
                  bool warm, const SolverParams& params, BodyStatesOut& out,
@@ -113,7 +117,7 @@ class StepSolver {
                        const BodyProperties& bodies, const ContactsView& c, double dt,
                        double threshold, ContactsOut& report);
   void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
-  double warm(const ContactsView& c, double dt, bool enabled);
+  double warm(const ContactsView& c, double dt, bool enabled, double ratio);
   void levels(int64_t n);
   void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
                BodyStatesOut& out);
@@ -122,7 +126,8 @@ class StepSolver {
   void report(const ContactsView& c, const SolverParams& p, ContactsOut& out);
 
   ContactCache cache_;
-  double last_dt_ = 0.0;
+  double last_dt_ = 0.0;              // s, dt of the step the cache holds
+  bool last_warm_ = false;            // that step was not fresh: its impulses may seed
   // per body (scratch, reused across steps)
   std::vector<double> velocity_;     // (N, 6) working velocity
   std::vector<double> now_;          // (N, 6) current twist (held, non-finite: 0)

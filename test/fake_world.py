@@ -32,8 +32,9 @@ class FakeWorld:
         self.forgotten.append([int(i) for i in bodies])
 
     def step(self, previous: BodyStates, current: BodyStates, dt: float,
-             active: Optional[np.ndarray] = None) -> StepResult:
+             active: Optional[np.ndarray] = None, fresh: bool = False) -> StepResult:
         self.calls.append({'previous': previous.copy(), 'current': current.copy(), 'dt': dt,
+                           'fresh': fresh,
                            'active': None if active is None else active.copy(),
                            'settings': self.settings})
         out = current.copy()
@@ -56,8 +57,8 @@ class GuardingWorld(FakeWorld):
     (it keeps ``current``) and reported once as ``non_finite_result``."""
 
     def step(self, previous: BodyStates, current: BodyStates, dt: float,
-             active: Optional[np.ndarray] = None) -> StepResult:
-        result = super().step(previous, current, dt, active)
+             active: Optional[np.ndarray] = None, fresh: bool = False) -> StepResult:
+        result = super().step(previous, current, dt, active, fresh)
         out = result.states
         rows = np.concatenate([out.position, out.orientation, out.linear, out.angular], axis=1)
         rejected = []

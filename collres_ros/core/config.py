@@ -125,6 +125,18 @@ class SolverSettings:
 
 _SOLVER_BY_NAME = {p.name: p for p in SOLVER_PARAMS}
 
+# Tunings of the compiled solver that are not parameters: each handed to
+# ``_native.SolverParams`` by its name (``world.solver_params``).
+SOLVER_TUNING: tuple[ParamSpec, ...] = (
+    ParamSpec('warm_start_ratio', 'double', 2.0,
+              'Last step\'s impulses are scaled by dt / last dt and warm start a contact only '
+              'while that ratio lies in [1 / this, this] (and the last step was not fresh); '
+              'otherwise the step starts cold', 1.0, 1e3,
+              reason='impulses scale with the step length only near it (Box2D and Jolt '
+                     'assume a fixed dt); a 1 ns step or a 1 ms fresh step before a 30 Hz '
+                     'one would otherwise launch a resting body'),
+)
+
 
 def check_value(spec: ParamSpec, value: Any) -> None:
     """Raise ValueError with a one-line reason when ``value`` is outside ``spec``."""
@@ -161,7 +173,8 @@ def range_text(spec: ParamSpec) -> str:
 assert [f.name for f in fields(SolverSettings)] == [p.name for p in SOLVER_PARAMS]
 assert all(getattr(SolverSettings(), p.name) == p.default for p in SOLVER_PARAMS)
 
-__all__: Sequence[str] = ('ParamSpec', 'SOLVER_PARAMS', 'SolverSettings', 'check_value',
+__all__: Sequence[str] = ('ParamSpec', 'SOLVER_PARAMS', 'SOLVER_TUNING', 'SolverSettings',
+                          'check_value',
                           'range_text', 'RESTITUTION_RULES', 'FRICTION_RULES')
 
 
@@ -178,6 +191,12 @@ MESH_SUFFIXES = ('.obj', '.stl')
 # no aliases, no tags but !!str; larger or deeper documents are refused before parsing ends.
 PARAMS_FILE_MAX_BYTES = 64 * 1024 * 1024   # a scene of inlined hull vertices fits
 PARAMS_FILE_MAX_DEPTH = 32                 # nested mappings and lists
+# collres_sim --realtime: it warns when it falls behind the wall clock by more than
+# REALTIME_LAG s (at most once per REALTIME_WARN_PERIOD s), and at the end when the rate it
+# reached is below REALTIME_SHORTFALL of the rate asked (each step waits for the node's answer)
+REALTIME_LAG = 0.5             # s
+REALTIME_WARN_PERIOD = 5.0     # s
+REALTIME_SHORTFALL = 0.95      # fraction of rate_hz
 # Collision filtering (Box2D category/mask bits, Gazebo collide_bitmask): 16 bits, a body in
 # bit 0 that collides with every bit, so a scene that does not filter is unchanged.
 DEFAULT_COLLISION_GROUP = 1
@@ -256,6 +275,13 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('queue_depth', 'integer', 10,
               'Depth of the reliable QoS of state topics (keep last)', 1, 1000,
               reason='a few steps of buffering; old states are worthless to a control loop'),
+    ParamSpec('max_message_bodies', 'integer', 10000,
+              'Most bodies a body_states message may hold; a longer one is refused whole '
+              '(too_many_bodies) before it is read. Bodies the scene does not know are refused '
+              'one by one (unknown_body), the others served',
+              1, 1000000,
+              reason='an estimator may publish every object it tracks; a bound on the memory '
+                     'and time one message takes (10,000 bodies: 1.2 MB)'),
     ParamSpec('min_rate', 'double', 0.0,
               'Expected step rate: /diagnostics warns when the rate over its window falls '
               'below it, and reports an error when no step comes (0: no rate check)',
@@ -288,6 +314,7 @@ class NodeSettings:
     diagnostics_period: float = 1.0
     per_body_outputs: bool = True
     queue_depth: int = 10
+    max_message_bodies: int = 10000
     min_rate: float = 0.0
     contact_wrench: bool = False
     body_markers_period: float = 0.05

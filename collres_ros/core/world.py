@@ -42,7 +42,7 @@ from typing import Protocol, Sequence
 import numpy as np
 
 from collres_ros.core import _native
-from collres_ros.core.config import SolverSettings
+from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.detection import Detection
 from collres_ros.core.shapes import mass_properties
 from collres_ros.core.types import (BodySpec, BodyStates, CollisionFilter, ContactReport,
@@ -128,7 +128,7 @@ class World:
         self._cache.forget(np.asarray(bodies, np.int64).ravel())
 
     def step(self, previous: BodyStates, current: BodyStates, dt: float,
-             active: np.ndarray | None = None) -> StepResult:
+             active: np.ndarray | None = None, fresh: bool = False) -> StepResult:
         """Resolve the contacts of the step previous -> current (dt > 0, s).
 
         ``previous``/``current``: all N bodies, world frame, before resolution
@@ -136,7 +136,10 @@ class World:
         held at ``current`` with zero twist and infinite mass this step, its
         output state is ``current`` unchanged. Returns corrected states of all
         bodies, the solved contacts and non-finite results that were refused.
-        A step longer than ``settings.max_dt`` is not warm started.
+        ``fresh``: no usable previous step (``dt`` is nominal): neither this step nor
+        the next is warm started from stored impulses, and neither is a step longer
+        than ``settings.max_dt`` or one whose dt differs from the last by more than
+        ``SOLVER_TUNING`` ``warm_start_ratio``.
         """
         active = np.ones(current.count, bool) if active is None else np.asarray(active, bool)
         previous = _hold(previous, current, ~active)
@@ -152,7 +155,7 @@ class World:
             return StepResult(current.copy(), ContactReport.empty(), [])
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
-        warm = self._settings.warm_start and dt <= self._settings.max_dt
+        warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
         states, report, sweeps, rows = self._solve(previous, current, contacts, active, dt, warm)
         # report: the final guard against non-finite output
         rejected = self._guard(states, current)
@@ -209,6 +212,8 @@ def solver_params(settings: SolverSettings) -> _native.SolverParams:
     for name in ('velocity_iterations', 'restitution_threshold', 'sticking_speed',
                  'linear_slop', 'position_correction', 'max_correction'):
         setattr(params, name, getattr(settings, name))
+    for spec in SOLVER_TUNING:
+        setattr(params, spec.name, spec.default)
     params.restitution_rule = _native.CombineRule.__members__[settings.restitution_rule]
     params.friction_rule = _native.CombineRule.__members__[settings.friction_rule]
     return params

@@ -1,0 +1,90 @@
+"""Warm start and the timing of the inputs: no step length can launch a resting body.
+
+Last step's impulses warm start this step's only while dt / last dt stays near 1, and
+never from a fresh step (the resolver's nominal dt after a start or a pause): a body's
+answer does not depend on how its inputs happened to be spaced.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.pipeline import Resolver
+from collres_ros.core.types import BodyInput, ContactKind
+from collres_ros.core.world import World
+from collres_ros.ros.params import scene_from_values
+
+from contacts import box as contacts_box, contact_set, FixedContacts, states  # noqa: I100
+
+NS = 1
+MS = 1_000_000 * NS
+T0 = 5_000 * MS
+HALF = 0.1       # m, half edge of the box
+
+
+def floor_and_box():
+    return scene_from_values({
+        'bodies': ['floor', 'box'],
+        'body.floor.shape': 'box', 'body.floor.size': [10.0, 10.0, 0.2],
+        'body.floor.static': True, 'body.floor.position': [0.0, 0.0, -0.1],
+        'body.box.shape': 'box', 'body.box.size': [2 * HALF] * 3, 'body.box.mass': 1.0,
+        'body.box.restitution': 0.0, 'body.box.static_friction': 0.5,
+        'body.box.kinetic_friction': 0.3})
+
+
+def box(z, velocity):
+    return BodyInput('box', (0.0, 0.0, z), (0.0, 0.0, 0.0, 1.0), tuple(velocity),
+                     (0.0, 0.0, 0.0), 'world', 'world')
+
+
+@pytest.mark.parametrize('gap_ms', [10, 100, 500])
+def test_touchdown_twice_1ns_apart_then_a_long_gap_does_not_launch_the_box(gap_ms):
+    """A box touching down while sliding, whose state arrives twice 1 ns apart, then on
+    the floor sliding at 0.1 m/s `gap_ms` later: it stays on the floor, does not spin up
+    and gains no energy (last step's impulses are not scaled by dt / last dt = 1e7)."""
+    resolver = Resolver.for_scene(floor_and_box())
+    landing = box(HALF - 2e-4, (0.1, 0.0, -0.3))   # 0.2 mm into the floor
+    resolver.resolve(T0, [landing])
+    resolver.resolve(T0 + 1 * NS, [landing])
+    sliding = box(HALF - 2e-4, (0.1, 0.0, 0.0))
+    out = resolver.resolve(T0 + 1 * NS + gap_ms * MS, [sliding])
+    linear, angular = out.states.linear[0], out.states.angular[0]
+    print(gap_ms, 'ms: v', linear, 'w', angular, 'z', out.states.position[0, 2])
+    assert out.report.contacts.count > 0
+    assert linear[2] < 1e-3                     # m/s: not leaving the floor
+    assert np.linalg.norm(angular) < 1e-2       # rad/s: not spun up
+    assert np.linalg.norm(linear) <= 0.1 * (1 + 1e-9)   # no energy from nowhere
+    assert out.states.position[0, 2] < HALF + 1e-4
+
+
+def test_a_fresh_step_does_not_warm_start_the_next_and_a_step_of_like_length_does():
+    """A box resting on a floor (hand-made contacts): after a fresh step, the next step of
+    the same length starts cold (the most sweeps); after a normal step it is warm started
+    (fewer sweeps); and a step twice and a half as long as the last starts cold again."""
+    floor = contacts_box('floor', (2.0, 2.0, 0.2), 1.0, static=True)
+    cube = contacts_box('cube', (0.2, 0.2, 0.2), 1.0, mu_s=0.5, mu_k=0.5)
+    corners = [[x, y, 0.0] for x in (-0.1, 0.1) for y in (-0.1, 0.1)]
+    dt = 1 / 120
+    contacts = contact_set(0, 1, corners, [0, 0, 1], -9.81 * dt * dt,
+                           kind=ContactKind.PERSISTENT)
+    world = World([floor, cube], SolverSettings(velocity_iterations=4),
+                  FixedContacts(contacts))
+    rest = states([[0, 0, -0.1], [0, 0, 0.1]], np.zeros((2, 3)))
+
+    def sweeps(step_dt, fresh=False):
+        fall = rest.copy()
+        fall.linear[1, 2] = -9.81 * step_dt
+        fall.position[1, 2] += fall.linear[1, 2] * step_dt
+        world.step(rest, fall, step_dt, fresh=fresh)
+        return world.timing['iterations']
+    cold = sweeps(dt, fresh=True)
+    after_fresh = sweeps(dt)
+    warm = sweeps(dt)
+    stretched = sweeps(2.5 * dt)
+    print('sweeps: fresh', cold, 'after fresh', after_fresh, 'warm', warm,
+          'after 2.5 dt', stretched)
+    assert after_fresh == cold
+    assert warm < cold
+    assert stretched == cold

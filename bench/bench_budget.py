@@ -33,7 +33,7 @@ values = {'bodies': names, **{f'body.{m}.shape': 'box' for m in names},
           **{f'body.{m}.size': [0.1, 0.1, 0.1] for m in names}}
 if unbounded:
     values.update({'solver.max_pairs': 10_000_000, 'solver.max_contacts': 10_000_000})
-resolver = Resolver(params.scene_from_values(values))
+resolver = Resolver.for_scene(params.scene_from_values(values))
 inputs = [BodyInput(m, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
                     'world', 'world') for m in names]
 rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

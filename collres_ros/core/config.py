@@ -187,6 +187,10 @@ VELOCITY_LIMIT = 1e9           # m/s and rad/s, |component|
 INERTIA_RANGE = (1e-30, 1e30)  # kg m^2: a 1e-9 kg body of 1 um to a 1e9 kg body of 1000 km
 MESH_MAX_BYTES = 64 * 1024 * 1024   # a larger vertex file is not a collision hull
 MESH_SUFFIXES = ('.obj', '.stl')
+# A convex hull keeps at most this many vertices: a larger set (a scanned mesh) is simplified
+# to its vertices extreme along as many evenly spread directions (as PhysX caps a convex
+# mesh at 255 vertices); contact queries on a hull cost with its vertex count.
+HULL_MAX_VERTICES = 256
 # A params file (and a bag's recorded params) is read within these bounds, as rcl reads it:
 # no aliases, no tags but !!str; larger or deeper documents are refused before parsing ends.
 PARAMS_FILE_MAX_BYTES = 64 * 1024 * 1024   # a scene of inlined hull vertices fits
@@ -202,6 +206,10 @@ REALTIME_SHORTFALL = 0.95      # fraction of rate_hz
 DEFAULT_COLLISION_GROUP = 1
 ALL_COLLISION_BITS = 0xFFFF
 COLLISION_RULE = 'a pair collides when (group_a & mask_b) != 0 and (group_b & mask_a) != 0'
+
+# /diagnostics: fresh starts (time going back, jumps, gaps) in at least this fraction of a
+# window's steps are a WARN (two clocks on one topic, a source whose time keeps jumping)
+TIME_JUMP_WARN_FRACTION = 0.25
 
 # Per-body parameters: `body.<name>.<param>` in the shared `/**` section.
 BODY_PARAMS: tuple[ParamSpec, ...] = (

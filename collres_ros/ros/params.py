@@ -30,7 +30,7 @@ from collres_ros.core.config import (
     BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, POSITION_LIMIT, SCENE_PARAMS,
     SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
-from collres_ros.core.shapes import hull_problem, mesh_points
+from collres_ros.core.shapes import hull_problem, hull_vertices, mesh_points
 from collres_ros.core.types import BodySpec, BodyStates, CollisionFilter
 from collres_ros.ros import params_yaml
 
@@ -348,8 +348,7 @@ def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path
     else:
         if len(flat) % 3:
             _fail(f'{name}.points', 'needs x, y, z triples', flat)
-        points = np.array(flat, float).reshape(-1, 3)
-    points = np.unique(points, axis=0)
+        points = hull_vertices(np.array(flat, float).reshape(-1, 3))
     problem = hull_problem(points)
     if problem:
         _fail(f'{name}.{"mesh" if mesh else "points"}',
@@ -514,8 +513,37 @@ def scene_to_yaml(scene: Scene) -> str:
 
 
 def with_changes(scene: Scene, changes: Mapping[str, Any]) -> Scene:
-    """The scene with some parameters changed, fully re-validated (ValueError: one line)."""
-    return scene_from_values({**scene.values, **changes}, scene.base_dir)
+    """The scene with some runtime-changeable parameters changed (ValueError: one line).
+
+    Only what changed is validated, by the same rules as a file (``_typed`` and the
+    checks that involve it: kinetic <= static friction, ``ignore_pairs`` entries), and
+    only the parts it touches are rebuilt: solver and node settings, a body's materials,
+    the collision filter. The bodies' shapes stay as built at start (no mesh file is
+    read again), and a parameter that shapes or places a body is refused as read-only.
+    """
+    specs = {spec.name: spec for spec in node_specs(scene.names)}
+    values = dict(scene.values)
+    for name, value in changes.items():
+        if name not in specs:
+            raise ValueError(f'{_short(name, 100)}: unknown parameter')
+        if not is_runtime_changeable(name):
+            raise ValueError(f'{name}: read-only, fixed at start')
+        values[name] = _typed(specs[name], value)
+    bodies = list(scene.bodies)
+    for k, body in enumerate(bodies):
+        key = f'body.{body.name}'
+        if not any(f'{key}.{m}' in changes for m in MATERIALS):
+            continue
+        mu_s, mu_k = values[f'{key}.static_friction'], values[f'{key}.kinetic_friction']
+        if mu_k > mu_s:
+            _fail(f'{key}.kinetic_friction', f'must be <= static_friction {mu_s}', mu_k)
+        bodies[k] = replace(body, restitution=values[f'{key}.restitution'],
+                            static_friction=mu_s, kinetic_friction=mu_k)
+    collision_filter_of(values, scene.names)   # ValueError: a bad ignore_pairs entry
+    solver = SolverSettings(**{f.name: values[f'solver.{f.name}']
+                               for f in fields(SolverSettings)})
+    node = NodeSettings(**{f.name: values[f.name] for f in fields(NodeSettings)})
+    return replace(scene, bodies=tuple(bodies), solver=solver, node=node, values=values)
 
 
 # --- documentation ----------------------------------------------------------------------------

@@ -82,7 +82,7 @@ def test_the_resolver_counts_steps_over_the_budget_and_serves_every_body() -> No
     values = {'bodies': names, **{f'body.{n}.shape': 'box' for n in names},
               **{f'body.{n}.size': [0.1, 0.1, 0.1] for n in names},
               'solver.max_pairs': 100, 'solver.max_contacts': 300}
-    resolver = Resolver(params.scene_from_values(values))
+    resolver = Resolver.for_scene(params.scene_from_values(values))
     inputs = [BodyInput(n, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.0),
                         (0.0, 0.0, 0.0), 'world', 'world') for n in names]
     step = resolver.resolve(10**12, inputs)

@@ -47,7 +47,7 @@ $(VENV)/.editable-stamp: setup.py pyproject.toml $(MSG_STAMP)
 	touch $@
 
 # BENCH_ARGS e.g. --sizes 10 100 --peer-venv DIR (default ~/.cache/collres_ros/peer-venv,
-# created when missing with pip install mujoco pybullet)
+# created when missing with pip install mujoco pybullet rapier3d)
 bench: setup
 	$(VPY) bench/bench_step.py $(BENCH_ARGS)
 

@@ -139,7 +139,7 @@ def pile_messages(count: int) -> tuple[Path, list[BodyStateArray]]:
     import numpy as np
     path = ROOT / 'config' / 'scenes' / 'pile.yaml'
     scene = load_scene(path)
-    resolver = Resolver(scene)
+    resolver = Resolver.for_scene(scene)
     states = scene.initial.copy()
     dynamic = np.array([not b.static for b in scene.bodies])
     dt = 1.0 / 60.0

@@ -1,22 +1,32 @@
 """collres_node over DDS on a settled pile: rate sustained, drops, latency, callback split.
 
     .venv/bin/python bench/bench_latency.py [--sizes 10 100 1000] [--rates 100 100 30]
-        [--duration 10] [--settle 1.0]
+        [--duration 10] [--settle 1.0] [--modes estimator simulator] [--no-echo]
 
 For each size the pile of bench/pile.py is settled in-process with the core
 (120 Hz, semi-implicit Euler), written as a params file, and then three
 processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
 
-* ``collres_node`` on that scene;
-* a publisher (this file, ``--role publisher``): the settled pile one gravity
-  step later (so every step has the pile's contacts and impulses), as
-  pre-serialised BodyStateArray bytes with a new stamp each step. First
-  lock-step (publish, wait for the answer, repeat: the highest rate the node
-  sustains), then paced at the given rate (``--rates``, one per size) for
-  ``--duration`` s;
+* ``collres_node`` on that scene (its start-up time, from the process start
+  to every topic of this process connected, is printed);
+* a publisher (this file, ``--role publisher``) in one of two modes
+  (``--modes``): ``estimator``, the settled pile one gravity step later (so
+  every step has the pile's contacts and impulses) as pre-serialised
+  BodyStateArray bytes with a new stamp each step, inputs independent of the
+  answers; ``simulator``, each input the latest answer integrated one step
+  (semi-implicit Euler with gravity, as collres_sim does); ``per_body``, the
+  estimator's inputs as ``bodies/<name>/pose`` and ``twist`` messages (the
+  node steps once every body has both). First lock-step
+  (publish, wait for the answer, repeat: the highest rate the node sustains),
+  then paced at the given rate (``--rates``, one per size) for ``--duration`` s;
 * this process: subscribers of ``body_states/corrected``, ``contacts`` and
   ``contact_markers`` (so the node builds and publishes all of them) and of
   ``/diagnostics`` (the node's own timing figures).
+
+The echo floor: the same publisher against an echo process (``--role echo``:
+subscribe ``body_states`` as bytes, publish them back on
+``body_states/corrected``), in the same run, before the node; what the node
+adds beyond it is ours.
 
 Latency is publish to reception of the step's ``body_states/corrected``
 (CLOCK_MONOTONIC, shared by the processes). Dropped = paced steps without an
@@ -142,6 +152,30 @@ def ros_env(domain: int) -> dict[str, str]:
 
 # --- the publisher process ----------------------------------------------------------------------
 
+class Inputs:
+    """The publisher's next input: the template with a new stamp (estimator), or the latest
+    answer integrated one step (simulator: each input from its last answer)."""
+
+    def __init__(self, template: bytes, mode: str, dt: float) -> None:
+        from collres_ros.ros.codec import StatesCodec
+        self.template, self.mode, self.dt = bytearray(template), mode, dt
+        self.codec = StatesCodec()
+        self.latest: bytes = bytes(template)   # the last answer (simulator)
+
+    def answer(self, data: bytes) -> None:
+        if self.mode == 'simulator':
+            self.latest = bytes(data)
+
+    def next(self, stamp: int) -> bytes:
+        if self.mode in ('estimator', 'per_body'):
+            return with_stamp(self.template, stamp)
+        from collres_ros.ros.messages import state_values, states_of
+        decoded = self.codec.decode(self.latest)
+        states = states_of(decoded.values)
+        current = integrate(states, np.ones(len(decoded.names), bool), self.dt)
+        return self.codec.encode(stamp, decoded.frame_id, decoded.names, state_values(current))
+
+
 def publisher(args: argparse.Namespace) -> int:
     """Lock-step, then paced; writes {'lockstep': {...}, 'sent': {stamp: t_ns}} as JSON."""
     import rclpy
@@ -149,15 +183,41 @@ def publisher(args: argparse.Namespace) -> int:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
     from collres_ros.msg import BodyStateArray
-    template = bytearray(Path(args.bytes).read_bytes())
+    period = int(round(1e9 / args.rate))
+    inputs = Inputs(Path(args.bytes).read_bytes(), args.mode, period * 1e-9)
     rclpy.init(domain_id=args.domain)
     node = rclpy.create_node('collres_bench_publisher')
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
     pub = node.create_publisher(BodyStateArray, 'body_states', qos)
+    inputs_of = [pub]
+    if args.mode == 'per_body':
+        from geometry_msgs.msg import PoseStamped, TwistStamped
+
+        from collres_ros.ros import codec, names
+        body_names = inputs.codec.decode(bytes(inputs.template)).names
+        parts = [(node.create_publisher(PoseStamped, names.pose_topic(n), qos),
+                  node.create_publisher(TwistStamped, names.twist_topic(n), qos))
+                 for n in body_names]
+        inputs_of = [p for pair in parts for p in pair]
+
+        class Split:
+            """Every body's pose and twist of a BodyStateArray, one publish each."""
+
+            def publish(self, data: bytes) -> None:
+                decoded = inputs.codec.decode(data)
+                poses = codec.encode_stamped(decoded.stamp_ns, 'world', decoded.values[:, 0:7])
+                twists = codec.encode_stamped(decoded.stamp_ns, 'world',
+                                              decoded.values[:, 7:13])
+                for (p, t), pose, twist in zip(parts, poses, twists):
+                    p.publish(pose)
+                    t.publish(twist)
+        pub = Split()
     answered: dict[int, int] = {}
-    node.create_subscription(BodyStateArray, 'body_states/corrected',
-                             lambda d: answered.setdefault(stamp_of(d), time.monotonic_ns()),
-                             qos, raw=True)
+
+    def on_answer(data: bytes) -> None:
+        answered.setdefault(stamp_of(data), time.monotonic_ns())
+        inputs.answer(data)
+    node.create_subscription(BodyStateArray, 'body_states/corrected', on_answer, qos, raw=True)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
 
@@ -171,17 +231,18 @@ def publisher(args: argparse.Namespace) -> int:
 
     result: dict[str, Any] = {}
     try:
-        if not spin_until(lambda: pub.get_subscription_count() >= args.subscribers, 60.0):
-            raise RuntimeError('no subscriber of body_states')
+        if not spin_until(lambda: all(p.get_subscription_count() >= args.subscribers
+                                      for p in inputs_of), 60.0):
+            raise RuntimeError('no subscriber of the inputs')
         stamp = T0
-        period = int(round(1e9 / args.rate))
         # lock-step: the next step as soon as the previous one is answered
         times, lost = [], 0
         lock_end = time.monotonic() + args.lockstep
         while time.monotonic() < lock_end:
             stamp += period
+            data = inputs.next(stamp)
             sent = time.monotonic_ns()
-            pub.publish(with_stamp(template, stamp))
+            pub.publish(data)
             if spin_until(lambda: stamp in answered, 5.0):
                 times.append(answered[stamp] - sent)
             else:
@@ -203,13 +264,38 @@ def publisher(args: argparse.Namespace) -> int:
                     break
                 executor.spin_once(timeout_sec=min((due - now) * 1e-9, 0.002))
             stamp += period
+            data = inputs.next(stamp)
             sent_at[stamp] = time.monotonic_ns()
-            pub.publish(with_stamp(template, stamp))
+            pub.publish(data)
         spin_until(lambda: all(s in answered for s in sent_at), 5.0)
         result['sent'] = {str(s): t for s, t in sent_at.items()}
         result['publish_late_ms'] = (time.monotonic_ns() - begin) / 1e6 - args.duration * 1e3
     finally:
         Path(args.out).write_text(json.dumps(result))
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def echo(args: argparse.Namespace) -> int:
+    """The floor: body_states bytes in, the same bytes out on body_states/corrected."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from collres_ros.msg import BodyStateArray
+    rclpy.init(domain_id=args.domain)
+    node = rclpy.create_node('collres_bench_echo')
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    out = node.create_publisher(BodyStateArray, 'body_states/corrected', qos)
+    node.create_subscription(BodyStateArray, 'body_states', out.publish, qos, raw=True)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
@@ -268,8 +354,10 @@ class Listener:
                 self.diagnostics.append((time.monotonic_ns(),
                                          {kv.key: kv.value for kv in status.values}))
 
-    def connected(self) -> bool:
-        return all(s.get_publisher_count() > 0 for s in self.subscriptions)
+    def connected(self, only_states: bool = False) -> bool:
+        """Every output of the node (``only_states``: body_states/corrected) has a publisher."""
+        wanted = self.subscriptions[:1] if only_states else self.subscriptions
+        return all(s.get_publisher_count() > 0 for s in wanted)
 
     def close(self) -> None:
         import rclpy
@@ -302,34 +390,40 @@ def _timings(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> dict[
     return {k: v / total for k, v in sums.items()} if total else {}
 
 
-def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
-    bodies, state, world_ms = settled_pile(count, args.settle)
-    scene = write_scene(workdir / f'pile{count}.yaml', bodies, state)
-    data = workdir / f'input{count}.cdr'
-    data.write_bytes(input_bytes(bodies, state, 1.0 / rate))
+def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
+            server: str, mode: str) -> dict[str, Any]:
+    """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo')."""
+    scene, data = workdir / f'pile{count}.yaml', workdir / f'input{count}.cdr'
     env = ros_env(args.domain)
-    exe = Path(sys.executable).parent / 'collres_node'
-    with open(workdir / f'node{count}.log', 'wb') as log:
-        node = subprocess.Popen([str(exe), '--ros-args', '--params-file', str(scene)],
-                                env=env, stdout=log, stderr=subprocess.STDOUT,
+    if server == 'node':
+        command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
+                   '--params-file', str(scene)]
+    else:
+        command = [sys.executable, __file__, '--role', 'echo', '--domain', str(args.domain)]
+    tag = f'{server}{count}{mode}'
+    begin = time.monotonic()
+    with open(workdir / f'{tag}.log', 'wb') as log:
+        node = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT,
                                 start_new_session=True)
     listener = Listener(args.domain)
-    out = workdir / f'sent{count}.json'
+    out = workdir / f'sent{tag}.json'
     pub = None
     try:
-        if not _wait(listener.connected, 120.0):
-            raise RuntimeError(f'node did not come up ({workdir}/node{count}.log)')
+        if not _wait(lambda: listener.connected(server == 'echo'), 120.0):
+            raise RuntimeError(f'{server} did not come up ({workdir}/{tag}.log)')
+        startup = time.monotonic() - begin
         start = time.monotonic_ns()
-        with open(workdir / f'pub{count}.log', 'wb') as log:
+        with open(workdir / f'pub{tag}.log', 'wb') as log:
             pub = subprocess.Popen(
                 [sys.executable, __file__, '--role', 'publisher', '--bytes', str(data),
                  '--rate', str(rate), '--duration', str(args.duration), '--lockstep',
-                 str(args.lockstep), '--domain', str(args.domain), '--out', str(out)],
-                env=env, stdout=log, stderr=subprocess.STDOUT)
+                 str(args.lockstep), '--domain', str(args.domain), '--out', str(out),
+                 '--mode', mode], env=env, stdout=log, stderr=subprocess.STDOUT)
         pub.wait(timeout=args.duration + args.lockstep + 300)
         result = json.loads(out.read_text())
         paced_from = min(int(t) for t in result['sent'].values())
-        time.sleep(args.diagnostics_wait)
+        if server == 'node':
+            time.sleep(args.diagnostics_wait)
         timings = _timings(listener.diagnostics, paced_from)
         lock_timings = {k: v for k, v in _timings(
             [d for d in listener.diagnostics if start <= d[0] < paced_from], start).items()}
@@ -346,13 +440,22 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path) ->
     latencies = [(listener.arrived[s] - t) / 1e6 for s, t in sent.items()
                  if s in listener.arrived]
     warm = latencies[len(latencies) // 10:] or latencies
-    return {'bodies': count, 'rate': rate, 'lockstep': result['lockstep'], 'sent': len(sent),
+    return {'server': server, 'mode': mode, 'bodies': count, 'rate': rate,
+            'startup_s': startup, 'lockstep': result['lockstep'], 'sent': len(sent),
             'answered': len(latencies), 'dropped': len(sent) - len(latencies),
             'p50': float(np.percentile(warm, 50)) if warm else float('nan'),
             'p99': float(np.percentile(warm, 99)) if warm else float('nan'),
             'contacts_msgs': listener.counts['contacts'],
             'markers_msgs': listener.counts['contact_markers'],
-            'timings': timings, 'lock_timings': lock_timings, 'settle_world_ms': world_ms}
+            'timings': timings, 'lock_timings': lock_timings}
+
+
+def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> float:
+    """The settled pile's params file and input bytes; the in-process World.step (ms)."""
+    bodies, state, world_ms = settled_pile(count, args.settle)
+    write_scene(workdir / f'pile{count}.yaml', bodies, state)
+    (workdir / f'input{count}.cdr').write_bytes(input_bytes(bodies, state, 1.0 / rate))
+    return world_ms
 
 
 def _f(values: dict[str, float], key: str) -> str:
@@ -369,45 +472,60 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--settle', type=float, default=1.0, help='settling time, s')
     parser.add_argument('--domain', type=int, default=int(os.environ.get('ROS_DOMAIN_ID', 90)))
     parser.add_argument('--diagnostics-wait', type=float, default=1.2)
+    parser.add_argument('--modes', nargs='+', default=['estimator', 'simulator'],
+                        choices=('estimator', 'simulator', 'per_body'),
+                        help='how the publisher drives the node (see the docstring)')
+    parser.add_argument('--no-echo', action='store_true', help='skip the echo floor')
     parser.add_argument('--json', help='also write the rows here')
     parser.add_argument('--role', default='main', help=argparse.SUPPRESS)
     parser.add_argument('--bytes', help=argparse.SUPPRESS)
     parser.add_argument('--rate', type=float, default=100.0, help=argparse.SUPPRESS)
+    parser.add_argument('--mode', default='estimator', help=argparse.SUPPRESS)
     parser.add_argument('--out', help=argparse.SUPPRESS)
     parser.add_argument('--subscribers', type=int, default=1, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.role == 'publisher':
         return publisher(args)
+    if args.role == 'echo':
+        return echo(args)
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
-    print('| bodies | lock-step rate Hz | paced rate Hz | sent | dropped | p50 ms | p99 ms '
-          '| callback ms | decode | resolve | World.step | encode | publish | '
-          'overhead ms |')
-    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
+    print('| bodies | server | mode | start s | lock-step Hz | lock-step p50 ms | paced Hz '
+          '| sent | dropped | p50 ms | p99 ms | callback ms | decode | resolve | World.step '
+          '(in-process) | encode | publish | overhead ms |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         for count, rate in zip(args.sizes, rates):
-            r = measure(count, rate, args, Path(tmp))
-            rows.append(r)
-            t = r['timings'] or r['lock_timings']
-            resolve = t.get('time.resolve_ms', t.get('step_time_mean_ms'))
-            callback = t.get('callback_time_mean_ms')
-            world = t.get('time.world_ms')
-            overhead = callback - (world if world is not None else resolve) \
-                if callback is not None and (world or resolve) is not None else None
-            print(f'| {count} | {r["lockstep"]["rate_hz"]:.1f} | {rate:g} | {r["sent"]} | '
-                  f'{r["dropped"]} | {r["p50"]:.2f} | {r["p99"]:.2f} | '
-                  f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '
-                  f'{resolve if resolve is not None else float("nan"):.2f} | '
-                  f'{_f(t, "time.world_ms")} | {_f(t, "time.encode_ms")} | '
-                  f'{_f(t, "time.publish_ms")} | '
-                  f'{"n/a" if overhead is None else f"{overhead:.2f}"} |', flush=True)
+            world_ms = prepare(count, rate, args, Path(tmp))
+            runs = ([] if args.no_echo else [('echo', 'estimator')]) + \
+                [('node', mode) for mode in args.modes]
+            for server, mode in runs:
+                r = measure(count, rate, args, Path(tmp), server, mode)
+                r['settle_world_ms'] = world_ms
+                rows.append(r)
+                _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
-          'latency: publish to body_states/corrected received; callback split: the node\'s '
-          '/diagnostics means over the paced run; overhead = callback - World.step '
-          '(- resolve where the node does not report World.step)')
+          'latency: publish to body_states/corrected received; start: process start to its '
+          'topics connected; callback split: the node\'s /diagnostics means over the paced '
+          'run; World.step (in-process): the same pile stepped by the core in this process; '
+          'overhead = callback - World.step')
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1, default=str))
     return 0
+
+
+def _print_row(r: dict[str, Any]) -> None:
+    t = r['timings'] or r['lock_timings']
+    callback, world = t.get('callback_time_mean_ms'), t.get('time.world_ms')
+    overhead = callback - world if callback is not None and world is not None else None
+    print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["startup_s"]:.2f} | '
+          f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
+          f'{r["sent"]} | {r["dropped"]} | {r["p50"]:.2f} | {r["p99"]:.2f} | '
+          f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '
+          f'{_f(t, "time.resolve_ms")} | {_f(t, "time.world_ms")} '
+          f'({r["settle_world_ms"]:.2f}) | {_f(t, "time.encode_ms")} | '
+          f'{_f(t, "time.publish_ms")} | '
+          f'{"n/a" if overhead is None else f"{overhead:.2f}"} |', flush=True)
 
 
 if __name__ == '__main__':

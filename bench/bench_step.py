@@ -1,4 +1,4 @@
-"""Per-step time of World.step against coal's own detection, MuJoCo and PyBullet.
+"""Per-step time of World.step against coal's own detection, MuJoCo, PyBullet and Rapier.
 
     .venv/bin/python bench/bench_step.py [--sizes 10 100 1000] [--piles mixed cubes]
         [--steps 20] [--settle 1.0] [--peer-venv DIR | --no-peers] [--out FILE]
@@ -8,14 +8,17 @@ cubes and spheres, ``cubes`` only) and size: build the pile, let it settle with 
 core and a semi-implicit Euler integrator at 120 Hz, then time ``--steps`` more
 steps of World.step (median and 90th percentile of the whole step and of its
 detection and solve phases; contact points per step and how many became solver
-rows). On the same final poses it times coal's own detection alone: the
-DynamicAABBTree broad phase and narrow phase of ``collide`` (one contact per pair),
-the C++ calls only (the finite bodies in the tree, each half-space queried against
-it, as half-spaces in the tree miss pairs). Then MuJoCo (CG and Newton solvers) and
-PyBullet step the same pile in the peers' throw-away venv (``--peer-venv``, default
-$COLLRES_PEER_VENV or ~/.cache/collres_ros/peer-venv, outside the repository; created
-with ``pip install mujoco pybullet`` when missing), reporting ms per step and contact
-points per step. Ratios are ours / theirs in the same run. The table is also written as JSON
+rows, and the solve's cost per row per velocity sweep in ns). The same pile is then
+settled and timed again at 30 Hz: the ratio of that step to the 120 Hz one is printed
+(a step four times longer should not cost much more). On the same 120 Hz final poses it
+times coal's own detection alone: the DynamicAABBTree broad phase and narrow phase of
+``collide`` (one contact per pair), the C++ calls only (the finite bodies in the tree,
+each half-space queried against it, as half-spaces in the tree miss pairs). Then MuJoCo
+(CG and Newton solvers), PyBullet and Rapier (``rapier3d``) step the same pile in the
+peers' throw-away venv (``--peer-venv``, default $COLLRES_PEER_VENV or
+~/.cache/collres_ros/peer-venv, outside the repository; set up with ``pip install mujoco
+pybullet rapier3d`` when one is missing), reporting ms per step and contact points per
+step. Ratios are ours / theirs in the same run. The table is also written as JSON
 (``--out``, default ``bench_out/step.json``). Timings on a shared machine: read the
 ratios, not the absolute numbers.
 """
@@ -45,7 +48,8 @@ from pile import bin_half_width, describe, integrate, make_pile, PILES  # noqa: 
 
 DT = 1.0 / 120.0
 ROOT = HERE.parent
-PEER_ENGINES = ('mujoco_cg', 'mujoco_newton', 'pybullet')
+PEER_ENGINES = ('mujoco_cg', 'mujoco_newton', 'pybullet', 'rapier')
+SLOW_DT = 1.0 / 30.0   # s, the low-rate step compared with the 120 Hz one
 
 
 def coal_detection(bodies, state, repeats: int = 20) -> tuple[float, int]:
@@ -84,46 +88,71 @@ def coal_detection(bodies, state, repeats: int = 20) -> tuple[float, int]:
     return 1000.0 * float(np.median(times)), int(contacts)
 
 
-def ours(kind: str, size: int, steps: int, settle_s: float) -> dict:
+def settled_steps(kind: str, size: int, steps: int, settle_s: float, dt: float):
+    """Settle a pile at step ``dt``, then time ``steps`` more World.step calls.
+
+    Returns (bodies, final state, per-step lists: total s, detect s, solve s, contact
+    points, solver rows, velocity sweeps).
+    """
     bodies, state = make_pile(size, kind=kind)
     world = World(bodies, SolverSettings())
-    for _ in range(int(settle_s / DT)):
-        state = world.step(state, integrate(state, world.dynamic, DT), DT).states
-    total, detect, solve, contacts, rows = [], [], [], [], []
+    for _ in range(int(settle_s / dt)):
+        state = world.step(state, integrate(state, world.dynamic, dt), dt).states
+    timed = {key: [] for key in ('total', 'detect', 'solve', 'contacts', 'rows', 'sweeps')}
     for _ in range(steps):
-        current = integrate(state, world.dynamic, DT)
+        current = integrate(state, world.dynamic, dt)
         start = time.perf_counter()
-        result = world.step(state, current, DT)
-        total.append(time.perf_counter() - start)
-        detect.append(world.timing['detect'])
-        solve.append(world.timing['solve'])
-        contacts.append(result.report.contacts.count)
-        rows.append(world.timing['rows'])
+        result = world.step(state, current, dt)
+        timed['total'].append(time.perf_counter() - start)
+        timed['detect'].append(world.timing['detect'])
+        timed['solve'].append(world.timing['solve'])
+        timed['contacts'].append(result.report.contacts.count)
+        timed['rows'].append(world.timing['rows'])
+        timed['sweeps'].append(world.timing['iterations'])
         state = result.states
+    return bodies, state, timed
+
+
+def ours(kind: str, size: int, steps: int, settle_s: float) -> dict:
+    bodies, state, timed = settled_steps(kind, size, steps, settle_s, DT)
     ms = (lambda v, q: 1000.0 * float(np.percentile(v, q)))
     coal_ms, coal_contacts = coal_detection(bodies, state)
-    return {'pile': kind, 'bodies': size, 'contacts': int(np.median(contacts)),
-            'rows': int(np.median(rows)),
-            'step_ms': [ms(total, 50), ms(total, 90)],
-            'detect_ms': [ms(detect, 50), ms(detect, 90)],
-            'solve_ms': [ms(solve, 50), ms(solve, 90)],
+    # solve cost per solver row per velocity sweep, ns (median over the timed steps)
+    work = np.array(timed['rows'], float) * np.array(timed['sweeps'], float)
+    per_row = np.array(timed['solve']) * 1e9 / np.maximum(work, 1.0)
+    slow = settled_steps(kind, size, steps, max(settle_s, 30 * SLOW_DT), SLOW_DT)[2]
+    return {'pile': kind, 'bodies': size, 'contacts': int(np.median(timed['contacts'])),
+            'rows': int(np.median(timed['rows'])),
+            'sweeps': int(np.median(timed['sweeps'])),
+            'step_ms': [ms(timed['total'], 50), ms(timed['total'], 90)],
+            'detect_ms': [ms(timed['detect'], 50), ms(timed['detect'], 90)],
+            'solve_ms': [ms(timed['solve'], 50), ms(timed['solve'], 90)],
+            'ns_per_row_sweep': float(np.median(per_row)),
+            'step_30hz_ms': ms(slow['total'], 50),
+            'rows_30hz': int(np.median(slow['rows'])),
             'coal_ms': coal_ms, 'coal_contacts': coal_contacts,
             'largest_speed': float(np.abs(state.linear).max()),
             '_scene': describe(bodies, state)}
 
 
+PEER_PACKAGES = ('mujoco', 'pybullet', 'rapier3d')
+
+
 def peer_python(venv: Path) -> Path | None:
-    """The peers' interpreter, creating their venv (mujoco, pybullet) when missing."""
+    """The peers' interpreter, creating their venv (mujoco, pybullet, rapier3d) when missing."""
     python = venv / 'bin' / 'python'
-    if python.exists():
+    check = [str(python), '-c', 'import mujoco, pybullet, rapier3d']
+    if python.exists() and subprocess.run(check, capture_output=True).returncode == 0:
         return python
-    print(f'creating the peers\' venv {venv} (pip install mujoco pybullet) ...', flush=True)
+    print(f'setting up the peers\' venv {venv} (pip install {" ".join(PEER_PACKAGES)}) ...',
+          flush=True)
     try:
-        subprocess.run([sys.executable, '-m', 'venv', str(venv)], check=True)
+        if not python.exists():
+            subprocess.run([sys.executable, '-m', 'venv', str(venv)], check=True)
         subprocess.run([str(python), '-m', 'pip', 'install', '-q', '--disable-pip-version-check',
-                        'mujoco', 'pybullet'], check=True, timeout=1800)
+                        *PEER_PACKAGES], check=True, timeout=1800)
     except (OSError, subprocess.SubprocessError) as error:
-        print(f'peers: cannot create {venv}: {error}', file=sys.stderr)
+        print(f'peers: cannot set up {venv}: {error}', file=sys.stderr)
         return None
     return python
 
@@ -152,12 +181,13 @@ def print_row(row: dict) -> None:
         row['pile'], row['bodies'], f'{row["step_ms"][0]:.2f}/{row["step_ms"][1]:.2f}',
         f'{row["detect_ms"][0]:.2f}', f'{row["solve_ms"][0]:.2f}',
         f'{row["contacts"]}/{row["rows"]}', f'{row["coal_ms"]:.2f} ({row["coal_contacts"]})',
-        f'{row["detect_ms"][0] / row["coal_ms"]:.1f}', *[cell(v) for v in peer],
+        f'{row["detect_ms"][0] / row["coal_ms"]:.1f}', f'{row["ns_per_row_sweep"]:.0f}',
+        f'{row["step_30hz_ms"] / row["step_ms"][0]:.2f}', *[cell(v) for v in peer],
         *[ratio(v) for v in peer]), flush=True)
 
 
-FORMAT = ('{:>6} {:>6} {:>13} {:>7} {:>7} {:>11} {:>14} {:>8} {:>15} {:>15} {:>15} '
-          '{:>6} {:>6} {:>6}')
+FORMAT = ('{:>6} {:>6} {:>13} {:>7} {:>7} {:>11} {:>14} {:>8} {:>7} {:>7} {:>15} {:>15} '
+          '{:>15} {:>15} {:>6} {:>6} {:>6} {:>6}')
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -174,8 +204,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     python = None if args.no_peers else peer_python(args.peer_venv)
     print(FORMAT.format('pile', 'bodies', 'step p50/p90', 'detect', 'solve', 'points/rows',
-                        'coal (pts)', 'det/coal', 'mujoco CG', 'mujoco Newton', 'pybullet',
-                        'us/cg', 'us/nt', 'us/pb'))
+                        'coal (pts)', 'det/coal', 'ns/row', '30/120', 'mujoco CG',
+                        'mujoco Newton', 'pybullet', 'rapier', 'us/cg', 'us/nt', 'us/pb',
+                        'us/rp'))
     rows = []
     for kind in args.piles:
         for size in args.sizes:
@@ -187,7 +218,9 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
     print('ms per step at 120 Hz (contact points per step in brackets); points/rows: our '
           'contact points and solver rows; coal: its own broad + narrow phase alone on '
-          'the same poses; us/x: our step / theirs (same run)')
+          'the same poses; ns/row: solve time per solver row per velocity sweep; 30/120: '
+          'our step at 30 Hz / at 120 Hz on the same pile settled at each rate; us/x: our '
+          'step / theirs (same run)')
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({'dt': DT, 'rows': rows}, indent=1))
     print(f'written {args.out}')

@@ -1,4 +1,4 @@
-"""Step time of MuJoCo (CG, Newton) and PyBullet on a pile described by bench/pile.py.
+"""Step time of MuJoCo (CG, Newton), PyBullet and Rapier on a pile described by bench/pile.py.
 
 Run with the peers' throw-away interpreter (never the project's .venv; bench_step.py
 creates it): ``PEER_PYTHON bench/peers.py SCENE.json``. Prints one JSON line, per
@@ -11,11 +11,16 @@ iterations it needs (CG stops at 100), so both are reported with it, and the are
 sized from the body count with its contact-full warnings counted (0: no contact was
 dropped): an earlier figure of 4.66 ms at 1000 bodies could not be reproduced (about
 100-180 ms with CG at its cap) and a time without these numbers cannot be checked.
+
+Rapier (``rapier3d``, its official Python bindings: single precision, SIMD) runs with one
+thread and sleeping off, as every other engine here, with its default solver settings
+(reported as ``iterations``); its contact points are the active points of its manifolds.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import statistics
 import sys
 import time
@@ -120,12 +125,55 @@ def pybullet_run(scene: dict, warmup: int, steps: int) -> dict | None:
     return result
 
 
+def _scaled_axis(q: list[float]) -> tuple[float, float, float]:
+    """Rotation vector (axis times angle, rad) of a unit quaternion x, y, z, w."""
+    x, y, z, w = q
+    s = math.sqrt(x * x + y * y + z * z)
+    if s < 1e-12:
+        return (0.0, 0.0, 0.0)
+    angle = 2.0 * math.atan2(s, w)
+    return (x / s * angle, y / s * angle, z / s * angle)
+
+
+def rapier_run(scene: dict, warmup: int, steps: int) -> dict | None:
+    try:
+        import rapier3d as r
+    except ImportError:
+        return None
+    world = r.PhysicsWorld(gravity=(0.0, 0.0, -9.81))
+    world.set_num_threads(1)
+    world.integration_parameters.dt = scene['dt']
+    for centre, half in _walls(scene):
+        world.add_body(r.RigidBody.fixed().translation(tuple(centre)),
+                       [r.Collider.cuboid(*half)])
+    for i, body in enumerate(scene['bodies']):
+        if body['static']:
+            continue
+        rigid = r.RigidBody.dynamic().translation(tuple(scene['position'][i])) \
+            .rotation(_scaled_axis(scene['orientation'][i])).can_sleep(False)
+        if body['shape'] == 'box':
+            collider = r.Collider.cuboid(*[s / 2 for s in body['size']])
+        else:
+            collider = r.Collider.ball(body['size'][0])
+        world.add_body(rigid, [collider.mass(body['mass']).friction(body['mu'])
+                               .restitution(body['e'])])
+
+    def count() -> int:
+        return sum(m.data.num_active_contacts for pair in world.narrow_phase.contact_pairs()
+                   for m in pair.manifolds)
+
+    result = _timed(world.step, count, warmup, steps)
+    result['iterations'] = int(world.integration_parameters.num_solver_iterations)
+    return result
+
+
 def main() -> int:
     scene = json.load(open(sys.argv[1]))
     warmup, steps = scene['warmup'], scene['steps']
     print(json.dumps({'mujoco_cg': mujoco_run(scene, 'CG', warmup, steps),
                       'mujoco_newton': mujoco_run(scene, 'Newton', warmup, steps),
-                      'pybullet': pybullet_run(scene, warmup, steps)}))
+                      'pybullet': pybullet_run(scene, warmup, steps),
+                      'rapier': rapier_run(scene, warmup, steps)}))
     return 0
 
 

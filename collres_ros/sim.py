@@ -34,7 +34,8 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from collres_ros.ros import cli, names
-from collres_ros.ros.simulation import START_NS, SimScene, load_sim_scene, rows_of, run_loop
+from collres_ros.ros.simulation import (
+    START_NS, RealtimePace, SimScene, load_sim_scene, rows_of, run_loop)
 from collres_ros.ros.stamps import to_stamp
 
 
@@ -98,12 +99,30 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 return True
 
             wall_start = time.monotonic()  # reset once the node answered discovery
+            delivered: list[bool] = []
+
+            def deliver_first_step() -> None:
+                # Every subscriber counted before the run (the node, a recorder) acknowledges
+                # the first step: a reader our publisher matched may not have matched us yet,
+                # and would lose the steps published until it does.
+                from rclpy.duration import Duration
+                acked = all(p.wait_for_all_acked(Duration(seconds=min(args.wait, 10.0)))
+                            for p in inputs)
+                if not acked:
+                    log.warning('a subscriber of the inputs did not acknowledge the first step')
+                delivered.append(True)
+
+            pace: list[RealtimePace] = []   # the run's, once it starts
 
             def exchange(stamp: int, states: Any) -> Any:
                 if args.realtime:
                     due = wall_start + (stamp - START_NS) * 1e-9
                     spin_until(lambda: time.monotonic() >= due,
                                max(0.0, due - time.monotonic()))
+                    late = pace[0].late(int(round((stamp - START_NS) * 1e-9 * sim.rate_hz)),
+                                        time.monotonic())
+                    if late:
+                        log.warning(late)
                 values = messages.state_values(rows_of(states, sim.rows))
                 clock.publish(Clock(clock=to_stamp(stamp)))
                 if per_body:
@@ -115,6 +134,8 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 else:
                     publisher.publish(states_codec.encode(stamp, sim.world_frame, published,
                                                           values))
+                if not delivered:
+                    deliver_first_step()
                 if not spin_until(lambda: stamp in answers, args.step_timeout):
                     log.warning(f'no corrected state for stamp {stamp} ns within '
                                 f'{args.step_timeout} s: step dropped')
@@ -137,9 +158,13 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                     code = 1
                 else:
                     wall_start = time.monotonic()
+                    pace.append(RealtimePace(sim.rate_hz, wall_start))
                     steps, dropped = run_loop(sim, exchange, progress)
                     log.info(f'done: {steps} steps, {dropped} dropped, '
                              f'{time.monotonic() - wall_start:.2f} s wall time')
+                    short = pace[0].summary(steps, time.monotonic()) if args.realtime else None
+                    if short:
+                        log.warning(short)
             finally:
                 node.destroy_node()
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -182,7 +207,8 @@ def parser() -> argparse.ArgumentParser:
                    help='live: wait for this many subscribers of body_states (e.g. 2 with a '
                         'recorder) before the first step')
     p.add_argument('--realtime', action='store_true',
-                   help='live: pace the steps to the wall clock')
+                   help='live: pace the steps to the wall clock; warns when it falls '
+                        'behind, and at the end with the rate reached if below the rate')
     return p
 
 

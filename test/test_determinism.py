@@ -36,7 +36,7 @@ def run_hash(steps: int = STEPS) -> str:
     from collres_ros.ros.integrator import euler_step
     from collres_ros.ros.params import load_scene
     scene = load_scene(SCENE)
-    resolver = Resolver(scene)
+    resolver = Resolver.for_scene(scene)
     states = scene.initial.copy()
     dynamic = np.array([not b.static for b in scene.bodies])
     gravity = np.array(scene.sim.gravity)

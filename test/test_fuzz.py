@@ -66,7 +66,7 @@ def test_validation_accounts_for_every_input_and_passes_only_finite_unit_states(
 @given(st.lists(st.tuples(st.integers(-3, 40), st.lists(body_input(), max_size=4)),
                 max_size=12))
 def test_the_resolver_never_raises_warns_or_outputs_non_finite(steps):
-    resolver = Resolver(SCENE)
+    resolver = Resolver.for_scene(SCENE)
     with warnings.catch_warnings():
         warnings.simplefilter('error')      # an overflow warning would reach stderr
         for k, inputs in steps:

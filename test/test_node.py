@@ -47,14 +47,20 @@ def running(ros_domain, tmp_path):
                         ('bodies/ball/twist/corrected', TwistStamped)):
         peer.listen(topic, kind)
     peer.advertise('body_states', BodyStateArray)
-    up = peer.wait(lambda: peer.connected('body_states') and any(
-        s.get_publisher_count() for s in peer.node.subscriptions
-        if s.topic_name == '/body_states/corrected'), 30.0)
-    assert up, f'node did not come up: {node.output()}'
-    yield peer, node
-    peer.close()
-    if node.poll() is None:
-        processes.stop(node)
+    # the batched outputs' publishers all matched (a loaded machine can match `contacts` well
+    # after `body_states/corrected`, and a step published before it would lose its contacts);
+    # per-body outputs are advertised with the first per-body step
+    batched = {'/body_states/corrected', '/contacts', '/diagnostics'}
+    try:
+        up = peer.wait(lambda: peer.connected('body_states') and all(
+            s.get_publisher_count() for s in peer.node.subscriptions
+            if s.topic_name in batched), 30.0)
+        assert up, f'node did not come up: {node.output()}'
+        yield peer, node
+    finally:   # a node left running would answer the next test's steps on this domain
+        peer.close()
+        if node.poll() is None:
+            processes.stop(node)
 
 
 def step(peer, stamp, bodies, frame='world', timeout=10.0):
@@ -136,6 +142,8 @@ def test_bad_inputs_are_counted_and_the_others_served(running):
 
 def test_per_body_topics_body_frame_twist_and_stale(running):
     peer, node = running
+    # the per-body subscriptions come up after the batched topic: the node says when
+    assert peer.wait(lambda: 'per-body inputs: 6 topics subscribed' in node.output(), 30.0)
     topics = [f'bodies/{n}/{k}' for n in ('ball', 'box') for k in ('pose', 'twist')]
     for topic in topics:   # a message published before discovery is lost: wait for the match
         peer.advertise(topic, PoseStamped if topic.endswith('pose') else TwistStamped)
@@ -279,3 +287,18 @@ def test_oversized_and_badly_stamped_inputs_are_refused_and_counted(running):
     assert 0 not in stamps and T0 + 2 * DT in stamps
     assert node.poll() is None and 'Traceback' not in node.output()
     assert 'too_many_bodies' in node.output()
+
+
+def test_a_message_with_unknown_bodies_serves_the_known_ones(running):
+    """An estimator publishes every object it tracks, more than the scene's three bodies:
+    the known ones are resolved and answered, each unknown one refused and counted."""
+    peer, node = running
+    ghosts = [body(f'tracked{k}', 0.5 + k, x=3.0 + k) for k in range(5)]
+    out = step(peer, T0, ghosts[:2] + [body('ball', 0.5), body('box', 0.1, x=1.0)] + ghosts[2:])
+    assert sorted(b.name for b in out.bodies) == ['ball', 'box']
+    assert peer.wait(lambda: diagnostics_values(peer).get('count.unknown_body') == '5', 10.0), \
+        diagnostics_values(peer)
+    values = diagnostics_values(peer)
+    print({k: v for k, v in values.items() if k.startswith(('count.', 'messages_refused'))})
+    assert 'count.too_many_bodies' not in values
+    assert 'unknown_body' in node.output()

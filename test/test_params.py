@@ -61,9 +61,9 @@ def test_markdown_table_lists_every_parameter():
 
 
 def test_descriptors_carry_the_config_ranges():
-    node = pytest.importorskip('collres_ros.node')
+    pytest.importorskip('rcl_interfaces')
     for spec in params.node_specs(['ball']):
-        d = node.descriptor(spec, read_only=False)
+        d = params.descriptor(spec, read_only=False)
         assert d.name == spec.name and d.description
         if spec.type == 'double' and spec.minimum is not None:
             r = d.floating_point_range[0]

@@ -122,7 +122,7 @@ from collres_ros.ros.params import scene_from_values
 scene = scene_from_values({'bodies': ['floor', 'ball', 'box'], 'body.floor.shape': 'box',
     'body.floor.size': [10.0, 10.0, 0.2], 'body.floor.static': True,
     'body.box.shape': 'box', 'body.box.size': [0.2, 0.2, 0.2]})
-resolver = Resolver(scene)
+resolver = Resolver.for_scene(scene)
 for k, (x, v) in enumerate([(0.0, 0.0), (1e308, 0.0), (0.0, 1e308), (-1e308, -1e308),
                             (1e8, 1e8), (0.0, 0.0)]):
     out = resolver.resolve(10**9 + k * 10**7, [
@@ -142,7 +142,7 @@ print(dict(resolver.totals))
 
 def test_inputs_within_the_limits_are_served():
     scene = params.scene_from_values(BASE)
-    out = Resolver(scene).resolve(10**9, [BodyInput(
+    out = Resolver.for_scene(scene).resolve(10**9, [BodyInput(
         'ball', (1e8, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), (1e8, 0.0, 0.0), (0.0, 0.0, 0.0),
         'world', 'world')])
     assert out.names == ['ball'] and not out.rejected

@@ -31,7 +31,7 @@ def scene():
 def make(world=None):
     s = scene()
     world = world or FakeWorld(s.bodies, s.solver)
-    return Resolver(s, world=world), world
+    return Resolver.for_scene(s, world=world), world
 
 
 def body(name, z=1.0, vz=0.0, q=(0.0, 0.0, 0.0, 1.0), frame='world', twist_frame='world',
@@ -203,7 +203,7 @@ def test_real_world_is_deterministic_bit_for_bit():
     """Two resolvers fed the same falling-ball inputs give identical states and contacts."""
     runs = []
     for _ in range(2):
-        resolver = Resolver(scene())
+        resolver = Resolver.for_scene(scene())
         z, v, dt = 0.3, 0.0, 1 / 240
         outputs = []
         for k in range(200):
@@ -243,7 +243,7 @@ def test_the_real_world_guard_is_counted(monkeypatch):
             result = self.real.step(**arrays)
             arrays['out'][2][arrays['movable']] = math.nan
             return result
-    resolver = Resolver(scene())
+    resolver = Resolver.for_scene(scene())
     resolver.resolve(T0, [body('ball', 0.09)])      # resting in the floor: a contact
     monkeypatch.setattr(resolver.world, '_solver', PoisonedSolver(resolver.world._solver))
     out = resolver.resolve(T0 + 4 * MS, [body('ball', 0.09)])

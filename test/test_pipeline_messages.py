@@ -62,7 +62,7 @@ def test_body_frame_twist_goes_out_in_the_body_frame():
     twist.twist.linear.x = 1.0
     twist.twist.angular.x = 2.0
     s = scene()
-    resolver = Resolver(s, world=FakeWorld(s.bodies))
+    resolver = Resolver.for_scene(s, world=FakeWorld(s.bodies))
     step = resolver.resolve(T0, [messages.input_from_pose_twist('ball', pose, twist)])
     outputs = dict(messages.build_outputs(step, 'world', per_body=True))
     world = outputs['body_states/corrected'].bodies[0].twist
@@ -79,7 +79,7 @@ def test_body_frame_twist_goes_out_in_the_body_frame():
 def test_outputs_of_a_step_with_a_contact():
     s = scene()
     world = FakeWorld(s.bodies)
-    resolver = Resolver(s, world=world)
+    resolver = Resolver.for_scene(s, world=world)
     resolver.resolve(T0, [messages.inputs_from_array(_array(1.0))[0]])
     world.report = one_contact(0, 1, 0.5)
     step = resolver.resolve(T0 + 4_000_000, messages.inputs_from_array(_array(0.9)))
@@ -116,7 +116,7 @@ def test_outputs_of_a_step_with_a_contact():
 
 def test_outputs_never_hold_nan_for_bad_input():
     s = scene()
-    resolver = Resolver(s, world=FakeWorld(s.bodies))
+    resolver = Resolver.for_scene(s, world=FakeWorld(s.bodies))
     msg = _array(float('nan'))
     step = resolver.resolve(T0, messages.inputs_from_array(msg))
     array = dict(messages.build_outputs(step, 'world'))['body_states/corrected']

@@ -10,7 +10,7 @@ is a positive event: an answer received, or DDS reporting an incompatible QoS
 from __future__ import annotations
 
 import pytest
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_harness import Peer, write_scene
@@ -74,6 +74,45 @@ def test_overrides_let_a_best_effort_publisher_connect(ros_domain, tmp_path):
         print('answered a best-effort input; incompatible QoS reported on',
               sorted(set(incompatible)))
         assert pose_pub.get_subscription_count() == 0
+    finally:
+        peer.close()
+        if node.poll() is None:
+            processes.stop(node)
+
+
+PER_BODY = '''    qos_overrides:
+      /bodies/ball/pose:
+        subscription:
+          reliability: best_effort
+'''
+
+
+def test_per_body_overrides_apply_and_only_those_set_are_declared(ros_domain, tmp_path):
+    """A per-body topic takes its override as any topic does (a best-effort pose writer
+    matches), and ``ros2 param`` shows it; per-body topics without one declare nothing
+    (four declared per topic made a 1000-body scene declare 16,000 parameters)."""
+    from rclpy.parameter_client import AsyncParameterClient
+    scene = write_scene(tmp_path / 'scene.yaml', extra_node=PER_BODY)
+    node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
+                           env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
+    peer = Peer(ros_domain)
+    try:
+        ball = peer.node.create_publisher(PoseStamped, 'bodies/ball/pose', BEST_EFFORT)
+        assert peer.wait(lambda: ball.get_subscription_count() > 0, 30.0), node.output()
+        client = AsyncParameterClient(peer.node, 'collres_node')
+        assert client.wait_for_services(10.0)
+        listed = client.list_parameters(['qos_overrides'], 0)
+        assert peer.wait(listed.done, 10.0)
+        names = sorted(n for n in listed.result().result.names if '/bodies/' in n)
+        print('per-body QoS parameters:', names)
+        assert names == ['qos_overrides./bodies/ball/pose.subscription.reliability']
+        got = client.get_parameters(names)
+        assert peer.wait(got.done, 10.0)
+        assert got.result().values[0].string_value == 'best_effort'
+        reliable = peer.node.create_publisher(PoseStamped, 'bodies/box/pose', BEST_EFFORT)
+        box = peer.node.create_publisher(TwistStamped, 'bodies/box/twist', RELIABLE)
+        assert peer.wait(lambda: box.get_subscription_count() > 0, 30.0), node.output()
+        assert reliable.get_subscription_count() == 0   # not overridden: still reliable
     finally:
         peer.close()
         if node.poll() is None:

@@ -153,3 +153,56 @@ def test_live_sim_counts_unanswered_steps_as_dropped(tmp_path: Path) -> None:
     assert code == 0
     assert len(received) == 25            # 0.1 s at 240 Hz: 25 states, each published once
     assert 'done: 25 steps, 5 dropped' in log
+
+
+def test_realtime_pace_warns_behind_the_clock_and_with_the_rate_reached() -> None:
+    from collres_ros.ros.simulation import RealtimePace
+    pace = RealtimePace(100.0, start=10.0)
+    assert pace.late(100, 11.0) is None              # step 100 due at 11 s: on time
+    assert pace.late(100, 11.4) is None              # within the lag allowed
+    text = pace.late(100, 12.0)                      # 1 s behind
+    assert text is not None and '1.0 s behind' in text and '50 steps/s' in text
+    assert pace.late(150, 14.0) is None              # warned less than a period ago
+    assert pace.summary(100, 11.0) is None           # 100 steps/s of 100 Hz
+    short = pace.summary(100, 12.0)
+    assert short is not None and 'reached 50 steps/s of the 100 Hz asked' in short
+
+
+@pytest.mark.slow
+def test_live_realtime_sim_warns_with_the_rate_it_reached(tmp_path: Path) -> None:
+    """50 kHz cannot be kept (a step waits for an answer over DDS): the sim says so."""
+    pytest.importorskip('rclpy')
+    import re
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from collres_ros.msg import BodyStateArray
+    from collres_ros.ros import processes
+    from conftest import next_domain_id
+    domain = next_domain_id()
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=domain)
+    try:
+        node = rclpy.create_node('fake_collres_node', context=context)
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        answer = node.create_publisher(BodyStateArray, 'body_states/corrected', qos)
+        node.create_subscription(BodyStateArray, 'body_states', answer.publish, qos, raw=True)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        sim = processes.start('collres_sim', ['--params', str(SCENES / 'bouncing_ball.yaml'),
+                                              '--rate', '50000', '--duration', '0.004',
+                                              '--realtime'],
+                              env=processes.ros_env(domain), log=tmp_path / 'sim.log')
+        assert processes.wait_for(lambda: executor.spin_once(timeout_sec=0.01) or
+                                  sim.poll() is not None, 60.0), 'sim did not finish'
+        code = sim.wait()
+    finally:
+        rclpy.try_shutdown(context=context)
+    log = sim.output()
+    print(log[-400:])
+    assert code == 0 and 'done: 201 steps, 0 dropped' in log
+    found = re.search(r'realtime: reached (\d+) steps/s of the 50000 Hz asked', log)
+    assert found, log
+    assert int(found.group(1)) < 0.95 * 50000

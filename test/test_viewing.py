@@ -85,7 +85,10 @@ def test_launch_file_names_only_executables_arguments_and_parameters_that_exist(
         assert ast.literal_eval(_keyword(node, 'name')) == exe
         # command-line flags given to an executable are flags its main knows
         flags = _keyword(node, 'arguments')
-        main = (ROOT / 'collres_ros' / f'{exe[len("collres_"):]}.py').read_text()
+        # the main, and the module it runs when the main is a thin wrapper (ros/node.py)
+        module = f'{exe[len("collres_"):]}.py'
+        paths = (ROOT / 'collres_ros' / module, ROOT / 'collres_ros' / 'ros' / module)
+        main = ''.join(path.read_text() for path in paths if path.is_file())
         for flag in ([] if flags is None else ast.literal_eval(flags)):
             assert f"'{flag}'" in main, f'{exe} has no flag {flag}'
         # every parameter given as a dict is one the node declares (or a ROS builtin)

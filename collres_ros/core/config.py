@@ -189,6 +189,12 @@ VELOCITY_LIMIT = 1e9           # m/s and rad/s, |component|
 INERTIA_RANGE = (1e-30, 1e30)  # kg m^2: a 1e-9 kg body of 1 um to a 1e9 kg body of 1000 km
 MESH_MAX_BYTES = 64 * 1024 * 1024   # a larger vertex file is not a collision hull
 MESH_SUFFIXES = ('.obj', '.stl')
+# collres_sim --realtime: it warns when it falls behind the wall clock by more than
+# REALTIME_LAG s (at most once per REALTIME_WARN_PERIOD s), and at the end when the rate it
+# reached is below REALTIME_SHORTFALL of the rate asked (each step waits for the node's answer)
+REALTIME_LAG = 0.5             # s
+REALTIME_WARN_PERIOD = 5.0     # s
+REALTIME_SHORTFALL = 0.95      # fraction of rate_hz
 # Collision filtering (Box2D category/mask bits, Gazebo collide_bitmask): 16 bits, a body in
 # bit 0 that collides with every bit, so a scene that does not filter is unchanged.
 DEFAULT_COLLISION_GROUP = 1
@@ -267,6 +273,13 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('queue_depth', 'integer', 10,
               'Depth of the reliable QoS of state topics (keep last)', 1, 1000,
               reason='a few steps of buffering; old states are worthless to a control loop'),
+    ParamSpec('max_message_bodies', 'integer', 10000,
+              'Most bodies a body_states message may hold; a longer one is refused whole '
+              '(too_many_bodies) before it is read. Bodies the scene does not know are refused '
+              'one by one (unknown_body), the others served',
+              1, 1000000,
+              reason='an estimator may publish every object it tracks; a bound on the memory '
+                     'and time one message takes (10,000 bodies: 1.2 MB)'),
     ParamSpec('min_rate', 'double', 0.0,
               'Expected step rate: /diagnostics warns when the rate over its window falls '
               'below it, and reports an error when no step comes (0: no rate check)',
@@ -299,6 +312,7 @@ class NodeSettings:
     diagnostics_period: float = 1.0
     per_body_outputs: bool = True
     queue_depth: int = 10
+    max_message_bodies: int = 10000
     min_rate: float = 0.0
     contact_wrench: bool = False
     body_markers_period: float = 0.05

@@ -28,16 +28,19 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Optional, Protocol, Sequence
 
 import numpy as np
 
-from collres_ros.core.config import SolverSettings
+from collres_ros.core.config import NodeSettings, SolverSettings
 from collres_ros.core.types import (
     BodyInput, BodySpec, BodyStates, CollisionFilter, ContactReport, InputBatch,
     Rejection)
 from collres_ros.core.validation import (
     NO_STAMP, check_inputs, check_stamps, stale_bodies)
+
+if TYPE_CHECKING:
+    from collres_ros.core.world import World
 
 FRESH_DT = 1e-3            # s, dt given to the world when no body has a usable previous state
 DEFAULT_STALE_TIMEOUT = 1.0  # s
@@ -71,49 +74,58 @@ class ResolvedStep:
         return self.body_names[int(c.body_a[k])], self.body_names[int(c.body_b[k])]
 
 
-def _default_world(bodies: Sequence[BodySpec], settings: SolverSettings,
-                   collision_filter: Optional[CollisionFilter]) -> Any:
-    from collres_ros.core.world import World
-    return World(bodies, settings, collision_filter=collision_filter)
+class SceneLike(Protocol):
+    """What a Resolver reads of a scene (``ros/params.Scene`` is one)."""
+
+    @property
+    def world_frame(self) -> str: ...
+    @property
+    def bodies(self) -> Sequence[BodySpec]: ...
+    @property
+    def initial(self) -> BodyStates: ...
+    @property
+    def solver(self) -> SolverSettings: ...
+    @property
+    def node(self) -> NodeSettings: ...
+    @property
+    def collision_filter(self) -> CollisionFilter: ...
 
 
 class Resolver:
     """Stateful resolution of a stream of steps (see module docstring)."""
 
-    def __init__(self, scene: Any, settings: Optional[SolverSettings] = None,
-                 world: Any = None, world_frame: Optional[str] = None,
+    def __init__(self, bodies: Sequence[BodySpec], settings: Optional[SolverSettings] = None,
+                 *, world: Optional[World] = None, world_frame: str = 'world',
                  initial: Optional[BodyStates] = None,
-                 stale_timeout: Optional[float] = None,
+                 stale_timeout: float = DEFAULT_STALE_TIMEOUT,
                  collision_filter: Optional[CollisionFilter] = None) -> None:
-        """``scene``: a params.Scene, or a sequence of BodySpec (then pass the rest).
-
-        ``world``: the World to step (default: ``core.world.World``), for tests.
-        ``collision_filter``: default the scene's, else every pair collides.
-        """
-        if hasattr(scene, 'bodies'):
-            if collision_filter is None:
-                collision_filter = getattr(scene, 'collision_filter', None)
-            bodies = tuple(scene.bodies)
-            settings = settings or scene.solver
-            world_frame = world_frame or scene.world_frame
-            initial = initial if initial is not None else scene.initial
-            if stale_timeout is None:
-                stale_timeout = scene.node.stale_timeout
-        else:
-            bodies = tuple(scene)
-        self.bodies = bodies
-        self.names = tuple(b.name for b in bodies)
+        """``bodies``: the scene's N bodies; ``initial``: their params states (world frame,
+        default zeros); ``stale_timeout`` (s); ``collision_filter``: default every pair
+        collides. ``world``: the World to step (default: a ``core.world.World`` of
+        ``bodies``), for tests."""
+        self.bodies = tuple(bodies)
+        self.names = tuple(b.name for b in self.bodies)
         self._name_array = np.array(self.names, dtype=object)
         self.index_of = {name: i for i, name in enumerate(self.names)}
-        self.world_frame = world_frame or 'world'
-        self.stale_timeout = DEFAULT_STALE_TIMEOUT if stale_timeout is None else stale_timeout
-        self.dynamic = np.array([not b.static for b in bodies], bool)
+        self.world_frame = world_frame
+        self.stale_timeout = stale_timeout
+        self.dynamic = np.array([not b.static for b in self.bodies], bool)
         self._settings = settings or SolverSettings()
-        self.world = world if world is not None else \
-            _default_world(bodies, self._settings, collision_filter)
+        if world is None:
+            from collres_ros.core.world import World
+            world = World(self.bodies, self._settings, collision_filter=collision_filter)
+        self.world = world
         self._params_state = (initial if initial is not None
-                              else BodyStates.zeros(len(bodies))).copy()
+                              else BodyStates.zeros(len(self.bodies))).copy()
         self.reset()
+
+    @classmethod
+    def for_scene(cls, scene: SceneLike, world: Optional[World] = None) -> 'Resolver':
+        """The resolver of a validated scene: its bodies, solver settings, frame, params
+        states, stale timeout and collision filter."""
+        return cls(scene.bodies, scene.solver, world=world, world_frame=scene.world_frame,
+                   initial=scene.initial, stale_timeout=scene.node.stale_timeout,
+                   collision_filter=scene.collision_filter)
 
     # --- runtime changes (take effect on the next step) -------------------------------------
 

@@ -22,7 +22,7 @@ from typing import Any
 
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
-from collres_ros.node import CollresNode
+from collres_ros.ros.node import CollresNode
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
 

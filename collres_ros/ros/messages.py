@@ -214,16 +214,17 @@ class OutputEncoder:
     def encode(self, step: ResolvedStep, per_body: bool = False, marker_lifetime: float = 0.5,
                diagnostics: Optional[DiagnosticsSnapshot] = None,
                markers: bool = True, wrenches: bool = False,
-               body_markers: Optional[float] = None, tf: bool = False
-               ) -> list[tuple[str, str, bytes]]:
+               body_markers: Optional[float] = None, tf: bool = False,
+               contacts: bool = True) -> list[tuple[str, str, bytes]]:
         """Every output of one step. Order: body_states/corrected, [per-body pose/twist
-        corrected], contacts, [per-body contact_wrench], [contact_markers], [body_markers:
+        corrected], [contacts], [per-body contact_wrench], [contact_markers], [body_markers:
         when ``body_markers`` is a period (s) and it has passed], [/tf], [/diagnostics when
         a snapshot is given]."""
         out = [(CORRECTED_STATES, TYPES[CORRECTED_STATES], self.corrected(step))]
         if per_body:
             out += self.per_body(step)
-        out.append((CONTACTS, TYPES[CONTACTS], self.contacts(step)))
+        if contacts:
+            out.append((CONTACTS, TYPES[CONTACTS], self.contacts(step)))
         if wrenches:
             out += self.wrenches(step)
         if markers:

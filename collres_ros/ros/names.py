@@ -20,19 +20,22 @@ DIAGNOSTICS = '/diagnostics'                # out: DiagnosticArray (absolute: di
 CLOCK = '/clock'                            # sim out: rosgraph_msgs/Clock
 
 
+BODIES = 'bodies/'   # the per-body topics' prefix
+
+
 def pose_topic(name: str, corrected: bool = False) -> str:
     """``bodies/<name>/pose`` (input) or ``bodies/<name>/pose/corrected`` (output)."""
-    return f'bodies/{name}/pose' + ('/corrected' if corrected else '')
+    return f'{BODIES}{name}/pose' + ('/corrected' if corrected else '')
 
 
 def twist_topic(name: str, corrected: bool = False) -> str:
     """``bodies/<name>/twist`` (input) or ``bodies/<name>/twist/corrected`` (output)."""
-    return f'bodies/{name}/twist' + ('/corrected' if corrected else '')
+    return f'{BODIES}{name}/twist' + ('/corrected' if corrected else '')
 
 
 def wrench_topic(name: str) -> str:
     """``bodies/<name>/contact_wrench`` (output, WrenchStamped)."""
-    return f'bodies/{name}/contact_wrench'
+    return f'{BODIES}{name}/contact_wrench'
 
 
 def absolute(topic: str, namespace: str = '/') -> str:

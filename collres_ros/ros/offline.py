@@ -65,7 +65,7 @@ def run_core(sim: SimScene, sink: Callable[[int, list[tuple[str, Any]]], None],
     from collres_ros.core.pipeline import Resolver
     from collres_ros.core.types import InputBatch
     from collres_ros.ros import messages
-    resolver = Resolver(sim.scene)
+    resolver = Resolver.for_scene(sim.scene)
     node = sim.scene.node
     diagnostics = OfflineDiagnostics(node.diagnostics_period)
     encoder = messages.OutputEncoder(sim.names, sim.world_frame, sim.scene.bodies)
@@ -280,7 +280,7 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
         if out_bag.exists():
             raise ReplayError(f'output bag already exists: {out_bag}')
         source, total = read_steps(reader, scene, namespace)
-        resolver = Resolver(scene)
+        resolver = Resolver.for_scene(scene)
         diagnostics = OfflineDiagnostics(scene.node.diagnostics_period)
         encoder = messages.OutputEncoder(scene.names, scene.world_frame, scene.bodies)
         depth = scene.node.queue_depth

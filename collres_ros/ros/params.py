@@ -7,11 +7,14 @@ allowed, e.g. ``body.ball.restitution: allowed range [0.0, 1.0] (got 1.5)``.
 File schema (README, "Parameters"): the ``/**`` section holds ``world_frame``,
 ``bodies`` and ``body.<name>.*``; the ``collres_node`` section ``solver.*``
 and the node settings; the ``collres_sim`` section the sim settings. The
-defaults, units and ranges come from ``collres_ros.core.config``. No ROS import.
+defaults, units and ranges come from ``collres_ros.core.config``. The node's
+parameter declarations (``descriptor``, ``declared_value``, ``plain_value``)
+import rclpy's types when called; importing this module imports no ROS.
 """
 
 from __future__ import annotations
 
+import array
 import math
 import os
 import re
@@ -537,6 +540,83 @@ def _default_text(spec: ParamSpec) -> str:
     if isinstance(value, str):
         return f"'{value}'"
     return str(value)
+
+
+# --- the node's declarations (rclpy types, imported when called) ------------------------------
+
+def descriptor(spec: ParamSpec, read_only: bool) -> Any:
+    """The ROS ParameterDescriptor of a ParamSpec (ranges from its minimum/maximum)."""
+    from rcl_interfaces.msg import (
+        FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType)
+    types = {'double': ParameterType.PARAMETER_DOUBLE,
+             'integer': ParameterType.PARAMETER_INTEGER,
+             'bool': ParameterType.PARAMETER_BOOL, 'string': ParameterType.PARAMETER_STRING,
+             'double_array': ParameterType.PARAMETER_DOUBLE_ARRAY,
+             'string_array': ParameterType.PARAMETER_STRING_ARRAY}
+    text = spec.description + (f' [{spec.unit}]' if spec.unit else '')
+    d = ParameterDescriptor(name=spec.name, type=types[spec.type], description=text,
+                            read_only=read_only)
+    if spec.choices:
+        d.additional_constraints = 'one of: ' + range_text(spec)
+    if spec.minimum is not None and spec.maximum is not None:
+        if spec.type == 'double':
+            d.floating_point_range = [FloatingPointRange(
+                from_value=float(spec.minimum), to_value=float(spec.maximum), step=0.0)]
+        elif spec.type == 'integer':
+            d.integer_range = [IntegerRange(from_value=int(spec.minimum),
+                                            to_value=int(spec.maximum), step=0)]
+    return d
+
+
+def declared_value(spec: ParamSpec, value: Any) -> Any:
+    """The value a node declares: the value, or the bare type for an empty array (not set)."""
+    if isinstance(value, (list, tuple)) and not value:
+        from rclpy.parameter import Parameter
+        return Parameter.Type.DOUBLE_ARRAY if spec.type == 'double_array' \
+            else Parameter.Type.STRING_ARRAY
+    return list(value) if isinstance(value, tuple) else value
+
+
+def declare_all(node: Any, entries: Iterable[tuple[str, Any, Any]]) -> None:
+    """Declare every ``(name, value or bare type, ParameterDescriptor)`` on an rclpy node at
+    once, overrides ignored (the values are the validated scene's).
+
+    rclpy's ``declare_parameters`` sets and announces its declarations one at a time
+    (building and publishing a ``/parameter_events`` message each: 17,000 declarations and
+    3 s of start-up for a 1000-body scene). Here each value is checked against its
+    descriptor by rclpy's own check, then all are stored, as rclpy stores them, and not
+    announced (nothing listens at start-up; every later change is announced by rclpy as
+    usual). ``ros2 param list/get/describe/set`` see them as any declared parameter.
+    Raises ParameterAlreadyDeclaredException or InvalidParameterValueException as
+    ``declare_parameters`` does.
+    """
+    from rclpy.exceptions import (
+        InvalidParameterValueException, ParameterAlreadyDeclaredException)
+    from rclpy.parameter import Parameter
+    declared, descriptors = [], {}
+    for name, value, descriptor in entries:
+        if isinstance(value, Parameter.Type):
+            descriptor.type, value = value.value, None
+        else:
+            descriptor.type = Parameter.Type.from_parameter_value(value).value
+        declared.append(Parameter(name, value=value))
+        descriptors[name] = descriptor
+    again = [p.name for p in declared if node.has_parameter(p.name)]
+    if again:
+        raise ParameterAlreadyDeclaredException(again)
+    result = node._apply_descriptors(declared, descriptors, False)
+    if not result.successful:
+        raise InvalidParameterValueException('parameters', '', result.reason)
+    for parameter in declared:   # what rclpy's declaration stores
+        node._descriptors[parameter.name] = descriptors[parameter.name]
+        node._parameters[parameter.name] = parameter
+
+
+def plain_value(value: Any) -> Any:
+    """rclpy parameter value -> plain Python (arrays as lists)."""
+    if isinstance(value, (array.array, tuple)):
+        return list(value)
+    return value
 
 
 def markdown_table() -> str:

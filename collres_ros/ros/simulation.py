@@ -13,12 +13,14 @@ built here: the exchange does that with the shared builders. ROS-free.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
+from collres_ros.core.config import REALTIME_LAG, REALTIME_SHORTFALL, REALTIME_WARN_PERIOD
 from collres_ros.core.types import BodyStates
 from collres_ros.ros.integrator import euler_step
 
@@ -89,6 +91,41 @@ def load_sim_scene(path: str | Path, duration: float | None = None,
         per_body=bool(getattr(sim, 'publish_per_body', False)),
         kinematic=scene.kinematic,
         namespace=params.fully_qualified_name(namespace, '').rstrip('/') or '/')
+
+
+class RealtimePace:
+    """Whether a real-time run keeps its rate: the warnings of ``collres_sim --realtime``.
+
+    Step ``k`` is due ``k / rate_hz`` s of wall time after the start; a step that waits for
+    the node's answer longer than a step makes the run fall behind, and it then steps as
+    fast as the answers come. Times in s (a monotonic clock).
+    """
+
+    def __init__(self, rate_hz: float, start: float) -> None:
+        self.rate_hz, self.start = rate_hz, start
+        self._warned = -math.inf
+
+    def late(self, steps: int, now: float) -> Optional[str]:
+        """A warning when ``steps`` steps are done at ``now`` and the run is more than
+        REALTIME_LAG s behind (at most one per REALTIME_WARN_PERIOD s), else None."""
+        lag = now - self.start - steps / self.rate_hz
+        if lag <= REALTIME_LAG or now - self._warned < REALTIME_WARN_PERIOD:
+            return None
+        self._warned = now
+        return (f'realtime: {lag:.1f} s behind the wall clock, '
+                f'{self._reached(steps, now):.0f} steps/s so far of {self.rate_hz:g} Hz')
+
+    def summary(self, steps: int, now: float) -> Optional[str]:
+        """The warning at the end of a run that reached less than REALTIME_SHORTFALL of its
+        rate, else None."""
+        reached = self._reached(steps, now)
+        if steps < 2 or reached >= REALTIME_SHORTFALL * self.rate_hz:
+            return None
+        return (f'realtime: reached {reached:.0f} steps/s of the {self.rate_hz:g} Hz asked '
+                '(each step waits for the answer of collres_node)')
+
+    def _reached(self, steps: int, now: float) -> float:
+        return steps / max(now - self.start, 1e-9)
 
 
 def adopt(states: BodyStates, names: Sequence[str], corrected_names: Sequence[str],

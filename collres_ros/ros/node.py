@@ -1,0 +1,611 @@
+"""collres_node: resolve rigid-body contacts in a topic pipeline (a thin adapter on the core).
+
+Run: ``collres_node --ros-args --params-file FILE`` (default file: the
+package's ``config/collres.yaml``). Every parameter is declared with a
+descriptor (description, type, range) generated from ``core/config.py``; the
+scene comes from the same validator as ``params.load_scene``, so a bad file
+stops the node at start with one line (``error: <parameter>: <why>``, exit
+code 1). Solver settings, materials (restitution, static_friction,
+kinetic_friction), the collision filter (``body.<name>.collision_group``,
+``body.<name>.collision_mask``, ``ignore_pairs``) and node settings may change
+at runtime and take effect on the next step; shapes, sizes, masses, poses and
+the body list are read-only.
+Range and type errors are refused by rclpy's descriptor check, naming the
+parameter and its range; the rest (choices, kinetic <= static friction,
+``ignore_pairs`` entries) by an on-set callback with the validator's one-line
+reason.
+
+Topics (relative names): in ``body_states`` (BodyStateArray, one step per
+message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
+every non-stale dynamic body has both for one stamp, see ``sync.py``); out
+``body_states/corrected``, ``bodies/<name>/{pose,twist}/corrected`` (for
+per-body steps), ``contacts``, ``contact_markers`` and ``body_markers`` (built
+only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
+``contact_wrench``), ``/tf`` (with ``publish_tf``, where tf2_msgs is installed),
+``/diagnostics``. The per-body subscriptions belong to a second node,
+``<name>_per_body``, spun in a thread of its own (``PerBodyInputs``): the
+``body_states`` path costs the same whatever the number of bodies' topics.
+
+The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
+``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
+Python message objects) after checking their size (more bodies than
+``max_message_bodies``, a malformed message, a negative or unnormalised stamp:
+refused at once and counted; bodies the scene does not know are refused one by
+one, ``unknown_body``, and the known ones served), and every output is published
+as bytes built by ``messages.OutputEncoder``. ``/diagnostics`` reports the callback's time split
+(``time.decode_ms``, ``time.resolve_ms``, ``time.world_ms``, ``time.encode_ms``,
+``time.publish_ms``).
+
+QoS: states, contacts and markers are reliable, volatile, keep-last with
+depth ``queue_depth`` (10): a control loop wants every step delivered in
+order but never a backlog of old states. ``/diagnostics`` is reliable,
+depth 10 (as diagnostic_updater). Every publisher and subscription takes
+rclpy's QoS overrides from the parameters (``qos_overrides./<topic>.
+{publisher,subscription}.{history,depth,reliability,durability}``, ``ros/qos.py``).
+
+Bad input never stops the node: it is refused per body (``core/validation``),
+logged at most once a second per reason, counted in ``/diagnostics``; the
+other bodies are still served. Time comes from the message stamps only, so
+``use_sim_time`` works. SIGINT and SIGTERM shut the node down with exit 0.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from collections import Counter
+from functools import partial
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidTopicNameException
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.executors import ExternalShutdownException, ShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from visualization_msgs.msg import MarkerArray
+
+from collres_ros.core.pipeline import ResolvedStep, Resolver
+from collres_ros.msg import BodyStateArray, ContactArray
+from collres_ros.core.types import InputBatch
+from collres_ros.ros import cli, codec, messages, names, params, qos
+from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array, status_name
+from collres_ros.ros.health import Health
+from collres_ros.ros.losses import LossCounter
+from collres_ros.ros.stamps import seconds_ns
+from collres_ros.ros.sync import StampSync, names_text
+
+NAME = 'collres_node'
+CLASSES = {messages.TYPES[names.CORRECTED_STATES]: BodyStateArray,
+           messages.TYPES[names.CONTACTS]: ContactArray,
+           messages.TYPES[names.MARKERS]: MarkerArray,
+           messages.POSE_TYPE: PoseStamped, messages.TWIST_TYPE: TwistStamped,
+           messages.WRENCH_TYPE: WrenchStamped}
+try:   # /tf where tf2_msgs is installed (a ROS install; it is not on PyPI)
+    from tf2_msgs.msg import TFMessage
+    CLASSES[messages.TYPES[names.TF]] = TFMessage
+except ImportError:
+    pass
+# The parts of a callback timed for /diagnostics (time.<part>_ms, means over the period):
+# decode (CDR -> arrays), resolve (Resolver.resolve), world (World.step alone, inside
+# resolve), encode (every output to CDR), publish.
+TIMED = ('decode', 'resolve', 'world', 'encode', 'publish')
+LOG_PERIOD = 1.0   # s, at most one warning per reason per period
+UNPAIRED_AFTER = 1.0   # s of per-body inputs without a per-body step before /diagnostics warns
+
+
+def params_file_dir(argv: Sequence[str]) -> Optional[Path]:
+    """Directory of the last ``--params-file`` in ``argv`` (relative mesh paths start there)."""
+    path = cli.last_params_file(argv)
+    return path.resolve().parent if path is not None else None
+
+
+def default_params_file() -> Optional[Path]:
+    from collres_ros.ros.resources import config_path
+    try:
+        return config_path('collres.yaml')
+    except FileNotFoundError:
+        return None
+
+
+class CollresNode(Node):
+    """The ROS adapter around ``Resolver`` (see module docstring)."""
+
+    def __init__(self, base_dir: Optional[Path] = None, **kwargs: Any) -> None:
+        super().__init__(NAME, automatically_declare_parameters_from_overrides=False, **kwargs)
+        overrides = {name: params.plain_value(p.value)
+                     for name, p in self._parameter_overrides.items()}
+        self.scene = params.scene_from_values(overrides, base_dir)   # ValueError: one line
+        self._declare_parameters()
+        self._pending: Optional[params.Scene] = None
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        # one step at a time: the per-body inputs' thread and the executor's callbacks share
+        # the resolver, the sync and the counters
+        self._lock = threading.RLock()
+        self._last_log: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+        self.configured = False   # resolver, topics and timer exist (always, unless managed)
+        self.serving = False      # inputs are resolved and answered (managed: while active)
+        if not self.MANAGED:
+            self.configure_resolution()
+            self.serving = True
+
+    MANAGED = False   # ros/lifecycle.py: configure/activate through the lifecycle services
+
+    def configure_resolution(self) -> None:
+        """Create the resolver, the codecs, every topic and the diagnostics timer."""
+        self.resolver = Resolver.for_scene(self.scene)
+        body_names = self.scene.names
+        # the edge: CDR bytes in and out, decoded into and encoded from the core's arrays
+        self.states_codec = codec.StatesCodec(max_bodies=self.scene.node.max_message_bodies)
+        self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame,
+                                              self.scene.bodies)
+        self.refused: Counter[str] = Counter()   # inputs refused before the resolver
+        statics = [b.name for b in self.scene.bodies if b.static]
+        self.dynamic = [b.name for b in self.scene.bodies if not b.static]
+        self.sync = StampSync(self.dynamic, statics, seconds_ns(self.scene.node.sync_slop),
+                              seconds_ns(self.scene.node.stale_timeout))
+        self._publishers_by_topic: dict[str, Any] = {}
+        for topic, kind in ((names.CORRECTED_STATES, BodyStateArray),
+                            (names.CONTACTS, ContactArray),
+                            (names.MARKERS, MarkerArray),
+                            (names.BODY_MARKERS, MarkerArray)):
+            self._publisher(topic, kind)
+        self._diagnostics = self.create_publisher(
+            DiagnosticArray, names.DIAGNOSTICS, qos.state_qos(qos.DIAGNOSTICS_DEPTH),
+            qos_overriding_options=qos.OVERRIDES)
+        self.losses = LossCounter()   # inputs lost before they were taken (sequence gaps)
+        self._inputs = [self.create_subscription(
+            BodyStateArray, names.STATES, self._on_states, self._qos(), raw=True,
+            qos_overriding_options=qos.OVERRIDES)]
+        self._timer = self._diagnostics_timer()
+        self._window = self._new_window(time.monotonic())
+        self.last_step: Optional[ResolvedStep] = None
+        self.health = Health()
+        self._served = 0                 # bodies served, all steps
+        self._parts_since_step = 0       # per-body inputs since the last per-body step
+        self._last_part_step = time.monotonic()
+        self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)
+        self.per_body_inputs = PerBodyInputs(self, body_names)   # last: its thread starts
+        self.configured = True
+        if self.scene.node.publish_tf and messages.TYPES[names.TF] not in CLASSES:
+            self.get_logger().warning('publish_tf: tf2_msgs is not installed here: no /tf')
+        self.get_logger().info(
+            f'resolving {len(body_names)} bodies ({names_text(body_names)}) in frame '
+            f'{self.scene.world_frame!r}')
+
+    def release_resolution(self) -> None:
+        """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
+        self.per_body_inputs.close()
+        self.serving = self.configured = False
+        self.destroy_timer(self._timer)
+        for subscription in self._inputs:
+            self.destroy_subscription(subscription)
+        for publisher in [*self._publishers_by_topic.values(), self._diagnostics]:
+            self.destroy_publisher(publisher)
+        self._inputs, self._publishers_by_topic = [], {}
+        del self.resolver, self.sync, self.encoder, self.states_codec
+
+    def destroy_node(self) -> None:
+        if self.configured:   # the per-body inputs' thread stops first
+            self.release_resolution()
+        super().destroy_node()
+
+    # --- parameters -------------------------------------------------------------------------
+
+    def _declare_parameters(self) -> None:
+        params.declare_all(self, (
+            (spec.name, params.declared_value(spec, self.scene.values[spec.name]),
+             params.descriptor(spec, not params.is_runtime_changeable(spec.name)))
+            for spec in params.node_specs(self.scene.names)))
+
+    def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        changes = {p.name: params.plain_value(p.value) for p in parameters
+                   if p.name not in params.ROS_BUILTIN
+                   and not p.name.startswith(qos.OVERRIDE_PREFIX)}
+        if not changes:
+            return SetParametersResult(successful=True)
+        try:
+            self._pending = params.with_changes(self.scene, changes)
+        except ValueError as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, parameters: list[Parameter]) -> None:
+        with self._lock:
+            self._apply_parameters(parameters)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        new, self._pending = self._pending, None
+        if new is None:
+            return
+        old, self.scene = self.scene, new
+        if not self.configured:   # a managed node applies them when configured
+            return
+        if new.solver != old.solver:
+            self.resolver.settings = new.solver
+        for before, after in zip(old.bodies, new.bodies):
+            changed = {m: getattr(after, m) for m in params.MATERIALS
+                       if getattr(after, m) != getattr(before, m)}
+            if changed:
+                self.resolver.set_material(after.name, **changed)
+        if new.collision_filter != old.collision_filter:
+            self.resolver.collision_filter = new.collision_filter
+        self.resolver.stale_timeout = new.node.stale_timeout
+        self.states_codec.max_bodies = new.node.max_message_bodies
+        self.sync.slop_ns = seconds_ns(new.node.sync_slop)
+        self.sync.stale_timeout_ns = seconds_ns(new.node.stale_timeout)
+        if new.node.diagnostics_period != old.node.diagnostics_period:
+            self.destroy_timer(self._timer)
+            self._timer = self._diagnostics_timer()
+        self.get_logger().info('parameters changed: ' + ', '.join(p.name for p in parameters))
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def _on_states(self, data: bytes, info: Any) -> None:
+        with self._lock:
+            self._take_states(data, info)
+
+    def _take_states(self, data: bytes, info: Any) -> None:
+        if not self.serving:
+            return
+        start = time.perf_counter()
+        self.losses.count(names.STATES, info)
+        try:
+            decoded = self.states_codec.decode(data)
+        except codec.DecodeError as refusal:
+            self._refuse(refusal, 'body_states')
+            return
+        batch = InputBatch(decoded.names, decoded.values, decoded.frame_id, decoded.frame_id)
+        self._step(decoded.stamp_ns, batch, False, start)
+
+    def on_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
+        """A per-body pose or twist (bytes), from the per-body inputs' thread."""
+        with self._lock:
+            self._take_part(name, kind, data, info)
+
+    def _take_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
+        if not self.serving:
+            return
+        start = time.perf_counter()
+        self.losses.count(f'{name}/{kind}', info)
+        self._parts_since_step += 1
+        try:
+            part = codec.decode_pose(data) if kind == 'pose' else codec.decode_twist(data)
+        except codec.DecodeError as refusal:
+            topic = names.pose_topic(name) if kind == 'pose' else names.twist_topic(name)
+            self._refuse(refusal, topic)
+            return
+        groups = self.sync.add(name, kind, part.stamp_ns, part)
+        jump = self.sync.take_jump()
+        if jump is not None:
+            backwards = jump.after_ns < jump.before_ns
+            if backwards:
+                self.resolver.restart()
+            self.get_logger().warning(
+                f'{jump.text()}: ' + ('a new run of the source; per-body sync and every '
+                                      "body's history reset" if backwards else
+                                      'bodies left behind turn stale'))
+        for group in groups:
+            self._parts_since_step = 0
+            self._last_part_step = time.monotonic()
+            self._step(group.stamp_ns, messages.batch_from_group(group.parts, self.dynamic),
+                       True, start)
+            start = time.perf_counter()
+
+    def _refuse(self, refusal: codec.DecodeError, topic: str) -> None:
+        """A message refused before decoding into the core: counted, logged (rate-limited)."""
+        self.refused[refusal.reason] += 1
+        self._warn(refusal.reason, f'input refused [{refusal.reason}]: {topic}: {refusal}')
+
+    # --- one step ---------------------------------------------------------------------------
+
+    def _step(self, stamp: int, batch: InputBatch, per_body: bool, start: float) -> None:
+        """Resolve, encode and publish one step; ``start``: when its callback began."""
+        decoded = time.perf_counter()
+        step = self.resolver.resolve(stamp, batch)
+        resolved = time.perf_counter()
+        # what nobody subscribes to is not built (the answer always is)
+        markers = self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0
+        contacts = self._publisher(names.CONTACTS, ContactArray).get_subscription_count() > 0
+        node = self.scene.node
+        bodies = self._publisher(names.BODY_MARKERS, MarkerArray).get_subscription_count() > 0
+        outputs = self.encoder.encode(step, per_body and node.per_body_outputs,
+                                      node.marker_lifetime, markers=markers, contacts=contacts,
+                                      wrenches=node.contact_wrench,
+                                      body_markers=node.body_markers_period if bodies else None,
+                                      tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES)
+        encoded = time.perf_counter()
+        for topic, kind, data in outputs:
+            self._publisher(topic, CLASSES[kind]).publish(data)
+        done = time.perf_counter()
+        self.last_step = step
+        self._served += len(step.names)
+        w = self._window
+        w['steps'] += 1
+        w['time'] += step.step_time_s
+        w['max'] = max(w['max'], step.step_time_s)
+        w['decode'] += decoded - start
+        w['resolve'] += resolved - decoded
+        w['world'] += step.world_time_s
+        w['encode'] += encoded - resolved
+        w['publish'] += done - encoded
+        w['callback'] += done - start
+        for item in step.rejected:
+            self._warn(item.reason, f'input refused [{item.reason}]: {item.detail}')
+        for item in step.resets:
+            self._warn(item.reason, f'fresh start [{item.reason}]: {item.detail}')
+
+    def _publisher(self, topic: str, kind: type) -> Any:
+        publisher = self._publishers_by_topic.get(topic)
+        if publisher is None:
+            if topic.startswith(names.BODIES):   # per body: see PerBodyInputs
+                profile = qos.overridden(self, self.resolve_topic_name(topic), 'publisher',
+                                         self._qos())
+                publisher = self.create_publisher(kind, topic, profile, event_callbacks=(
+                    PublisherEventCallbacks(use_default_callbacks=False)))
+            else:
+                publisher = self.create_publisher(kind, topic, self._qos(),
+                                                  qos_overriding_options=qos.OVERRIDES)
+            self._publishers_by_topic[topic] = publisher
+        return publisher
+
+    def _qos(self) -> Any:
+        """A new profile of the state topics (rclpy writes an entity's overrides into it)."""
+        return qos.state_qos(self.scene.node.queue_depth)
+
+    def _warn(self, reason: str, text: str) -> None:
+        """At most one warning per reason per LOG_PERIOD, with the count of the others."""
+        now = time.monotonic()
+        if now - self._last_log.get(reason, -LOG_PERIOD) < LOG_PERIOD:
+            self._suppressed[reason] = self._suppressed.get(reason, 0) + 1
+            return
+        more = self._suppressed.pop(reason, 0)
+        self._last_log[reason] = now
+        suffix = f' (+{more} more since last report)' if more else ''
+        self.get_logger().warning(f'{text}{suffix}')
+
+    # --- diagnostics ------------------------------------------------------------------------
+
+    def _diagnostics_timer(self) -> Any:
+        return self.create_timer(self.scene.node.diagnostics_period, self._publish_diagnostics,
+                                 clock=self._steady)
+
+    def snapshot(self) -> DiagnosticsSnapshot:
+        """Counters for /diagnostics (resets the rate window)."""
+        w = self._window
+        now = time.monotonic()
+        elapsed = max(now - w['since'], 1e-9)
+        totals = self.resolver.totals
+        counts = {k: v for k, v in (totals + self.refused).items()
+                  if k not in ('steps', 'contacts')}
+        counts.update({k: v for k, v in self.sync.refused.items() if v})
+        if self.sync.time_jumps:
+            counts['time_jump'] = self.sync.time_jumps
+        stale = sorted(set(self.sync.stale()) | set(self.last_step.stale if self.last_step
+                                                    else ()))
+        received = sum(self.losses.received.values())
+        self.health.update(now, {**counts, 'steps': totals['steps'], 'inputs': received,
+                                 'served': self._served, 'lost': self.losses.total_lost,
+                                 'sync_dropped': self.sync.dropped}, elapsed)
+        # silent for the whole window (and the stale timeout): nothing current to judge
+        quiet = max(self.scene.node.stale_timeout,
+                    self.health.window_reports * self.scene.node.diagnostics_period)
+        status = self.health.status(now, quiet, self.scene.node.min_rate, stale,
+                                    self._unpaired(now), self._slop_problem(),
+                                    names_text(stale))
+        self._log_sync_refusals()
+        mean = (lambda key: f'{1e3 * w[key] / max(w["steps"], 1):.3f}')
+        snap = DiagnosticsSnapshot(
+            stamp_ns=self.get_clock().now().nanoseconds, steps=totals['steps'],
+            rate_hz=w['steps'] / elapsed,
+            step_time_mean_ms=1e3 * w['time'] / w['steps'] if w['steps'] else 0.0,
+            step_time_max_ms=1e3 * w['max'],
+            contacts=self.last_step.report.contacts.count if self.last_step else 0,
+            counts=counts, stale=stale, status=status,
+            name=status_name(self.get_fully_qualified_name()),
+            extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
+                   'inputs_received': received, 'inputs_lost': self.losses.total_lost,
+                   **{f'messages_refused.{k}': v for k, v in sorted(self.refused.items())},
+                   'contacts_total': totals['contacts'],
+                   'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
+                   **{f'time.{key}_ms': mean(key) for key in TIMED}})
+        self._window = self._new_window(now)
+        return snap
+
+    @staticmethod
+    def _new_window(since: float) -> dict[str, float]:
+        """Counters of one diagnostics period: steps, step times, callback parts (s)."""
+        return {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0, 'since': since,
+                **{key: 0.0 for key in TIMED}}
+
+    def _publish_diagnostics(self) -> None:
+        with self._lock:
+            if self.serving:
+                self._diagnostics.publish(diagnostics_array(self.snapshot()))
+
+    def _unpaired(self, now: float) -> str:
+        """Why per-body inputs give no step, once they have not for UNPAIRED_AFTER s."""
+        if not self._parts_since_step or now - self._last_part_step < UNPAIRED_AFTER:
+            return ''
+        reason = self.sync.unpaired()
+        if reason:
+            self._warn('unpaired', f'no per-body step for '
+                       f'{now - self._last_part_step:.1f} s: {reason}')
+        return reason
+
+    def _slop_problem(self) -> str:
+        """The slop warning (logged once per slop value)."""
+        problem = self.sync.slop_problem() or ''
+        if problem and self._reported.get('slop') != self.sync.slop_ns:
+            self._reported['slop'] = self.sync.slop_ns
+            self.get_logger().warning(problem)
+        return problem
+
+    def _log_sync_refusals(self) -> None:
+        """Per-body messages refused for a stamp far from the others (logged when new)."""
+        refused = dict(self.sync.refused)
+        if refused != self._reported.get('sync_refused', {}):
+            self._reported['sync_refused'] = refused
+            self._warn('stray_stamp', 'per-body messages refused, stamps far from the others '
+                       f'and never confirmed: {", ".join(f"{k} {v}" for k, v in refused.items())}')
+
+
+class PerBodyInputs:
+    """The ``bodies/<name>/pose`` and ``twist`` subscriptions: a node of their own
+    (``<node>_per_body``, same namespace), spun by an executor in a thread of its own.
+
+    Why: rclpy's executor rebuilds its wait set at every wake-up, in Python, over every
+    entity of its nodes, and checks each QoS event handler against a list of them (quadratic
+    in their number). With two subscriptions per body on the node itself, a 1000-body scene
+    spent 190-320 ms per wake-up before a ``body_states`` message was taken. Here the
+    batched path's executor holds a handful of entities whatever the body count; this
+    executor waits (releasing the GIL) until per-body messages arrive. The subscriptions
+    have no default QoS-event handlers (rclpy's incompatible-QoS warning), which would make
+    that check quadratic again. QoS overrides are read as for every topic
+    (``qos_overrides./bodies/<name>/pose.subscription.depth``) and declared on the node
+    where set (``qos.overridden``). Each message is handed to ``CollresNode.on_part``.
+    """
+
+    def __init__(self, owner: 'CollresNode', body_names: Sequence[str]) -> None:
+        self.owner = owner
+        self.failure: Optional[BaseException] = None
+        self.ready = threading.Event()   # every subscription exists
+        self._closing = False
+        self.node = Node(f'{owner.get_name()}_per_body', namespace=owner.get_namespace(),
+                         context=owner.context, start_parameter_services=False,
+                         automatically_declare_parameters_from_overrides=False)
+        self._wanted = []   # (message type, topic, callback, QoS profile)
+        try:
+            for name in body_names:
+                for kind, message, topic in (('pose', PoseStamped, names.pose_topic(name)),
+                                             ('twist', TwistStamped, names.twist_topic(name))):
+                    profile = qos.overridden(owner, self.node.resolve_topic_name(topic),
+                                             'subscription', owner._qos())
+                    self._wanted.append((message, topic, partial(owner.on_part, name, kind),
+                                         profile))
+        except InvalidTopicNameException as error:   # a long name in a long namespace
+            self.node.destroy_node()
+            raise ValueError(f'bodies: a topic name is invalid in namespace '
+                             f'{owner.get_namespace()!r} '
+                             f'({str(error).splitlines()[0][:120]})') from None
+        except BaseException:
+            self.node.destroy_node()
+            raise
+        self.executor = SingleThreadedExecutor(context=owner.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._run, name='collres_per_body', daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        """Create the subscriptions (here, so that the node serves body_states meanwhile:
+        2000 of them take a second or more), then spin."""
+        try:
+            for message, topic, callback, profile in self._wanted:
+                if self._closing:
+                    return
+                self.node.create_subscription(
+                    message, topic, callback, profile, raw=True,
+                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+            self.ready.set()
+            self.owner.get_logger().info(f'per-body inputs: {len(self._wanted)} topics '
+                                         'subscribed')
+            self.executor.spin()
+        except (ShutdownException, ExternalShutdownException):
+            pass
+        except BaseException as failure:   # as a failure in the main thread: the node ends
+            self.failure = failure
+            self.owner.get_logger().error('per-body inputs: ' + traceback.format_exc())
+            self.owner.context.try_shutdown()
+
+    def close(self) -> None:
+        """Stop the thread, then free the subscriptions and the node."""
+        self._closing = True
+        self.executor.shutdown(timeout_sec=2.0)
+        self.thread.join(2.0)
+        self.node.destroy_node()
+
+
+def _check_files(argv: Sequence[str]) -> None:
+    """Readable params files (rcl's own errors are cryptic): ValueError/OSError, one line."""
+    for name in cli.params_files(argv):
+        path = Path(name)
+        if not path.is_file():
+            raise FileNotFoundError(f'params file not found: {path}')
+        params.read_params_file(path, ())
+
+
+def _print_help_if_asked(argv: Sequence[str]) -> bool:
+    """``collres_node -h|--help`` (before any ``--ros-args``): print usage, True."""
+    if not {'-h', '--help'} & set(_own_args(argv)):
+        return False
+    import argparse
+    parser = argparse.ArgumentParser(
+        prog=NAME, formatter_class=argparse.RawDescriptionHelpFormatter,
+        usage=f'{NAME} [-h] [--lifecycle] [--ros-args --params-file FILE [-p NAME:=VALUE ...]]',
+        description=__doc__, epilog='Parameters: see README.md, or print them with '
+        '`python -m collres_ros.ros.params`. --lifecycle: run as a managed (lifecycle) node, '
+        'unconfigured until its change_state service says otherwise (ros/lifecycle.py).')
+    parser.print_help()
+    return True
+
+
+def _own_args(argv: Sequence[str]) -> list[str]:
+    """The arguments before ``--ros-args`` (the program name excluded)."""
+    return list(argv[1:argv.index('--ros-args')] if '--ros-args' in argv else argv[1:])
+
+
+def _spin(argv: Sequence[str]) -> int:
+    """Create the node in the initialised context and spin it until shutdown."""
+    kind: type = CollresNode
+    if '--lifecycle' in _own_args(argv):
+        from collres_ros.ros.lifecycle import ManagedCollresNode
+        kind = ManagedCollresNode
+    try:
+        node = kind(params_file_dir(argv))
+    except (ValueError, OSError) as failure:
+        return cli.error(failure)
+    try:
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok():   # a real failure; otherwise a signal shut us down while starting
+            raise
+    finally:
+        failure = node.per_body_inputs.failure if node.configured else None
+        node.destroy_node()
+    if failure is not None:
+        raise failure
+    return 0
+
+
+def run(argv: list[str]) -> int:
+    """``collres_node`` with ``argv`` (program name first): 0 on a clean shutdown, 1 on a bad
+    configuration."""
+    if _print_help_if_asked(argv):
+        return 0
+    if '--params-file' not in argv:
+        default = default_params_file()
+        if default is not None:
+            argv += (['--ros-args'] if '--ros-args' not in argv else []) + \
+                ['--params-file', str(default)]
+
+    def run() -> int:
+        _check_files(argv)
+        with cli.ros_init(args=argv, failure='cannot read parameters'):
+            return _spin(argv)
+    try:
+        return cli.run(run)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0

@@ -302,3 +302,27 @@ def test_a_message_with_unknown_bodies_serves_the_known_ones(running):
     print({k: v for k, v in values.items() if k.startswith(('count.', 'messages_refused'))})
     assert 'count.too_many_bodies' not in values
     assert 'unknown_body' in node.output()
+
+
+def test_a_step_over_the_budget_warns_once_and_is_counted(ros_domain, tmp_path):
+    scene = write_scene(tmp_path / 'scene.yaml',
+                        '    solver: {max_pairs: 1, max_contacts: 1}\n')
+    node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
+                           env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
+    peer = Peer(ros_domain)
+    try:
+        peer.listen('body_states/corrected', BodyStateArray)
+        peer.listen('/diagnostics', DiagnosticArray)
+        peer.advertise('body_states', BodyStateArray)
+        assert peer.wait(lambda: peer.connected('body_states') and all(
+            s.get_publisher_count() for s in peer.node.subscriptions), 30.0), node.output()
+        for k in range(3):   # ball and box both resting on the floor: two pairs, budget one
+            out = step(peer, T0 + k * DT, [body('ball', 0.05), body('box', 0.1, x=1.0)])
+            assert sorted(b.name for b in out.bodies) == ['ball', 'box']
+        assert peer.wait(lambda: diagnostics_values(peer).get('count.contact_budget') == '3',
+                         5.0), diagnostics_values(peer)
+        assert peer.messages('/diagnostics')[-1].status[0].level == b'\x01'
+        assert node.output().count('over the contact budget') == 1, node.output()
+    finally:
+        peer.close()
+        processes.stop(node)

@@ -67,6 +67,28 @@ def last_params_file(argv: Sequence[str]) -> Optional[Path]:
     return Path(files[-1]) if files else None
 
 
+def param_overrides(argv: Sequence[str], node: str) -> dict[str, Any]:
+    """The ``-p [node:]NAME:=VALUE`` parameters of ROS arguments, values read as rcl reads
+    them (YAML, ``params_yaml``: ``true``, ``1e-05``, ``[0.0, 1.0]``); later ones win.
+    CliError (one line) for a value rcl would not read either."""
+    from collres_ros.ros import params_yaml
+    values: dict[str, Any] = {}
+    for flag, rule in zip(argv, argv[1:]):
+        if flag not in ('-p', '--param'):
+            continue
+        name, sep, text = rule.partition(':=')
+        target, _, short = name.rpartition(':')
+        if not sep or not short or target not in ('', node):
+            continue
+        try:
+            document = params_yaml.parse(f'value: {text}', f'-p {name}')
+        except ValueError as error:
+            raise CliError(str(error)) from None
+        value = document.get('value') if isinstance(document, dict) else None
+        values[short] = None if value in ([], {}) else value
+    return values
+
+
 def namespace_from_ros_args(argv: Sequence[str], node: str) -> str:
     """The namespace a ``-r [node:]__ns:=NS`` remap in ROS arguments gives ('/' without)."""
     namespace = '/'

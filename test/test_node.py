@@ -326,3 +326,27 @@ def test_a_step_over_the_budget_warns_once_and_is_counted(ros_domain, tmp_path):
     finally:
         peer.close()
         processes.stop(node)
+
+
+def test_two_publishers_on_body_states_report_no_phantom_loss(running, ros_domain):
+    peer, node = running
+    other = Peer(ros_domain, 'collres_test_second_publisher')
+    try:
+        other.advertise('body_states', BodyStateArray)
+        assert peer.wait(lambda: other.connected('body_states'), 30.0)
+        t = T0
+        for k in range(60):   # one publisher at twice the other's rate, every step answered
+            t += DT
+            source = other if k % 3 == 2 else peer
+            source.publish('body_states', states(t, [body('ball', 0.5), body('box', 0.1,
+                                                                            x=1.0)]))
+            assert peer.wait(lambda: any(stamp_ns(m.header.stamp) == t for m in
+                                         peer.messages('body_states/corrected')), 10.0)
+        assert peer.wait(lambda: diagnostics_values(peer).get('inputs_received') == '60', 5.0)
+        values = diagnostics_values(peer)
+        print({k: v for k, v in values.items() if 'input' in k or 'loss' in k})
+        assert values['inputs_lost'] == '0'
+        assert values['loss_counting'].startswith('not inferred while several publishers')
+        assert int(values['inputs_uncounted']) > 0
+    finally:
+        other.close()

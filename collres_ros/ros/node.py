@@ -258,7 +258,7 @@ class CollresNode(Node):
         if not self.serving:
             return
         start = time.perf_counter()
-        self.losses.count(names.STATES, info)
+        self.losses.count(names.STATES, info, self._inputs[0].get_publisher_count())
         try:
             decoded = self.states_codec.decode(data)
         except codec.DecodeError as refusal:
@@ -421,6 +421,10 @@ class CollresNode(Node):
             name=status_name(self.get_fully_qualified_name()),
             extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
                    'inputs_received': received, 'inputs_lost': self.losses.total_lost,
+                   'loss_counting': 'exact' if not self.losses.uncounted else (
+                       'not inferred while several publishers share a topic: '
+                       + ', '.join(sorted(self.losses.uncounted))),
+                   'inputs_uncounted': sum(self.losses.uncounted.values()),
                    **{f'messages_refused.{k}': v for k, v in sorted(self.refused.items())},
                    'contacts_total': totals['contacts'],
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],

@@ -7,6 +7,8 @@ namespace collres {
 namespace {
 
 constexpr double kTiny = 1e-12;
+constexpr double kRegular = 1e-8;   // relative weight added to a block's diagonal
+constexpr double kSlowest = 1e-9;   // m/s: a slower approach is no impact (rounding)
 
 inline Vec3 lin(const double* v, int32_t i) { return load3(v + 6 * i); }
 inline Vec3 ang(const double* v, int32_t i) { return load3(v + 6 * i + 3); }
@@ -89,6 +91,11 @@ double solve_block(ContactRow* r, int k, double* v) {
     q[i] = b;
     for (int j = 0; j < k; ++j) q[i] -= a[i][j] * r[j].normal;
   }
+  // ill-conditioned blocks (coincident points, four points of a face: rank 3) have many
+  // impulse sets that give the same velocities; a diagonal a fraction kRegular heavier
+  // (on the total impulses, not their change) picks the one of least norm: coincident
+  // points share equally, a symmetric hit gets symmetric impulses, no pivot is near zero
+  for (int i = 0; i < k; ++i) a[i][i] *= 1.0 + kRegular;
   const int full = (1 << k) - 1;
   for (int size = k; size >= 0; --size) {
     for (int set = full; set >= 0; --set) {
@@ -165,8 +172,7 @@ void row_velocity(const ContactRow& row, const double* v, double out[3]) {
 }
 
 void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
-                 double sticking_speed, double threshold, double mu_static,
-                 double mu_kinetic) {
+                 double sticking_speed, double mu_static, double mu_kinetic) {
   tangent_basis(row.n, row.t1, row.t2);
   row.ma = bodies.inv_mass[row.a];
   row.mb = bodies.inv_mass[row.b];
@@ -193,7 +199,7 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row_velocity(row, bodies.velocity, rel);
   row_velocity(row, slow, before);
   row.approach = rel[0];
-  row.bounce = rel[0] < -threshold;
+  row.bounce = false;
   row.sticking = norm2(before[1], before[2]) < sticking_speed;
   row.mu = row.sticking ? mu_static : mu_kinetic;
 }
@@ -304,34 +310,113 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
   }
 }
 
-void apply_restitution(std::vector<ContactRow>& rows, SolverBodies& bodies) {
+int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                    const ImpactSettings& settings, std::vector<ContactRow>& scratch,
+                    std::vector<int32_t>& members, std::vector<double>& work) {
   double* v = bodies.velocity;
-  const size_t count = rows.size();
-  for (size_t lo = 0; lo < count;) {
-    size_t hi = lo + 1;        // the rows of one pair are consecutive (see prepare)
-    while (hi < count && rows[hi].a == rows[lo].a && rows[hi].b == rows[lo].b) ++hi;
-    const bool manifold = hi - lo > 1;
-    for (size_t i = lo; i < hi; ++i) {
-      ContactRow& r = rows[i];
-      r.restitution[0] = r.restitution[1] = 0.0;
-      if (!r.bounce || !(r.normal > 0.0)) continue;
-      double d_a = r.e_a * r.normal, d_b = r.e_b * r.normal;      // Poisson
-      if (!manifold) {                                               // Newton
-        double v_n = relative(r, v, 0, r.n);
-        d_a = std::max(-r.normal_mass * (v_n + r.e_a * r.approach), -r.normal);
-        d_b = std::max(-r.normal_mass * (v_n + r.e_b * r.approach), -r.normal);
-      }
-      r.restitution[0] = d_a;
-      r.restitution[1] = d_b;
-      double* va = v + 6 * r.a;
-      double* vb = v + 6 * r.b;
-      store3(va, lin(v, r.a) - (d_a * r.ma) * r.n);
-      store3(va + 3, ang(v, r.a) - d_a * r.dw_a[0]);
-      store3(vb, lin(v, r.b) + (d_b * r.mb) * r.n);
-      store3(vb + 3, ang(v, r.b) + d_b * r.dw_b[0]);
+  int stage = 0;
+  for (; stage < settings.stages; ++stage) {
+    members.clear();
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const ContactRow& r = rows[i];
+      if (!(r.normal_mass > 0.0)) continue;
+      double u = relative(r, v, 0, r.n);
+      if (u < -settings.threshold - kSlowest && u + r.allowance < 0.0)
+        members.push_back(static_cast<int32_t>(i));
     }
-    lo = hi;
+    if (members.empty()) break;
+    // the stage's rows (copies, in pair order: a manifold stays a block), from zero
+    const size_t k = members.size();
+    scratch.clear();
+    work.assign(19 * k, 0.0);   // per row: velocity before (n, t1, t2), after the
+                                // compression (n, t1, t2), restitution impulse; then
+                                // A's and B's twists before the stage (12 per row)
+    double* saved = &work[7 * k];
+    for (size_t j = 0; j < k; ++j) {
+      ContactRow c = rows[members[j]];
+      std::copy(v + 6 * c.a, v + 6 * c.a + 6, saved + 12 * j);
+      std::copy(v + 6 * c.b, v + 6 * c.b + 6, saved + 12 * j + 6);
+      c.normal = c.tangent[0] = c.tangent[1] = 0.0;
+      c.allowance = 0.0;          // a speculative row that closes bounces off its approach
+      row_velocity(c, v, &work[7 * j]);
+      scratch.push_back(c);
+    }
+    // exact inelastic compression with friction; the energy it took (J). Coulomb
+    // friction on coupled points can return energy (a slip turned around); such a stage
+    // is compressed again without friction, which never gains (a projection)
+    double taken = 0.0;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      solve_velocities(scratch, bodies, settings.sweeps, settings.converged);
+      taken = 0.0;
+      for (size_t j = 0; j < k; ++j) {
+        const ContactRow& c = scratch[j];
+        double* w = &work[7 * j];
+        row_velocity(c, v, w + 3);
+        taken -= 0.5 * (c.normal * (w[0] + w[3]) + c.tangent[0] * (w[1] + w[4]) +
+                        c.tangent[1] * (w[2] + w[5]));
+      }
+      if (taken >= 0.0 || attempt == 1) break;
+      for (size_t j = k; j-- > 0;) {       // undo: the twists before the stage
+        const ContactRow& c = scratch[j];
+        std::copy(saved + 12 * j, saved + 12 * j + 6, v + 6 * c.a);
+        std::copy(saved + 12 * j + 6, saved + 12 * j + 12, v + 6 * c.b);
+      }
+      for (ContactRow& c : scratch) c.mu = c.normal = c.tangent[0] = c.tangent[1] = 0.0;
+    }
+    // restitution: e times the compression impulse along each normal (per object: A's
+    // and B's own e); the energy it returns, linear + quadratic in a common scale s
+    for (size_t j = 0; j < k; ++j) {
+      const ContactRow& c = scratch[j];
+      if (c.e_a == c.e_b) {
+        work[7 * j + 6] = c.e_a * c.normal;
+        if (work[7 * j + 6] != 0.0) apply(c, v, 0, c.n, work[7 * j + 6]);
+        continue;
+      }
+      const double d_a = c.e_a * c.normal, d_b = c.e_b * c.normal;
+      double* va = v + 6 * c.a;
+      double* vb = v + 6 * c.b;
+      store3(va, lin(v, c.a) - (d_a * c.ma) * c.n);
+      store3(va + 3, ang(v, c.a) - d_a * c.dw_a[0]);
+      store3(vb, lin(v, c.b) + (d_b * c.mb) * c.n);
+      store3(vb + 3, ang(v, c.b) + d_b * c.dw_b[0]);
+    }
+    double linear = 0.0, returned = 0.0;
+    for (size_t j = 0; j < k; ++j) {
+      const double r = work[7 * j + 6];
+      if (r == 0.0) continue;
+      const double after = relative(scratch[j], v, 0, scratch[j].n);
+      linear += r * work[7 * j + 3];
+      returned += 0.5 * r * (work[7 * j + 3] + after);
+    }
+    double scale = 1.0;
+    if (returned > std::max(taken, 0.0)) {
+      // largest s in [0, 1] with  linear s + quadratic s^2 <= taken
+      const double quadratic = returned - linear, budget = std::max(taken, 0.0);
+      scale = 0.0;
+      if (quadratic > 0.0) {
+        scale = (-linear + std::sqrt(std::max(linear * linear + 4.0 * quadratic * budget,
+                                              0.0))) / (2.0 * quadratic);
+      } else if (linear > 0.0) {
+        scale = budget / linear;
+      }
+      scale = std::clamp(scale, 0.0, 1.0);
+      for (size_t j = 0; j < k; ++j) {
+        const double r = work[7 * j + 6];
+        if (r != 0.0) apply(scratch[j], v, 0, scratch[j].n, (scale - 1.0) * r);
+      }
+    }
+    for (size_t j = 0; j < k; ++j) {
+      const ContactRow& c = scratch[j];
+      ContactRow& kept = rows[members[j]];
+      const double restitution = c.e_a == c.e_b ? scale * work[7 * j + 6]
+                                                : 0.5 * (c.e_a + c.e_b) * c.normal;
+      kept.impact += c.normal + restitution;
+      kept.impact_tangent[0] += c.tangent[0];
+      kept.impact_tangent[1] += c.tangent[1];
+      kept.bounce = kept.bounce || c.normal > 0.0;
+    }
   }
+  return stage;
 }
 
 bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
@@ -358,10 +443,10 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
 uint8_t contact_state(const ContactRow& r, const double* velocity, double sticking_speed) {
   double rel[3];
   row_velocity(r, velocity, rel);
-  double size = norm2(r.tangent[0], r.tangent[1]);
+  double size = norm2(r.tangent[0] + r.impact_tangent[0], r.tangent[1] + r.impact_tangent[1]);
   bool friction = size > kTiny;
-  bool touching = r.normal > 0.0;
-  bool at_limit = size >= r.mu * r.normal * (1.0 - 1e-9);
+  bool touching = r.normal + r.impact > 0.0;
+  bool at_limit = size >= r.mu * (r.normal + r.impact) * (1.0 - 1e-9);
   // sliding: it slips after the solve, or friction at the cone limit could not stop a slip
   // it had before (a held point whose share of the friction reaches its cone is sticking)
   bool sliding = norm2(rel[1], rel[2]) > sticking_speed || (!r.sticking && friction && at_limit);

@@ -45,6 +45,9 @@ enum ContactStateCode : uint8_t { kImpact = 1, kResting = 2, kSliding = 3, kStic
 // The solver's settings (see collres_ros/core/config.py for defaults, ranges, reasons).
 struct SolverParams {
   int velocity_iterations = 10;         // sequential-impulse sweeps (more when cold)
+  int impact_stages = 64;               // most impact stages per step (resolve_impacts)
+  int impact_sweeps = 100;              // most sweeps per impact stage
+  double impact_converged = 1e-10;      // relative impulse change that ends an impact stage
   int position_iterations = 4;          // split-impulse sweeps
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
@@ -68,7 +71,7 @@ struct SolverParams {
 struct ContactRow {
   int32_t a = 0, b = 0;          // body indices
   int32_t contact = 0;           // index in the caller's contact arrays
-  bool bounce = false;           // approached faster than the restitution threshold
+  bool bounce = false;           // took part in an impact stage (resolve_impacts)
   bool sticking = false;         // slow enough to stick: mu is the static coefficient
   Vec3 n, t1, t2;                // unit, world; n from A to B
   Vec3 ra, rb;                   // m, contact point minus each centre of mass
@@ -83,7 +86,9 @@ struct ContactRow {
   double mu = 0.0;               // friction coefficient of the cone this step
   double normal = 0.0;           // N s >= 0, accumulated (what is warm started)
   double tangent[2] = {0, 0};    // N s along t1, t2; |.| <= mu * normal
-  double restitution[2] = {0, 0};  // N s, extra normal impulse on A, on B (bounce pass)
+  double impact = 0.0;           // N s >= 0, normal impulse of the impact stages (their
+                                 // compression and restitution; reported, not warm started)
+  double impact_tangent[2] = {0, 0};  // N s, friction impulse of the impact stages, t1, t2
   double push = 0.0;             // m/s: pseudo normal speed the position pass asks for
   double pseudo = 0.0;           // N s (pseudo), accumulated by the position pass
 };
@@ -100,8 +105,7 @@ struct SolverBodies {
 // velocity. `velocity` is the pre-solve velocity (N, 6); `slow` the velocity that decides
 // sticking (e.g. before this step's external forces).
 void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
-                 double sticking_speed, double threshold, double mu_static,
-                 double mu_kinetic);
+                 double sticking_speed, double mu_static, double mu_kinetic);
 
 // Apply the rows' accumulated impulses (warm start) to the velocities.
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
@@ -126,13 +130,30 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<int32_t>& order,
                      std::vector<ContactRow>& scratch, int sweeps);
 
-// One pass over the rows that approached faster than the threshold (pre-solve) and carry
-// a normal impulse. A pair's only point leaves at -e times its pre-solve approach speed
-// (Newton); the points of a manifold each get e times their compression impulse
-// (Poisson: the same for one point, and, with the block solve's exact compression, it
-// adds no energy where per-point Newton targets on coupled points can). A's and B's
-// extra impulses use their own e (equal unless per_object), each keeping the total >= 0.
-void apply_restitution(std::vector<ContactRow>& rows, SolverBodies& bodies);
+// Impacts as successive stages, before the resting contacts are solved. A stage takes
+// every row that approaches faster than `threshold` (and faster than its speculative
+// allowance: it touches within the step) at the current velocities, and resolves them
+// simultaneously, as touching from the reference time on (no allowance): an exact
+// inelastic compression with friction (sequential impulses to convergence, manifolds as
+// blocks), then restitution along the normals, e times each row's compression impulse
+// (Poisson; for rows that all end the compression in contact, the simultaneous Newton
+// answer: each leaves at -e times its approach). The restitution is scaled down where it
+// would return more energy than the compression took (friction can make Poisson's rule
+// gain energy): no stage gains energy for e <= 1, and with e = 1 and no friction none is
+// lost. Rows that a stage drives into approach take part in the next one, so a chain of
+// touching bodies passes an impact on as successive binary impacts (Newton's cradle).
+// Per-object restitution (e_A != e_B) is applied as given, without that bound. Stops when
+// no row approaches or after `stages` stages (the rest is left to the resting solve);
+// returns the stages done. `scratch` and `work` are scratch space.
+struct ImpactSettings {
+  double threshold = 0.5;    // m/s: slower approaches do not bounce
+  int stages = 64;           // most stages per step
+  int sweeps = 100;          // most sequential-impulse sweeps per stage compression
+  double converged = 1e-10;  // relative impulse change that ends a stage's compression
+};
+int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                    const ImpactSettings& settings, std::vector<ContactRow>& scratch,
+                    std::vector<int32_t>& members, std::vector<double>& work);
 
 // Split-impulse push-out: pseudo velocities (N, 6, zeroed here) that give each row its
 // `push` normal speed; rows with push 0 keep the pseudo motion from driving them deeper.
@@ -143,12 +164,13 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
 // Relative velocity of a row along n, t1, t2 (m/s) for velocities v (N, 6).
 void row_velocity(const ContactRow& row, const double* v, double out[3]);
 
-// Friction impulse of a row as a world vector (N s, on B).
+// Friction impulse of a row as a world vector (N s, on B): impact stages and resting solve.
 inline Vec3 friction_world(const ContactRow& row) {
-  return row.tangent[0] * row.t1 + row.tangent[1] * row.t2;
+  return (row.tangent[0] + row.impact_tangent[0]) * row.t1 +
+         (row.tangent[1] + row.impact_tangent[1]) * row.t2;
 }
 
-// State of a solved row, the first rule that applies: IMPACT (bounced and pushed),
+// State of a solved row, the first rule that applies: IMPACT (an impact stage pushed it),
 // SLIDING (slips faster than sticking_speed after the solve, or slid before it with
 // friction at the cone limit), STICKING (non-zero friction held it), RESTING (otherwise).
 uint8_t contact_state(const ContactRow& row, const double* velocity, double sticking_speed);

@@ -44,9 +44,13 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                   report_out);
   // prepare: rows of the contacts that can carry an impulse, combined materials
   prepare(bodies, contacts, params);
+  // impacts: successive stages of the rows approaching faster than the threshold
+  SolverBodies solver{n, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
+  ImpactSettings impacts{params.restitution_threshold, params.impact_stages,
+                         params.impact_sweeps, params.impact_converged};
+  resolve_impacts(rows_, solver, impacts, shock_rows_, order32_, impact_work_);
   // warm start from last step's impulses of the same pair and feature
   double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio);
-  SolverBodies solver{n, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
   warm_start(rows_, solver);
   // iterate: sequential impulses (more sweeps while resting contacts are new), then
   // shock propagation from the ground up
@@ -57,8 +61,6 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   stats.rows = static_cast<int64_t>(rows_.size());
   levels(n);
   propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps);
-  // restitution from the pre-solve approach speed, above the threshold only
-  apply_restitution(rows_, solver);
   // store impulses for next step's warm start, then report them
   report(contacts, params, report_out);
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
@@ -192,8 +194,7 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
                           p.friction_rule);
     double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[a],
                                          bodies.kinetic_friction[b], p.friction_rule));
-    prepare_row(row, solver, then_.data(), p.sticking_speed, p.restitution_threshold, mu_s,
-                mu_k);
+    prepare_row(row, solver, then_.data(), p.sticking_speed, mu_s, mu_k);
   }
 }
 
@@ -239,7 +240,7 @@ void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOu
   for (const ContactRow& r : rows_) {
     const int64_t k = r.contact;
     cached_normal_[k] = r.normal;
-    out.normal_impulse[k] = r.normal + 0.5 * (r.restitution[0] + r.restitution[1]);
+    out.normal_impulse[k] = r.normal + r.impact;
     store3(out.friction_impulse + 3 * k, friction_world(r));
     out.state[k] = contact_state(r, velocity_.data(), p.sticking_speed);
   }

@@ -17,20 +17,22 @@
 // 2. prepare: one row per contact point that can carry an impulse this step (a
 //    speculative contact that cannot close within the step is no row), combined
 //    materials by the combine rules, rows in pair order;
-// 3. warm start from last step's impulses of the same pair and feature (ContactCache),
+// 3. impacts: successive stages of the rows that approach faster than the restitution
+//    threshold, each an exact inelastic compression with friction then restitution
+//    (resolve_impacts: no stage gains energy; a chain passes an impact on);
+// 4. warm start from last step's impulses of the same pair and feature (ContactCache),
 //    scaled by dt / last dt, only while that ratio lies in [1 / r, r] (r =
 //    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
 //    every row starts cold, so no timing of the inputs can launch a resting body;
-// 4. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
+// 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
 //    a block (more sweeps while the resting contacts are new), then
 //    shock propagation from the ground up (a heavy body on a light one);
-// 5. restitution from the pre-solve approach speed, above the threshold only;
-// 6. store impulses for the next step (without the restitution part);
+// 6. store impulses for the next step (without the impact stages' part);
 // 7. advance: impacted bodies from their time of impact with the new velocity for the
 //    rest of the step, (1 - f) dt; persistent-only bodies from the previous pose for dt;
 // 8. split-impulse position pass: penetration beyond the slop predicted at the end of the
 //    step is pushed out (poses only, no velocity: no energy gain);
-// 9. report: normal impulse (with restitution), friction impulse, state per contact; a
+// 9. report: normal impulse (with the impact stages'), friction impulse, state per contact; a
 //    sticking pair whose friction impulses cancel is reported RESTING.
 // Bodies without contact keep their current state (the caller's output arrays start as
 // a copy of the current states and only touched movable bodies are written).
@@ -141,7 +143,7 @@ class StepSolver {
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
-  std::vector<double> cached_normal_, cached_friction_;
+  std::vector<double> cached_normal_, cached_friction_, impact_work_;
   std::vector<uint8_t> found_;
   std::vector<int64_t> order_, pair_order_;
   std::vector<ContactRow> rows_, shock_rows_;

@@ -135,6 +135,21 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               reason='impulses scale with the step length only near it (Box2D and Jolt '
                      'assume a fixed dt); a 1 ns step or a 1 ms fresh step before a 30 Hz '
                      'one would otherwise launch a resting body'),
+    ParamSpec('impact_stages', 'integer', 64,
+              'Most impact stages per step: each resolves the contacts approaching faster '
+              'than restitution_threshold at once; the contacts it drives into approach '
+              'take part in the next (a chain of touching bodies passes an impact on)',
+              1, 10000,
+              reason='a row of 60 touching balls passes a hit on in 60 stages; the rest '
+                     'of a longer chain is caught inelastically by the resting solve'),
+    ParamSpec('impact_sweeps', 'integer', 100,
+              'Most sequential-impulse sweeps of one impact stage\'s compression', 1, 10000,
+              reason='a stage is solved to convergence (impact_converged) so that its '
+                     'restitution is the simultaneous answer; few contacts take part'),
+    ParamSpec('impact_converged', 'double', 1e-10,
+              'A stage\'s compression ends when a sweep changes no impulse by more than '
+              'this times the largest', 0.0, 1.0,
+              reason='the simultaneous Newton answer to 1e-9, far below any visible error'),
 )
 
 

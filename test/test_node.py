@@ -338,8 +338,8 @@ def test_two_publishers_on_body_states_report_no_phantom_loss(running, ros_domai
         for k in range(60):   # one publisher at twice the other's rate, every step answered
             t += DT
             source = other if k % 3 == 2 else peer
-            source.publish('body_states', states(t, [body('ball', 0.5), body('box', 0.1,
-                                                                            x=1.0)]))
+            pair = [body('ball', 0.5), body('box', 0.1, x=1.0)]
+            source.publish('body_states', states(t, pair))
             assert peer.wait(lambda: any(stamp_ns(m.header.stamp) == t for m in
                                          peer.messages('body_states/corrected')), 10.0)
         assert peer.wait(lambda: diagnostics_values(peer).get('inputs_received') == '60', 5.0)

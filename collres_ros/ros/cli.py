@@ -31,12 +31,25 @@ def error(message: object, code: int = 1) -> int:
     return code
 
 
+_TERMINATED = threading.Event()
+
+
 def terminate_as_interrupt() -> None:
     """SIGTERM ends this process as Ctrl-C does (KeyboardInterrupt: bags are finished,
-    children stopped, exit 130) instead of at once. Main thread only."""
+    children stopped, exit 130) instead of at once. Main thread only. Python drops an
+    exception a handler raises at some points (during a fork, in a finaliser): loops that
+    wait call ``check_terminated``, which raises it again."""
     def interrupt(signum: int, frame: Any) -> None:
+        _TERMINATED.set()
         raise KeyboardInterrupt
     signal.signal(signal.SIGTERM, interrupt)
+
+
+def check_terminated() -> bool:
+    """KeyboardInterrupt once SIGTERM came (see ``terminate_as_interrupt``); else False."""
+    if _TERMINATED.is_set():
+        raise KeyboardInterrupt
+    return False
 
 
 def run(body: Callable[[], int], errors: tuple[type[BaseException], ...] = USER_ERRORS) -> int:

@@ -261,7 +261,7 @@ class CollresNode(Node):
         if not self.serving:
             return
         start = time.perf_counter()
-        self.losses.count(names.STATES, info)
+        self.losses.count(names.STATES, info, self._inputs[0].get_publisher_count())
         try:
             decoded = self.states_codec.decode(data)
         except codec.DecodeError as refusal:
@@ -348,6 +348,13 @@ class CollresNode(Node):
         w['encode'] += encoded - answered
         w['publish'] += done - encoded
         w['callback'] += done - start
+        if any(step.budget) and 'budget' not in self._reported:
+            self._reported['budget'] = True   # warned once; every such step is counted
+            self.get_logger().warning(
+                f'step over the contact budget: {step.budget[0]} pairs and {step.budget[1]} '
+                'contact rows dropped, the deepest kept (solver.max_pairs '
+                f'{self.scene.solver.max_pairs}, solver.max_contacts '
+                f'{self.scene.solver.max_contacts}); counted as contact_budget in /diagnostics')
         for item in step.rejected:
             self._warn(item.reason, f'input refused [{item.reason}]: {item.detail}')
         for item in step.resets:
@@ -423,6 +430,10 @@ class CollresNode(Node):
             name=status_name(self.get_fully_qualified_name()),
             extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
                    'inputs_received': received, 'inputs_lost': self.losses.total_lost,
+                   'loss_counting': 'exact' if not self.losses.uncounted else (
+                       'not inferred while several publishers share a topic: '
+                       + ', '.join(sorted(self.losses.uncounted))),
+                   'inputs_uncounted': sum(self.losses.uncounted.values()),
                    **{f'messages_refused.{k}': v for k, v in sorted(self.refused.items())},
                    'contacts_total': totals['contacts'],
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
@@ -562,7 +573,8 @@ def _print_help_if_asked(argv: Sequence[str]) -> bool:
     parser = argparse.ArgumentParser(
         prog=NAME, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f'{NAME} [-h] [--lifecycle] [--ros-args --params-file FILE [-p NAME:=VALUE ...]]',
-        description=__doc__, epilog='Parameters: see README.md, or print them with '
+        description=__doc__, epilog='-p NAME:=VALUE (e.g. -p contact_wrench:=true) wins over '
+        'the params file and the shipped ones. Parameters: see README.md, or print them with '
         '`python -m collres_ros.ros.params`. --lifecycle: run as a managed (lifecycle) node, '
         'unconfigured until its change_state service says otherwise (ros/lifecycle.py).')
     parser.print_help()
@@ -608,9 +620,11 @@ def run(argv: list[str]) -> int:
         return 0
     if '--params-file' not in argv:
         default = default_params_file()
-        if default is not None:
-            argv += (['--ros-args'] if '--ros-args' not in argv else []) + \
-                ['--params-file', str(default)]
+        if default is not None:   # first of the ROS arguments: `-p NAME:=VALUE` wins over it
+            if '--ros-args' not in argv:
+                argv += ['--ros-args']
+            start = argv.index('--ros-args') + 1
+            argv[start:start] = ['--params-file', str(default)]
 
     def run() -> int:
         _check_files(argv)

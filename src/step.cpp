@@ -57,7 +57,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
   StepStats stats;
-  stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged);
+  stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged, &spins_);
   stats.rows = static_cast<int64_t>(rows_.size());
   levels(n);
   propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps);
@@ -195,6 +195,35 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
     double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[a],
                                          bodies.kinetic_friction[b], p.friction_rule));
     prepare_row(row, solver, then_.data(), p.sticking_speed, mu_s, mu_k);
+  }
+  // one SpinRow per pair whose combined rolling resistance or torsional friction is not 0
+  spins_.clear();
+  for (size_t lo = 0; lo < rows_.size();) {
+    size_t hi = lo + 1;
+    while (hi < rows_.size() && rows_[hi].a == rows_[lo].a && rows_[hi].b == rows_[lo].b) ++hi;
+    const ContactRow& r = rows_[lo];
+    const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
+                                p.friction_rule);
+    const double twist = combine(bodies.torsional_friction[r.a],
+                                 bodies.torsional_friction[r.b], p.friction_rule);
+    // lever: from the centre of mass of the movable body nearer to the contact
+    double lever = 0.0;
+    if (r.ma > 0.0) lever = length(r.ra);
+    if (r.mb > 0.0) lever = lever > 0.0 ? std::min(lever, length(r.rb)) : length(r.rb);
+    if ((roll > 0.0 || twist > 0.0) && lever > 0.0) {
+      SpinRow& s = spins_.emplace_back();
+      s.a = r.a;
+      s.b = r.b;
+      s.first = static_cast<int32_t>(lo);
+      s.count = static_cast<int32_t>(hi - lo);
+      s.n = r.n;
+      s.inv_a = inv_inertia_[r.a];
+      s.inv_b = inv_inertia_[r.b];
+      s.lever = lever;
+      s.roll = roll * lever;
+      s.twist = twist * lever;
+    }
+    lo = hi;
   }
 }
 

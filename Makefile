@@ -12,7 +12,7 @@ INTERFACE_INPUTS := CMakeLists.txt package.xml cmake/build_interfaces.py $(wildc
 	$(wildcard msg/*.msg) $(wildcard src/*.h) $(wildcard src/*.cpp)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: demo test setup test-setup bench goldens clean
+.PHONY: demo test setup test-setup bench goldens sanitize clean
 
 demo: setup
 	$(VENV)/bin/collres_demo
@@ -53,6 +53,19 @@ bench: setup
 
 goldens: setup
 	$(VPY) tools/regenerate_goldens.py
+
+# The core's sources with AddressSanitizer + UBSan, and its fuzz driver (fuzz/fuzz_core.cpp):
+# FUZZ_CASES generated cases from FUZZ_SEED (fixed: the same cases on every run), or FUZZ_FILES
+# (a corpus of byte files) instead. Not part of `make test` (the build takes minutes); CI
+# runs it after the tests (.ci/run).
+FUZZ_CASES ?= 20000
+FUZZ_SEED ?= 1
+sanitize: setup
+	cmake -S fuzz -B build/sanitize -DPython3_EXECUTABLE=$(abspath $(VPY)) \
+		-DBoost_NO_WARN_NEW_VERSIONS=ON -Wno-dev > /dev/null
+	cmake --build build/sanitize --parallel 2
+	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+		build/sanitize/collres_fuzz_core $(or $(FUZZ_FILES),$(FUZZ_CASES) $(FUZZ_SEED))
 
 clean:
 	rm -rf build collres_ros/msg collres_ros/_lib collres_ros/*.so collres_ros/core/_native*.so \

@@ -106,7 +106,7 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     start = time.monotonic()
     context = rclpy.Context()
     node_proc = sim_proc = None
-    executor = spinner = None
+    executor = spinner = recorder = None
     with cli.ros_init(context=context, domain_id=domain_id):
         try:
             node = rclpy.create_node('collres_demo_recorder', context=context)
@@ -171,6 +171,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
             for proc in (sim_proc, node_proc):
                 if proc is not None and proc.poll() is None:
                     processes.stop(proc)
+            if recorder is not None:
+                recorder.close()   # an interrupted run still leaves a complete bag
             # the spinning thread must stop before the context goes (else: abort, exit 134)
             if executor is not None:
                 executor.shutdown(timeout_sec=2.0)
@@ -232,6 +234,7 @@ def _run(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Console script ``collres_demo``: 0 when the run was clean, 1 otherwise."""
     args = parser().parse_args(argv)
+    cli.terminate_as_interrupt()   # SIGTERM stops the children and finishes the bag, as Ctrl-C
     return cli.run(lambda: _run(args))
 
 

@@ -232,6 +232,7 @@ def _run(args: argparse.Namespace, ros_args: list[str]) -> int:
     if args.storage not in STORAGES:
         raise cli.CliError(f'--storage: unknown storage {args.storage!r} '
                            f'(supported: {", ".join(STORAGES)})')
+    cli.terminate_as_interrupt()   # SIGTERM finishes the bag as Ctrl-C does
     try:
         summary = run_offline(sim, Path(args.record), args.storage, progress=True,
                               compress=args.compress)

@@ -10,6 +10,7 @@
 
 #include "bindings.h"
 #include "detection.h"
+#include "shapes.h"
 
 namespace py = pybind11;
 
@@ -64,6 +65,27 @@ collres::StepPoses poses_of(const collres::Detector& detector, const py::array& 
 void bind_detection(py::module_& m) {
   m.attr("REUSE_TRANSLATION") = collres::kReuseTranslation;
   m.attr("REUSE_ROTATION") = collres::kReuseRotation;
+  m.attr("HULL_FLATNESS") = collres::kHullFlatness;
+  m.def("extreme_vertices",
+        [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
+           int count) {
+          if (points.ndim() != 2 || points.shape(1) != 3) {
+            throw py::value_error("points: expected an array of shape (K, 3)");
+          }
+          const std::vector<double> flat(points.data(), points.data() + points.size());
+          std::vector<std::int64_t> chosen;
+          {
+            py::gil_scoped_release release;
+            chosen = collres::extreme_vertices(flat, count);
+          }
+          return chosen;
+        },
+        py::arg("points"), py::arg("count"),
+        "Indices of at most `count` vertices of (K, 3) points extreme along `count` evenly "
+        "spread directions (shapes.h: a hull simplified to a vertex budget).");
+  m.def("hull_problem", &collres::hull_problem, py::arg("points"),
+        "Why no convex hull can be built of these vertices (flat x, y, z, m), or '' when one "
+        "can (shapes.h: too few, not finite, coincident, collinear or flat points).");
   py::class_<collres::Detector>(m, "Detector", "Broad phase, narrow phase, manifolds and "
                                 "time of impact of a fixed list of bodies (detection.h).")
       .def(py::init([](const std::vector<int>& kinds, const std::vector<std::vector<double>>& sizes,
@@ -88,13 +110,19 @@ void bind_detection(py::module_& m) {
       .def("set_settings",
            [](collres::Detector& d, double speculative_margin, double toi_tolerance,
               int toi_max_iterations, bool ccd, double linear_slop,
-              double restitution_threshold) {
+              double restitution_threshold, int max_pairs, int max_contacts) {
              d.set_settings({speculative_margin, toi_tolerance, toi_max_iterations, ccd,
-                             linear_slop, restitution_threshold});
+                             linear_slop, restitution_threshold, max_pairs, max_contacts});
            },
            py::arg("speculative_margin"), py::arg("toi_tolerance"),
            py::arg("toi_max_iterations"), py::arg("ccd"), py::arg("linear_slop"),
-           py::arg("restitution_threshold"))
+           py::arg("restitution_threshold"), py::arg("max_pairs"), py::arg("max_contacts"))
+      .def("budget",
+           [](const collres::Detector& d) {
+             return py::make_tuple(d.budget().pairs_dropped, d.budget().rows_dropped);
+           },
+           "What the budget dropped in the last detect: (pairs never queried, contact rows "
+           "beyond max_contacts).")
       .def("set_filter", &collres::Detector::set_filter, py::arg("group"), py::arg("mask"),
            py::arg("ignored"),
            "Collision filter for the next step: per body group and mask bits, ignored "

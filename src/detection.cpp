@@ -34,6 +34,24 @@ void ContactRows::reserve(std::size_t rows) {
   feature.reserve(rows);
 }
 
+void ContactRows::keep(const std::vector<std::size_t>& rows) {
+  auto compact = [&rows](auto& column, std::size_t width) {
+    std::size_t to = 0;
+    for (const std::size_t row : rows) {
+      for (std::size_t c = 0; c < width; ++c) column[to++] = column[width * row + c];
+    }
+    column.resize(to);
+  };
+  compact(body_a, 1);
+  compact(body_b, 1);
+  compact(point, 3);
+  compact(normal, 3);
+  compact(separation, 1);
+  compact(toi, 1);
+  compact(kind, 1);
+  compact(feature, 1);
+}
+
 void ContactRows::clear() {
   body_a.clear();
   body_b.clear();
@@ -177,12 +195,88 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   out.reserve(last_rows_ + last_rows_ / 8 + 16);
   prepare(poses);
   find_pairs();
+  budget_ = StepBudget();
+  if (pairs_.size() > static_cast<std::size_t>(std::max(settings_.max_pairs, 0))) {
+    limit_pairs();
+  }
   next_.clear();
   for (const auto& [a, b] : pairs_) {
     if (!reuse(a, b, out)) narrow_phase(a, b, out);
   }
   stored_.swap(next_);
+  if (out.size() > static_cast<std::size_t>(std::max(settings_.max_contacts, 0))) {
+    limit_rows(out);
+  }
   last_rows_ = out.size();
+}
+
+// m, how far apart the pair's bounding spheres are at s = 1 (negative: overlapping); for a
+// half-space, how high the other body's sphere is above its surface
+double Detector::sphere_gap(int a, int b) const {
+  const bool plane_a = shapes_[a].kind == ShapeKind::plane;
+  if (plane_a || shapes_[b].kind == ShapeKind::plane) {
+    const int plane = plane_a ? a : b, other = plane_a ? b : a;
+    const Body& p = bodies_[plane];
+    const Vec3 normal = p.r1 * shapes_[plane].plane_normal;
+    const double offset = shapes_[plane].plane_offset + normal.dot(p.p1);
+    return normal.dot(bodies_[other].p1) - offset - radius_or_zero(other);
+  }
+  return (bodies_[b].p1 - bodies_[a].p1).norm() - shapes_[a].radius - shapes_[b].radius;
+}
+
+// m, bound on how far any point of B moves relative to A over the step
+double Detector::relative_motion(int a, int b) const {
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  return ((B.p1 - B.p0) - (A.p1 - A.p0)).norm() + A.turn * radius_or_zero(a) +
+         B.turn * radius_or_zero(b);
+}
+
+// Only pairs that need a coal query count: bounding spheres farther apart than the margin
+// and than the relative motion cannot touch (narrow_phase skips them unqueried).
+void Detector::limit_pairs() {
+  const auto keep = static_cast<std::size_t>(std::max(settings_.max_pairs, 0));
+  const double margin = settings_.speculative_margin;
+  depth_.clear();
+  order_.clear();
+  for (std::size_t k = 0; k < pairs_.size(); ++k) {
+    const auto [a, b] = pairs_[k];
+    const double gap = sphere_gap(a, b);
+    if (gap > margin && gap >= relative_motion(a, b)) continue;
+    order_.push_back(k);
+    depth_.push_back(-gap);
+  }
+  if (order_.size() <= keep) return;
+  // deepest first; equal depths by (a, b) order, so the choice is deterministic
+  std::vector<std::size_t>& rank = rank_;
+  rank.resize(order_.size());
+  for (std::size_t i = 0; i < rank.size(); ++i) rank[i] = i;
+  std::nth_element(rank.begin(), rank.begin() + keep, rank.end(),
+                   [this](std::size_t i, std::size_t j) {
+                     return depth_[i] > depth_[j] || (depth_[i] == depth_[j] && i < j);
+                   });
+  rank.resize(keep);
+  std::sort(rank.begin(), rank.end());
+  kept_pairs_.clear();
+  for (const std::size_t i : rank) kept_pairs_.push_back(pairs_[order_[i]]);
+  budget_.pairs_dropped = order_.size() - keep;
+  pairs_.swap(kept_pairs_);
+}
+
+void Detector::limit_rows(ContactRows& out) {
+  const std::size_t count = out.size();
+  const auto keep = static_cast<std::size_t>(std::max(settings_.max_contacts, 0));
+  order_.resize(count);
+  for (std::size_t k = 0; k < count; ++k) order_[k] = k;
+  const std::vector<double>& gap = out.separation;
+  std::nth_element(order_.begin(), order_.begin() + keep, order_.end(),
+                   [&gap](std::size_t i, std::size_t j) {
+                     return gap[i] < gap[j] || (gap[i] == gap[j] && i < j);
+                   });
+  order_.resize(keep);
+  std::sort(order_.begin(), order_.end());
+  out.keep(order_);
+  budget_.rows_dropped = count - keep;
 }
 
 bool Detector::reuse(int a, int b, ContactRows& out) {
@@ -240,8 +334,7 @@ void Detector::narrow_phase(int a, int b, ContactRows& out) {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   const double margin = settings_.speculative_margin;
-  const double relative = ((B.p1 - B.p0) - (A.p1 - A.p0)).norm() +
-                          A.turn * radius_or_zero(a) + B.turn * radius_or_zero(b);
+  const double relative = relative_motion(a, b);
   // bounding spheres farther apart than the margin and than the relative motion: the pair
   // can neither touch now nor have met during the step
   const double bound = (B.p1 - A.p1).norm() - shapes_[a].radius - shapes_[b].radius;

@@ -24,6 +24,14 @@
 // 5. Manifolds: coal contact patches where faces touch, at most four points, each with a
 //    feature id (the same every step for the same corner, edge or face of both bodies).
 //
+// Budget (DetectionSettings max_pairs, max_contacts; as MuJoCo's nconmax and PhysX's contact
+// buffer): a step with more pairs to query (broad-phase pairs whose bounding spheres come
+// within the margin or the relative motion; the others need no coal query) queries only
+// the max_pairs whose bounding spheres overlap deepest (for a half-space, the sphere's depth
+// below it), and a step of more rows keeps the max_contacts deepest (least separation);
+// rows stay grouped by pair in (a, b) order. Work and memory per step are then bounded
+// whatever the poses; budget() says what the last step dropped.
+//
 // Rows (ContactRows): PERSISTENT rows are at the current state (toi 0, separation > 0 for
 // a speculative gap, < 0 for a penetration). IMPACT rows have point and normal at the
 // time of impact and separation min(separation there, signed distance now) < 0;
@@ -71,6 +79,8 @@ class Detector {
   void candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs);
   // Forget the stored manifolds (e.g. after bodies were teleported).
   void reset() { stored_.clear(); }
+  // What the budget dropped in the last detect() (see the file comment).
+  const StepBudget& budget() const { return budget_; }
 
  private:
   struct Body {
@@ -87,6 +97,10 @@ class Detector {
 
   void prepare(const StepPoses& poses);
   void find_pairs();
+  double sphere_gap(int a, int b) const;
+  double relative_motion(int a, int b) const;
+  void limit_pairs();
+  void limit_rows(ContactRows& out);
   bool reuse(int a, int b, ContactRows& out);
   void narrow_phase(int a, int b, ContactRows& out);
   void classify(int a, int b, double distance_now, double relative, double speed, bool near,
@@ -114,6 +128,11 @@ class Detector {
   PairQuery query_;
   std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
   ManifoldStore stored_, next_;
+  StepBudget budget_;
+  std::vector<double> depth_;        // budget: per pair or row, the ranking value
+  std::vector<std::size_t> order_;   // budget: pairs or rows considered, by index
+  std::vector<std::size_t> rank_;    // budget: positions in order_, ranked
+  std::vector<std::pair<int, int>> kept_pairs_;
 };
 
 }  // namespace collres

@@ -28,6 +28,14 @@ struct DetectionSettings {
   bool ccd = true;                     // sweep pairs apart at both ends of the step
   double linear_slop = 0.005;          // m: bounds the advancement's distance tolerance
   double restitution_threshold = 0.5;  // m/s: slower approaches rest, faster ones impact
+  int max_pairs = 20000;               // budget: broad-phase pairs queried per step
+  int max_contacts = 40000;            // budget: contact rows per step
+};
+
+// What the budget of the last step dropped (zero when the step was within it).
+struct StepBudget {
+  std::size_t pairs_dropped = 0;  // broad-phase pairs never queried
+  std::size_t rows_dropped = 0;   // contact rows beyond max_contacts
 };
 
 // The poses of all N bodies at both ends of a step; arrays are C-contiguous, row-major.
@@ -56,6 +64,8 @@ struct ContactRows {
 
   void clear();
   void reserve(std::size_t rows);
+  // Keep only these rows (indices in increasing order), in their order.
+  void keep(const std::vector<std::size_t>& rows);
   std::size_t size() const { return body_a.size(); }
 };
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include <coal/shape/geometric_shapes.h>
 
@@ -14,17 +15,109 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 std::shared_ptr<coal::CollisionGeometry> convex_hull(const std::vector<double>& points) {
+  const std::string problem = hull_problem(points);
+  if (!problem.empty()) throw std::invalid_argument("convex: " + problem);
   auto vertices = std::make_shared<std::vector<coal::Vec3s>>();
   for (std::size_t k = 0; k + 2 < points.size(); k += 3) {
     vertices->emplace_back(points[k], points[k + 1], points[k + 2]);
   }
-  if (vertices->size() < 4) throw std::invalid_argument("convex needs at least 4 points");
   const auto count = static_cast<unsigned int>(vertices->size());
   return std::shared_ptr<coal::CollisionGeometry>(
       coal::ConvexBase::convexHull(vertices, count, true, "Qt"));
 }
 
+// Positive finite sizes (m) of the first `count` values, checked before coal sees them.
+void check_sizes(const std::vector<double>& size, std::size_t count) {
+  if (size.size() < count) throw std::invalid_argument("shape size has too few values");
+  for (std::size_t k = 0; k < count; ++k) {
+    if (!(size[k] > 0.0) || !(size[k] <= kHullCoordinateLimit)) {
+      throw std::invalid_argument("shape sizes must be positive and finite");
+    }
+  }
+}
+
 }  // namespace
+
+std::string hull_problem(const std::vector<double>& points) {
+  if (points.size() % 3 != 0) return "vertices must be x, y, z triples";
+  const std::size_t count = points.size() / 3;
+  if (count < 4) return "needs at least 4 points";
+  for (const double c : points) {
+    if (!(std::abs(c) <= kHullCoordinateLimit)) {
+      return "vertex coordinates must be finite and within 1e9 m";
+    }
+  }
+  auto at = [&points](std::size_t k) { return Vec3(points[3 * k], points[3 * k + 1],
+                                                   points[3 * k + 2]); };
+  // The extreme points a first simplex is built from: lowest x, farthest from it, farthest
+  // from their line, farthest from their plane (each distance over the extent).
+  std::size_t first = 0;
+  for (std::size_t k = 1; k < count; ++k) {
+    if (points[3 * k] < points[3 * first]) first = k;
+  }
+  const Vec3 origin = at(first);
+  double extent = 0.0;
+  Vec3 axis = Vec3::Zero();
+  for (std::size_t k = 0; k < count; ++k) {
+    const double d = (at(k) - origin).norm();
+    if (d > extent) { extent = d; axis = at(k) - origin; }
+  }
+  if (!(extent > 0.0)) return "all points coincide (no volume)";
+  axis /= extent;
+  double height = 0.0;
+  Vec3 side = Vec3::Zero();
+  for (std::size_t k = 0; k < count; ++k) {
+    const Vec3 off = axis.cross(at(k) - origin);
+    if (off.norm() > height) { height = off.norm(); side = off; }
+  }
+  if (!(height > kHullFlatness * extent)) return "points lie on one line (no volume)";
+  const Vec3 normal = side / height;
+  double depth = 0.0;
+  for (std::size_t k = 0; k < count; ++k) {
+    depth = std::max(depth, std::abs(normal.dot(at(k) - origin)));
+  }
+  if (!(depth > kHullFlatness * extent)) {
+    return "points lie in one plane (flatter than 1e-6 of their extent: no volume)";
+  }
+  return "";
+}
+
+std::vector<std::int64_t> extreme_vertices(const std::vector<double>& points, int count) {
+  const std::size_t vertices = points.size() / 3;
+  std::vector<std::int64_t> chosen;
+  if (vertices == 0 || count <= 0) return chosen;
+  Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
+  for (std::size_t k = 0; k < vertices; ++k) {
+    const Vec3 p(points[3 * k], points[3 * k + 1], points[3 * k + 2]);
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Vec3 centre = 0.5 * (lo + hi);
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));   // rad, the lattice's turn per point
+  std::vector<Vec3> directions;
+  directions.reserve(count);
+  for (int d = 0; d < count; ++d) {
+    const double z = 1.0 - (2.0 * d + 1.0) / count;
+    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+    directions.emplace_back(r * std::cos(golden * d), r * std::sin(golden * d), z);
+  }
+  // one pass over the vertices (the directions stay in cache)
+  std::vector<double> reach(count, -kInf);
+  chosen.assign(count, 0);
+  for (std::size_t k = 0; k < vertices; ++k) {
+    const Vec3 p = Vec3(points[3 * k], points[3 * k + 1], points[3 * k + 2]) - centre;
+    for (int d = 0; d < count; ++d) {
+      const double along = directions[d].dot(p);
+      if (along > reach[d]) {
+        reach[d] = along;
+        chosen[d] = static_cast<std::int64_t>(k);
+      }
+    }
+  }
+  std::sort(chosen.begin(), chosen.end());
+  chosen.erase(std::unique(chosen.begin(), chosen.end()), chosen.end());
+  return chosen;
+}
 
 BodyShape make_shape(int kind, const std::vector<double>& size,
                      const std::vector<double>& points, double radius, bool is_static) {
@@ -32,9 +125,7 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
   shape.kind = static_cast<ShapeKind>(kind);
   shape.radius = radius;
   shape.is_static = is_static;
-  auto need = [&size](std::size_t count) {
-    if (size.size() < count) throw std::invalid_argument("shape size has too few values");
-  };
+  auto need = [&size](std::size_t count) { check_sizes(size, count); };
   switch (shape.kind) {
     case ShapeKind::sphere:
       need(1);
@@ -62,10 +153,10 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
       shape.curved = true;
       break;
     case ShapeKind::plane: {
-      need(4);
+      if (size.size() < 4) throw std::invalid_argument("shape size has too few values");
       const Vec3 normal(size[0], size[1], size[2]);
       const double length = normal.norm();
-      if (!(length > 0.0) || !std::isfinite(length)) {
+      if (!(length > 0.0) || !std::isfinite(length) || !std::isfinite(size[3])) {
         throw std::invalid_argument("plane normal must be non-zero and finite");
       }
       shape.plane_normal = normal / length;

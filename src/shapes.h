@@ -8,7 +8,9 @@
 // are infinite) and are tested against every finite body directly.
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <coal/collision_object.h>
@@ -38,10 +40,33 @@ struct BodyShape {
   bool single_point = false;       // touches at one point only (sphere)
 };
 
+// Convex vertices must span a volume: the thickness of the first simplex qhull would build
+// (its height over the plane of three extreme points) above this fraction of the points'
+// extent. qhull reports a flatter set (and other invalid input) through an error stream
+// coal leaves unset, and the process dies; measured: a 1 m square with an apex 1e-8 m above
+// it kills it, 3e-8 m does not. Refused well before that, with a reason.
+constexpr double kHullFlatness = 1e-6;
+// |vertex coordinate| (m, body frame) at most this: far beyond any size the params allow, low
+// enough that the products qhull forms stay finite.
+constexpr double kHullCoordinateLimit = 1e9;
+
+// Why no hull can be built of these vertices (K x 3, row-major, m), or "" when one can:
+// fewer than 4 points, not x, y, z triples, a non-finite or too large coordinate, all
+// points at one spot, on one line or in one plane (within kHullFlatness of their extent).
+std::string hull_problem(const std::vector<double>& points);
+
+// Indices (increasing) of at most `count` vertices (K x 3, row-major) that are extreme along
+// `count` directions spread evenly over the sphere (a Fibonacci lattice, about the centre of
+// the points' box): vertices of the hull whose own hull approximates it from inside. How a
+// hull of many vertices is simplified to a vertex budget (as PhysX caps a convex mesh at 255
+// vertices); O(K count).
+std::vector<std::int64_t> extreme_vertices(const std::vector<double>& points, int count);
+
 // A shape from its code, sizes (sphere [r]; box [x, y, z] full edges; capsule, cylinder,
 // cone [r, length] along z; plane [nx, ny, nz, d]) and, for convex, its vertices (K x 3,
 // row-major, body frame). `radius` is the bounding radius about the body origin (m), as
-// collres_ros.core.shapes.bounding_radius gives it. Sizes are validated by the caller.
+// collres_ros.core.shapes.bounding_radius gives it. Sizes are validated by the caller;
+// std::invalid_argument for any input no coal geometry can be made of (never a crash).
 BodyShape make_shape(int kind, const std::vector<double>& size,
                      const std::vector<double>& points, double radius, bool is_static);
 

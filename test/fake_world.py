@@ -23,6 +23,7 @@ class FakeWorld:
         self.materials: dict[int, dict[str, Any]] = {}
         self.report: ContactReport = ContactReport.empty()
         self.hook: Any = None
+        self.budget = (0, 0)   # what the step budget dropped (World.budget)
 
     def set_material(self, index: int, **values: Any) -> None:
         self.materials[index] = values

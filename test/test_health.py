@@ -76,3 +76,17 @@ def test_no_input_is_stale_and_every_input_refused_is_an_error():
 def test_unpaired_inputs_warn_with_the_reason():
     s = Run().period(steps=0, inputs=20, unpaired='poses without twists for: ball')
     assert s.level == WARN and 'poses without twists for: ball' in s.message
+
+
+def test_a_sustained_stream_of_time_jumps_warns_naming_the_cause():
+    run = Run()
+    # two publishers on one topic, stamps near 1000 s and near 5 s, interleaved at 100 Hz:
+    # every step is a fresh start (no sweep, no warm start: contact physics off)
+    for _ in range(3):
+        s = run.period(steps=100, refused={'time_backwards': 100, 'large_gap': 100})
+    assert s.level == WARN and 'more than one clock' in s.message
+    assert 'time jumps: 600 fresh starts in 300 steps' in s.message
+    levels = [run.period(steps=100).level for _ in range(5)]
+    assert levels[-1] == OK                          # over once the window has moved on
+    calm = Run().period(steps=100, refused={'time_backwards': 2})   # a source restart
+    assert calm.level == OK

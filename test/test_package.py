@@ -21,9 +21,8 @@ IMPORT_TO_KEY = {
     'visualization_msgs': 'visualization_msgs', 'diagnostic_msgs': 'diagnostic_msgs',
     'builtin_interfaces': 'builtin_interfaces', 'rcl_interfaces': 'rclpy',
     'numpy': 'python3-numpy', 'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib',
-    'coal': 'coal', 'ament_index_python': 'rclpy',
+    'coal': 'coal', 'ament_index_python': 'rclpy', 'rosbags': 'python3-rosbags-pip',
 }
-PIP_NOTED = {'rosbags'}  # no rosdep key: a pip note in package.xml instead
 
 
 def _imported_top_level_modules() -> set[str]:
@@ -55,9 +54,21 @@ def test_package_xml_is_format_3_and_lists_what_the_code_imports() -> None:
     missing = sorted(IMPORT_TO_KEY[m] for m in imported
                      if m in IMPORT_TO_KEY and IMPORT_TO_KEY[m] not in declared)
     assert not missing, f'imported but not declared in package.xml: {missing}'
-    xml = (ROOT / 'package.xml').read_text()
-    for module in PIP_NOTED & imported:
-        assert f'pip install {module}' in xml
+    assert 'rosbags' in imported
+
+
+def test_license_file_matches_package_xml() -> None:
+    package = parse_package(str(ROOT / 'package.xml'))
+    assert [str(name) for name in package.licenses] == ['Apache-2.0']
+    text = (ROOT / 'LICENSE').read_text()
+    assert 'Apache License' in text.splitlines()[1] and 'Version 2.0' in text.splitlines()[2]
+
+
+def test_colcon_test_runs_the_suite_by_default() -> None:
+    text = (ROOT / 'CMakeLists.txt').read_text()
+    block = text[text.index('if(BUILD_TESTING'):]
+    assert block.startswith('if(BUILD_TESTING)\n'), 'tests need no extra flag'
+    assert 'ament_add_pytest_test(' in block[:block.index('endif()')]
 
 
 def test_physics_core_imports_without_ros() -> None:

@@ -197,3 +197,22 @@ def test_collision_filter_parameters_and_their_errors():
     assert changed.collision_filter.ignored == ((0, 1),)
     with pytest.raises(ValueError, match=r"^ignore_pairs: body 'cat' is not in bodies"):
         params.with_changes(scene, {'ignore_pairs': ['floor:cat']})
+
+
+def test_a_runtime_change_validates_what_changed_and_keeps_the_shapes(tmp_path):
+    mesh = tmp_path / 'rock.obj'
+    mesh.write_text('v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nv 0.05 0.05 0.05\n')
+    scene = params.scene_from_values({**BASE, 'body.ball.shape': 'convex',
+                                      'body.ball.mesh': str(mesh), 'body.ball.size': None})
+    mesh.unlink()   # a runtime change reads no mesh file again
+    changed = params.with_changes(scene, {'solver.velocity_iterations': 5,
+                                          'body.ball.restitution': 0.2})
+    assert changed.solver.velocity_iterations == 5 and changed.bodies[1].restitution == 0.2
+    assert changed.bodies[1].points == scene.bodies[1].points
+    assert changed.values['body.ball.mesh'] == str(mesh)
+    with pytest.raises(ValueError, match=r'^solver.velocity_iterations: allowed range'):
+        params.with_changes(scene, {'solver.velocity_iterations': 0})
+    with pytest.raises(ValueError, match=r'^body.ball.mass: read-only'):
+        params.with_changes(scene, {'body.ball.mass': 2.0})
+    with pytest.raises(ValueError, match=r'^ignore_pairs: '):
+        params.with_changes(scene, {'ignore_pairs': ['ball:nope']})

@@ -146,3 +146,27 @@ def test_inputs_within_the_limits_are_served():
         'ball', (1e8, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), (1e8, 0.0, 0.0), (0.0, 0.0, 0.0),
         'world', 'world')])
     assert out.names == ['ball'] and not out.rejected
+
+
+def test_a_hull_of_many_vertices_is_simplified_to_the_vertex_budget(tmp_path):
+    from collres_ros.core.config import HULL_MAX_VERTICES
+    from collres_ros.core.shapes import convex_hull
+    rng = np.random.default_rng(11)
+    sphere = rng.normal(size=(100_000, 3))
+    sphere = 0.5 * sphere / np.linalg.norm(sphere, axis=1, keepdims=True)
+    mesh = tmp_path / 'scan.obj'
+    mesh.write_text(''.join(f'v {x!r} {y!r} {z!r}\n' for x, y, z in sphere.tolist()))
+    scene = params.scene_from_values({**BASE, **convex(mesh)})
+    points = np.array(scene.bodies[1].points)
+    print(len(points), 'of', len(sphere), 'vertices kept')
+    assert 4 <= len(points) <= HULL_MAX_VERTICES
+    given = set(map(tuple, sphere.tolist()))
+    assert all(tuple(p) in given for p in points.tolist())   # vertices of the input
+    volume = convex_hull(points).computeVolume()
+    assert volume >= 0.95 * 4.0 / 3.0 * np.pi * 0.5 ** 3       # approximates it from inside
+    assert volume <= 4.0 / 3.0 * np.pi * 0.5 ** 3
+    inline = params.scene_from_values({**BASE, 'body.ball.shape': 'convex',
+                                       'body.ball.points': sphere[:1000].ravel().tolist()})
+    assert len(inline.bodies[1].points) <= HULL_MAX_VERTICES
+    yaml_text = params.scene_to_yaml(scene)   # what a bag records stays small
+    assert len(yaml_text) < 40_000

@@ -23,7 +23,8 @@ LAUNCH = ROOT / 'launch' / 'collres.launch.py'
 RVIZ = ROOT / 'rviz' / 'collres.rviz'
 FOXGLOVE = ROOT / 'foxglove' / 'collres_layout.json'
 EXECUTABLES = ('collres_node', 'collres_sim', 'collres_replay', 'collres_demo')
-LAUNCH_ARGUMENTS = {'params_file', 'namespace', 'use_sim_time', 'start_sim', 'lifecycle'}
+LAUNCH_ARGUMENTS = {'params_file', 'namespace', 'use_sim_time', 'start_sim', 'lifecycle',
+                    'autostart', 'clock_topic'}
 # `body_markers` is the body-shape MarkerArray of the design's topic table; the viewers
 # show it as soon as the node publishes it (same type as contact_markers).
 PLANNED_TOPICS = {'/body_markers'}
@@ -99,6 +100,25 @@ def test_launch_file_names_only_executables_arguments_and_parameters_that_exist(
                 assert keys <= known, keys - known
     sim = next(n for n in nodes if ast.literal_eval(_keyword(n, 'executable')) == 'collres_sim')
     assert _keyword(sim, 'condition') is not None, 'collres_sim must be optional'
+
+
+def test_the_lifecycle_variant_is_a_lifecycle_node_and_each_scene_can_have_its_clock() -> None:
+    tree = ast.parse(LAUNCH.read_text(), str(LAUNCH))
+    managed = _calls(tree, 'LifecycleNode')
+    assert len(managed) == 1, 'lifecycle:=true starts a launch_ros LifecycleNode'
+    assert ast.literal_eval(_keyword(managed[0], 'arguments')) == ['--lifecycle']
+    assert ast.literal_eval(_keyword(managed[0], 'executable')) == 'collres_node'
+    changes = [ast.literal_eval(_keyword(c, 'transition_id')) if isinstance(
+        _keyword(c, 'transition_id'), ast.Constant) else _keyword(c, 'transition_id').id
+        for c in _calls(tree, 'ChangeState')]
+    assert sorted(changes) == ['TRANSITION_ACTIVATE', 'TRANSITION_CONFIGURE']
+    assert _calls(tree, 'OnStateTransition'), 'activate once configured (autostart)'
+    # the clock: one remap of /clock, on every node
+    for call in _calls(tree, 'Node') + managed:
+        assert getattr(_keyword(call, 'remappings'), 'id', None) == 'clock'
+    clock = next(n.value for n in ast.walk(tree) if isinstance(n, ast.Assign)
+                 and getattr(n.targets[0], 'id', '') == 'clock')
+    assert ast.literal_eval(clock.elts[0].elts[0]) == '/clock'
 
 
 def test_launch_file_builds_a_description_where_launch_ros_exists() -> None:

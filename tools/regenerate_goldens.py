@@ -19,7 +19,10 @@ For each shipped scene (config/scenes/<scene>.yaml), over a short duration:
    slope hold and slide, resting drift, tunnelling. Read them before
    committing: a golden must be physically right, not just new.
 
-Both bags are mcap with zstd chunks. Exit code 1 when a check fails.
+Both bags are mcap with zstd chunks. A scene whose regenerated messages (topic,
+type, log time and bytes of each) equal the ones in place is left as it is, files
+untouched: on a clean clone with nothing changed, ``make goldens`` changes nothing.
+Exit code 1 when a check fails.
 """
 
 from __future__ import annotations
@@ -190,8 +193,19 @@ CHECKS: dict[str, Callable[[Run], list[Check]]] = {
 }
 
 
-def regenerate(scene: str, data_dir: Path = DATA_DIR) -> tuple[list[Check], int]:
-    """Write <data_dir>/<scene>/{input,golden}; returns the checks and the bytes written."""
+def _recorded(bag: Path) -> list[tuple[str, str, int, bytes]] | None:
+    """(topic, type, log time, CDR bytes) of every message of a bag; None without one."""
+    from collres_ros.ros.bag import BagError, BagReader
+    try:
+        with BagReader(bag) as reader:
+            return list(reader.raw())
+    except BagError:
+        return None
+
+
+def regenerate(scene: str, data_dir: Path = DATA_DIR) -> tuple[list[Check], int, bool]:
+    """Write <data_dir>/<scene>/{input,golden} unless their messages are the same already;
+    returns the checks, the bytes of the scene's files and whether they were written."""
     params = SCENES_DIR / f'{scene}.yaml'
     target = data_dir / scene
     with tempfile.TemporaryDirectory() as scratch:
@@ -200,14 +214,17 @@ def regenerate(scene: str, data_dir: Path = DATA_DIR) -> tuple[list[Check], int]
         run_offline(sim, tmp / 'input', topics=['body_states'], compress=True)
         replay(tmp / 'input', tmp / 'golden', params, topics=GOLDEN_TOPICS, compress=True)
         messages = read_messages(tmp / 'input') + read_messages(tmp / 'golden')
-        if target.exists():
-            shutil.rmtree(target)
-        target.mkdir(parents=True)
-        shutil.copytree(tmp / 'input', target / 'input')
-        shutil.copytree(tmp / 'golden', target / 'golden')
+        written = not all(_recorded(target / part) == _recorded(tmp / part)
+                          for part in ('input', 'golden'))
+        if written:
+            if target.exists():
+                shutil.rmtree(target)
+            target.mkdir(parents=True)
+            shutil.copytree(tmp / 'input', target / 'input')
+            shutil.copytree(tmp / 'golden', target / 'golden')
     run = _run(scene, messages)
     size = sum(f.stat().st_size for f in target.rglob('*') if f.is_file())
-    return _common(run) + CHECKS[scene](run), size
+    return _common(run) + CHECKS[scene](run), size, written
 
 
 def main(argv: list[str]) -> int:
@@ -226,9 +243,10 @@ def main(argv: list[str]) -> int:
     failed = 0
     total = 0
     for scene in scenes:
-        checks, size = regenerate(scene, data_dir)
+        checks, size, written = regenerate(scene, data_dir)
         total += size
-        print(f'{scene}: {DURATIONS[scene]} s, {size / 1024:.1f} KiB -> {data_dir / scene}/')
+        print(f'{scene}: {DURATIONS[scene]} s, {size / 1024:.1f} KiB '
+              + (f'-> {data_dir / scene}/' if written else '(unchanged: the same messages)'))
         for check in checks:
             print(check.line())
         failed += sum(not c.ok for c in checks)

@@ -81,6 +81,17 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               'A step longer than this is treated as a fresh start (no sweep, no warm start)',
               1e-6, 3600.0, unit='s',
               reason='after a pause the interpolated motion is meaningless'),
+    ParamSpec('max_pairs', 'integer', 20000,
+              'Budget of pairs queried per step (broad-phase pairs whose bounding spheres come '
+              'within reach); beyond it the pairs whose spheres overlap deepest are kept '
+              '(counted: contact_budget)', 1, 10_000_000,
+              reason='bounds a step\'s time and memory whatever the poses (MuJoCo nconmax): '
+                     '2000 boxes at one point take 0.5 s; a falling 1000-body pile needs 8500'),
+    ParamSpec('max_contacts', 'integer', 40000,
+              'Budget of contact rows per step; beyond it the deepest are kept '
+              '(counted: contact_budget)', 1, 10_000_000,
+              reason='bounds the solver\'s work (PhysX contact buffer); a 1000-cube pile has '
+                     '16000'),
 )
 
 
@@ -102,6 +113,8 @@ class SolverSettings:
     warm_start: bool = True
     ccd: bool = True
     max_dt: float = 0.5
+    max_pairs: int = 20000
+    max_contacts: int = 40000
 
     def with_values(self, **values: Any) -> 'SolverSettings':
         """Copy with some fields changed, each validated (ValueError names the field)."""
@@ -189,6 +202,14 @@ VELOCITY_LIMIT = 1e9           # m/s and rad/s, |component|
 INERTIA_RANGE = (1e-30, 1e30)  # kg m^2: a 1e-9 kg body of 1 um to a 1e9 kg body of 1000 km
 MESH_MAX_BYTES = 64 * 1024 * 1024   # a larger vertex file is not a collision hull
 MESH_SUFFIXES = ('.obj', '.stl')
+# A convex hull keeps at most this many vertices: a larger set (a scanned mesh) is simplified
+# to its vertices extreme along as many evenly spread directions (as PhysX caps a convex
+# mesh at 255 vertices); contact queries on a hull cost with its vertex count.
+HULL_MAX_VERTICES = 256
+# A params file (and a bag's recorded params) is read within these bounds, as rcl reads it:
+# no aliases, no tags but !!str; larger or deeper documents are refused before parsing ends.
+PARAMS_FILE_MAX_BYTES = 64 * 1024 * 1024   # a scene of inlined hull vertices fits
+PARAMS_FILE_MAX_DEPTH = 32                 # nested mappings and lists
 # collres_sim --realtime: it warns when it falls behind the wall clock by more than
 # REALTIME_LAG s (at most once per REALTIME_WARN_PERIOD s), and at the end when the rate it
 # reached is below REALTIME_SHORTFALL of the rate asked (each step waits for the node's answer)
@@ -200,6 +221,10 @@ REALTIME_SHORTFALL = 0.95      # fraction of rate_hz
 DEFAULT_COLLISION_GROUP = 1
 ALL_COLLISION_BITS = 0xFFFF
 COLLISION_RULE = 'a pair collides when (group_a & mask_b) != 0 and (group_b & mask_a) != 0'
+
+# /diagnostics: fresh starts (time going back, jumps, gaps) in at least this fraction of a
+# window's steps are a WARN (two clocks on one topic, a source whose time keeps jumping)
+TIME_JUMP_WARN_FRACTION = 0.25
 
 # Rolling resistance and torsional friction defaults (dimensionless; see BODY_PARAMS).
 ROLLING_RESISTANCE = 0.01

@@ -17,6 +17,10 @@ at most four points with stable feature ids, and the classification of each pair
 * TUNNELLED: apart at both ends but conservative advancement (coal distances) finds a
   hit, then the same bisection; point, normal and separation (about 0) at the impact.
 
+A step budget (``max_pairs``, ``max_contacts``, as MuJoCo's nconmax) bounds each step's
+work and memory: beyond it the pairs whose bounding spheres overlap deepest, then the
+deepest rows, are kept (``budget`` says how many were dropped).
+
 Pairs the collision filter drops (``CollisionFilter``: group and mask bits, ignored
 pairs) are removed in the broad phase, half-spaces included: they never reach the narrow
 phase, give no rows, and keep no stored manifold (the store holds the last step's pairs
@@ -69,7 +73,8 @@ class Detection:
         self._settings = settings
         self._native.set_settings(settings.speculative_margin, settings.toi_tolerance,
                                   settings.toi_max_iterations, settings.ccd,
-                                  settings.linear_slop, settings.restitution_threshold)
+                                  settings.linear_slop, settings.restitution_threshold,
+                                  settings.max_pairs, settings.max_contacts)
 
     @property
     def collision_filter(self) -> CollisionFilter:
@@ -93,6 +98,13 @@ class Detection:
         """
         rows = self._native.detect(*self._arrays(previous, current, active))
         return ContactSet(*rows)
+
+    @property
+    def budget(self) -> tuple[int, int]:
+        """What the step budget dropped in the last ``detect``: (broad-phase pairs never
+        queried, contact rows beyond ``max_contacts``); (0, 0) within the budget."""
+        pairs, rows = self._native.budget()
+        return int(pairs), int(rows)
 
     def candidate_pairs(self, previous: BodyStates, current: BodyStates,
                         active: np.ndarray | None = None) -> list[tuple[int, int]]:

@@ -67,6 +67,9 @@ class ResolvedStep:
     # (N, 7) every body's pose after the step (scene order, world frame): position of the
     # centre of mass (m), orientation x, y, z, w; static and held bodies included
     poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    # (broad-phase pairs, contact rows) the step budget (solver.max_pairs, max_contacts)
+    # dropped: the deepest were kept; (0, 0) within the budget
+    budget: tuple[int, int] = (0, 0)
 
     def contact_names(self, k: int) -> tuple[str, str]:
         """Body names (A, B) of contact ``k``."""
@@ -242,6 +245,9 @@ class Resolver:
                              self.dynamic)
         self.totals['steps'] += 1
         self.totals['contacts'] += report.contacts.count
+        budget = self.world.budget
+        if any(budget):
+            self.totals['contact_budget'] += 1   # steps over the budget
         self.totals.update(r.reason for r in rejected + resets)
         names = self._name_array[index].tolist()
         states = BodyStates(self.state.position[index].copy(),
@@ -251,7 +257,8 @@ class Resolver:
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)], dt,
                             time.perf_counter() - start, world_time,
-                            np.concatenate([self.state.position, self.state.orientation], 1))
+                            np.concatenate([self.state.position, self.state.orientation], 1),
+                            budget)
 
     def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
         resets = []

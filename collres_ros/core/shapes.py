@@ -12,12 +12,14 @@ z = +3 length/4. Sizes are in m, masses in kg, inertia in kg m^2.
 from __future__ import annotations
 
 import math
+import re
 import struct
 from pathlib import Path
 
 import coal
 import numpy as np
 
+from collres_ros.core.config import HULL_MAX_VERTICES
 from collres_ros.core.types import BodySpec
 
 
@@ -84,18 +86,33 @@ def plane_normal_offset(spec: BodySpec) -> tuple[np.ndarray, float]:
 
 
 def convex_points(spec: BodySpec) -> np.ndarray:
-    """Vertices (K, 3) m, body frame, of a convex spec (needs at least 4, not coplanar)."""
+    """Vertices (K, 3) m, body frame, of a convex spec: ValueError unless a hull can be built
+    (at least 4 finite points spanning a volume, ``hull_problem``)."""
     points = np.asarray(spec.points, dtype=float).reshape(-1, 3)
-    if points.shape[0] < 4 or not np.all(np.isfinite(points)):
-        raise ValueError(f'{spec.name}: convex needs at least 4 finite points')
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    if spread[-1] <= 1e-9 * max(spread[0], 1e-300):
-        raise ValueError(f'{spec.name}: convex points are coplanar (no volume)')
+    problem = hull_problem(points)
+    if problem:
+        raise ValueError(f'{spec.name}: convex {problem}')
     return points
 
 
+def hull_problem(points: np.ndarray) -> str:
+    """Why coal cannot build a convex hull of (K, 3) points (m), or '' when it can.
+
+    The compiled core's check (src/shapes.h): fewer than 4 points, a non-finite
+    coordinate, or points on one spot, line or plane (flatter than
+    ``_native.HULL_FLATNESS`` of their extent). qhull, under coal, kills the
+    process on such a set, so every hull is built only after this check.
+    """
+    from collres_ros.core import _native
+    return str(_native.hull_problem(np.asarray(points, dtype=float).reshape(-1).tolist()))
+
+
 def convex_hull(points: np.ndarray) -> coal.Convex:
-    """coal convex hull (with its triangles, so volume and inertia work) of (K, 3) points."""
+    """coal convex hull (with its triangles, so volume and inertia work) of (K, 3) points
+    (ValueError when ``hull_problem`` finds none can be built)."""
+    problem = hull_problem(points)
+    if problem:
+        raise ValueError(f'convex {problem}')
     vertices = coal.StdVec_Vec3s()
     for point in np.asarray(points, dtype=float):
         vertices.append(point)
@@ -184,6 +201,18 @@ def bounding_radius(spec: BodySpec) -> float:
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 
+def hull_vertices(points: np.ndarray, budget: int = HULL_MAX_VERTICES) -> np.ndarray:
+    """Distinct vertices (K, 3) of a point set, at most ``budget``: a larger set is simplified
+    to its vertices extreme along ``budget`` evenly spread directions (compiled core,
+    ``_native.extreme_vertices``), whose hull approximates the full hull from inside
+    (a 2,000,000-point sphere keeps 98 % of its volume). Finite points only."""
+    from collres_ros.core import _native
+    points = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+    if len(points) > budget:
+        points = points[np.asarray(_native.extreme_vertices(points, budget), np.int64)]
+    return np.unique(points, axis=0)
+
+
 def load_mesh_points(path: str) -> np.ndarray:
     """Distinct vertices (K, 3) of an OBJ or STL (ASCII or binary) file, in the file's units."""
     return mesh_points(Path(path).read_bytes(), Path(path).suffix, str(path))
@@ -199,19 +228,43 @@ def mesh_points(data: bytes, suffix: str, name: str = 'mesh') -> np.ndarray:
     """
     suffix = suffix.lower()
     if suffix == '.obj':
-        points = _obj_vertices(data.decode('utf-8', errors='replace'))
+        points = _obj_vertices(data)
     elif suffix == '.stl':
         points = _stl_vertices(data)
     else:
         raise ValueError(f'{name}: unsupported mesh format (use .obj or .stl)')
     if points.shape[0] == 0:
         raise ValueError(f'{name}: no vertices found')
-    return np.unique(points, axis=0)
+    if not np.isfinite(points).all():
+        return np.unique(points, axis=0)   # the caller names the vertex that is not finite
+    return hull_vertices(points)
 
 
-def _obj_vertices(text: str) -> np.ndarray:
-    rows = [line.split()[1:4] for line in text.splitlines() if line.split()[:1] == ['v']]
-    return np.array(rows, dtype=float).reshape(-1, 3)
+# a vertex line: `v x y z [w]` (OBJ), `vertex x y z` (ASCII STL); numbers as float() reads them
+_OBJ_VERTEX = re.compile(rb'^[ \t]*v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)', re.MULTILINE)
+_STL_VERTEX = re.compile(rb'^[ \t]*vertex[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)', re.MULTILINE)
+
+
+def _vertex_rows(pattern: re.Pattern[bytes], data: bytes) -> np.ndarray:
+    rows = pattern.findall(data)
+    try:
+        return np.array(rows, dtype=float).reshape(-1, 3)
+    except ValueError:
+        bad = next(row for row in rows if not _numbers(row))
+        raise ValueError(f'vertex {b" ".join(bad)[:60].decode(errors="replace")!r} is not '
+                         'three numbers') from None
+
+
+def _numbers(row: tuple[bytes, ...]) -> bool:
+    try:
+        [float(v) for v in row]
+        return True
+    except ValueError:
+        return False
+
+
+def _obj_vertices(data: bytes) -> np.ndarray:
+    return _vertex_rows(_OBJ_VERTEX, data)
 
 
 def _stl_vertices(data: bytes) -> np.ndarray:
@@ -221,9 +274,7 @@ def _stl_vertices(data: bytes) -> np.ndarray:
             records = np.frombuffer(data, dtype=np.dtype([('f', '<f4', (12,)), ('a', '<u2')]),
                                     count=count, offset=84)
             return records['f'][:, 3:].reshape(-1, 3).astype(float)
-    text = data.decode('ascii', errors='replace')
-    rows = [line.split()[1:4] for line in text.splitlines() if line.strip().startswith('vertex')]
-    return np.array(rows, dtype=float).reshape(-1, 3)
+    return _vertex_rows(_STL_VERTEX, data)
 
 
 def _positive(spec: BodySpec, size: list[float], count: int) -> list[float]:

@@ -54,6 +54,7 @@ class Detector(Protocol):
 
     settings: SolverSettings
     collision_filter: CollisionFilter
+    budget: tuple[int, int]   # last detect: (pairs, rows) the step budget dropped
 
     def detect(self, previous: BodyStates, current: BodyStates,
                active: np.ndarray | None = None) -> ContactSet: ...
@@ -87,6 +88,9 @@ class World:
         self._cache = self._solver.cache      # impulses of the last step, by pair and feature
         self.settings = settings
         # last step: detection and solve time (s), velocity sweeps done, solver rows
+        # last step: (broad-phase pairs, contact rows) the step budget dropped (max_pairs,
+        # max_contacts); (0, 0) within it
+        self.budget: tuple[int, int] = (0, 0)
         self.timing: dict[str, float] = {'detect': 0.0, 'solve': 0.0, 'iterations': 0,
                                          'rows': 0}
 
@@ -143,6 +147,7 @@ class World:
         started = time.perf_counter()
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection)
         contacts = _finite(self._collision.detect(previous, current, active))
+        self.budget = self._collision.budget
         detected = time.perf_counter()
         if contacts.count == 0:
             self.timing = {'detect': detected - started, 'solve': 0.0, 'iterations': 0,

@@ -162,16 +162,35 @@ class BagWriter:
         return self
 
     def close(self) -> None:
+        """Finish the bag: index, metadata.yaml and (mcap) every CRC (``mcap_crc.seal``)."""
         if self._open:
-            self._writer.close()
             self._open = False
+            self._writer.close()
+            if self.storage == 'mcap':
+                from collres_ros.ros.mcap_crc import seal
+                for part in sorted(self.path.glob('*.mcap')):
+                    seal(part)
+
+    def discard(self) -> None:
+        """Remove the bag being written (a bag that failed to write is not left behind)."""
+        import shutil
+        self._open = False
+        shutil.rmtree(self.path, ignore_errors=True)
 
     def __enter__(self) -> 'BagWriter':
         return self.open()
 
     def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
                  traceback: TracebackType | None) -> None:
-        self.close()
+        """Finish the bag; an error (not an interrupt: Ctrl-C, SIGTERM) removes it."""
+        if kind is not None and not issubclass(kind, (KeyboardInterrupt, SystemExit)):
+            self.discard()
+            return
+        try:
+            self.close()
+        except BaseException:
+            self.discard()
+            raise
 
     def add_topic(self, topic: str, msgtype: str, qos: Sequence[Any] | None = None) -> None:
         """Declare a topic with its wire type (idempotent); BagError on a type clash.
@@ -215,6 +234,14 @@ class BagReader:
         self._open = False
 
     def open(self) -> 'BagReader':
+        """Open the bag; an mcap file whose CRCs do not match is refused (BagError)."""
+        if self.storage == 'mcap':
+            from collres_ros.ros.mcap_crc import CrcError, check
+            for part in sorted(self.path.glob('*.mcap')):
+                try:
+                    check(part)
+                except (CrcError, OSError) as error:
+                    raise BagError(f'{self.path}: damaged bag, {part.name}: {error}') from None
         try:
             self._reader.open()
         except Exception as error:
@@ -242,17 +269,22 @@ class BagReader:
     @property
     def metadata(self) -> dict[str, Any]:
         """``rosbag2_bagfile_information`` of metadata.yaml, as plain YAML values."""
-        import yaml
+        from collres_ros.ros.params_yaml import plain_document
+        path = self.path / 'metadata.yaml'
         try:
-            document = yaml.safe_load((self.path / 'metadata.yaml').read_text())
+            document = plain_document(path.read_text(), str(path))
             return dict(document['rosbag2_bagfile_information'])
-        except (OSError, yaml.YAMLError, KeyError, TypeError) as error:
-            raise BagError(f'cannot read {self.path / "metadata.yaml"}: {error}') from None
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise BagError(f'cannot read {path}: {error}') from None
 
     @property
-    def custom_data(self) -> dict[str, str]:
-        """metadata.yaml's ``custom_data`` (empty when the bag has none)."""
-        return dict(self.metadata.get('custom_data') or {})
+    def custom_data(self) -> dict[str, Any]:
+        """metadata.yaml's ``custom_data`` (empty when the bag has none; values as written)."""
+        custom = self.metadata.get('custom_data') or {}
+        if not isinstance(custom, dict):
+            raise BagError(f'{self.path / "metadata.yaml"}: custom_data must be a mapping '
+                           f'(got a {type(custom).__name__})')
+        return dict(custom)
 
     def offered_qos(self, topic: str) -> list[dict[str, Any]]:
         """The ``offered_qos_profiles`` recorded for ``topic`` (YAML dicts; [] if none)."""

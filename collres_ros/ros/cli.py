@@ -31,6 +31,14 @@ def error(message: object, code: int = 1) -> int:
     return code
 
 
+def terminate_as_interrupt() -> None:
+    """SIGTERM ends this process as Ctrl-C does (KeyboardInterrupt: bags are finished,
+    children stopped, exit 130) instead of at once. Main thread only."""
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGTERM, interrupt)
+
+
 def run(body: Callable[[], int], errors: tuple[type[BaseException], ...] = USER_ERRORS) -> int:
     """``body()``, with ``errors`` turned into the one-line ``error: ...`` exit (code 1)."""
     try:

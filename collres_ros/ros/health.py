@@ -18,7 +18,12 @@ caller reports them). Levels (``diagnostic_msgs/DiagnosticStatus``):
 * ``OK`` (0) otherwise.
 
 Fresh starts (``time_backwards``, ``large_gap``) and clock jumps are
-notices, not faults: they are named in the message but leave the level OK.
+notices, not faults: they are named in the message but leave the level OK,
+unless they are sustained: fresh starts in at least ``TIME_JUMP_WARN_FRACTION``
+of the window's steps (two clocks interleaved on one topic, a source whose time
+keeps jumping) are a WARN naming that cause, since every such step runs
+without a sweep or a warm start (as tf2 and robot_localization warn on
+repeated time jumps).
 """
 
 from __future__ import annotations
@@ -27,6 +32,8 @@ from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
+from collres_ros.core.config import TIME_JUMP_WARN_FRACTION
+
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
 WINDOW_REPORTS = 5
@@ -34,6 +41,7 @@ WINDOW_REPORTS = 5
 ACTIVITY = ('steps', 'contacts', 'inputs', 'served', 'lost', 'sync_dropped')
 NOTICES = ('time_backwards', 'large_gap', 'time_jump')
 ERRORS = ('non_finite_result',)
+JUMP_MIN_STEPS = 10   # steps in the window before sustained time jumps are judged
 
 
 @dataclass(frozen=True)
@@ -117,6 +125,12 @@ class Health:
             warnings.append(f'incomplete per-body steps dropped: {recent["sync_dropped"]}')
         if stale:
             warnings.append('stale: ' + (names or ', '.join(stale)))
+        jumps = sum(notices.values())
+        steps = recent['steps']
+        if steps >= JUMP_MIN_STEPS and jumps >= TIME_JUMP_WARN_FRACTION * steps:
+            warnings.append(f'time jumps: {jumps} fresh starts in {recent["steps"]} steps, the '
+                            'stamps come from more than one clock (two publishers on one '
+                            'topic?) or keep jumping; no sweep or warm start for them')
         message = f'{recent["steps"]} steps in the last {window_s:.1f} s, {rate:.1f} Hz'
         if silent and not (min_rate > 0.0):
             level = STALE

@@ -38,6 +38,13 @@ def wrench_topic(name: str) -> str:
     return f'{BODIES}{name}/contact_wrench'
 
 
+def output_topics(body_names: list[str]) -> list[str]:
+    """Every topic collres_node can publish for a scene of ``body_names``, as it names them."""
+    per_body = [topic for name in body_names
+                for topic in (pose_topic(name, True), twist_topic(name, True), wrench_topic(name))]
+    return [CORRECTED_STATES, CONTACTS, MARKERS, BODY_MARKERS, TF, DIAGNOSTICS] + per_body
+
+
 def absolute(topic: str, namespace: str = '/') -> str:
     """Absolute name of a relative topic in ``namespace`` ('/' or '/robot'), as bags name it."""
     if topic.startswith('/'):

@@ -23,7 +23,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from collres_ros.ros.cli import CliError
 from collres_ros.ros.diagnostics import OfflineDiagnostics
-from collres_ros.ros.names import STATE_NAMES, STATES, absolute, state_name
+from collres_ros.ros.names import STATE_NAMES, STATES, absolute, output_topics, state_name
 from collres_ros.ros.simulation import SimScene, rows_of, run_loop
 from collres_ros.ros.stamps import seconds_ns
 
@@ -277,6 +277,14 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
     start = time.perf_counter()
     with BagReader(in_bag) as reader:
         scene = _scene(params, reader, namespace)
+        unknown = [t for t in topics or () if t not in output_topics(scene.names)]
+        if unknown:
+            raise ReplayError(f'--topics: not an output topic: '
+                              f'{", ".join(repr(t[:80]) for t in unknown[:5])} (outputs: '
+                              f'{", ".join(output_topics([]))}, bodies/<name>/pose/corrected, '
+                              'bodies/<name>/twist/corrected, bodies/<name>/contact_wrench)')
+        if topics is not None and not topics:
+            raise ReplayError('--topics: no topic given')
         if out_bag.exists():
             raise ReplayError(f'output bag already exists: {out_bag}')
         source, total = read_steps(reader, scene, namespace)
@@ -375,20 +383,15 @@ def _check_resolved(summary: ReplaySummary, path: Path) -> None:
 
 def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
     """The scene of ``params``, or else the params recorded in the bag's custom_data."""
-    import tempfile
-
     from collres_ros.ros import params as params_module
     from collres_ros.ros.bag import PARAMS_KEY
     if params is not None:
         return params_module.load_scene(params, namespace)
     text = reader.custom_data.get(PARAMS_KEY)
-    if not text:
+    if text is None or text == '':
         raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '
                           'give --params FILE')
-    with tempfile.TemporaryDirectory(prefix='collres_replay-') as scratch:
-        path = Path(scratch) / 'params.yaml'
-        path.write_text(text)
-        return params_module.load_scene(path, namespace)
+    return params_module.load_recorded_scene(text, f'{reader.path} ({PARAMS_KEY})', namespace)
 
 
 def _rejections(resolved: Any) -> list[Any]:

@@ -30,8 +30,9 @@ from collres_ros.core.config import (
     BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, POSITION_LIMIT, SCENE_PARAMS,
     SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
-from collres_ros.core.shapes import mesh_points
+from collres_ros.core.shapes import hull_problem, hull_vertices, mesh_points
 from collres_ros.core.types import BodySpec, BodyStates, CollisionFilter
+from collres_ros.ros import params_yaml
 
 NODE_NAME = 'collres_node'
 SIM_NAME = 'collres_sim'
@@ -168,71 +169,41 @@ def read_params_file(path: str | Path, node_names: Iterable[str] = (NODE_NAME, S
     stays a string, ``[]`` is not set, a list mixing types is refused.
     ValueError (one line) for unreadable YAML or a malformed section.
     """
-    import yaml
-    from rclpy.parameter import parameter_dict_from_yaml_file, parameter_value_to_python
     path = Path(path)
-    try:
-        # libyaml's loader where PyYAML has it: the same documents, ~7x faster (pile.yaml)
-        loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
-        document = yaml.load(path.read_text(), Loader=loader)
-    except yaml.YAMLError as error:
-        mark = getattr(error, 'problem_mark', None)
-        where = f' line {mark.line + 1}' if mark is not None else ''
-        raise ValueError(f'{path}:{where} not valid YAML '
-                         f'({getattr(error, "problem", None) or error})') from None
+    document = params_yaml.parse(params_yaml.read_text(path), str(path))
+    return params_from_document(document, str(path), node_names, namespace)
+
+
+def params_from_document(document: Any, source: str,
+                         node_names: Iterable[str] = (NODE_NAME, SIM_NAME),
+                         namespace: str = '/') -> dict[str, Any]:
+    """``read_params_file`` of a document ``params_yaml.parse`` read (``source`` names it)."""
     if not isinstance(document, dict):
-        raise ValueError(f'{path}: not a ROS 2 params file (top level must be a mapping)')
+        raise ValueError(f'{source}: not a ROS 2 params file (top level must be a mapping)')
     fqns = [fully_qualified_name(namespace, name) for name in node_names]
-    sections: list[tuple[Any, dict[str, Any]]] = []
+    values: dict[str, Any] = {}
     for section, body in document.items():
         if not any(section_matches(str(section), fqn) for fqn in fqns):
             continue
         if not isinstance(body, dict) or 'ros__parameters' not in body:
-            raise ValueError(f'{path}: section {section!r} has no ros__parameters')
+            raise ValueError(f'{source}: section {section!r} has no ros__parameters')
         params = body['ros__parameters'] or {}
         if not isinstance(params, dict):
-            raise ValueError(f'{path}: {section}.ros__parameters must be a mapping')
+            raise ValueError(f'{source}: {section}.ros__parameters must be a mapping')
         flat: dict[str, Any] = {}
         _flatten('', params, flat)
-        sections.append((section, flat))
-    # rclpy's reader merges the sections it is given key by key at the top level only
-    # (a later `body:` would replace an earlier one whole): one call per group of
-    # sections whose top-level keys do not meet, in file order (rcl merges leaf by leaf)
-    groups: list[tuple[list[Any], dict[str, Any], set[str]]] = []
-    for section, flat in sections:
-        keys = {name.split('.')[0] for name in flat}
-        if groups and not groups[-1][2] & keys:
-            groups[-1][0].append(section)
-            groups[-1][1].update(flat)
-            groups[-1][2].update(keys)
-        else:
-            groups.append(([section], dict(flat), keys))
-    values: dict[str, Any] = {}
-    for group, written, _ in groups:
-        for name, leaf in written.items():
-            if isinstance(leaf, list) and len({type(v) for v in leaf}) > 1:
-                shown = name if name.isprintable() else repr(name)
-                got = _show(leaf)
-                raise ValueError(f'{shown[:100]}: a list must hold values of one type, as rcl '
-                                 'requires (write 1.0, not 1, among doubles) (got '
-                                 f'{got if len(got) < 100 else got[:96] + " ..."})')
-        try:
-            read = {name: parameter_value_to_python(message.value) for name, message in
-                    parameter_dict_from_yaml_file(str(path), target_nodes=group).items()}
-        except RuntimeError as error:
-            raise ValueError(f'{path}: section {group[0]!r}: {error}') from None
-        except Exception:   # rclpy re-parses str(value) as YAML: a string it cannot re-read
-            read = dict(written)
-        for name, value in read.items():
-            leaf = written.get(name)
-            if isinstance(leaf, str):
-                value = leaf   # rclpy re-parses str(value): '1.5' would become a double
-            elif isinstance(value, (list, tuple)) or hasattr(value, 'tolist'):
-                value = list(value) or None   # rcl reads [] as not set
-            values[name] = value
-        for name, leaf in written.items():   # `{}` and `[]` leaves: not set
-            if leaf is None:
-                values[name] = None
+        for name, leaf in flat.items():
+            if isinstance(leaf, list):
+                shown = _short(name if name.isprintable() else repr(name), 100)
+                if any(isinstance(v, (list, dict)) for v in leaf):
+                    raise ValueError(f'{shown}: a list must hold plain values, as rcl '
+                                     'requires (no nested lists or mappings)')
+                if len({type(v) for v in leaf}) > 1:
+                    got = _show(leaf)
+                    raise ValueError(f'{shown}: a list must hold values of one type, as rcl '
+                                     'requires (write 1.0, not 1, among doubles) '
+                                     f'(got {got if len(got) < 100 else got[:96] + " ..."})')
+            values[name] = leaf   # later sections win, leaf by leaf
     return values
 
 
@@ -247,6 +218,18 @@ def load_scene(path: str | Path, namespace: str = '/') -> Scene:
         raise FileNotFoundError(f'params file not found: {path}')
     values = read_params_file(path, namespace=namespace)
     return scene_from_values(values, path.resolve().parent)
+
+
+def load_recorded_scene(text: Any, source: str, namespace: str = '/') -> Scene:
+    """The scene of params text recorded in a bag: untrusted, so read within the params
+    file bounds and self-contained (a ``mesh`` path is refused: the recorder inlines the
+    vertices). ValueError (one line) for anything else, a text that is not a string too."""
+    if not isinstance(text, str):
+        raise ValueError(f'{source}: recorded params must be the text of a params file '
+                         f'(got a {type(text).__name__})')
+    document = params_yaml.parse(text, source)
+    return scene_from_values(params_from_document(document, source, namespace=namespace),
+                             None, files=False)
 
 
 # --- the validator ----------------------------------------------------------------------------
@@ -342,9 +325,12 @@ def _read_mesh(path: Path) -> np.ndarray:
     return mesh_points(_mesh_bytes(path), path.suffix)
 
 
-def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
-                   ) -> tuple[tuple[float, float, float], ...]:
+def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path],
+                   files: bool = True) -> tuple[tuple[float, float, float], ...]:
     mesh, flat = values[f'{name}.mesh'], values[f'{name}.points']
+    if mesh and not files:
+        _fail(f'{name}.mesh', 'a recorded scene carries its vertices (points), it names no '
+              'file: a mesh path from a bag is not read', mesh)
     if mesh:
         path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
         try:
@@ -363,11 +349,11 @@ def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path
     else:
         if len(flat) % 3:
             _fail(f'{name}.points', 'needs x, y, z triples', flat)
-        points = np.array(flat, float).reshape(-1, 3)
-    points = np.unique(points, axis=0)
-    if len(points) < 4 or np.linalg.matrix_rank(points - points.mean(axis=0)) < 3:
+        points = hull_vertices(np.array(flat, float).reshape(-1, 3))
+    problem = hull_problem(points)
+    if problem:
         _fail(f'{name}.{"mesh" if mesh else "points"}',
-              'convex needs at least 4 points spanning a volume', mesh or flat)
+              f'convex needs at least 4 points spanning a volume: {problem}', mesh or flat)
     return tuple(tuple(float(c) for c in p) for p in points)
 
 
@@ -396,7 +382,7 @@ def collision_filter_of(values: Mapping[str, Any], names: list[str]) -> Collisio
         tuple(ignored_pairs(values['ignore_pairs'], names)))
 
 
-def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
+def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool = True
           ) -> tuple[BodySpec, np.ndarray]:
     """BodySpec and the 13-vector initial state of body ``name`` from validated values."""
     key = f'body.{name}'
@@ -405,7 +391,7 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
     static = values[f'{key}.static'] or values[f'{key}.kinematic']   # kinematic: static too
     points: tuple[tuple[float, float, float], ...] = ()
     if shape == 'convex':
-        points = _convex_points(key, values, base_dir)
+        points = _convex_points(key, values, base_dir, files)
     else:
         what, count = SIZES[shape]
         _vector(f'{key}.size', size, count, what)
@@ -450,11 +436,13 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path]
     return spec, state
 
 
-def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None) -> Scene:
+def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None,
+                      files: bool = True) -> Scene:
     """Validate flat {dotted name: value} parameters into a Scene (ValueError: one line).
 
     Missing parameters take their defaults; ``None`` means not set. Unknown
-    names are errors (a typo must not pass silently).
+    names are errors (a typo must not pass silently). ``files=False``: the
+    values are untrusted (a bag's recorded params) and name no file to read.
     """
     raw = dict(values)
     bodies_value = _typed(SCENE_PARAMS[1], raw.get('bodies'))
@@ -488,7 +476,7 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
     world_frame = typed['world_frame']
     if not world_frame:
         _fail('world_frame', 'must not be empty', world_frame)
-    built = [_body(name, typed, base_dir) for name in bodies_value]
+    built = [_body(name, typed, base_dir, files) for name in bodies_value]
     collision_filter_of(typed, bodies_value)   # ValueError: a bad ignore_pairs entry
     state = np.array([s for _, s in built]).reshape(len(built), 13)
     initial = BodyStates(state[:, 0:3].copy(), state[:, 3:7].copy(), state[:, 7:10].copy(),
@@ -528,8 +516,37 @@ def scene_to_yaml(scene: Scene) -> str:
 
 
 def with_changes(scene: Scene, changes: Mapping[str, Any]) -> Scene:
-    """The scene with some parameters changed, fully re-validated (ValueError: one line)."""
-    return scene_from_values({**scene.values, **changes}, scene.base_dir)
+    """The scene with some runtime-changeable parameters changed (ValueError: one line).
+
+    Only what changed is validated, by the same rules as a file (``_typed`` and the
+    checks that involve it: kinetic <= static friction, ``ignore_pairs`` entries), and
+    only the parts it touches are rebuilt: solver and node settings, a body's materials,
+    the collision filter. The bodies' shapes stay as built at start (no mesh file is
+    read again), and a parameter that shapes or places a body is refused as read-only.
+    """
+    specs = {spec.name: spec for spec in node_specs(scene.names)}
+    values = dict(scene.values)
+    for name, value in changes.items():
+        if name not in specs:
+            raise ValueError(f'{_short(name, 100)}: unknown parameter')
+        if not is_runtime_changeable(name):
+            raise ValueError(f'{name}: read-only, fixed at start')
+        values[name] = _typed(specs[name], value)
+    bodies = list(scene.bodies)
+    for k, body in enumerate(bodies):
+        key = f'body.{body.name}'
+        if not any(f'{key}.{m}' in changes for m in MATERIALS):
+            continue
+        mu_s, mu_k = values[f'{key}.static_friction'], values[f'{key}.kinetic_friction']
+        if mu_k > mu_s:
+            _fail(f'{key}.kinetic_friction', f'must be <= static_friction {mu_s}', mu_k)
+        bodies[k] = replace(body, restitution=values[f'{key}.restitution'],
+                            static_friction=mu_s, kinetic_friction=mu_k)
+    collision_filter_of(values, scene.names)   # ValueError: a bad ignore_pairs entry
+    solver = SolverSettings(**{f.name: values[f'solver.{f.name}']
+                               for f in fields(SolverSettings)})
+    node = NodeSettings(**{f.name: values[f.name] for f in fields(NodeSettings)})
+    return replace(scene, bodies=tuple(bodies), solver=solver, node=node, values=values)
 
 
 # --- documentation ----------------------------------------------------------------------------

@@ -5,7 +5,9 @@ Used by the end-to-end tests and by ``collres_demo``: start a console script
 ``ROS_DOMAIN_ID``, discovery limited to localhost), wait on predicates with
 deadlines (never a bare sleep), stop it with SIGINT, then SIGTERM, then
 SIGKILL, and read what it printed. Each child runs in its own session, so a
-Ctrl-C in the terminal reaches the parent only, which stops its children.
+Ctrl-C in the terminal reaches the parent only, which stops its children; and
+each child gets SIGTERM from the kernel when its parent dies (Linux
+``PR_SET_PDEATHSIG``), so a parent killed by SIGKILL leaves no child behind.
 """
 
 from __future__ import annotations
@@ -66,6 +68,24 @@ def ros_env(domain_id: Optional[int] = None, base: Optional[Mapping[str, str]] =
     return env
 
 
+def _die_with_parent() -> Optional[Callable[[], None]]:
+    """A ``preexec_fn`` asking the kernel to SIGTERM the child when this process dies
+    (Linux prctl PR_SET_PDEATHSIG; None elsewhere). Loaded before the fork, so the child
+    only makes the call; a parent already gone by then ends the child at once."""
+    if not sys.platform.startswith('linux'):
+        return None
+    import ctypes
+    prctl = ctypes.CDLL(None, use_errno=True).prctl
+    parent = os.getpid()
+    set_death_signal = 1   # PR_SET_PDEATHSIG, <linux/prctl.h>
+
+    def arm() -> None:
+        prctl(set_death_signal, int(signal.SIGTERM), 0, 0, 0)
+        if os.getppid() != parent:
+            os._exit(1)
+    return arm
+
+
 def start(script: str, args: Sequence[str] = (), env: Optional[Mapping[str, str]] = None,
           log: Optional[str | Path] = None, cwd: Optional[str | Path] = None) -> Process:
     """Start ``script args`` with ``env`` (default: ``ros_env()``); output to ``log``.
@@ -81,7 +101,7 @@ def start(script: str, args: Sequence[str] = (), env: Optional[Mapping[str, str]
     with open(log_path, 'wb') as sink:
         proc = Process(command(script) + list(args), stdin=subprocess.DEVNULL, stdout=sink,
                        stderr=subprocess.STDOUT, env=dict(env) if env is not None else ros_env(),
-                       cwd=cwd, start_new_session=True)
+                       cwd=cwd, start_new_session=True, preexec_fn=_die_with_parent())
     proc.name = script
     proc.log_path = log_path
     return proc

@@ -2,7 +2,8 @@
 
 States, contacts and markers: reliable, volatile, keep last ``queue_depth``
 (a control loop wants every step in order, never a backlog of old states).
-``/diagnostics``: reliable, volatile, keep last 10 (as diagnostic_updater).
+``/diagnostics``: reliable, volatile, keep last 10 (diagnostic_updater uses depth 1; ten
+reports let a slow aggregator miss none).
 The simulator's ``body_states`` and per-body inputs: reliable, volatile, keep
 last 10.
 
@@ -29,7 +30,7 @@ from rclpy.qos import (
     ReliabilityPolicy)
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
-DIAGNOSTICS_DEPTH = 10   # diagnostic_updater's depth
+DIAGNOSTICS_DEPTH = 10   # reports a slow subscriber may fall behind by
 SIM_DEPTH = 10           # depth of collres_sim's publishers
 INFINITE_NS = 2**63 - 1  # RMW_DURATION_INFINITE: 9223372036 s 854775807 ns
 # The policies a params file may override on every topic of collres_node (rclpy's

@@ -14,6 +14,7 @@ class FixedContacts:
     def __init__(self, contacts: ContactSet, settings: SolverSettings | None = None) -> None:
         self.contacts = contacts
         self.settings = settings or SolverSettings()
+        self.budget = (0, 0)
 
     def detect(self, previous: BodyStates, current: BodyStates,
                active: np.ndarray | None = None) -> ContactSet:

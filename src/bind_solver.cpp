@@ -161,6 +161,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("cold_extra", &SolverParams::cold_extra)
       .def_readwrite("balanced_friction", &SolverParams::balanced_friction)
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)
+      .def_readwrite("match_radius", &SolverParams::match_radius)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);
 

@@ -42,7 +42,8 @@ double combine(double a, double b, CombineRule rule);
 // What a contact did this step (values equal the Contact.msg constants).
 enum ContactStateCode : uint8_t { kImpact = 1, kResting = 2, kSliding = 3, kSticking = 4 };
 
-// The solver's settings (see collres_ros/core/config.py for defaults, ranges, reasons).
+// The solver's settings (see collres_ros/core/config.py for defaults, ranges, reasons:
+// SOLVER_PARAMS and SOLVER_TUNING, each handed over by name by world.solver_params).
 struct SolverParams {
   int velocity_iterations = 10;         // sequential-impulse sweeps (more when cold)
   int impact_stages = 64;               // most impact stages per step (resolve_impacts)
@@ -63,6 +64,8 @@ struct SolverParams {
                                         // which a sticking pair is reported RESTING
   double warm_start_ratio = 2.0;        // stored impulses are scaled by dt / last dt only
                                         // while it lies in [1 / this, this]; else cold
+  double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
+                                        // from its pair's nearest stored point this close
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };

@@ -50,7 +50,8 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                          params.impact_sweeps, params.impact_converged};
   resolve_impacts(rows_, solver, impacts, shock_rows_, order32_, impact_work_);
   // warm start from last step's impulses of the same pair and feature
-  double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio);
+  double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio,
+                     params.match_radius);
   warm_start(rows_, solver);
   // iterate: sequential impulses (more sweeps while resting contacts are new), then
   // shock propagation from the ground up
@@ -227,7 +228,8 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
   }
 }
 
-double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double ratio) {
+double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double ratio,
+                        double match_radius) {
   const int64_t m = c.count;
   int64_t persistent = 0, cold = 0;
   for (int64_t k = 0; k < m; ++k) persistent += c.kind[k] == kPersistent;
@@ -239,7 +241,7 @@ double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double r
   cached_normal_.resize(m);
   cached_friction_.resize(3 * m);
   found_.resize(m);
-  cache_.lookup(m, c.a, c.b, c.feature, c.point, 0.02, cached_normal_.data(),
+  cache_.lookup(m, c.a, c.b, c.feature, c.point, match_radius, cached_normal_.data(),
                 cached_friction_.data(), found_.data());
   for (int64_t k = 0; k < m; ++k) cold += c.kind[k] == kPersistent && !found_[k];
   for (ContactRow& r : rows_) {

@@ -123,7 +123,8 @@ class StepSolver {
                        const BodyProperties& bodies, const ContactsView& c, double dt,
                        double threshold, ContactsOut& report);
   void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
-  double warm(const ContactsView& c, double dt, bool enabled, double ratio);
+  double warm(const ContactsView& c, double dt, bool enabled, double ratio,
+              double match_radius);
   void levels(int64_t n);
   void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
                BodyStatesOut& out);

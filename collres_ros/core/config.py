@@ -135,6 +135,29 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               reason='impulses scale with the step length only near it (Box2D and Jolt '
                      'assume a fixed dt); a 1 ns step or a 1 ms fresh step before a 30 Hz '
                      'one would otherwise launch a resting body'),
+    ParamSpec('match_radius', 'double', 0.02,
+              'A contact whose feature id changed (a rolling sphere) warm starts from the '
+              'nearest stored point of its pair within this distance', 0.0, 1.0, unit='m',
+              reason='a 0.1 m ball rolling at 2 m/s moves 8 mm a 240 Hz step: its point is '
+                     'found again; points of another corner of a box are farther'),
+    ParamSpec('position_iterations', 'integer', 4,
+              'Split-impulse sweeps of the position pass', 1, 1000,
+              reason='the push-out is a fraction of the penetration per step anyway'),
+    ParamSpec('shock_sweeps', 'integer', 2,
+              'Shock-propagation sweeps per level, from the ground up', 0, 1000,
+              reason='two sweeps hold a heavy body on a light one in the step'),
+    ParamSpec('converged', 'double', 1e-6,
+              'Velocity sweeps stop when no impulse changes by more than this times the '
+              'largest normal impulse', 0.0, 1.0,
+              reason='a settled stack is left alone after few sweeps'),
+    ParamSpec('cold_extra', 'double', 1.0,
+              'Extra velocity sweeps (times velocity_iterations) when every persistent '
+              'contact is new (nothing to warm start)', 0.0, 100.0,
+              reason='a cold stack needs about twice the sweeps of a warm one'),
+    ParamSpec('balanced_friction', 'double', 1e-3,
+              'A sticking pair whose net friction is below this fraction of its net normal '
+              'impulse is reported RESTING', 0.0, 1.0,
+              reason='a box at rest on a flat floor carries equal and opposite corner friction'),
     ParamSpec('impact_stages', 'integer', 64,
               'Most impact stages per step: each resolves the contacts approaching faster '
               'than restitution_threshold at once; the contacts it drives into approach '

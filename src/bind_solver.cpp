@@ -54,7 +54,8 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
                       const py::array& inv_inertia_body, const py::array& movable,
                       const py::array& held, const py::array& restitution,
                       const py::array& static_friction, const py::array& kinetic_friction,
-                      const py::array& a, const py::array& b, const py::array& point,
+                      const py::array& rolling_resistance,
+                      const py::array& torsional_friction, const py::array& a, const py::array& b, const py::array& point,
                       const py::array& normal, const py::array& separation,
                       const py::array& toi, const py::array& kind, const py::array& feature,
                       double dt, bool warm, const SolverParams& params,
@@ -79,6 +80,8 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
   bodies.restitution = checked<double>(restitution, "restitution", {n});
   bodies.static_friction = checked<double>(static_friction, "static_friction", {n});
   bodies.kinetic_friction = checked<double>(kinetic_friction, "kinetic_friction", {n});
+  bodies.rolling_resistance = checked<double>(rolling_resistance, "rolling_resistance", {n});
+  bodies.torsional_friction = checked<double>(torsional_friction, "torsional_friction", {n});
   ContactsView c;
   c.count = m;
   c.a = checked<int64_t>(a, "body_a", {m});
@@ -158,6 +161,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("cold_extra", &SolverParams::cold_extra)
       .def_readwrite("balanced_friction", &SolverParams::balanced_friction)
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)
+      .def_readwrite("match_radius", &SolverParams::match_radius)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);
 
@@ -181,7 +185,8 @@ void bind_solver(py::module_& m) {
       .def("step", &solver_step, py::kw_only(), py::arg("previous"), py::arg("current"),
            py::arg("out"), py::arg("inv_mass"), py::arg("inv_inertia_body"),
            py::arg("movable"), py::arg("held"), py::arg("restitution"),
-           py::arg("static_friction"), py::arg("kinetic_friction"), py::arg("body_a"),
+           py::arg("static_friction"), py::arg("kinetic_friction"),
+           py::arg("rolling_resistance"), py::arg("torsional_friction"), py::arg("body_a"),
            py::arg("body_b"), py::arg("point"), py::arg("normal"), py::arg("separation"),
            py::arg("toi"), py::arg("kind"), py::arg("feature"), py::arg("dt"),
            py::arg("warm"), py::arg("params"), py::arg("normal_impulse"),

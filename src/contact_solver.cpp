@@ -66,6 +66,38 @@ double solve_normal(ContactRow& r, double* v) {
   return std::fabs(d_n);
 }
 
+// One update of a pair's rolling resistance and torsional friction (SpinRow): each part
+// stops the relative angular velocity as far as its limit allows. Returns the change
+// of angular impulse over the lever (N s).
+double solve_spin(SpinRow& s, const std::vector<ContactRow>& rows, double* v) {
+  double normal = 0.0;
+  for (int i = 0; i < s.count; ++i) normal += rows[s.first + i].normal;
+  double* wa = v + 6 * s.a + 3;
+  double* wb = v + 6 * s.b + 3;
+  const Vec3 w = load3(wb) - load3(wa);
+  const double spin = dot(w, s.n);
+  // rolling: along minus the rolling velocity, as much as stops it, within roll * N
+  const Vec3 rolling = w - spin * s.n;
+  const double old_twist = dot(s.torque, s.n);
+  const Vec3 old_roll = s.torque - old_twist * s.n;
+  Vec3 roll = old_roll;
+  const double speed2 = dot(rolling, rolling);
+  const double k_roll = dot(rolling, s.inv_a * rolling) + dot(rolling, s.inv_b * rolling);
+  if (speed2 > 0.0 && k_roll > kTiny * speed2) roll = old_roll - (speed2 / k_roll) * rolling;
+  const double roll_size = length(roll), roll_limit = s.roll * normal;
+  if (roll_size > roll_limit) roll = (roll_limit / roll_size) * roll;
+  // spin about the normal, within twist * N
+  const double k_n = dot(s.n, s.inv_a * s.n) + dot(s.n, s.inv_b * s.n);
+  double twist = k_n > kTiny ? old_twist - spin / k_n : old_twist;
+  twist = std::clamp(twist, -s.twist * normal, s.twist * normal);
+  const Vec3 change = (roll - old_roll) + (twist - old_twist) * s.n;
+  s.torque = roll + twist * s.n;
+  if (change.x == 0.0 && change.y == 0.0 && change.z == 0.0) return 0.0;
+  store3(wa, load3(wa) - s.inv_a * change);
+  store3(wb, load3(wb) + s.inv_b * change);
+  return length(change) / s.lever;
+}
+
 // One Gauss-Seidel update of a row; returns the largest impulse change (N s).
 double solve_row(ContactRow& r, double* v) {
   double d_n = solve_normal(r, v);
@@ -214,7 +246,7 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
 }
 
 int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
-                     double converged) {
+                     double converged, std::vector<SpinRow>* spins) {
   double* v = bodies.velocity;
   const size_t count = rows.size();
   int done = 0;
@@ -236,6 +268,8 @@ int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int it
       for (size_t i = lo; i < hi; ++i) largest = std::max(largest, rows[i].normal);
       lo = hi;
     }
+    if (spins != nullptr)
+      for (SpinRow& s : *spins) change = std::max(change, solve_spin(s, rows, v));
     if (change <= converged * largest) break;
   }
   return done;

@@ -42,7 +42,8 @@ double combine(double a, double b, CombineRule rule);
 // What a contact did this step (values equal the Contact.msg constants).
 enum ContactStateCode : uint8_t { kImpact = 1, kResting = 2, kSliding = 3, kSticking = 4 };
 
-// The solver's settings (see collres_ros/core/config.py for defaults, ranges, reasons).
+// The solver's settings (see collres_ros/core/config.py for defaults, ranges, reasons:
+// SOLVER_PARAMS and SOLVER_TUNING, each handed over by name by world.solver_params).
 struct SolverParams {
   int velocity_iterations = 10;         // sequential-impulse sweeps (more when cold)
   int impact_stages = 64;               // most impact stages per step (resolve_impacts)
@@ -63,6 +64,8 @@ struct SolverParams {
                                         // which a sticking pair is reported RESTING
   double warm_start_ratio = 2.0;        // stored impulses are scaled by dt / last dt only
                                         // while it lies in [1 / this, this]; else cold
+  double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
+                                        // from its pair's nearest stored point this close
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };
@@ -93,6 +96,24 @@ struct ContactRow {
   double pseudo = 0.0;           // N s (pseudo), accumulated by the position pass
 };
 
+// Rolling resistance and torsional friction of one manifold (a pair's consecutive rows):
+// an angular impulse (N m s) on B, opposite on A, against the bodies' relative angular
+// velocity w = w_B - w_A: its part across the normal n (rolling) within roll * N, its
+// part along n (spin about the normal) within twist * N, N (N s) the pair's normal
+// impulse and roll, twist (m) the combined coefficients times the lever of the contact
+// (from the centre of mass of the movable body nearer to it: a ball's radius). A ball
+// rolling on a floor then decelerates at (5/7) mu_r g, holds on a slope while
+// tan(theta) <= mu_r, and its spin about the normal slows at mu_t r m g / I.
+struct SpinRow {
+  int32_t a = 0, b = 0;            // body indices
+  int32_t first = 0, count = 0;    // the pair's rows
+  Vec3 n;                          // unit, world, A to B (the first row's normal)
+  Mat3 inv_a, inv_b;               // I_A^-1, I_B^-1, world, 1/(kg m^2)
+  double lever = 0.0;              // m, > 0
+  double roll = 0.0, twist = 0.0;  // m: coefficient times lever
+  Vec3 torque;                     // N m s, accumulated angular impulse on B (-on A)
+};
+
 // Per-body solver data: velocities (N, 6) and inverse mass properties.
 struct SolverBodies {
   int64_t count = 0;
@@ -114,9 +135,10 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 // consecutive rows of one pair, 2 to 4 of them, solved exactly as one small LCP), friction
 // along minus the slip velocity clamped to the circular cone mu * normal. Stops early
 // when a sweep changes no impulse by more than params.converged times the largest
-// normal impulse. Returns the sweeps done.
+// normal impulse. `spins` (rolling resistance and torsional friction, may be null) are
+// solved after the rows in each sweep. Returns the sweeps done.
 int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
-                     double converged);
+                     double converged, std::vector<SpinRow>* spins = nullptr);
 
 // Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the

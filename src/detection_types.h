@@ -26,7 +26,8 @@ struct DetectionSettings {
   double toi_tolerance = 1e-4;         // fraction of the step: bisection stops below it
   int toi_max_iterations = 30;         // cap on bisection / advancement iterations
   bool ccd = true;                     // sweep pairs apart at both ends of the step
-  double linear_slop = 0.005;          // m: bounds the advancement's distance tolerance
+  double linear_slop = 0.0001;         // m: bounds the advancement's distance tolerance
+                                       // (the solver's slop: config.SOLVER_PARAMS)
   double restitution_threshold = 0.5;  // m/s: slower approaches rest, faster ones impact
   int max_pairs = 20000;               // budget: broad-phase pairs queried per step
   int max_contacts = 40000;            // budget: contact rows per step

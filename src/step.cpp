@@ -50,14 +50,15 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                          params.impact_sweeps, params.impact_converged};
   resolve_impacts(rows_, solver, impacts, shock_rows_, order32_, impact_work_);
   // warm start from last step's impulses of the same pair and feature
-  double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio);
+  double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio,
+                     params.match_radius);
   warm_start(rows_, solver);
   // iterate: sequential impulses (more sweeps while resting contacts are new), then
   // shock propagation from the ground up
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
   StepStats stats;
-  stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged);
+  stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged, &spins_);
   stats.rows = static_cast<int64_t>(rows_.size());
   levels(n);
   propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps);
@@ -196,9 +197,39 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
                                          bodies.kinetic_friction[b], p.friction_rule));
     prepare_row(row, solver, then_.data(), p.sticking_speed, mu_s, mu_k);
   }
+  // one SpinRow per pair whose combined rolling resistance or torsional friction is not 0
+  spins_.clear();
+  for (size_t lo = 0; lo < rows_.size();) {
+    size_t hi = lo + 1;
+    while (hi < rows_.size() && rows_[hi].a == rows_[lo].a && rows_[hi].b == rows_[lo].b) ++hi;
+    const ContactRow& r = rows_[lo];
+    const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
+                                p.friction_rule);
+    const double twist = combine(bodies.torsional_friction[r.a],
+                                 bodies.torsional_friction[r.b], p.friction_rule);
+    // lever: from the centre of mass of the movable body nearer to the contact
+    double lever = 0.0;
+    if (r.ma > 0.0) lever = length(r.ra);
+    if (r.mb > 0.0) lever = lever > 0.0 ? std::min(lever, length(r.rb)) : length(r.rb);
+    if ((roll > 0.0 || twist > 0.0) && lever > 0.0) {
+      SpinRow& s = spins_.emplace_back();
+      s.a = r.a;
+      s.b = r.b;
+      s.first = static_cast<int32_t>(lo);
+      s.count = static_cast<int32_t>(hi - lo);
+      s.n = r.n;
+      s.inv_a = inv_inertia_[r.a];
+      s.inv_b = inv_inertia_[r.b];
+      s.lever = lever;
+      s.roll = roll * lever;
+      s.twist = twist * lever;
+    }
+    lo = hi;
+  }
 }
 
-double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double ratio) {
+double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double ratio,
+                        double match_radius) {
   const int64_t m = c.count;
   int64_t persistent = 0, cold = 0;
   for (int64_t k = 0; k < m; ++k) persistent += c.kind[k] == kPersistent;
@@ -210,7 +241,7 @@ double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double r
   cached_normal_.resize(m);
   cached_friction_.resize(3 * m);
   found_.resize(m);
-  cache_.lookup(m, c.a, c.b, c.feature, c.point, 0.02, cached_normal_.data(),
+  cache_.lookup(m, c.a, c.b, c.feature, c.point, match_radius, cached_normal_.data(),
                 cached_friction_.data(), found_.data());
   for (int64_t k = 0; k < m; ++k) cold += c.kind[k] == kPersistent && !found_[k];
   for (ContactRow& r : rows_) {

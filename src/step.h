@@ -16,7 +16,9 @@
 //    allowance, m/s);
 // 2. prepare: one row per contact point that can carry an impulse this step (a
 //    speculative contact that cannot close within the step is no row), combined
-//    materials by the combine rules, rows in pair order;
+//    materials by the combine rules, rows in pair order; per pair with rolling
+//    resistance or torsional friction one SpinRow (its coefficients combined by the
+//    friction rule);
 // 3. impacts: successive stages of the rows that approach faster than the restitution
 //    threshold, each an exact inelastic compression with friction then restitution
 //    (resolve_impacts: no stage gains energy; a chain passes an impact on);
@@ -74,6 +76,8 @@ struct BodyProperties {
   const double* restitution = nullptr;       // (N,) 0..1
   const double* static_friction = nullptr;   // (N,) >= 0
   const double* kinetic_friction = nullptr;  // (N,) >= 0
+  const double* rolling_resistance = nullptr;  // (N,) >= 0, dimensionless (see SpinRow)
+  const double* torsional_friction = nullptr;  // (N,) >= 0, dimensionless (see SpinRow)
 };
 
 // M contacts from detection (types.ContactSet): finite, unit normals.
@@ -119,7 +123,8 @@ class StepSolver {
                        const BodyProperties& bodies, const ContactsView& c, double dt,
                        double threshold, ContactsOut& report);
   void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
-  double warm(const ContactsView& c, double dt, bool enabled, double ratio);
+  double warm(const ContactsView& c, double dt, bool enabled, double ratio,
+              double match_radius);
   void levels(int64_t n);
   void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
                BodyStatesOut& out);
@@ -147,6 +152,7 @@ class StepSolver {
   std::vector<uint8_t> found_;
   std::vector<int64_t> order_, pair_order_;
   std::vector<ContactRow> rows_, shock_rows_;
+  std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per pair
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

@@ -186,8 +186,7 @@ def test_runtime_settings_and_materials_reach_the_world():
     resolver.set_material('ball', restitution=0.1)
     resolver.resolve(T0, [body('ball', 1.0)])
     assert world.calls[-1]['settings'].velocity_iterations == 33
-    assert world.materials == {1: {'restitution': 0.1, 'static_friction': None,
-                                   'kinetic_friction': None}}
+    assert world.materials == {1: {'restitution': 0.1}}
 
 
 def _world_available() -> bool:

@@ -150,13 +150,10 @@ class Resolver:
         """Which pairs may collide from the next step on."""
         self.world.collision_filter = value
 
-    def set_material(self, name: str, restitution: Optional[float] = None,
-                     static_friction: Optional[float] = None,
-                     kinetic_friction: Optional[float] = None) -> None:
-        """Change a body's material (values already validated by the caller)."""
-        self.world.set_material(self.index_of[name], restitution=restitution,
-                                static_friction=static_friction,
-                                kinetic_friction=kinetic_friction)
+    def set_material(self, name: str, **values: Optional[float]) -> None:
+        """Change a body's material coefficients by name (``World.set_material``; values
+        already validated by the caller)."""
+        self.world.set_material(self.index_of[name], **values)
 
     def reset(self) -> None:
         """Forget all history: every body back to its params state, never seen."""

@@ -21,7 +21,8 @@ from typing import Sequence
 
 import numpy as np
 
-from collres_ros.core.config import ALL_COLLISION_BITS, DEFAULT_COLLISION_GROUP
+from collres_ros.core.config import (ALL_COLLISION_BITS, DEFAULT_COLLISION_GROUP,
+                                     ROLLING_RESISTANCE, TORSIONAL_FRICTION)
 
 
 class ContactState(IntEnum):
@@ -221,6 +222,8 @@ class BodySpec:
     static_friction: float = 0.5
     kinetic_friction: float = 0.3
     points: tuple[tuple[float, float, float], ...] = ()
+    rolling_resistance: float = ROLLING_RESISTANCE      # see config.BODY_PARAMS
+    torsional_friction: float = TORSIONAL_FRICTION
 
 
 @dataclass(frozen=True)

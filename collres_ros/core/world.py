@@ -82,6 +82,8 @@ class World:
         self.restitution = np.array([s.restitution for s in self.specs], dtype=float)
         self.static_friction = np.array([s.static_friction for s in self.specs], dtype=float)
         self.kinetic_friction = np.array([s.kinetic_friction for s in self.specs], dtype=float)
+        self.rolling_resistance = np.array([s.rolling_resistance for s in self.specs], float)
+        self.torsional_friction = np.array([s.torsional_friction for s in self.specs], float)
         self._solver = _native.StepSolver()
         self._cache = self._solver.cache      # impulses of the last step, by pair and feature
         self.settings = settings
@@ -112,16 +114,15 @@ class World:
         """Which pairs may collide from the next step on (detection drops the others)."""
         self._collision.collision_filter = value
 
-    def set_material(self, index: int, restitution: float | None = None,
-                     static_friction: float | None = None,
-                     kinetic_friction: float | None = None) -> None:
-        """Change one body's coefficients (taken as valid: the caller checks ranges)."""
-        if restitution is not None:
-            self.restitution[index] = restitution
-        if static_friction is not None:
-            self.static_friction[index] = static_friction
-        if kinetic_friction is not None:
-            self.kinetic_friction[index] = kinetic_friction
+    def set_material(self, index: int, **values: float | None) -> None:
+        """Change one body's coefficients, by name: restitution, static_friction,
+        kinetic_friction, rolling_resistance, torsional_friction (taken as valid: the
+        caller checks ranges; None leaves one as it is)."""
+        for name, value in values.items():
+            if name not in MATERIALS:
+                raise TypeError(f'set_material: unknown coefficient {name!r}')
+            if value is not None:
+                getattr(self, name)[index] = value
 
     def forget(self, bodies: np.ndarray) -> None:
         """Drop the warm-start impulses of these body indices (e.g. after a reset)."""
@@ -184,6 +185,8 @@ class World:
             inv_inertia_body=self.inv_inertia_body * movable[:, None, None],
             movable=movable, held=~active, restitution=self.restitution,
             static_friction=self.static_friction, kinetic_friction=self.kinetic_friction,
+            rolling_resistance=self.rolling_resistance,
+            torsional_friction=self.torsional_friction,
             body_a=flat(contacts.body_a, np.int64), body_b=flat(contacts.body_b, np.int64),
             point=flat(contacts.point), normal=flat(contacts.normal),
             separation=flat(contacts.separation), toi=flat(contacts.toi),
@@ -204,6 +207,10 @@ class World:
             rejected.append(Rejection(self.specs[i].name, 'non_finite_result',
                                       'the solver produced a non-finite state; input kept'))
         return rejected
+
+
+MATERIALS = ('restitution', 'static_friction', 'kinetic_friction', 'rolling_resistance',
+             'torsional_friction')
 
 
 def solver_params(settings: SolverSettings) -> _native.SolverParams:

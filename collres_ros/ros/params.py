@@ -47,7 +47,8 @@ NAME_MAX_LENGTH = TOPIC_MAX_LENGTH - len(LONGEST_BODY_TOPIC.format(''))
 ROS_BUILTIN = ('use_sim_time', 'start_type_description_service')
 
 # Runtime-changeable parameters: solver settings, materials, collision filter, node settings.
-MATERIALS = ('restitution', 'static_friction', 'kinetic_friction')
+MATERIALS = ('restitution', 'static_friction', 'kinetic_friction', 'rolling_resistance',
+             'torsional_friction')
 COLLISION_BITS = ('collision_group', 'collision_mask')
 PAIR_SEPARATOR = ':'   # ignore_pairs entries are "a:b"
 SIZES = {'sphere': ('[r]', 1), 'box': ('[x, y, z]', 3), 'capsule': ('[r, length]', 2),
@@ -431,7 +432,9 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files:
                     static=static, mass=values[f'{key}.mass'],
                     inertia=tuple(inertia) if inertia else None,  # type: ignore[arg-type]
                     restitution=values[f'{key}.restitution'], static_friction=mu_s,
-                    kinetic_friction=mu_k, points=points)
+                    kinetic_friction=mu_k, points=points,
+                    rolling_resistance=values[f'{key}.rolling_resistance'],
+                    torsional_friction=values[f'{key}.torsional_friction'])
     state = np.array(position + tuple(c / norm for c in orientation) + linear + angular)
     return spec, state
 

@@ -153,3 +153,15 @@ def test_speculative_contact_that_cannot_close_this_step_is_no_solver_row():
         else:
             assert result.report.normal_impulse[0] == 0.0
             assert result.states.linear[1, 2] == -speed
+
+
+def test_every_solver_tuning_reaches_the_compiled_solver_by_name():
+    """config.SOLVER_TUNING is the one source of the solver's tunings: each is handed over
+    by name, and the compiled defaults agree with it (no second truth)."""
+    from collres_ros.core import _native
+    from collres_ros.core.config import SOLVER_TUNING
+    from collres_ros.core.world import solver_params
+    compiled, handed = _native.SolverParams(), solver_params(SolverSettings())
+    for spec in SOLVER_TUNING:
+        assert getattr(compiled, spec.name) == spec.default, spec.name
+        assert getattr(handed, spec.name) == spec.default, spec.name

@@ -1,0 +1,142 @@
+"""Rolling resistance and torsional friction: the laws of a ball on a floor and a slope.
+
+The torque against rolling is at most mu_r r N and the torque against spinning about the
+contact normal at most mu_t r N (r the ball's radius, N the normal force), so a rolling
+ball slows at (5/7) mu_r g, holds on a slope while tan(slope) <= mu_r, and a ball spinning
+on the spot slows at mu_t r m g / I = (5/2) mu_t g / r.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from collres_ros.core.config import ROLLING_RESISTANCE
+from collres_ros.core.types import BodySpec
+
+from contacts import states  # noqa: I100
+from integrator import Simulation
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
+from pile import make_pile  # noqa: E402
+
+G = 9.81
+R = 0.1     # m, ball radius
+
+
+def ball(mu_r=0.0, mu_t=0.0, mu=1.0) -> BodySpec:
+    return BodySpec('ball', 'sphere', (R,), mass=1.0, restitution=0.0, static_friction=mu,
+                    kinetic_friction=mu, rolling_resistance=mu_r, torsional_friction=mu_t)
+
+
+def floor(mu_r=0.0, mu_t=0.0, mu=1.0) -> BodySpec:
+    return BodySpec('floor', 'box', (20.0, 20.0, 0.2), static=True, restitution=0.0,
+                    static_friction=mu, kinetic_friction=mu, rolling_resistance=mu_r,
+                    torsional_friction=mu_t)
+
+
+def rolling_speed(mu_r: float, v0: float, duration: float, rate: float = 240.0):
+    """Speeds (m/s) of a ball set rolling at v0 on a floor, one per step."""
+    initial = states([[0, 0, -0.1], [0, 0, R]], [[0, 0, 0], [v0, 0, 0]],
+                     [[0, 0, 0], [0, v0 / R, 0]])
+    sim = Simulation([floor(mu_r), ball(mu_r)], initial, rate)
+    speeds = []
+    for _ in range(int(round(duration * rate))):
+        sim.step()
+        speeds.append(sim.state.linear[1, 0])
+    return np.array(speeds), sim
+
+
+@pytest.mark.parametrize('mu_r', [0.02, 0.1])
+def test_a_rolling_ball_slows_at_five_sevenths_mu_r_g(mu_r):
+    v0, duration = 2.0, 1.0
+    speeds, sim = rolling_speed(mu_r, v0, duration)
+    t = np.arange(1, len(speeds) + 1) / 240.0
+    keep = speeds > 0.05
+    slope = np.polyfit(t[keep][10:], speeds[keep][10:], 1)[0]
+    print('mu_r', mu_r, 'deceleration', -slope, 'law', 5 / 7 * mu_r * G)
+    assert -slope == pytest.approx(5.0 / 7.0 * mu_r * G, rel=0.03)
+    # still rolling without slip: v = w r
+    assert abs(sim.state.linear[1, 0] - sim.state.angular[1, 1] * R) < 0.005 * v0
+
+
+def test_a_ball_on_a_flat_floor_still_rolls_with_the_defaults():
+    """With the default rolling resistance a ball set rolling at 1 m/s goes on for metres."""
+    speeds, sim = rolling_speed(ROLLING_RESISTANCE, 1.0, 1.0)
+    print('speed after 1 s', speeds[-1], 'travelled', sim.state.position[1, 0])
+    assert speeds[-1] > 0.8
+    assert sim.state.position[1, 0] > 0.9
+
+
+def slope_run(angle_deg: float, mu_r: float, duration: float = 1.0):
+    """A ball placed at rest on a plane inclined by angle_deg (rises along +x): the
+    distance it went and its speed after `duration`."""
+    th = math.radians(angle_deg)
+    normal = np.array([-math.sin(th), 0.0, math.cos(th)])
+    plane = BodySpec('slope', 'plane', (*normal, 0.0), static=True, restitution=0.0,
+                     static_friction=2.0, kinetic_friction=2.0, rolling_resistance=mu_r)
+    initial = states([[0, 0, 0], R * normal], np.zeros((2, 3)))
+    sim = Simulation([plane, ball(mu_r, mu=2.0)], initial, 240.0)
+    start = sim.state.position[1].copy()
+    for _ in range(int(round(duration * 240))):
+        sim.step()
+    return np.linalg.norm(sim.state.position[1] - start), np.linalg.norm(sim.state.linear[1])
+
+
+@pytest.mark.parametrize('mu_r', [0.1, 0.3])
+def test_a_ball_holds_on_a_slope_while_tan_is_at_most_mu_r_and_rolls_above(mu_r):
+    below = math.degrees(math.atan(0.9 * mu_r))
+    above = math.degrees(math.atan(1.1 * mu_r))
+    held, held_speed = slope_run(below, mu_r)
+    rolled, rolled_speed = slope_run(above, mu_r)
+    # rolling down with the torque at its limit: a = (5/7) g (sin - mu_r cos)
+    angle = math.radians(above)
+    expected = 0.5 * 5 / 7 * G * (math.sin(angle) - mu_r * math.cos(angle))
+    print('mu_r', mu_r, 'held', held, held_speed, 'rolled', rolled, rolled_speed,
+          'expected', expected)
+    assert held < 1e-3 and held_speed < 1e-3
+    assert rolled == pytest.approx(expected, rel=0.1)
+
+
+def test_spin_about_the_normal_slows_at_the_torsional_friction_rate():
+    mu_t, w0 = 0.05, 10.0
+    initial = states([[0, 0, -0.1], [0, 0, R]], np.zeros((2, 3)), [[0, 0, 0], [0, 0, w0]])
+    sim = Simulation([floor(mu_t=mu_t), ball(mu_t=mu_t)], initial, 240.0)
+    spins = []
+    for _ in range(120):
+        sim.step()
+        spins.append(sim.state.angular[1, 2])
+    t = np.arange(1, 121) / 240.0
+    slope = np.polyfit(t[10:], np.array(spins)[10:], 1)[0]
+    law = mu_t * R * G / (0.4 * R * R)
+    print('spin deceleration', -slope, 'law', law)
+    assert -slope == pytest.approx(law, rel=0.03)
+    assert np.linalg.norm(sim.state.linear[1]) < 1e-6     # spinning on the spot
+
+
+def test_without_rolling_resistance_a_ball_rolls_on():
+    speeds, _ = rolling_speed(0.0, 2.0, 0.5)
+    assert speeds[-1] == pytest.approx(speeds[0], abs=1e-9)
+
+
+@pytest.mark.slow
+def test_a_settled_pile_comes_to_rest_with_the_defaults():
+    """The bench's pile (100 boxes and spheres dropped into a bin, default rolling
+    resistance and torsional friction): 2 s after the drop every body is slower than
+    0.05 m/s at its farthest point (without them spheres wedged in the pile keep rolling
+    at 2-3 rad/s)."""
+    bodies, initial = make_pile(100, kind='mixed')
+    sim = Simulation(bodies, initial, 240.0)
+    for _ in range(480):
+        sim.step()
+    reach = np.array([0.0 if b.static else (b.size[0] if b.shape == 'sphere'
+                                            else 0.5 * float(np.linalg.norm(b.size)))
+                      for b in bodies])
+    speed = np.linalg.norm(sim.state.linear, axis=1) + \
+        np.linalg.norm(sim.state.angular, axis=1) * reach
+    print('fastest point after 2 s', speed.max(), bodies[int(speed.argmax())].name)
+    assert speed.max() < 0.05

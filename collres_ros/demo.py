@@ -158,9 +158,17 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
                     print(file=sys.stderr)   # end the progress line
                 raise DemoError(f'collres_sim did not finish within {timeout} s '
                                 f'(log: {logs["sim"]})')
-            # the last answers may still be in flight to the recorder
-            processes.wait_for(
-                lambda: recorded('/body_states/corrected') >= expected_steps, 2.0)
+            # the last inputs and answers may still be in flight to the recorder (the node
+            # answered them, the recorder's copy can come later)
+
+            def steps_topic(topic: str) -> bool:
+                return topic in ('/body_states', '/body_states/corrected') or (
+                    topic.startswith('/bodies/') and topic.endswith(('/pose', '/twist')))
+
+            processes.wait_for(lambda: all(
+                count >= expected_steps for topic, count in list(recorder.counts.items())
+                if steps_topic(topic)) and recorded('/body_states/corrected') >= expected_steps,
+                2.0)
             if progress:
                 print(f'\rdemo: step {recorded("/body_states/corrected")}/{expected_steps}',
                       file=sys.stderr)

@@ -130,7 +130,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
             node_proc = processes.start(
                 'collres_node', ['--ros-args', '--params-file', str(params)], env=env,
                 log=logs['node'])
-            node_up = processes.wait_for(lambda: all(subscribed(t) for t in OUTPUT_TOPICS)
+            node_up = processes.wait_for(lambda: cli.check_terminated()
+                                         or all(subscribed(t) for t in OUTPUT_TOPICS)
                                          or node_proc.poll() is not None, 30.0)
             if not node_up:
                 raise DemoError(f'collres_node did not come up within 30 s (log: {logs["node"]})')
@@ -144,7 +145,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
 
             last = 0.0
             deadline = time.monotonic() + timeout
-            while sim_proc.poll() is None and time.monotonic() < deadline:
+            while not cli.check_terminated() and sim_proc.poll() is None \
+                    and time.monotonic() < deadline:
                 if progress and time.monotonic() - last > 0.25:
                     last = time.monotonic()
                     done = recorded('/body_states/corrected')

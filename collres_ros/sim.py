@@ -15,6 +15,10 @@ not arrive within ``--step-timeout`` s is counted as dropped and the sim goes
 on with its own uncorrected state. The run is lock-step, as fast as the node
 answers (``--realtime`` paces it to the wall clock). Exit code 0 at the end.
 
+Single parameters on the command line win over the file, live or offline::
+
+    collres_sim --offline --params FILE --record BAG --ros-args -p rate_hz:=100.0
+
 Offline::
 
     collres_sim --offline --params FILE [--duration S] --record BAG [--storage mcap|sqlite3]
@@ -185,7 +189,9 @@ def parser() -> argparse.ArgumentParser:
     p = cli.ArgumentParser(
         prog='collres_sim',
         description='Integrate a scene and close the loop through collres_node (live), or '
-                    'through the core in-process into a bag (--offline).')
+                    'through the core in-process into a bag (--offline).',
+        epilog='Parameters: a params file, and single ones on the command line with '
+               '--ros-args -p NAME:=VALUE (e.g. -p rate_hz:=100.0), which win over the file.')
     p.add_argument('--params', help='params file (default: --ros-args --params-file FILE, '
                                     'else the package config/collres.yaml)')
     p.add_argument('--duration', type=cli.number(duration.minimum, duration.maximum),
@@ -220,7 +226,8 @@ def _run(args: argparse.Namespace, ros_args: list[str]) -> int:
     if not Path(path).is_file():
         raise cli.CliError(f'params file not found: {path}')
     sim = load_sim_scene(path, args.duration, args.rate,
-                         cli.namespace_from_ros_args(ros_args, 'collres_sim'))
+                         cli.namespace_from_ros_args(ros_args, 'collres_sim'),
+                         cli.param_overrides(ros_args, 'collres_sim'))
     if sim.duration < 0 or sim.rate_hz <= 0:
         raise cli.CliError('duration must be >= 0 and rate > 0')
     if not args.offline:

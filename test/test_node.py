@@ -302,3 +302,51 @@ def test_a_message_with_unknown_bodies_serves_the_known_ones(running):
     print({k: v for k, v in values.items() if k.startswith(('count.', 'messages_refused'))})
     assert 'count.too_many_bodies' not in values
     assert 'unknown_body' in node.output()
+
+
+def test_a_step_over_the_budget_warns_once_and_is_counted(ros_domain, tmp_path):
+    scene = write_scene(tmp_path / 'scene.yaml',
+                        '    solver: {max_pairs: 1, max_contacts: 1}\n')
+    node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
+                           env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
+    peer = Peer(ros_domain)
+    try:
+        peer.listen('body_states/corrected', BodyStateArray)
+        peer.listen('/diagnostics', DiagnosticArray)
+        peer.advertise('body_states', BodyStateArray)
+        assert peer.wait(lambda: peer.connected('body_states') and all(
+            s.get_publisher_count() for s in peer.node.subscriptions), 30.0), node.output()
+        for k in range(3):   # ball and box both resting on the floor: two pairs, budget one
+            out = step(peer, T0 + k * DT, [body('ball', 0.05), body('box', 0.1, x=1.0)])
+            assert sorted(b.name for b in out.bodies) == ['ball', 'box']
+        assert peer.wait(lambda: diagnostics_values(peer).get('count.contact_budget') == '3',
+                         5.0), diagnostics_values(peer)
+        assert peer.messages('/diagnostics')[-1].status[0].level == b'\x01'
+        assert node.output().count('over the contact budget') == 1, node.output()
+    finally:
+        peer.close()
+        processes.stop(node)
+
+
+def test_two_publishers_on_body_states_report_no_phantom_loss(running, ros_domain):
+    peer, node = running
+    other = Peer(ros_domain, 'collres_test_second_publisher')
+    try:
+        other.advertise('body_states', BodyStateArray)
+        assert peer.wait(lambda: other.connected('body_states'), 30.0)
+        t = T0
+        for k in range(60):   # one publisher at twice the other's rate, every step answered
+            t += DT
+            source = other if k % 3 == 2 else peer
+            pair = [body('ball', 0.5), body('box', 0.1, x=1.0)]
+            source.publish('body_states', states(t, pair))
+            assert peer.wait(lambda: any(stamp_ns(m.header.stamp) == t for m in
+                                         peer.messages('body_states/corrected')), 10.0)
+        assert peer.wait(lambda: diagnostics_values(peer).get('inputs_received') == '60', 5.0)
+        values = diagnostics_values(peer)
+        print({k: v for k, v in values.items() if 'input' in k or 'loss' in k})
+        assert values['inputs_lost'] == '0'
+        assert values['loss_counting'].startswith('not inferred while several publishers')
+        assert int(values['inputs_uncounted']) > 0
+    finally:
+        other.close()

@@ -109,10 +109,11 @@ def scene() -> str:
                           f'        position: {fmt(position)}',
                           f'        orientation: {fmt(q)}']
                 index += 1
-    lines += ['/**/collres_node:   # any namespace (a bare `collres_node:` is /collres_node only)',
-              '  ros__parameters:', '    solver: {}',
-              '/**/collres_sim:', '  ros__parameters:', '    gravity: [0.0, 0.0, -9.81]',
-              '    rate_hz: 240.0', '    duration: 1.0']
+    lines += ['    # collres_node settings: in `/**`, so that `--ros-args -p NAME:=VALUE` '
+              'overrides them',
+              '    # solver.*: the defaults (README, "Parameters")',
+              '    # collres_sim settings (also in `/**`, for the same reason)',
+              '    gravity: [0.0, 0.0, -9.81]', '    rate_hz: 240.0', '    duration: 1.0']
     return '\n'.join(lines) + '\n'
 
 

@@ -31,12 +31,25 @@ def error(message: object, code: int = 1) -> int:
     return code
 
 
+_TERMINATED = threading.Event()
+
+
 def terminate_as_interrupt() -> None:
     """SIGTERM ends this process as Ctrl-C does (KeyboardInterrupt: bags are finished,
-    children stopped, exit 130) instead of at once. Main thread only."""
+    children stopped, exit 130) instead of at once. Main thread only. Python drops an
+    exception a handler raises at some points (during a fork, in a finaliser): loops that
+    wait call ``check_terminated``, which raises it again."""
     def interrupt(signum: int, frame: Any) -> None:
+        _TERMINATED.set()
         raise KeyboardInterrupt
     signal.signal(signal.SIGTERM, interrupt)
+
+
+def check_terminated() -> bool:
+    """KeyboardInterrupt once SIGTERM came (see ``terminate_as_interrupt``); else False."""
+    if _TERMINATED.is_set():
+        raise KeyboardInterrupt
+    return False
 
 
 def run(body: Callable[[], int], errors: tuple[type[BaseException], ...] = USER_ERRORS) -> int:
@@ -65,6 +78,28 @@ def last_params_file(argv: Sequence[str]) -> Optional[Path]:
     """The last ``--params-file`` of ``argv``, or None."""
     files = params_files(argv)
     return Path(files[-1]) if files else None
+
+
+def param_overrides(argv: Sequence[str], node: str) -> dict[str, Any]:
+    """The ``-p [node:]NAME:=VALUE`` parameters of ROS arguments, values read as rcl reads
+    them (YAML, ``params_yaml``: ``true``, ``1e-05``, ``[0.0, 1.0]``); later ones win.
+    CliError (one line) for a value rcl would not read either."""
+    from collres_ros.ros import params_yaml
+    values: dict[str, Any] = {}
+    for flag, rule in zip(argv, argv[1:]):
+        if flag not in ('-p', '--param'):
+            continue
+        name, sep, text = rule.partition(':=')
+        target, _, short = name.rpartition(':')
+        if not sep or not short or target not in ('', node):
+            continue
+        try:
+            document = params_yaml.parse(f'value: {text}', f'-p {name}')
+        except ValueError as error:
+            raise CliError(str(error)) from None
+        value = document.get('value') if isinstance(document, dict) else None
+        values[short] = None if value in ([], {}) else value
+    return values
 
 
 def namespace_from_ros_args(argv: Sequence[str], node: str) -> str:

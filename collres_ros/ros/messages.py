@@ -215,12 +215,14 @@ class OutputEncoder:
                diagnostics: Optional[DiagnosticsSnapshot] = None,
                markers: bool = True, wrenches: bool = False,
                body_markers: Optional[float] = None, tf: bool = False,
-               contacts: bool = True) -> list[tuple[str, str, bytes]]:
-        """Every output of one step. Order: body_states/corrected, [per-body pose/twist
+               contacts: bool = True, corrected: bool = True
+               ) -> list[tuple[str, str, bytes]]:
+        """Every output of one step. Order: [body_states/corrected], [per-body pose/twist
         corrected], [contacts], [per-body contact_wrench], [contact_markers], [body_markers:
         when ``body_markers`` is a period (s) and it has passed], [/tf], [/diagnostics when
         a snapshot is given]."""
-        out = [(CORRECTED_STATES, TYPES[CORRECTED_STATES], self.corrected(step))]
+        out = [(CORRECTED_STATES, TYPES[CORRECTED_STATES], self.corrected(step))] \
+            if corrected else []
         if per_body:
             out += self.per_body(step)
         if contacts:

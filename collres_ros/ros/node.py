@@ -32,9 +32,11 @@ Python message objects) after checking their size (more bodies than
 ``max_message_bodies``, a malformed message, a negative or unnormalised stamp:
 refused at once and counted; bodies the scene does not know are refused one by
 one, ``unknown_body``, and the known ones served), and every output is published
-as bytes built by ``messages.OutputEncoder``. ``/diagnostics`` reports the callback's time split
-(``time.decode_ms``, ``time.resolve_ms``, ``time.world_ms``, ``time.encode_ms``,
-``time.publish_ms``).
+as bytes built by ``messages.OutputEncoder``, the answer
+(``body_states/corrected``) first, before the other outputs are built. ``/diagnostics``
+reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
+``time.world_ms``, ``answer_time_mean_ms``: to the answer published, then
+``time.encode_ms``, ``time.publish_ms``: the other outputs).
 
 QoS: states, contacts and markers are reliable, volatile, keep-last with
 depth ``queue_depth`` (10): a control loop wants every step delivered in
@@ -94,7 +96,8 @@ except ImportError:
     pass
 # The parts of a callback timed for /diagnostics (time.<part>_ms, means over the period):
 # decode (CDR -> arrays), resolve (Resolver.resolve), world (World.step alone, inside
-# resolve), encode (every output to CDR), publish.
+# resolve), encode and publish (every output after the answer, body_states/corrected, which
+# goes out first: answer_time_mean_ms is from the callback's start to it published).
 TIMED = ('decode', 'resolve', 'world', 'encode', 'publish')
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
 UNPAIRED_AFTER = 1.0   # s of per-body inputs without a per-body step before /diagnostics warns
@@ -258,7 +261,7 @@ class CollresNode(Node):
         if not self.serving:
             return
         start = time.perf_counter()
-        self.losses.count(names.STATES, info)
+        self.losses.count(names.STATES, info, self._inputs[0].get_publisher_count())
         try:
             decoded = self.states_codec.decode(data)
         except codec.DecodeError as refusal:
@@ -313,7 +316,11 @@ class CollresNode(Node):
         decoded = time.perf_counter()
         step = self.resolver.resolve(stamp, batch)
         resolved = time.perf_counter()
-        # what nobody subscribes to is not built (the answer always is)
+        # the answer first: the control loop waiting for it does not wait for the rest
+        self._publisher(names.CORRECTED_STATES, BodyStateArray).publish(
+            self.encoder.corrected(step))
+        answered = time.perf_counter()
+        # what nobody subscribes to is not built
         markers = self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0
         contacts = self._publisher(names.CONTACTS, ContactArray).get_subscription_count() > 0
         node = self.scene.node
@@ -322,7 +329,8 @@ class CollresNode(Node):
                                       node.marker_lifetime, markers=markers, contacts=contacts,
                                       wrenches=node.contact_wrench,
                                       body_markers=node.body_markers_period if bodies else None,
-                                      tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES)
+                                      tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES,
+                                      corrected=False)
         encoded = time.perf_counter()
         for topic, kind, data in outputs:
             self._publisher(topic, CLASSES[kind]).publish(data)
@@ -336,9 +344,17 @@ class CollresNode(Node):
         w['decode'] += decoded - start
         w['resolve'] += resolved - decoded
         w['world'] += step.world_time_s
-        w['encode'] += encoded - resolved
+        w['answer'] += answered - start
+        w['encode'] += encoded - answered
         w['publish'] += done - encoded
         w['callback'] += done - start
+        if any(step.budget) and 'budget' not in self._reported:
+            self._reported['budget'] = True   # warned once; every such step is counted
+            self.get_logger().warning(
+                f'step over the contact budget: {step.budget[0]} pairs and {step.budget[1]} '
+                'contact rows dropped, the deepest kept (solver.max_pairs '
+                f'{self.scene.solver.max_pairs}, solver.max_contacts '
+                f'{self.scene.solver.max_contacts}); counted as contact_budget in /diagnostics')
         for item in step.rejected:
             self._warn(item.reason, f'input refused [{item.reason}]: {item.detail}')
         for item in step.resets:
@@ -414,9 +430,14 @@ class CollresNode(Node):
             name=status_name(self.get_fully_qualified_name()),
             extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
                    'inputs_received': received, 'inputs_lost': self.losses.total_lost,
+                   'loss_counting': 'exact' if not self.losses.uncounted else (
+                       'not inferred while several publishers share a topic: '
+                       + ', '.join(sorted(self.losses.uncounted))),
+                   'inputs_uncounted': sum(self.losses.uncounted.values()),
                    **{f'messages_refused.{k}': v for k, v in sorted(self.refused.items())},
                    'contacts_total': totals['contacts'],
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
+                   'answer_time_mean_ms': mean('answer'),
                    **{f'time.{key}_ms': mean(key) for key in TIMED}})
         self._window = self._new_window(now)
         return snap
@@ -424,7 +445,8 @@ class CollresNode(Node):
     @staticmethod
     def _new_window(since: float) -> dict[str, float]:
         """Counters of one diagnostics period: steps, step times, callback parts (s)."""
-        return {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0, 'since': since,
+        return {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0, 'answer': 0.0,
+                'since': since,
                 **{key: 0.0 for key in TIMED}}
 
     def _publish_diagnostics(self) -> None:
@@ -551,7 +573,8 @@ def _print_help_if_asked(argv: Sequence[str]) -> bool:
     parser = argparse.ArgumentParser(
         prog=NAME, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f'{NAME} [-h] [--lifecycle] [--ros-args --params-file FILE [-p NAME:=VALUE ...]]',
-        description=__doc__, epilog='Parameters: see README.md, or print them with '
+        description=__doc__, epilog='-p NAME:=VALUE (e.g. -p contact_wrench:=true) wins over '
+        'the params file and the shipped ones. Parameters: see README.md, or print them with '
         '`python -m collres_ros.ros.params`. --lifecycle: run as a managed (lifecycle) node, '
         'unconfigured until its change_state service says otherwise (ros/lifecycle.py).')
     parser.print_help()
@@ -597,9 +620,11 @@ def run(argv: list[str]) -> int:
         return 0
     if '--params-file' not in argv:
         default = default_params_file()
-        if default is not None:
-            argv += (['--ros-args'] if '--ros-args' not in argv else []) + \
-                ['--params-file', str(default)]
+        if default is not None:   # first of the ROS arguments: `-p NAME:=VALUE` wins over it
+            if '--ros-args' not in argv:
+                argv += ['--ros-args']
+            start = argv.index('--ros-args') + 1
+            argv[start:start] = ['--params-file', str(default)]
 
     def run() -> int:
         _check_files(argv)

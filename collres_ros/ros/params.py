@@ -4,9 +4,10 @@ Both roads meet in ``scene_from_values``, the one validator: every error is a
 ``ValueError`` whose message is one line naming the parameter and what is
 allowed, e.g. ``body.ball.restitution: allowed range [0.0, 1.0] (got 1.5)``.
 
-File schema (README, "Parameters"): the ``/**`` section holds ``world_frame``,
-``bodies`` and ``body.<name>.*``; the ``collres_node`` section ``solver.*``
-and the node settings; the ``collres_sim`` section the sim settings. The
+File schema (README, "Parameters"): ``world_frame``, ``bodies``,
+``body.<name>.*``, ``solver.*``, the node settings and the sim settings, in the
+``/**`` section (the shipped files: there a command-line ``-p`` wins over them)
+or in ``collres_node`` / ``collres_sim`` sections. The
 defaults, units and ranges come from ``collres_ros.core.config``. The node's
 parameter declarations (``descriptor``, ``declared_value``, ``plain_value``)
 import rclpy's types when called; importing this module imports no ROS.
@@ -207,16 +208,18 @@ def params_from_document(document: Any, source: str,
     return values
 
 
-def load_scene(path: str | Path, namespace: str = '/') -> Scene:
+def load_scene(path: str | Path, namespace: str = '/',
+               overrides: Optional[Mapping[str, Any]] = None) -> Scene:
     """Load a scene from a params file (ValueError with one line naming the parameter).
 
     The file is read as collres_node and collres_sim in ``namespace`` read it
-    (see ``read_params_file``). A missing file raises FileNotFoundError (an OSError).
+    (see ``read_params_file``); ``overrides`` (``-p NAME:=VALUE`` of the command
+    line) win over it. A missing file raises FileNotFoundError (an OSError).
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f'params file not found: {path}')
-    values = read_params_file(path, namespace=namespace)
+    values = {**read_params_file(path, namespace=namespace), **(overrides or {})}
     return scene_from_values(values, path.resolve().parent)
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Optional, Sequence
+from typing import Any, Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -69,15 +69,17 @@ class SimScene:
 
 
 def load_sim_scene(path: str | Path, duration: float | None = None,
-                   rate_hz: float | None = None, namespace: str = '/') -> SimScene:
+                   rate_hz: float | None = None, namespace: str = '/',
+                   overrides: Mapping[str, Any] | None = None) -> SimScene:
     """Load a params file (ValueError/OSError with a one-line reason when bad).
 
     ``namespace``: the sim's (and the node's) namespace: the file's sections
     are chosen for ``<namespace>/collres_sim`` and ``<namespace>/collres_node``
-    as rcl chooses them for those nodes.
+    as rcl chooses them for those nodes. ``overrides``: ``-p NAME:=VALUE`` values,
+    which win over the file.
     """
     from collres_ros.ros import params
-    scene = params.load_scene(path, namespace)
+    scene = params.load_scene(path, namespace, overrides)
     sim = scene.sim
     return SimScene(
         scene=scene,

@@ -43,6 +43,7 @@ class Fixed:
 
     def __init__(self, contacts: ContactSet, settings: SolverSettings) -> None:
         self.contacts, self.settings, self.collision_filter = contacts, settings, None
+        self.budget = (0, 0)      # nothing dropped by a step budget
 
     def detect(self, previous, current, active=None) -> ContactSet:
         return self.contacts

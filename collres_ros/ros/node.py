@@ -41,7 +41,8 @@ reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
 QoS: states, contacts and markers are reliable, volatile, keep-last with
 depth ``queue_depth`` (10): a control loop wants every step delivered in
 order but never a backlog of old states. ``/diagnostics`` is reliable,
-depth 10 (as diagnostic_updater). Every publisher and subscription takes
+depth 10 (diagnostic_updater uses 1; ten let a slow aggregator miss no
+report). Every publisher and subscription takes
 rclpy's QoS overrides from the parameters (``qos_overrides./<topic>.
 {publisher,subscription}.{history,depth,reliability,durability}``, ``ros/qos.py``).
 

@@ -43,6 +43,7 @@ class CannedWorld:
     def __init__(self, world: Any, result: Any) -> None:
         self.world, self.result = world, result
         self.settings = world.settings
+        self.budget = world.budget   # the recorded step's (broad-phase pairs, rows) dropped
 
     def step(self, *args: Any, **kwargs: Any) -> Any:
         return self.result

@@ -251,3 +251,24 @@ def test_the_real_world_guard_is_counted(monkeypatch):
     assert [(r.body, r.reason) for r in out.rejected] == [('ball', 'non_finite_result')]
     assert resolver.totals['non_finite_result'] == 1
     assert np.isfinite(out.states.linear).all()
+
+
+def test_a_name_list_changed_in_place_is_looked_up_again():
+    """The resolver keeps the last name list's lookup (a stream repeats it): a list that
+    changes (here the same list object, reordered and extended in place) is looked up again,
+    each body getting its own state and the unknown name refused."""
+    from collres_ros.core.types import InputBatch
+    resolver, world = make()
+    names = ['ball', 'box']
+    values = np.array([[0.0, 0.0, 1.0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0],
+                       [1.0, 0.0, 0.1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0]], float)
+    first = resolver.resolve(T0, InputBatch(names, values, 'world', 'world'))
+    assert first.names == ['ball', 'box'] and not first.rejected
+    names.reverse()
+    names.append('ghost')
+    swapped = np.vstack([values[::-1], values[:1]])
+    out = resolver.resolve(T0 + 4 * MS, InputBatch(names, swapped, 'world', 'world'))
+    assert out.names == ['box', 'ball']
+    assert [(r.body, r.reason) for r in out.rejected] == [('ghost', 'unknown_body')]
+    call = world.calls[-1]
+    assert call['current'].position[1, 2] == 1.0 and call['current'].position[2, 2] == 0.1

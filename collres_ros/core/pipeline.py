@@ -37,7 +37,7 @@ from collres_ros.core.types import (
     BodyInput, BodySpec, BodyStates, CollisionFilter, ContactReport, InputBatch,
     Rejection)
 from collres_ros.core.validation import (
-    NO_STAMP, check_inputs, check_stamps, stale_bodies)
+    NO_STAMP, NameIndex, check_inputs, check_stamps, stale_bodies)
 
 if TYPE_CHECKING:
     from collres_ros.core.world import World
@@ -110,6 +110,7 @@ class Resolver:
         self.names = tuple(b.name for b in self.bodies)
         self._name_array = np.array(self.names, dtype=object)
         self.index_of = {name: i for i, name in enumerate(self.names)}
+        self._lookup = NameIndex(self.index_of)
         self.world_frame = world_frame
         self.stale_timeout = stale_timeout
         self.dynamic = np.array([not b.static for b in self.bodies], bool)
@@ -178,7 +179,7 @@ class Resolver:
         stamp_ns = int(stamp_ns)
         settings = self._settings
         # 1. validate: refused inputs are reported, their bodies held
-        checked = check_inputs(inputs, self.index_of, self.world_frame)
+        checked = check_inputs(inputs, self._lookup, self.world_frame)
         rejected = list(checked.rejected)
         history = check_stamps(self.last_stamp[checked.index], stamp_ns,
                                int(settings.max_dt * 1e9), self.previous_step_ns)
@@ -188,23 +189,23 @@ class Resolver:
                                       f'{name}: already resolved at stamp {stamp_ns} ns'))
         resets = self._resets(checked.index, history, stamp_ns)
         use = ~history.repeated
-        index, fresh = checked.index[use], history.fresh[use]
 
         # 2. previous and current states of all N bodies
-        previous, current = self.state.copy(), self.state.copy()
-        for target in (previous, current):
-            target.position[index] = checked.position[use]
-            target.orientation[index] = checked.orientation[use]
-            target.linear[index] = checked.linear[use]
-            target.angular[index] = checked.angular[use]
-        kept = index[~fresh]
-        for name in ('position', 'orientation', 'linear', 'angular'):
-            getattr(previous, name)[kept] = getattr(self.state, name)[kept]
-        active = np.zeros(len(self.bodies), bool)
+        index, fresh = checked.index, history.fresh
+        entered = [checked.position, checked.orientation, checked.linear, checked.angular]
+        if not use.all():
+            index, fresh, entered = index[use], fresh[use], [a[use] for a in entered]
+        current = self.state.copy()
+        for target, values in zip(_arrays(current), entered):
+            target[index] = values
+        previous = self.state.copy()
+        if fresh.any():   # previous = current: nothing moved before a fresh start
+            restart = index[fresh]
+            for target, source in zip(_arrays(previous), _arrays(current)):
+                target[restart] = source[restart]
+            self.world.forget(restart)
+        active = ~self.dynamic
         active[index] = True
-        active |= ~self.dynamic
-        if fresh.any():
-            self.world.forget(index[fresh])
         step_ns = stamp_ns - self.previous_step_ns
         usable = (self.previous_step_ns != NO_STAMP and 0 < step_ns
                   and step_ns <= settings.max_dt * 1e9 and not fresh.all())
@@ -217,9 +218,8 @@ class Resolver:
         world_time = time.perf_counter() - world_start
         out = result.states
         # one guard, one report: a body the world repaired or that is still non-finite
-        rows = np.concatenate([out.position, out.orientation, out.linear, out.angular], axis=1)
+        bad = ~np.isfinite(np.concatenate(_arrays(out), axis=1)[index]).all(axis=1)
         repaired = {r.body for r in result.rejected if r.reason == 'non_finite_result'}
-        bad = ~np.isfinite(rows[index]).all(axis=1)
         if repaired:
             bad |= np.isin(self._name_array[index], list(repaired))
         for i in index[bad]:
@@ -229,10 +229,12 @@ class Resolver:
         rejected += [r for r in result.rejected if r.reason != 'non_finite_result']
 
         # 4. keep the corrected states as the history of the next step
-        good = index[~bad]
-        for name in ('position', 'orientation', 'linear', 'angular'):
-            getattr(self.state, name)[good] = getattr(out, name)[good]
-            getattr(self.state, name)[index[bad]] = getattr(current, name)[index[bad]]
+        good, held = (index[~bad], index[bad]) if bad.any() else (index, None)
+        for kept, corrected, entered_now in zip(_arrays(self.state), _arrays(out),
+                                                _arrays(current)):
+            kept[good] = corrected[good]
+            if held is not None:
+                kept[held] = entered_now[held]
         self.last_stamp[index] = stamp_ns
         self.previous_step_ns = stamp_ns
 
@@ -250,9 +252,7 @@ class Resolver:
             self.totals['contact_budget'] += 1   # steps over the budget
         self.totals.update(r.reason for r in rejected + resets)
         names = self._name_array[index].tolist()
-        states = BodyStates(self.state.position[index].copy(),
-                            self.state.orientation[index].copy(),
-                            self.state.linear[index].copy(), self.state.angular[index].copy())
+        states = BodyStates(*(a[index] for a in _arrays(self.state)))   # copies
         return ResolvedStep(stamp_ns, names, index, states, checked.twist_in_body[use],
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)], dt,
@@ -274,3 +274,8 @@ class Resolver:
                                     f'{name}: {gap:.3g} s since its last state (> max_dt '
                                     f'{self._settings.max_dt:g} s); fresh start'))
         return resets
+
+
+def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The four arrays of ``states`` (position, orientation, linear, angular), in place."""
+    return states.position, states.orientation, states.linear, states.angular

@@ -77,21 +77,46 @@ def _per_body(frames: str | Sequence[str], count: int) -> list[str]:
     return [frames] * count if isinstance(frames, str) else list(frames)
 
 
-def check_inputs(inputs: Sequence[BodyInput] | InputBatch, index_of: Mapping[str, int],
-                 world_frame: str, quaternion_tolerance: float = QUATERNION_TOLERANCE
-                 ) -> CheckedInputs:
+class NameIndex:
+    """Scene index of body names that remembers the last name list it looked up.
+
+    A stream sends the same names in the same order every step: its lookup is then one
+    comparison of the lists, not Python per body.
+    """
+
+    def __init__(self, index_of: Mapping[str, int]) -> None:
+        self._index_of = dict(index_of)
+        self._names: tuple[str, ...] | None = None
+        self._answer: tuple[np.ndarray, Counter[str] | None] = (np.zeros(0, np.int64), None)
+
+    def lookup(self, names: Sequence[str]) -> tuple[np.ndarray, Counter[str] | None]:
+        """(K,) index of each name (-1: unknown; read-only) and the repeated names' counts
+        (None when every name is once)."""
+        key = tuple(names)
+        if key != self._names:
+            index = np.array([self._index_of.get(n, -1) for n in key], np.int64)
+            index.flags.writeable = False
+            repeats = Counter(key) if len(set(key)) < len(key) else None
+            self._names, self._answer = key, (index, repeats)
+        return self._answer
+
+
+def check_inputs(inputs: Sequence[BodyInput] | InputBatch,
+                 index_of: Mapping[str, int] | NameIndex, world_frame: str,
+                 quaternion_tolerance: float = QUATERNION_TOLERANCE) -> CheckedInputs:
     """Validate one step's inputs; body-frame twists are rotated into the world frame.
 
     The checks run over whole arrays; a refused input gets the first reason of
-    the module docstring's list that applies to it.
+    the module docstring's list that applies to it. ``index_of``: a ``NameIndex``
+    to keep across steps (a mapping is looked up afresh).
     """
     batch = inputs if isinstance(inputs, InputBatch) else InputBatch.of(inputs)
-    names = list(batch.names)
+    names = batch.names
     count = len(names)
     numbers = np.asarray(batch.values, dtype=float).reshape(count, 13)
     world = ('', world_frame)
-    index = np.array([index_of.get(n, -1) for n in names], np.int64)
-    repeats = Counter(names) if len(set(names)) < count else None
+    lookup = index_of if isinstance(index_of, NameIndex) else NameIndex(index_of)
+    index, repeats = lookup.lookup(names)
     duplicate = np.array([repeats[n] > 1 for n in names], bool) if repeats \
         else np.zeros(count, bool)
     if isinstance(batch.frame_id, str):
@@ -108,36 +133,35 @@ def check_inputs(inputs: Sequence[BodyInput] | InputBatch, index_of: Mapping[str
                                  bool).reshape(count)
         twist_ok = twist_in_body | np.array([f in world for f in frames], bool).reshape(count)
     finite = np.isfinite(numbers).all(axis=1)
-    with np.errstate(over='ignore'):      # a huge quaternion has an infinite norm: refused
-        norm = np.linalg.norm(np.where(np.isfinite(numbers[:, 3:7]), numbers[:, 3:7], 0.0),
-                              axis=1)
-    magnitude = np.abs(np.where(np.isfinite(numbers), numbers, 0.0))
-    too_far = magnitude[:, 0:3].max(axis=1, initial=0.0) > POSITION_LIMIT
-    too_fast = magnitude[:, 7:13].max(axis=1, initial=0.0) > VELOCITY_LIMIT
-    failing = [index < 0, duplicate, ~pose_ok, ~twist_ok, ~finite, too_far | too_fast,
-               norm < ZERO_NORM, np.abs(norm - 1.0) > quaternion_tolerance]
-    code = np.select(failing, np.arange(len(failing)), -1) if count else np.zeros(0, int)
-    keep = code < 0
-
+    quaternion = numbers[:, 3:7]
+    with np.errstate(over='ignore', invalid='ignore'):   # a huge quaternion: infinite norm
+        norm = np.linalg.norm(quaternion, axis=1)
+        magnitude = np.abs(numbers)   # NaN and Inf rows are refused as non_finite first
+        too_far = (magnitude[:, 0:3] > POSITION_LIMIT).any(axis=1)
+        too_fast = (magnitude[:, 7:13] > VELOCITY_LIMIT).any(axis=1)
+        failing = [index < 0, duplicate, ~pose_ok, ~twist_ok, ~finite, too_far | too_fast,
+                   norm < ZERO_NORM, np.abs(norm - 1.0) > quaternion_tolerance]
+    refused = np.logical_or.reduce(failing) if count else np.zeros(0, bool)
     rejected: list[Rejection] = []
-    for k in np.flatnonzero(~keep):
-        name = names[k]
-        reason, detail = _refusal(int(code[k]), k, name, batch, repeats, world_frame,
-                                  bool(too_far[k]), float(norm[k]), quaternion_tolerance)
-        rejected.append(Rejection(name, reason, f'{shown_name(name)}: {detail}'))
-
-    good = numbers[keep]
-    orientation = good[:, 3:7] / norm[keep, None]
-    linear, angular = good[:, 7:10], good[:, 10:13]
-    in_body = twist_in_body[keep]
+    if refused.any():
+        code = np.select(failing, np.arange(len(failing)), -1)
+        for k in np.flatnonzero(refused):
+            name = names[k]
+            reason, detail = _refusal(int(code[k]), k, name, batch, repeats, world_frame,
+                                      bool(too_far[k]), float(norm[k]), quaternion_tolerance)
+            rejected.append(Rejection(name, reason, f'{shown_name(name)}: {detail}'))
+        keep = ~refused
+        good, norm, index, in_body = numbers[keep], norm[keep], index[keep], twist_in_body[keep]
+    else:
+        good, in_body = numbers, twist_in_body
+    orientation = good[:, 3:7] / norm[:, None]
+    linear, angular = good[:, 7:10].copy(), good[:, 10:13].copy()
     if in_body.any():
         rotation = to_matrix(orientation[in_body])
-        linear = linear.copy()
-        angular = angular.copy()
         linear[in_body] = np.einsum('kij,kj->ki', rotation, linear[in_body])
         angular[in_body] = np.einsum('kij,kj->ki', rotation, angular[in_body])
-    return CheckedInputs(index[keep], good[:, 0:3].copy(), orientation, linear.copy(),
-                         angular.copy(), in_body, rejected)
+    return CheckedInputs(np.array(index), good[:, 0:3].copy(), orientation, linear, angular,
+                         in_body, rejected)
 
 
 def _refusal(code: int, k: int, name: str, batch: InputBatch, repeats: Counter[str] | None,

@@ -1,7 +1,7 @@
 """collres_node over DDS on a settled pile: rate sustained, drops, latency, callback split.
 
     .venv/bin/python bench/bench_latency.py [--sizes 10 100 1000] [--rates 100 100 30]
-        [--duration 10] [--settle 1.0] [--modes estimator simulator] [--no-echo]
+        [--duration 10] [--settle 2.0] [--modes estimator simulator] [--no-echo]
 
 For each size the pile of bench/pile.py is settled in-process with the core
 (120 Hz, semi-implicit Euler), written as a params file, and then three
@@ -10,7 +10,7 @@ processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
 * ``collres_node`` on that scene (its start-up time, from the process start
   to every topic of this process connected, is printed);
 * a publisher (this file, ``--role publisher``) in one of two modes
-  (``--modes``): ``estimator``, the settled pile one gravity step later (so
+  (``--modes``): ``estimator``, the settled pile at rest one gravity step later (so
   every step has the pile's contacts and impulses) as pre-serialised
   BodyStateArray bytes with a new stamp each step, inputs independent of the
   answers; ``simulator``, each input the latest answer integrated one step
@@ -22,6 +22,12 @@ processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
 * this process: subscribers of ``body_states/corrected``, ``contacts`` and
   ``contact_markers`` (so the node builds and publishes all of them) and of
   ``/diagnostics`` (the node's own timing figures).
+
+The in-process reference of ``World.step``: the same scene (read back from the params
+file), the same inputs of the same mode, stamps and dt, stepped by a ``Resolver`` in this
+process as many steps as the live run took (wall and thread CPU time, median over the paced
+part). The node's ``time.world_ms`` and ``time.world_cpu_ms`` beside it say what the live
+run adds to the core's step: the CPU time it lacks is time it waited for a core.
 
 The echo floor: the same publisher against an echo process (``--role echo``:
 subscribe ``body_states`` as bytes, publish them back on
@@ -62,7 +68,8 @@ from pile import integrate, make_pile  # noqa: E402
 
 SETTLE_DT = 1.0 / 120.0
 T0 = 1_000_000_000_000   # first stamp, ns
-TIMING_KEYS = ('time.decode_ms', 'time.resolve_ms', 'time.world_ms', 'time.encode_ms',
+TIMING_KEYS = ('time.decode_ms', 'time.resolve_ms', 'time.world_ms', 'time.world_cpu_ms',
+               'time.encode_ms',
                'time.publish_ms', 'callback_time_mean_ms', 'step_time_mean_ms',
                'answer_time_mean_ms')
 
@@ -111,12 +118,19 @@ def write_scene(path: Path, bodies: list[Any], state: Any) -> Path:
 
 
 def input_bytes(bodies: list[Any], state: Any, dt: float) -> bytes:
-    """Serialised BodyStateArray of the dynamic bodies one gravity step after ``state``."""
+    """Serialised BodyStateArray of the dynamic bodies one gravity step after ``state`` at
+    rest (its twists zeroed: what an estimator measures on a resting pile, and a pose and
+    twist that agree step after step; the node keeps integrating the twist of a step it
+    answers from its own last state, so a twist the repeated pose does not follow would move
+    its answers away from the inputs a little more every step)."""
     from rclpy.serialization import serialize_message
 
+    from collres_ros.core.types import BodyStates
     from collres_ros.msg import BodyState, BodyStateArray
     dynamic = np.array([not b.static for b in bodies])
-    current = integrate(state, dynamic, dt)
+    rest = BodyStates(state.position, state.orientation, np.zeros_like(state.linear),
+                      np.zeros_like(state.angular))
+    current = integrate(rest, dynamic, dt)
     msg = BodyStateArray()
     msg.header.frame_id = 'world'
     for k, b in enumerate(bodies):
@@ -451,12 +465,50 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
             'timings': timings, 'lock_timings': lock_timings}
 
 
-def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> float:
-    """The settled pile's params file and input bytes; the in-process World.step (ms)."""
-    bodies, state, world_ms = settled_pile(count, args.settle)
+def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> None:
+    """The settled pile's params file and input bytes."""
+    bodies, state, _ = settled_pile(count, args.settle)
     write_scene(workdir / f'pile{count}.yaml', bodies, state)
     (workdir / f'input{count}.cdr').write_bytes(input_bytes(bodies, state, 1.0 / rate))
-    return world_ms
+
+
+def in_process(count: int, rate: float, mode: str, workdir: Path, steps: int, last: int
+               ) -> tuple[float, float]:
+    """(wall, CPU) median ms of World.step over the ``last`` of ``steps`` steps of the
+    node's own workload, in this process.
+
+    The scene read back from the params file into a ``Resolver`` as the node builds it,
+    the publisher's inputs of ``mode`` (``Inputs``: simulator inputs from the last answer)
+    with the same stamps and dt, as many steps as the live run's lock-step and paced parts
+    (the node's state after 2000 estimator steps is not its state after 100: it integrates
+    each answered twist from its own last state). What the node's ``time.world_ms`` adds to
+    it, the live run adds.
+    """
+    from collres_ros.core.pipeline import Resolver
+    from collres_ros.core.types import InputBatch
+    from collres_ros.ros import messages, params
+    resolver = Resolver.for_scene(params.load_scene(workdir / f'pile{count}.yaml'))
+    encoder = messages.OutputEncoder(resolver.names, resolver.world_frame, resolver.bodies)
+    period = int(round(1e9 / rate))
+    inputs = Inputs((workdir / f'input{count}.cdr').read_bytes(), mode, period * 1e-9)
+    world_step = resolver.world.step
+    wall, cpu = [], []
+
+    def timed(*a: Any, **k: Any) -> Any:
+        start = time.thread_time()
+        result = world_step(*a, **k)
+        cpu.append(time.thread_time() - start)
+        return result
+    resolver.world.step = timed   # type: ignore[method-assign]
+    stamp = T0
+    for _ in range(steps):
+        stamp += period
+        decoded = inputs.codec.decode(inputs.next(stamp))
+        step = resolver.resolve(stamp, InputBatch(decoded.names, decoded.values,
+                                                  decoded.frame_id, decoded.frame_id))
+        inputs.answer(encoder.corrected(step))
+        wall.append(step.world_time_s)
+    return 1e3 * float(np.median(wall[-last:])), 1e3 * float(np.median(cpu[-last:]))
 
 
 def _f(values: dict[str, float], key: str) -> str:
@@ -470,7 +522,8 @@ def main(argv: list[str] | None = None) -> int:
                         help='paced rate per size, Hz')
     parser.add_argument('--duration', type=float, default=10.0, help='paced run, s')
     parser.add_argument('--lockstep', type=float, default=5.0, help='lock-step run, s')
-    parser.add_argument('--settle', type=float, default=1.0, help='settling time, s')
+    parser.add_argument('--settle', type=float, default=2.0,
+                        help='settling time, s (the pile is at rest 2 s after the drop)')
     parser.add_argument('--domain', type=int, default=int(os.environ.get('ROS_DOMAIN_ID', 90)))
     parser.add_argument('--diagnostics-wait', type=float, default=1.2)
     parser.add_argument('--modes', nargs='+', default=['estimator', 'simulator'],
@@ -491,24 +544,28 @@ def main(argv: list[str] | None = None) -> int:
         return echo(args)
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
     print('| bodies | server | mode | start s | lock-step Hz | lock-step p50 ms | paced Hz '
-          '| sent | dropped | p50 ms | p99 ms | callback ms | decode | resolve | World.step '
-          '(in-process) | answer ms | encode | publish | overhead ms |')
+          '| sent | dropped | p50 ms | p99 ms | callback ms | decode | resolve '
+          '| World.step wall / CPU (in-process wall / CPU) | answer ms | encode | publish '
+          '| overhead ms |')
     print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         for count, rate in zip(args.sizes, rates):
-            world_ms = prepare(count, rate, args, Path(tmp))
+            prepare(count, rate, args, Path(tmp))
             runs = ([] if args.no_echo else [('echo', 'estimator')]) + \
                 [('node', mode) for mode in args.modes]
             for server, mode in runs:
                 r = measure(count, rate, args, Path(tmp), server, mode)
-                r['settle_world_ms'] = world_ms
+                r['in_process_ms'] = in_process(
+                    count, rate, mode, Path(tmp), r['lockstep']['steps'] + r['sent'],
+                    r['sent'])
                 rows.append(r)
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
           'latency: publish to body_states/corrected received; start: process start to its '
           'topics connected; callback split: the node\'s /diagnostics means over the paced '
-          'run; World.step (in-process): the same pile stepped by the core in this process; '
+          'run; World.step (in-process wall / CPU): the same scene, inputs, stamps and dt '
+          'stepped by a Resolver in this process (median, thread CPU time beside); '
           'answer: callback start to body_states/corrected published (the other outputs '
           'follow: encode, publish); overhead = answer - World.step')
     if args.json:
@@ -524,8 +581,10 @@ def _print_row(r: dict[str, Any]) -> None:
           f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
           f'{r["sent"]} | {r["dropped"]} | {r["p50"]:.2f} | {r["p99"]:.2f} | '
           f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '
-          f'{_f(t, "time.resolve_ms")} | {_f(t, "time.world_ms")} '
-          f'({r["settle_world_ms"]:.2f}) | {_f(t, "answer_time_mean_ms")} | '
+          f'{_f(t, "time.resolve_ms")} | {_f(t, "time.world_ms")} / '
+          f'{_f(t, "time.world_cpu_ms")} '
+          f'({r["in_process_ms"][0]:.2f} / {r["in_process_ms"][1]:.2f}) | '
+          f'{_f(t, "answer_time_mean_ms")} | '
           f'{_f(t, "time.encode_ms")} | '
           f'{_f(t, "time.publish_ms")} | '
           f'{"n/a" if overhead is None else f"{overhead:.2f}"} |', flush=True)

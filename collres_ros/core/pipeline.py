@@ -64,6 +64,9 @@ class ResolvedStep:
     dt: float = 0.0                   # s, step length used (FRESH_DT on a fresh start)
     step_time_s: float = 0.0          # wall time of resolve() (not deterministic)
     world_time_s: float = 0.0         # wall time of World.step alone (not deterministic)
+    # CPU time of this thread in World.step (not deterministic): below world_time_s by the
+    # time the thread waited for a core (preempted by other threads or processes)
+    world_cpu_s: float = 0.0
     # (N, 7) every body's pose after the step (scene order, world frame): position of the
     # centre of mass (m), orientation x, y, z, w; static and held bodies included
     poses: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
@@ -212,10 +215,11 @@ class Resolver:
         dt = step_ns * 1e-9 if usable else FRESH_DT
 
         # 3. the world step
-        world_start = time.perf_counter()
+        world_start, world_cpu = time.perf_counter(), time.thread_time()
         with np.errstate(over='ignore', invalid='ignore'):   # the guard below reports it
             result = self.world.step(previous, current, dt, active, fresh=not usable)
         world_time = time.perf_counter() - world_start
+        world_cpu = time.thread_time() - world_cpu
         out = result.states
         # one guard, one report: a body the world repaired or that is still non-finite
         bad = ~np.isfinite(np.concatenate(_arrays(out), axis=1)[index]).all(axis=1)
@@ -256,7 +260,7 @@ class Resolver:
         return ResolvedStep(stamp_ns, names, index, states, checked.twist_in_body[use],
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)], dt,
-                            time.perf_counter() - start, world_time,
+                            time.perf_counter() - start, world_time, world_cpu,
                             np.concatenate([self.state.position, self.state.orientation], 1),
                             budget)
 

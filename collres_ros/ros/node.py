@@ -35,7 +35,8 @@ one, ``unknown_body``, and the known ones served), and every output is published
 as bytes built by ``messages.OutputEncoder``, the answer
 (``body_states/corrected``) first, before the other outputs are built. ``/diagnostics``
 reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
-``time.world_ms``, ``answer_time_mean_ms``: to the answer published, then
+``time.world_ms``, ``time.world_cpu_ms``: the thread's CPU time in it,
+``answer_time_mean_ms``: to the answer published, then
 ``time.encode_ms``, ``time.publish_ms``: the other outputs).
 
 QoS: states, contacts and markers are reliable, volatile, keep-last with
@@ -97,9 +98,10 @@ except ImportError:
     pass
 # The parts of a callback timed for /diagnostics (time.<part>_ms, means over the period):
 # decode (CDR -> arrays), resolve (Resolver.resolve), world (World.step alone, inside
-# resolve), encode and publish (every output after the answer, body_states/corrected, which
-# goes out first: answer_time_mean_ms is from the callback's start to it published).
-TIMED = ('decode', 'resolve', 'world', 'encode', 'publish')
+# resolve; world_cpu: the CPU time the thread had in it, the rest it waited for a core),
+# encode and publish (every output after the answer, body_states/corrected, which goes out
+# first: answer_time_mean_ms is from the callback's start to it published).
+TIMED = ('decode', 'resolve', 'world', 'world_cpu', 'encode', 'publish')
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
 UNPAIRED_AFTER = 1.0   # s of per-body inputs without a per-body step before /diagnostics warns
 
@@ -345,6 +347,7 @@ class CollresNode(Node):
         w['decode'] += decoded - start
         w['resolve'] += resolved - decoded
         w['world'] += step.world_time_s
+        w['world_cpu'] += step.world_cpu_s
         w['answer'] += answered - start
         w['encode'] += encoded - answered
         w['publish'] += done - encoded

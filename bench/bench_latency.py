@@ -210,8 +210,12 @@ def publisher(args: argparse.Namespace) -> int:
 
         from collres_ros.ros import codec, names
         body_names = inputs.codec.decode(bytes(inputs.template)).names
-        parts = [(node.create_publisher(PoseStamped, names.pose_topic(n), qos),
-                  node.create_publisher(TwistStamped, names.twist_topic(n), qos))
+        from rclpy.event_handler import PublisherEventCallbacks
+        quiet = PublisherEventCallbacks(use_default_callbacks=False)   # as collres_sim's
+        parts = [(node.create_publisher(PoseStamped, names.pose_topic(n), qos,
+                                        event_callbacks=quiet),
+                  node.create_publisher(TwistStamped, names.twist_topic(n), qos,
+                                        event_callbacks=quiet))
                  for n in body_names]
         inputs_of = [p for pair in parts for p in pair]
 

@@ -47,6 +47,7 @@ from collres_ros.ros.stamps import to_stamp
 
 def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> int:
     """Run the DDS loop: publish, wait for the corrected state, adopt, integrate."""
+    from rclpy.event_handler import PublisherEventCallbacks
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -67,12 +68,15 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
             publisher = None if per_body else node.create_publisher(BodyStateArray,
                                                                     names.STATES, qos)
             if per_body:  # per-body topics instead of the batched one: one node step per stamp
+                # without rclpy's default QoS-event handler each (one waitable per publisher,
+                # which the executor walks at every wake-up: quadratic in the bodies)
+                quiet = PublisherEventCallbacks(use_default_callbacks=False)
                 for i in sim.rows:
                     name = sim.names[i]
-                    pose_pubs[name] = node.create_publisher(PoseStamped,
-                                                            names.pose_topic(name), qos)
-                    twist_pubs[name] = node.create_publisher(TwistStamped,
-                                                             names.twist_topic(name), qos)
+                    pose_pubs[name] = node.create_publisher(
+                        PoseStamped, names.pose_topic(name), qos, event_callbacks=quiet)
+                    twist_pubs[name] = node.create_publisher(
+                        TwistStamped, names.twist_topic(name), qos, event_callbacks=quiet)
             inputs = list(pose_pubs.values()) + list(twist_pubs.values()) if per_body \
                 else [publisher]
             states_codec = codec.StatesCodec(max_bodies=len(sim.names))

@@ -71,6 +71,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidTopicNameException
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, ShutdownException, SingleThreadedExecutor
+from rclpy.guard_condition import GuardCondition
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from visualization_msgs.msg import MarkerArray
@@ -104,6 +106,7 @@ except ImportError:
 TIMED = ('decode', 'resolve', 'world', 'world_cpu', 'encode', 'publish')
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
 UNPAIRED_AFTER = 1.0   # s of per-body inputs without a per-body step before /diagnostics warns
+WAIT_TIMEOUT_NS = 100_000_000   # the per-body thread checks the context this often when idle
 
 
 def params_file_dir(argv: Sequence[str]) -> Optional[Path]:
@@ -487,18 +490,22 @@ class CollresNode(Node):
 
 class PerBodyInputs:
     """The ``bodies/<name>/pose`` and ``twist`` subscriptions: a node of their own
-    (``<node>_per_body``, same namespace), spun by an executor in a thread of its own.
+    (``<node>_per_body``, same namespace) served by a thread of its own.
 
     Why: rclpy's executor rebuilds its wait set at every wake-up, in Python, over every
     entity of its nodes, and checks each QoS event handler against a list of them (quadratic
     in their number). With two subscriptions per body on the node itself, a 1000-body scene
     spent 190-320 ms per wake-up before a ``body_states`` message was taken. Here the
-    batched path's executor holds a handful of entities whatever the body count; this
-    executor waits (releasing the GIL) until per-body messages arrive. The subscriptions
-    have no default QoS-event handlers (rclpy's incompatible-QoS warning), which would make
-    that check quadratic again. QoS overrides are read as for every topic
-    (``qos_overrides./bodies/<name>/pose.subscription.depth``) and declared on the node
-    where set (``qos.overridden``). Each message is handed to ``CollresNode.on_part``.
+    batched path's executor holds a handful of entities whatever the body count. And the
+    thread is no executor either: an executor takes one message per wake-up and pays that
+    rebuild for each, so 100 bodies' 200 messages of one step took 40 ms (lock-step, 24 Hz)
+    and a 30 Hz stream dropped half its steps. The thread waits on every subscription at once
+    (one rcl wait set, refilled in C per wake-up), then takes every message that is there,
+    subscription by subscription, and hands each to ``CollresNode.on_part``. The
+    subscriptions have no default QoS-event handlers (rclpy's incompatible-QoS warning),
+    which would make the executor's check quadratic again. QoS overrides are read as for
+    every topic (``qos_overrides./bodies/<name>/pose.subscription.depth``) and declared on
+    the node where set (``qos.overridden``).
     """
 
     def __init__(self, owner: 'CollresNode', body_names: Sequence[str]) -> None:
@@ -526,38 +533,61 @@ class PerBodyInputs:
         except BaseException:
             self.node.destroy_node()
             raise
-        self.executor = SingleThreadedExecutor(context=owner.context)
-        self.executor.add_node(self.node)
+        self._wake = GuardCondition(None, None, context=owner.context)   # close() wakes us
         self.thread = threading.Thread(target=self._run, name='collres_per_body', daemon=True)
         self.thread.start()
 
     def _run(self) -> None:
         """Create the subscriptions (here, so that the node serves body_states meanwhile:
-        2000 of them take a second or more), then spin."""
+        2000 of them take a second or more), then serve them until closed."""
         try:
+            subscriptions = []
             for message, topic, callback, profile in self._wanted:
                 if self._closing:
                     return
-                self.node.create_subscription(
+                subscriptions.append((self.node.create_subscription(
                     message, topic, callback, profile, raw=True,
-                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)),
+                    callback))
             self.ready.set()
             self.owner.get_logger().info(f'per-body inputs: {len(self._wanted)} topics '
                                          'subscribed')
-            self.executor.spin()
+            self._serve(subscriptions)
         except (ShutdownException, ExternalShutdownException):
             pass
         except BaseException as failure:   # as a failure in the main thread: the node ends
+            if self._closing or not self.owner.context.ok():
+                return
             self.failure = failure
             self.owner.get_logger().error('per-body inputs: ' + traceback.format_exc())
             self.owner.context.try_shutdown()
 
+    def _serve(self, subscriptions: list[tuple[Any, Any]]) -> None:
+        """Wait on every subscription at once, take every message that is there, repeat."""
+        context = self.owner.context
+        by_handle = {sub.handle.pointer: (sub, callback) for sub, callback in subscriptions}
+        wait_set = _rclpy.WaitSet(len(subscriptions), 1, 0, 0, 0, 0, context.handle)
+        while not self._closing and context.ok():
+            wait_set.clear_entities()
+            for sub, _ in subscriptions:
+                wait_set.add_subscription(sub.handle)
+            wait_set.add_guard_condition(self._wake.handle)
+            wait_set.wait(WAIT_TIMEOUT_NS)
+            for pointer in wait_set.get_ready_entities('subscription'):
+                sub, callback = by_handle[pointer]
+                while not self._closing:
+                    taken = sub.handle.take_message(sub.msg_type, True)
+                    if taken is None:
+                        break
+                    callback(*taken)
+
     def close(self) -> None:
         """Stop the thread, then free the subscriptions and the node."""
         self._closing = True
-        self.executor.shutdown(timeout_sec=2.0)
+        self._wake.trigger()
         self.thread.join(2.0)
         self.node.destroy_node()
+        self._wake.destroy()
 
 
 def _check_files(argv: Sequence[str]) -> None:

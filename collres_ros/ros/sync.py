@@ -56,6 +56,7 @@ class Group:
     stamp_ns: int
     parts: dict[str, dict[str, Any]] = field(default_factory=dict)
     stamps: dict[str, dict[str, int]] = field(default_factory=dict)
+    paired: set[str] = field(default_factory=set)   # the names with both parts here
 
     def holds(self, name: str, kind: str) -> Optional[int]:
         """The stamp of the queued ``kind`` part of ``name``, None when there is none."""
@@ -107,6 +108,10 @@ class StampSync:
         self._normal_since_suspect = 0
         self._last_of: dict[tuple[str, str], int] = {}
         self._differences: deque[int] = deque(maxlen=PERIOD_SAMPLES)
+        self._dynamic_set = frozenset(self.dynamic)
+        # stale() of the newest stamp it was computed at: a message of a body in it, or a
+        # newer stamp, computes it again (no pass over every body per message)
+        self._stale: Optional[tuple[int, frozenset[str]]] = None
         self._forget()
 
     def _forget(self) -> None:
@@ -115,6 +120,7 @@ class StampSync:
         self.first_ns: Optional[int] = None
         self.newest_ns: Optional[int] = None
         self._last_of.clear()
+        self._stale = None
 
     @property
     def jump_ns(self) -> int:
@@ -204,13 +210,18 @@ class StampSync:
             self.first_ns = stamp_ns
         self.newest_ns = stamp_ns if self.newest_ns is None else max(self.newest_ns, stamp_ns)
         self.last_seen[name] = max(self.last_seen.get(name, stamp_ns), stamp_ns)
+        if self._stale is not None and name in self._stale[1]:
+            self._stale = None
         last = self._last_of.get((name, kind))
         if last is not None and stamp_ns > last:
             self._differences.append(stamp_ns - last)
         self._last_of[(name, kind)] = stamp_ns
         group = self._group_for(name, kind, stamp_ns)
-        group.parts.setdefault(name, {})[kind] = msg
+        parts = group.parts.setdefault(name, {})
+        parts[kind] = msg
         group.stamps.setdefault(name, {})[kind] = stamp_ns
+        if len(parts) == len(KINDS):
+            group.paired.add(name)
         return self._complete()
 
     def _suspect(self, name: str, kind: str, stamp_ns: int, msg: Any) -> list[Group]:
@@ -269,12 +280,20 @@ class StampSync:
             self.dropped += 1
         return group
 
+    def _stale_now(self) -> frozenset[str]:
+        """``stale()`` as a set, computed again only when it may have changed."""
+        if self._stale is None or self._stale[0] != self.newest_ns:
+            self._stale = (self.newest_ns or 0, frozenset(self.stale()))
+        return self._stale[1]
+
     def _complete(self) -> list[Group]:
-        stale = set(self.stale())
-        required = [n for n in self.dynamic if n not in stale]
+        stale = self._stale_now() & self._dynamic_set
+        needed = len(self.dynamic) - len(stale)
         done: list[Group] = []
-        for group in list(self.pending):
-            if required and all(len(group.parts.get(n, {})) == 2 for n in required):
+        for group in self.pending:
+            if needed and len(group.paired) >= needed and (
+                    not stale and self._dynamic_set <= group.paired
+                    or all(n in group.paired for n in self.dynamic if n not in stale)):
                 done.append(group)
         if not done:
             return []

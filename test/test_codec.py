@@ -66,14 +66,17 @@ def body_state_arrays(draw):
     values = np.array(draw(st.lists(st.lists(FLOATS, min_size=13, max_size=13),
                                     min_size=len(names), max_size=len(names))),
                       float).reshape(len(names), 13)
-    return draw(STAMPS), draw(NAMES), names, values
+    sleeping = np.array(draw(st.lists(st.booleans(), min_size=len(names),
+                                      max_size=len(names))), bool)
+    return draw(STAMPS), draw(NAMES), names, values, sleeping
 
 
-def rclpy_states(stamp: int, frame: str, names, values) -> BodyStateArray:
+def rclpy_states(stamp: int, frame: str, names, values, sleeping=None) -> BodyStateArray:
     msg = BodyStateArray()
     msg.header.stamp, msg.header.frame_id = stamp_of(stamp), frame
-    for name, v in zip(names, values.tolist()):
-        b = BodyState(name=name)
+    flags = [False] * len(names) if sleeping is None else list(map(bool, sleeping))
+    for name, v, flag in zip(names, values.tolist(), flags):
+        b = BodyState(name=name, sleeping=flag)
         p, q, t = b.pose.position, b.pose.orientation, b.twist
         p.x, p.y, p.z, q.x, q.y, q.z, q.w = v[0:7]
         t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z = v[7:13]
@@ -84,17 +87,73 @@ def rclpy_states(stamp: int, frame: str, names, values) -> BodyStateArray:
 @SETTINGS
 @given(body_state_arrays())
 def test_body_state_array_both_ways(case) -> None:
-    stamp, frame, names, values = case
-    theirs = bytes(serialize_message(rclpy_states(stamp, frame, names, values)))
+    stamp, frame, names, values, sleeping = case
+    theirs = bytes(serialize_message(rclpy_states(stamp, frame, names, values, sleeping)))
     for states in (codec.StatesCodec(), codec.StatesCodec()):   # parsed, then (2nd) cached
         for _ in range(2):
             got = states.decode(theirs)
             assert (got.stamp_ns, got.frame_id, got.names) == (stamp, frame, names)
             assert np.array_equal(bits(got.values), bits(values))
-    ours = codec.StatesCodec().encode(stamp, frame, names, values)
+            assert got.sleeping.tolist() == sleeping.tolist() and not got.legacy
+    ours = codec.StatesCodec().encode(stamp, frame, names, values, sleeping)
     assert ours == zero_filled(theirs, 'collres_ros/msg/BodyStateArray')
     back = deserialize_message(ours, BodyStateArray)
     assert [b.name for b in back.bodies] == names and back.header.frame_id == frame
+    assert [b.sleeping for b in back.bodies] == sleeping.tolist()
+
+
+# BodyState as it was before ``sleeping`` (what old bags embed and old publishers send)
+LEGACY_BODY_STATE = '''string name
+geometry_msgs/Pose pose
+geometry_msgs/Twist twist
+'''
+LEGACY_ARRAY = '''std_msgs/Header header
+collres_ros_legacy/BodyState[] bodies
+'''
+
+
+def legacy_bytes(stamp: int, frame: str, names, values) -> bytes:
+    """A BodyStateArray serialised with the definition of before ``sleeping`` (rosbags)."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = get_types_from_msg(LEGACY_BODY_STATE, 'collres_ros_legacy/msg/BodyState')
+    types.update(get_types_from_msg(LEGACY_ARRAY, 'collres_ros_legacy/msg/BodyStateArray'))
+    store.register(types)
+    State, Array = (store.types[f'collres_ros_legacy/msg/{n}'] for n in ('BodyState',
+                                                                           'BodyStateArray'))
+    g = store.types
+    header = g['std_msgs/msg/Header'](g['builtin_interfaces/msg/Time'](
+        stamp // 10**9, stamp % 10**9), frame)
+    bodies = []
+    for name, v in zip(names, values.tolist()):
+        pose = g['geometry_msgs/msg/Pose'](g['geometry_msgs/msg/Point'](*v[0:3]),
+                                           g['geometry_msgs/msg/Quaternion'](*v[3:7]))
+        twist = g['geometry_msgs/msg/Twist'](g['geometry_msgs/msg/Vector3'](*v[7:10]),
+                                             g['geometry_msgs/msg/Vector3'](*v[10:13]))
+        bodies.append(State(name, pose, twist))
+    return bytes(store.serialize_cdr(Array(header, bodies), 'collres_ros_legacy/msg/BodyStateArray'))
+
+
+@SETTINGS
+@given(body_state_arrays())
+def test_body_state_array_without_sleeping_is_read_as_awake(case) -> None:
+    """Old bags and publishers (no ``sleeping`` byte): decoded with the flags false, the
+    same values; ``upgrade`` gives bytes rclpy reads as the same bodies, not sleeping."""
+    stamp, frame, names, values, _ = case
+    old = legacy_bytes(stamp, frame, names, values)
+    states = codec.StatesCodec()
+    for _ in range(2):   # parsed, then cached
+        got = states.decode(old)
+        assert (got.stamp_ns, got.frame_id, got.names) == (stamp, frame, names)
+        assert np.array_equal(bits(got.values), bits(values))
+        assert not got.sleeping.any() and got.legacy == bool(names)
+    new = states.upgrade(old)
+    assert new == codec.StatesCodec().encode(stamp, frame, names, values)
+    back = deserialize_message(new, BodyStateArray)
+    assert [b.name for b in back.bodies] == names
+    assert not any(b.sleeping for b in back.bodies)
+    current = codec.StatesCodec().encode(stamp, frame, names, values)
+    assert states.upgrade(current) == current
 
 
 @SETTINGS

@@ -151,6 +151,7 @@ def test_in_contact_and_get_contacts_over_dds(ros_domain, tmp_path) -> None:
 
         def seen():
             return [m.data for m in peer.messages('bodies/ball/in_contact')]
+
         def answering():   # our reader of the answers matched too (or a step's answer is lost)
             return any(s.get_publisher_count() for s in peer.node.subscriptions
                        if s.topic_name == '/body_states/corrected')

@@ -341,3 +341,19 @@ def test_malformed_messages_are_refused_not_crashed_on() -> None:
     _refused(bad_utf8, 'malformed', max_bodies=None)
     with pytest.raises(codec.DecodeError):
         codec.decode_twist(b'\x00\x01\x00\x00' + b'\x00' * 10)
+
+
+def test_states_padded_to_four_bytes_as_dds_delivers_them_are_read() -> None:
+    """DDS pads a serialised message to a multiple of 4 bytes (a BodyStateArray now ends
+    with the last body's one-byte ``sleeping``): read with and without the padding, on the
+    parsed and on the cached path; more than the padding is still refused."""
+    states = codec.StatesCodec(3)
+    data = states.encode(7, 'world', ['ball', 'box'], np.arange(26.0).reshape(2, 13),
+                         np.array([True, False]))
+    pad = -len(data) % 4
+    assert pad, 'the message ends unaligned (else this test tests nothing)'
+    for reader in (codec.StatesCodec(3), states):   # parsed first, then from the cache
+        for got in (reader.decode(data + b'\x00' * pad), reader.decode(data)):
+            assert got.names == ['ball', 'box'] and got.sleeping.tolist() == [True, False]
+            assert got.values.tolist() == np.arange(26.0).reshape(2, 13).tolist()
+    _refused(data + b'\x00' * (pad + 4), 'malformed', max_bodies=None)

@@ -284,6 +284,12 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
                    np.flatnonzero(keep), legacy)
 
 
+def _padded(size: int) -> int:
+    """``size`` bytes rounded up to 4: DDS delivers a serialised message padded so (the CDR
+    encapsulation's options count the padding), rclpy's serialize_message does not pad."""
+    return (size + 3) & ~3
+
+
 def _doubles(buffer: Any) -> np.ndarray:
     """The float64 view of a message buffer, element i at byte 4 + 8 i (aligned doubles)."""
     return np.frombuffer(buffer, '<f8', (len(buffer) - 4) // 8, 4)
@@ -307,9 +313,10 @@ class StatesCodec:
             self._by_size.clear()
         if not layout.legacy:       # encode writes the current layout only
             self._by_names[(layout.frame_id, tuple(layout.names))] = layout
-        same = self._by_size.setdefault(layout.size, [])
-        same.insert(0, layout)
-        del same[_LAYOUT_CACHE:]
+        for size in {layout.size, _padded(layout.size)}:   # as serialised and as delivered
+            same = self._by_size.setdefault(size, [])
+            same.insert(0, layout)
+            del same[_LAYOUT_CACHE:]
         return layout
 
     def layout(self, frame_id: str, names: Sequence[str]) -> _Layout:
@@ -393,11 +400,11 @@ def _parse_bodies(reader: Reader, frame_id: str, count: int, raw: np.ndarray,
         reader.f64s(STATE_DOUBLES)
         if not legacy:
             reader.u8()
-    if reader.pos != len(reader.data):
+    if len(reader.data) not in (reader.pos, _padded(reader.pos)):
         raise reader.fail(f'{len(reader.data) - reader.pos} bytes after the last body')
     layout = _states_layout(frame_id, names, legacy)
-    if layout.size != len(reader.data) or not np.array_equal(raw[layout.check],
-                                                             layout.template[layout.check]):
+    if len(reader.data) not in (layout.size, _padded(layout.size)) or not np.array_equal(
+            raw[layout.check], layout.template[layout.check]):
         raise reader.fail('layout does not match the names')
     return layout
 

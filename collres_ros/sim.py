@@ -13,7 +13,9 @@ waits for ``body_states/corrected`` of the same stamp and adopts it
 (closing the loop). A step whose answer does
 not arrive within ``--step-timeout`` s is counted as dropped and the sim goes
 on with its own uncorrected state. The run is lock-step, as fast as the node
-answers (``--realtime`` paces it to the wall clock). Exit code 0 at the end.
+answers; ``--realtime`` paces it to the wall clock and keeps the rate: an answer is
+awaited only until the next step is due, a later one is not adopted (that step goes on
+with the sim's own state; the count is reported at the end). Exit code 0 at the end.
 
 Single parameters on the command line win over the file, live or offline::
 
@@ -121,8 +123,11 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 delivered.append(True)
 
             pace: list[RealtimePace] = []   # the run's, once it starts
+            late_answers: list[int] = []   # realtime: stamps answered after the next was due
+            published_at = [0.0]   # when the last step was published (monotonic, s)
 
             def exchange(stamp: int, states: Any) -> Any:
+                nonlocal wall_start
                 if args.realtime:
                     due = wall_start + (stamp - START_NS) * 1e-9
                     spin_until(lambda: time.monotonic() >= due,
@@ -142,11 +147,25 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 else:
                     publisher.publish(states_codec.encode(stamp, sim.world_frame, published,
                                                           values))
+                published_at[:] = [time.monotonic()]
                 if not delivered:
                     deliver_first_step()
-                if not spin_until(lambda: stamp in answers, args.step_timeout):
-                    log.warning(f'no corrected state for stamp {stamp} ns within '
-                                f'{args.step_timeout} s: step dropped')
+                    # the clock starts once the first step is delivered (discovery is done)
+                    wall_start = time.monotonic() - (stamp - START_NS) * 1e-9
+                    pace[0].start = published_at[0] = wall_start
+                timeout = args.step_timeout
+                if args.realtime:   # the answer is of use until the next step is due
+                    due_next = wall_start + (stamp - START_NS) * 1e-9 + 1.0 / sim.rate_hz
+                    timeout = min(timeout, max(0.0, due_next - time.monotonic()))
+                answered = spin_until(lambda: stamp in answers, timeout)
+                for old in [s for s in answers if s < stamp]:   # came after their step
+                    del answers[old]
+                if not answered:
+                    if timeout < args.step_timeout:
+                        late_answers.append(stamp)   # the step goes on with its own state
+                    else:
+                        log.warning(f'no corrected state for stamp {stamp} ns within '
+                                    f'{args.step_timeout} s: step dropped')
                     return None
                 decoded = answers.pop(stamp)
                 return decoded.names, messages.states_of(decoded.values)
@@ -170,9 +189,13 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                     steps, dropped = run_loop(sim, exchange, progress)
                     log.info(f'done: {steps} steps, {dropped} dropped, '
                              f'{time.monotonic() - wall_start:.2f} s wall time')
-                    short = pace[0].summary(steps, time.monotonic()) if args.realtime else None
+                    short = pace[0].summary(steps, published_at[0]) if args.realtime else None
                     if short:
                         log.warning(short)
+                    if late_answers:
+                        log.warning(f'realtime: {len(late_answers)} of {steps} answers came '
+                                    'after the next step was due; those steps went on with '
+                                    "the simulator's own state")
             finally:
                 node.destroy_node()
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -217,8 +240,9 @@ def parser() -> argparse.ArgumentParser:
                    help='live: wait for this many subscribers of body_states (e.g. 2 with a '
                         'recorder) before the first step')
     p.add_argument('--realtime', action='store_true',
-                   help='live: pace the steps to the wall clock; warns when it falls '
-                        'behind, and at the end with the rate reached if below the rate')
+                   help='live: pace the steps to the wall clock and keep the rate: an answer '
+                        'later than the next step is not adopted (counted at the end); warns '
+                        'when publishing itself falls behind, with the rate it reached')
     return p
 
 

@@ -119,8 +119,9 @@ class RealtimePace:
 
     def summary(self, steps: int, now: float) -> Optional[str]:
         """The warning at the end of a run that reached less than REALTIME_SHORTFALL of its
-        rate, else None."""
-        reached = self._reached(steps, now)
+        rate, else None. ``now``: when the last of the ``steps`` steps was published (the
+        first at ``start``)."""
+        reached = (steps - 1) / max(now - self.start, 1e-9)
         if steps < 2 or reached >= REALTIME_SHORTFALL * self.rate_hz:
             return None
         return (f'realtime: reached {reached:.0f} steps/s of the {self.rate_hz:g} Hz asked '

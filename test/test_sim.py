@@ -139,8 +139,7 @@ def test_live_sim_counts_unanswered_steps_as_dropped(tmp_path: Path) -> None:
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         sim = processes.start('collres_sim', ['--params', str(SCENES / 'bouncing_ball.yaml'),
-                                              '--duration', '0.1', '--step-timeout', '0.2',
-                                              '--realtime'],
+                                              '--duration', '0.1', '--step-timeout', '0.2'],
                               env=processes.ros_env(domain), log=tmp_path / 'sim.log')
         deadline = 60.0
         assert processes.wait_for(lambda: executor.spin_once(timeout_sec=0.01) or

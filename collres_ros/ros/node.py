@@ -24,9 +24,9 @@ only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
 ``contact_wrench``), ``bodies/<name>/in_contact`` (with ``contact_state``), ``/tf``
 (with ``publish_tf``, where tf2_msgs is installed), ``/diagnostics``; the service
 ``get_contacts`` answers the last step's contacts (``ros/contact_sensing.py``). The
-per-body subscriptions belong to a second node, ``<name>_per_body``, spun in a thread of
-its own (``PerBodyInputs``): the ``body_states`` path costs the same whatever the number of
-bodies' topics.
+per-body subscriptions belong to a second node, ``<name>_per_body``, served by a thread of
+its own (``PerBodyInputs``: one wait set over all of them, every waiting message taken per
+wake-up): the ``body_states`` path costs the same whatever the number of bodies' topics.
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
 ``ros/codec.py`` decodes them with numpy straight into the core's arrays (no

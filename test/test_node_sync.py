@@ -54,6 +54,22 @@ def test_a_silent_body_goes_stale_and_the_others_are_served():
     assert 'a' not in done[-1].parts
 
 
+def test_a_stale_body_that_speaks_again_is_required_again():
+    """Which bodies a step needs is kept between messages (a pass over every body per
+    message made 100 bodies' per-body steps quadratic): it follows a body going stale and
+    coming back, without a newer stamp in between."""
+    sync = StampSync(['a', 'b'], stale_timeout_ns=100 * MS)
+    for k in range(0, 20):
+        sync.add('b', 'pose', k * 10 * MS, 0)
+        done = sync.add('b', 'twist', k * 10 * MS, 0)
+    assert sync.stale() == ['a'] and [g.stamp_ns for g in done] == [190 * MS]
+    assert sync.add('a', 'pose', 200 * MS, 1) == []      # a is back: stamp 200 needs it
+    assert sync.add('b', 'pose', 200 * MS, 2) == []
+    assert sync.add('b', 'twist', 200 * MS, 3) == []     # not complete without a's twist
+    done = sync.add('a', 'twist', 200 * MS, 4)
+    assert [g.stamp_ns for g in done] == [200 * MS] and set(done[0].parts) == {'a', 'b'}
+
+
 # --- clock jumps, stray stamps, slop, unpaired inputs ------------------------------------
 
 S, DT = 10**9, 10 * MS

@@ -119,8 +119,8 @@ def legacy_bytes(stamp: int, frame: str, names, values) -> bytes:
     types = get_types_from_msg(LEGACY_BODY_STATE, 'collres_ros_legacy/msg/BodyState')
     types.update(get_types_from_msg(LEGACY_ARRAY, 'collres_ros_legacy/msg/BodyStateArray'))
     store.register(types)
-    State, Array = (store.types[f'collres_ros_legacy/msg/{n}'] for n in ('BodyState',
-                                                                           'BodyStateArray'))
+    State = store.types['collres_ros_legacy/msg/BodyState']
+    Array = store.types['collres_ros_legacy/msg/BodyStateArray']
     g = store.types
     header = g['std_msgs/msg/Header'](g['builtin_interfaces/msg/Time'](
         stamp // 10**9, stamp % 10**9), frame)
@@ -131,7 +131,8 @@ def legacy_bytes(stamp: int, frame: str, names, values) -> bytes:
         twist = g['geometry_msgs/msg/Twist'](g['geometry_msgs/msg/Vector3'](*v[7:10]),
                                              g['geometry_msgs/msg/Vector3'](*v[10:13]))
         bodies.append(State(name, pose, twist))
-    return bytes(store.serialize_cdr(Array(header, bodies), 'collres_ros_legacy/msg/BodyStateArray'))
+    return bytes(store.serialize_cdr(Array(header, bodies),
+                                     'collres_ros_legacy/msg/BodyStateArray'))
 
 
 @SETTINGS

@@ -342,3 +342,23 @@ def test_malformed_messages_are_refused_not_crashed_on() -> None:
     _refused(bad_utf8, 'malformed', max_bodies=None)
     with pytest.raises(codec.DecodeError):
         codec.decode_twist(b'\x00\x01\x00\x00' + b'\x00' * 10)
+
+
+def test_payload_padded_to_4_bytes_between_processes_is_read() -> None:
+    """Between processes rmw_fastrtps delivers a BodyStateArray (it ends with a bool) padded
+    with zeros to a multiple of 4 (272 bytes for a message of 269): decoded as the message;
+    a non-zero byte there, or 4 of them, is refused."""
+    names, values = ['ball', 'box'], np.arange(26, dtype=float).reshape(2, 13)
+    data = codec.StatesCodec().encode(5, 'world', names, values, np.array([True, False]))
+    pad = -len(data) % 4
+    assert pad   # 4 + header + bodies, the last one ending with its flag
+    padded = data + bytes(pad)
+    cached = codec.StatesCodec()
+    cached.decode(data)
+    for states in (codec.StatesCodec(), cached):   # parsed, and from a cached layout
+        got = states.decode(padded)
+        assert got.names == names and got.sleeping.tolist() == [True, False]
+        assert np.array_equal(got.values, values)
+    assert deserialize_message(padded, BodyStateArray).bodies[0].sleeping
+    _refused(data + bytes(pad - 1) + b'\x01', 'malformed', max_bodies=None)
+    _refused(data + bytes(pad + 4), 'malformed', max_bodies=None)

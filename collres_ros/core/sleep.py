@@ -47,8 +47,10 @@ class Sleep:
         self._native = _native.Islands([bounding_radius(s) for s in specs],
                                        self.dynamic.astype(np.uint8).tolist())
         self._no_kinematic = np.zeros(len(self.dynamic), np.uint8)
+        self._static = np.flatnonzero(~self.dynamic)     # may move: kinematic
         self._last_active: np.ndarray | None = None
         self._held = ContactReport.empty()    # contacts of the sleeping islands
+        self._held_for = np.zeros(len(self.dynamic), bool)   # bodies asleep after last step
         self.settings = settings
 
     @property
@@ -73,6 +75,7 @@ class Sleep:
     def wake_all(self) -> None:
         self._native.wake_all()
         self._held = ContactReport.empty()
+        self._held_for = np.zeros(len(self.dynamic), bool)
 
     def counts(self) -> dict[str, int]:
         """Bodies and islands asleep, and awake islands of the last step."""
@@ -88,22 +91,24 @@ class Sleep:
             self.wake_all()            # a clock jump, a body added or removed
         self._last_active = active.copy()
         kinematic = self._no_kinematic
-        if self._native.sleeping_bodies:
-            moved = ~self.dynamic & active & (
-                (previous.position != current.position).any(1)
-                | (previous.orientation != current.orientation).any(1)
-                | (current.linear != 0.0).any(1) | (current.angular != 0.0).any(1))
-            kinematic = moved.astype(np.uint8)
+        if self._native.sleeping_bodies and len(self._static):
+            k = self._static
+            moved = active[k] & (
+                (previous.position[k] != current.position[k]).any(1)
+                | (previous.orientation[k] != current.orientation[k]).any(1)
+                | (current.linear[k] != 0.0).any(1) | (current.angular[k] != 0.0).any(1))
+            kinematic = self._no_kinematic.copy()
+            kinematic[k] = moved
         self._native.wake(_rows(previous), _rows(current), active.astype(np.uint8), kinematic,
                           float(dt))
         asleep = self._native.asleep.astype(bool)
         if not asleep.any():
             return current, active, asleep
-        held = current.copy()
-        held.position[asleep] = previous.position[asleep]
-        held.orientation[asleep] = previous.orientation[asleep]
-        held.linear[asleep] = 0.0
-        held.angular[asleep] = 0.0
+        rows = asleep[:, None]
+        held = BodyStates(np.where(rows, previous.position, current.position),
+                          np.where(rows, previous.orientation, current.orientation),
+                          np.where(rows, 0.0, current.linear),
+                          np.where(rows, 0.0, current.angular))
         return held, active & ~asleep, asleep
 
     def after(self, out: BodyStates, movable: np.ndarray, report: ContactReport, dt: float,
@@ -119,15 +124,18 @@ class Sleep:
                             np.ascontiguousarray(report.normal_impulse, np.float64), float(dt))
         now = self._native.asleep.astype(bool)
         sleeping = asleep | now
-        shown = _between(self._held, sleeping | ~self.dynamic)
+        # the held contacts are those of the bodies asleep after the last step: all still
+        # answered as asleep unless an island woke before this step's detection
+        woke = bool((self._held_for & ~asleep).any())
+        shown = _between(self._held, sleeping | ~self.dynamic) if woke else self._held
         fell = now & ~asleep
-        if fell.any() or (asleep & ~now).any() or \
-                shown.contacts.count != self._held.contacts.count:
+        if woke or fell.any() or (asleep & ~now).any():
             kept = _between(self._held, now | ~self.dynamic)
             new = _between(report, fell | ~self.dynamic)   # held from now on, as persistent
             new.contacts.toi[:], new.contacts.kind[:] = 0.0, 0
             new.state[:] = ContactState.SLEEPING
             self._held = _joined(kept, new)
+        self._held_for = now
         if shown.contacts.count:
             report = _joined(report, shown)
         return report, sleeping

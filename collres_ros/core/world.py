@@ -159,7 +159,8 @@ class World:
         asleep = None
         if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
             current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
-        previous = _hold(previous, current, ~active)
+        # (a sleeper's previous state is already its held one: its last answer)
+        previous = _hold(previous, current, ~active if asleep is None else ~active & ~asleep)
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
         if (self.dynamic & active).any():

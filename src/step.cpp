@@ -53,15 +53,18 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio,
                      params.match_radius);
   warm_start(rows_, solver);
-  // iterate: sequential impulses (more sweeps while resting contacts are new), then
-  // shock propagation from the ground up
+  // iterate: sequential impulses (more sweeps while resting contacts are new, and at
+  // least depth_sweeps per level of the deepest stack), then shock propagation from the
+  // ground up
+  const int32_t depth = levels(n);
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
+  iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
   StepStats stats;
   stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged, &spins_);
   stats.rows = static_cast<int64_t>(rows_.size());
-  levels(n);
-  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps);
+  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps,
+                  params.shock_ratio);
   // store impulses for next step's warm start, then report them
   report(contacts, params, report_out);
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
@@ -302,7 +305,7 @@ void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOu
   }
 }
 
-void StepSolver::levels(int64_t n) {
+int32_t StepSolver::levels(int64_t n) {
   // contact graph of the rows (CSR), then breadth first from the immovable bodies
   first_.assign(n + 1, 0);
   for (const ContactRow& r : rows_) {
@@ -323,8 +326,10 @@ void StepSolver::levels(int64_t n) {
       level_[i] = 0;
       queue_.push_back(static_cast<int32_t>(i));
     }
+  int32_t depth = 0;
   for (size_t head = 0; head < queue_.size(); ++head) {
     int32_t i = queue_[head];
+    depth = std::max(depth, level_[i]);
     for (int32_t k = first_[i]; k < first_[i + 1]; ++k) {
       int32_t j = adjacency_[k];
       if (level_[j] < 0) {
@@ -333,6 +338,7 @@ void StepSolver::levels(int64_t n) {
       }
     }
   }
+  return depth;
 }
 
 void StepSolver::advance(const BodyStatesView& previous, const BodyStatesView& current,

@@ -27,7 +27,8 @@
 //    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
 //    every row starts cold, so no timing of the inputs can launch a resting body;
 // 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
-//    a block (more sweeps while the resting contacts are new), then
+//    a block (more sweeps while the resting contacts are new, and at least depth_sweeps
+//    per level of the deepest stack: a load passes down one level per sweep), then
 //    shock propagation from the ground up (a heavy body on a light one);
 // 6. store impulses for the next step (without the impact stages' part);
 // 7. advance: impacted bodies from their time of impact with the new velocity for the
@@ -125,7 +126,7 @@ class StepSolver {
   void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
   double warm(const ContactsView& c, double dt, bool enabled, double ratio,
               double match_radius);
-  void levels(int64_t n);
+  int32_t levels(int64_t n);   // contact levels (level_); returns the largest
   void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
                BodyStatesOut& out);
   void push_out(const BodyProperties& bodies, const SolverParams& p, double dt,

@@ -94,6 +94,9 @@ struct ContactRow {
   double impact = 0.0;           // N s >= 0, normal impulse of the impact stages (their
                                  // compression and restitution; reported, not warm started)
   double impact_tangent[2] = {0, 0};  // N s, friction impulse of the impact stages, t1, t2
+  double landing = 0.0;          // N s, normal impulse that stopped the approach left at the
+                                 // touch of a contact closing within the step (reported,
+                                 // not warm started; StepSolver::land)
   double push = 0.0;             // m/s: pseudo normal speed the position pass asks for
   double pseudo = 0.0;           // N s (pseudo), accumulated by the position pass
 };

@@ -66,14 +66,17 @@ def body_state_arrays(draw):
     values = np.array(draw(st.lists(st.lists(FLOATS, min_size=13, max_size=13),
                                     min_size=len(names), max_size=len(names))),
                       float).reshape(len(names), 13)
-    return draw(STAMPS), draw(NAMES), names, values
+    sleeping = np.array(draw(st.lists(st.booleans(), min_size=len(names),
+                                      max_size=len(names))), bool)
+    return draw(STAMPS), draw(NAMES), names, values, sleeping
 
 
-def rclpy_states(stamp: int, frame: str, names, values) -> BodyStateArray:
+def rclpy_states(stamp: int, frame: str, names, values, sleeping=None) -> BodyStateArray:
     msg = BodyStateArray()
     msg.header.stamp, msg.header.frame_id = stamp_of(stamp), frame
-    for name, v in zip(names, values.tolist()):
-        b = BodyState(name=name)
+    flags = [False] * len(names) if sleeping is None else list(map(bool, sleeping))
+    for name, v, flag in zip(names, values.tolist(), flags):
+        b = BodyState(name=name, sleeping=flag)
         p, q, t = b.pose.position, b.pose.orientation, b.twist
         p.x, p.y, p.z, q.x, q.y, q.z, q.w = v[0:7]
         t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z = v[7:13]
@@ -84,17 +87,73 @@ def rclpy_states(stamp: int, frame: str, names, values) -> BodyStateArray:
 @SETTINGS
 @given(body_state_arrays())
 def test_body_state_array_both_ways(case) -> None:
-    stamp, frame, names, values = case
-    theirs = bytes(serialize_message(rclpy_states(stamp, frame, names, values)))
+    stamp, frame, names, values, sleeping = case
+    theirs = bytes(serialize_message(rclpy_states(stamp, frame, names, values, sleeping)))
     for states in (codec.StatesCodec(), codec.StatesCodec()):   # parsed, then (2nd) cached
         for _ in range(2):
             got = states.decode(theirs)
             assert (got.stamp_ns, got.frame_id, got.names) == (stamp, frame, names)
             assert np.array_equal(bits(got.values), bits(values))
-    ours = codec.StatesCodec().encode(stamp, frame, names, values)
+            assert got.sleeping.tolist() == sleeping.tolist() and not got.legacy
+    ours = codec.StatesCodec().encode(stamp, frame, names, values, sleeping)
     assert ours == zero_filled(theirs, 'collres_ros/msg/BodyStateArray')
     back = deserialize_message(ours, BodyStateArray)
     assert [b.name for b in back.bodies] == names and back.header.frame_id == frame
+    assert [b.sleeping for b in back.bodies] == sleeping.tolist()
+
+
+# BodyState as it was before ``sleeping`` (what old bags embed and old publishers send)
+LEGACY_BODY_STATE = '''string name
+geometry_msgs/Pose pose
+geometry_msgs/Twist twist
+'''
+LEGACY_ARRAY = '''std_msgs/Header header
+collres_ros_legacy/BodyState[] bodies
+'''
+
+
+def legacy_bytes(stamp: int, frame: str, names, values) -> bytes:
+    """A BodyStateArray serialised with the definition of before ``sleeping`` (rosbags)."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = get_types_from_msg(LEGACY_BODY_STATE, 'collres_ros_legacy/msg/BodyState')
+    types.update(get_types_from_msg(LEGACY_ARRAY, 'collres_ros_legacy/msg/BodyStateArray'))
+    store.register(types)
+    State, Array = (store.types[f'collres_ros_legacy/msg/{n}'] for n in ('BodyState',
+                                                                           'BodyStateArray'))
+    g = store.types
+    header = g['std_msgs/msg/Header'](g['builtin_interfaces/msg/Time'](
+        stamp // 10**9, stamp % 10**9), frame)
+    bodies = []
+    for name, v in zip(names, values.tolist()):
+        pose = g['geometry_msgs/msg/Pose'](g['geometry_msgs/msg/Point'](*v[0:3]),
+                                           g['geometry_msgs/msg/Quaternion'](*v[3:7]))
+        twist = g['geometry_msgs/msg/Twist'](g['geometry_msgs/msg/Vector3'](*v[7:10]),
+                                             g['geometry_msgs/msg/Vector3'](*v[10:13]))
+        bodies.append(State(name, pose, twist))
+    return bytes(store.serialize_cdr(Array(header, bodies), 'collres_ros_legacy/msg/BodyStateArray'))
+
+
+@SETTINGS
+@given(body_state_arrays())
+def test_body_state_array_without_sleeping_is_read_as_awake(case) -> None:
+    """Old bags and publishers (no ``sleeping`` byte): decoded with the flags false, the
+    same values; ``upgrade`` gives bytes rclpy reads as the same bodies, not sleeping."""
+    stamp, frame, names, values, _ = case
+    old = legacy_bytes(stamp, frame, names, values)
+    states = codec.StatesCodec()
+    for _ in range(2):   # parsed, then cached
+        got = states.decode(old)
+        assert (got.stamp_ns, got.frame_id, got.names) == (stamp, frame, names)
+        assert np.array_equal(bits(got.values), bits(values))
+        assert not got.sleeping.any() and got.legacy == bool(names)
+    new = states.upgrade(old)
+    assert new == codec.StatesCodec().encode(stamp, frame, names, values)
+    back = deserialize_message(new, BodyStateArray)
+    assert [b.name for b in back.bodies] == names
+    assert not any(b.sleeping for b in back.bodies)
+    current = codec.StatesCodec().encode(stamp, frame, names, values)
+    assert states.upgrade(current) == current
 
 
 @SETTINGS
@@ -282,3 +341,19 @@ def test_malformed_messages_are_refused_not_crashed_on() -> None:
     _refused(bad_utf8, 'malformed', max_bodies=None)
     with pytest.raises(codec.DecodeError):
         codec.decode_twist(b'\x00\x01\x00\x00' + b'\x00' * 10)
+
+
+def test_states_padded_to_four_bytes_as_dds_delivers_them_are_read() -> None:
+    """DDS pads a serialised message to a multiple of 4 bytes (a BodyStateArray now ends
+    with the last body's one-byte ``sleeping``): read with and without the padding, on the
+    parsed and on the cached path; more than the padding is still refused."""
+    states = codec.StatesCodec(3)
+    data = states.encode(7, 'world', ['ball', 'box'], np.arange(26.0).reshape(2, 13),
+                         np.array([True, False]))
+    pad = -len(data) % 4
+    assert pad, 'the message ends unaligned (else this test tests nothing)'
+    for reader in (codec.StatesCodec(3), states):   # parsed first, then from the cache
+        for got in (reader.decode(data + b'\x00' * pad), reader.decode(data)):
+            assert got.names == ['ball', 'box'] and got.sleeping.tolist() == [True, False]
+            assert got.values.tolist() == np.arange(26.0).reshape(2, 13).tolist()
+    _refused(data + b'\x00' * (pad + 4), 'malformed', max_bodies=None)

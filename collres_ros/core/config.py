@@ -383,6 +383,22 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
               'Publish /tf world_frame -> <body> for every body every step (needs tf2_msgs, '
               'on a ROS install; without it a warning at start and no /tf)',
               reason='N transforms per step, and tf2_msgs is not on PyPI: opt-in'),
+    ParamSpec('contact_state', 'bool', False,
+              'Publish bodies/<name>/in_contact (std_msgs/Bool, reliable, transient local, on '
+              'change) for every body: true from the step whose normal impulses on the body '
+              'sum to more than contact_on_impulse, false after contact_off_steps steps in a '
+              'row at or below it',
+              reason='one publisher per body: opt-in, for controllers that wait for a touch'),
+    ParamSpec('contact_on_impulse', 'double', 1e-6,
+              'in_contact: least sum of normal impulses on a body in one step that is a touch '
+              '(a speculative contact that carries no impulse is none)', 1e-12, 1e6,
+              unit='N s',
+              reason='below the weight of a 1 g part over a 1 kHz step (1e-5 N s), above the '
+                     'solver\'s round-off'),
+    ParamSpec('contact_off_steps', 'integer', 3,
+              'in_contact: steps in a row without a touch before a body is out of contact '
+              '(hysteresis: a bounce or a slide over an edge does not make it chatter)', 1, 10000,
+              reason='a few steps debounce a bounce at any control rate'),
 )
 
 
@@ -401,6 +417,9 @@ class NodeSettings:
     contact_wrench: bool = False
     body_markers_period: float = 0.05
     publish_tf: bool = False
+    contact_state: bool = False
+    contact_on_impulse: float = 1e-6
+    contact_off_steps: int = 3
 
 
 # Simulator settings: the parameters of collres_sim (its own section).

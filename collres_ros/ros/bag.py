@@ -35,6 +35,7 @@ STORAGES = ('mcap', 'sqlite3')
 PACKAGE = 'collres_ros'
 _PLUGINS = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 BAG_VERSION = 9  # rosbag2 metadata version written by Jazzy
+STATES_TYPE = f'{PACKAGE}/msg/BodyStateArray'
 
 
 class BagError(Exception):
@@ -316,9 +317,17 @@ class BagReader:
             yield connection.topic, connection.msgtype, int(log_time), bytes(data)
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
-        """Yield decoded rclpy messages in log-time order, optionally only ``topics``."""
+        """Yield decoded rclpy messages in log-time order, optionally only ``topics``.
+
+        A BodyStateArray recorded before BodyState had ``sleeping`` is read with the flags
+        false (``codec.StatesCodec.upgrade``)."""
         from rclpy.serialization import deserialize_message
+
+        from collres_ros.ros.codec import StatesCodec
+        states = StatesCodec()
         for topic, msgtype, log_time, data in self.raw(topics):
+            if msgtype == STATES_TYPE:
+                data = states.upgrade(data)
             yield BagMessage(topic, msgtype, log_time,
                              deserialize_message(data, message_class(msgtype)))
 

@@ -19,8 +19,14 @@ refused at once) and refuses negative stamps and ``nanosec >= 1e9``:
 Padding bytes are written as zeros (rclpy leaves them uninitialised), so
 compare decoded values, or bytes outside the padding, never raw bytes with rclpy's.
 
-Speed: a ``BodyStateArray`` layout (where the names, the padding and the 13
-doubles of each body sit) is computed once per (frame, names) and cached;
+``BodyState`` ends with ``bool sleeping`` (one byte, 0 or 1, after the 13
+doubles; the next body's name then starts on 4). Bodies written before that
+field existed (old bags, old publishers: name, 13 doubles, nothing else) are
+still decoded, as not sleeping: a message that does not parse with the field
+is parsed without it.
+
+Speed: a ``BodyStateArray`` layout (where the names, the padding, the 13
+doubles and the ``sleeping`` byte of each body sit) is computed once per (frame, names) and cached;
 reading or writing the doubles is then one numpy gather or scatter, and a
 received message is checked against the cached layout by one comparison of
 its non-float bytes (names, counts, lengths). Names are never assumed: a
@@ -97,6 +103,9 @@ class Writer:
 
     def u8(self, value: int) -> None:
         self.buf.append(value & 0xFF)
+
+    def boolean(self, value: bool) -> None:
+        self.buf.append(1 if value else 0)
 
     def i32(self, value: int) -> None:
         self.align(4)
@@ -199,6 +208,12 @@ class Reader:
         except UnicodeDecodeError:
             raise self.fail('string is not UTF-8') from None
 
+    def u8(self) -> int:
+        self.need(1)
+        value = self.data[self.pos]
+        self.pos += 1
+        return int(value)
+
     def f64s(self, count: int) -> np.ndarray:
         self.align(8)
         self.need(8 * count)
@@ -221,6 +236,8 @@ class DecodedStates:
     frame_id: str
     names: list[str]
     values: np.ndarray   # (K, 13) float64: position, orientation (x, y, z, w), linear, angular
+    sleeping: np.ndarray  # (K,) bool: the ``sleeping`` flags (False where the field is absent)
+    legacy: bool = False  # written before BodyState had ``sleeping`` (old bags)
 
 
 @dataclass
@@ -232,19 +249,25 @@ class _Layout:
     size: int                # bytes, with the encapsulation header
     template: np.ndarray     # (size rounded up to 4 + 8k,) uint8: stamp 0, floats 0
     rows: np.ndarray         # (K, 13) int64: index of each double in the float64 view
-    check: np.ndarray        # positions that must equal the template (not stamp/float/pad)
+    flags: np.ndarray        # (K,) int64: byte of each ``sleeping`` flag (empty: legacy)
+    check: np.ndarray        # positions that must equal the template (not stamp/float/pad/flag)
+    legacy: bool             # bodies without the ``sleeping`` field (written before it existed)
 
 
-def _states_layout(frame_id: str, names: Sequence[str]) -> _Layout:
+def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) -> _Layout:
     w = Writer()
     w.header(0, frame_id)
     w.u32(len(names))
     starts = []
+    flags = []
     for name in names:
         w.string(name)
         w.align(8)
         starts.append(len(w.buf))
         w.buf += bytes(8 * STATE_DOUBLES)
+        if not legacy:
+            flags.append(len(w.buf))
+            w.boolean(False)
     size = len(w.buf)
     template = np.zeros(4 + 8 * ((size - 4 + 7) // 8), np.uint8)
     template[:size] = np.frombuffer(bytes(w.buf), np.uint8)
@@ -255,7 +278,16 @@ def _states_layout(frame_id: str, names: Sequence[str]) -> _Layout:
     keep[w.padding] = False
     float_bytes = (4 + 8 * rows.reshape(-1))[:, None] + np.arange(8)
     keep[float_bytes.reshape(-1)] = False
-    return _Layout(frame_id, list(names), size, template, rows, np.flatnonzero(keep))
+    flag_bytes = np.array(flags, np.int64)
+    keep[flag_bytes] = False
+    return _Layout(frame_id, list(names), size, template, rows, flag_bytes,
+                   np.flatnonzero(keep), legacy)
+
+
+def _padded(size: int) -> int:
+    """``size`` bytes rounded up to 4: DDS delivers a serialised message padded so (the CDR
+    encapsulation's options count the padding), rclpy's serialize_message does not pad."""
+    return (size + 3) & ~3
 
 
 def _doubles(buffer: Any) -> np.ndarray:
@@ -276,14 +308,15 @@ class StatesCodec:
         self._by_size: dict[int, list[_Layout]] = {}
 
     def _remember(self, layout: _Layout) -> _Layout:
-        key = (layout.frame_id, tuple(layout.names))
-        if len(self._by_names) >= _LAYOUT_CACHE:
+        if len(self._by_names) >= _LAYOUT_CACHE or len(self._by_size) >= _LAYOUT_CACHE:
             self._by_names.clear()
             self._by_size.clear()
-        self._by_names[key] = layout
-        same = self._by_size.setdefault(layout.size, [])
-        same.insert(0, layout)
-        del same[_LAYOUT_CACHE:]
+        if not layout.legacy:       # encode writes the current layout only
+            self._by_names[(layout.frame_id, tuple(layout.names))] = layout
+        for size in {layout.size, _padded(layout.size)}:   # as serialised and as delivered
+            same = self._by_size.setdefault(size, [])
+            same.insert(0, layout)
+            del same[_LAYOUT_CACHE:]
         return layout
 
     def layout(self, frame_id: str, names: Sequence[str]) -> _Layout:
@@ -295,13 +328,16 @@ class StatesCodec:
     # encode
 
     def encode(self, stamp_ns: int, frame_id: str, names: Sequence[str],
-               values: np.ndarray) -> bytes:
-        """Serialised BodyStateArray of ``names`` with ``values`` (K, 13) at ``stamp_ns``."""
+               values: np.ndarray, sleeping: Optional[np.ndarray] = None) -> bytes:
+        """Serialised BodyStateArray of ``names`` with ``values`` (K, 13) at ``stamp_ns``;
+        ``sleeping`` (K,) bool flags (default: none sleeps)."""
         layout = self.layout(frame_id, names)
         buf = layout.template.copy()
         buf[4:12] = np.frombuffer(_STAMP.pack(*stamp_parts(stamp_ns)), np.uint8)
         if len(names):
             _doubles(buf)[layout.rows] = np.asarray(values, float).reshape(-1, STATE_DOUBLES)
+            if sleeping is not None:
+                buf[layout.flags] = np.asarray(sleeping, bool)
         return buf[:layout.size].tobytes()
 
     # decode
@@ -313,8 +349,7 @@ class StatesCodec:
         raw = np.frombuffer(data, np.uint8)
         for layout in self._by_size.get(len(data), ()):
             if np.array_equal(raw[layout.check], layout.template[layout.check]):
-                return DecodedStates(stamp, layout.frame_id, layout.names,
-                                     _doubles(data)[layout.rows])
+                return self._decoded(stamp, layout, data, raw)
         frame_id = reader.string()
         count = reader.u32()
         if self.max_bodies is not None and count > self.max_bodies:
@@ -323,18 +358,55 @@ class StatesCodec:
         # every body takes at least 4 (name length) + 1 (NUL) + 104 bytes, padding aside
         if count * (5 + 8 * STATE_DOUBLES) > len(data) - reader.pos:
             raise reader.fail(f'{count} bodies announced, not that many bytes')
-        names = []
-        for _ in range(count):
-            names.append(reader.string())
-            reader.f64s(STATE_DOUBLES)
-        if reader.pos != len(data):
-            raise reader.fail(f'{len(data) - reader.pos} bytes after the last body')
-        layout = _states_layout(frame_id, names)
-        if layout.size != len(data) or not np.array_equal(raw[layout.check],
-                                                          layout.template[layout.check]):
-            raise reader.fail('layout does not match the names')
+        start = reader.pos
+        try:
+            layout = _parse_bodies(reader, frame_id, count, raw, legacy=False)
+        except DecodeError as refusal:
+            reader.pos = start
+            try:   # written before BodyState had ``sleeping``?
+                layout = _parse_bodies(reader, frame_id, count, raw, legacy=True)
+            except DecodeError:
+                raise refusal from None
         self._remember(layout)
-        return DecodedStates(stamp, frame_id, names, _doubles(data)[layout.rows])
+        return self._decoded(stamp, layout, data, raw)
+
+    def upgrade(self, data: bytes) -> bytes:
+        """BodyStateArray bytes in the current layout: a message written before BodyState
+        had ``sleeping`` is re-encoded with the flags false; any other (or refused) message
+        is returned as it is."""
+        try:
+            decoded = self.decode(data)
+        except DecodeError:
+            return data
+        if not decoded.legacy:
+            return data
+        return self.encode(decoded.stamp_ns, decoded.frame_id, decoded.names, decoded.values)
+
+    @staticmethod
+    def _decoded(stamp: int, layout: _Layout, data: bytes, raw: np.ndarray) -> DecodedStates:
+        sleeping = raw[layout.flags] != 0 if not layout.legacy else \
+            np.zeros(len(layout.names), bool)
+        return DecodedStates(stamp, layout.frame_id, layout.names, _doubles(data)[layout.rows],
+                             sleeping, layout.legacy)
+
+
+def _parse_bodies(reader: Reader, frame_id: str, count: int, raw: np.ndarray,
+                  legacy: bool) -> _Layout:
+    """The layout of the ``count`` bodies that follow, read field by field (with or without
+    the ``sleeping`` byte); DecodeError when the bytes do not fit it."""
+    names = []
+    for _ in range(count):
+        names.append(reader.string())
+        reader.f64s(STATE_DOUBLES)
+        if not legacy:
+            reader.u8()
+    if len(reader.data) not in (reader.pos, _padded(reader.pos)):
+        raise reader.fail(f'{len(reader.data) - reader.pos} bytes after the last body')
+    layout = _states_layout(frame_id, names, legacy)
+    if len(reader.data) not in (layout.size, _padded(layout.size)) or not np.array_equal(
+            raw[layout.check], layout.template[layout.check]):
+        raise reader.fail('layout does not match the names')
+    return layout
 
 
 def decode_body_state_array(data: bytes) -> tuple[int, list[BodyInput]] | None:

@@ -2,6 +2,7 @@
 
     .venv/bin/python bench/bench_latency.py [--sizes 10 100 1000] [--rates 100 100 30]
         [--duration 10] [--settle 1.0] [--modes estimator simulator] [--no-echo]
+        [--sleeping on off]
 
 For each size the pile of bench/pile.py is settled in-process with the core
 (120 Hz, semi-implicit Euler), written as a params file, and then three
@@ -35,6 +36,11 @@ answer. The node's callback split comes from its ``/diagnostics`` values:
 (World.step alone), ``time.encode_ms``, ``time.publish_ms`` and
 ``callback_time_mean_ms``; an older node reports only the callback and
 ``step_time_mean_ms`` (resolve), so the others show ``n/a``.
+
+``--sleeping``: the node runs with ``solver.sleeping`` on (the default: the settled pile
+falls asleep during the lock-step run, 0.5 s after its start) and/or off (every step
+detected and solved); the row says which, and how many bodies the node's last
+/diagnostics reported asleep.
 
 Runs against whatever ``collres_ros`` the interpreter imports (set PYTHONPATH
 to a checkout to measure that one; its generated ``msg/`` must be present).
@@ -70,11 +76,11 @@ TIMING_KEYS = ('time.decode_ms', 'time.resolve_ms', 'time.world_ms', 'time.encod
 # --- the scene ----------------------------------------------------------------------------------
 
 def settled_pile(count: int, settle_s: float) -> tuple[list[Any], Any, float]:
-    """(bodies, settled states, mean World.step ms of the last settling steps)."""
+    """(bodies, settled states, mean World.step ms of the last settling steps, awake)."""
     from collres_ros.core.config import SolverSettings
     from collres_ros.core.world import World
     bodies, state = make_pile(count)
-    world = World(bodies, SolverSettings())
+    world = World(bodies, SolverSettings(sleeping=False))   # the awake step
     times = []
     for _ in range(max(1, int(round(settle_s / SETTLE_DT)))):
         current = integrate(state, world.dynamic, SETTLE_DT)
@@ -88,7 +94,7 @@ def _list(values: Any) -> str:
     return '[' + ', '.join(repr(float(v)) for v in values) + ']'
 
 
-def write_scene(path: Path, bodies: list[Any], state: Any) -> Path:
+def write_scene(path: Path, bodies: list[Any], state: Any, sleeping: bool = True) -> Path:
     """A params file of the pile, initial poses = the settled state."""
     lines = ['/**:', '  ros__parameters:', '    world_frame: world',
              f'    bodies: [{", ".join(b.name for b in bodies)}]', '    body:']
@@ -104,7 +110,8 @@ def write_scene(path: Path, bodies: list[Any], state: Any) -> Path:
         fields += [f'position: {_list(state.position[k])}',
                    f'orientation: {_list(state.orientation[k])}']
         lines.append(f'      {b.name}: {{{", ".join(fields)}}}')
-    lines += ['/**/collres_node:', '  ros__parameters:', '    diagnostics_period: 0.5',
+    lines += ['    solver:', f'      sleeping: {str(sleeping).lower()}',
+              '/**/collres_node:', '  ros__parameters:', '    diagnostics_period: 0.5',
               '    queue_depth: 10']
     path.write_text('\n'.join(lines) + '\n')
     return path
@@ -392,16 +399,16 @@ def _timings(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> dict[
 
 
 def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
-            server: str, mode: str) -> dict[str, Any]:
+            server: str, mode: str, sleeping: str = 'on') -> dict[str, Any]:
     """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo')."""
-    scene, data = workdir / f'pile{count}.yaml', workdir / f'input{count}.cdr'
+    scene, data = workdir / f'pile{count}_{sleeping}.yaml', workdir / f'input{count}.cdr'
     env = ros_env(args.domain)
     if server == 'node':
         command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
                    '--params-file', str(scene)]
     else:
         command = [sys.executable, __file__, '--role', 'echo', '--domain', str(args.domain)]
-    tag = f'{server}{count}{mode}'
+    tag = f'{server}{count}{mode}{sleeping}'
     begin = time.monotonic()
     with open(workdir / f'{tag}.log', 'wb') as log:
         node = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT,
@@ -441,7 +448,10 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
     latencies = [(listener.arrived[s] - t) / 1e6 for s, t in sent.items()
                  if s in listener.arrived]
     warm = latencies[len(latencies) // 10:] or latencies
+    asleep = listener.diagnostics[-1][1].get('sleeping_bodies', '-') \
+        if listener.diagnostics else '-'
     return {'server': server, 'mode': mode, 'bodies': count, 'rate': rate,
+            'sleeping': sleeping if server == 'node' else '-', 'asleep': asleep,
             'startup_s': startup, 'lockstep': result['lockstep'], 'sent': len(sent),
             'answered': len(latencies), 'dropped': len(sent) - len(latencies),
             'p50': float(np.percentile(warm, 50)) if warm else float('nan'),
@@ -454,7 +464,8 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
 def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> float:
     """The settled pile's params file and input bytes; the in-process World.step (ms)."""
     bodies, state, world_ms = settled_pile(count, args.settle)
-    write_scene(workdir / f'pile{count}.yaml', bodies, state)
+    for flag in ('on', 'off'):
+        write_scene(workdir / f'pile{count}_{flag}.yaml', bodies, state, flag == 'on')
     (workdir / f'input{count}.cdr').write_bytes(input_bytes(bodies, state, 1.0 / rate))
     return world_ms
 
@@ -477,6 +488,8 @@ def main(argv: list[str] | None = None) -> int:
                         choices=('estimator', 'simulator', 'per_body'),
                         help='how the publisher drives the node (see the docstring)')
     parser.add_argument('--no-echo', action='store_true', help='skip the echo floor')
+    parser.add_argument('--sleeping', nargs='+', default=['on'], choices=('on', 'off'),
+                        help='solver.sleeping of the node (see the docstring)')
     parser.add_argument('--json', help='also write the rows here')
     parser.add_argument('--role', default='main', help=argparse.SUPPRESS)
     parser.add_argument('--bytes', help=argparse.SUPPRESS)
@@ -490,18 +503,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == 'echo':
         return echo(args)
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
-    print('| bodies | server | mode | start s | lock-step Hz | lock-step p50 ms | paced Hz '
-          '| sent | dropped | p50 ms | p99 ms | callback ms | decode | resolve | World.step '
-          '(in-process) | answer ms | encode | publish | overhead ms |')
-    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
+    print('| bodies | server | mode | sleeping (asleep) | start s | lock-step Hz | '
+          'lock-step p50 ms | paced Hz | sent | dropped | p50 ms | p99 ms | callback ms | '
+          'decode | resolve | World.step (in-process) | answer ms | encode | publish | '
+          'overhead ms |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         for count, rate in zip(args.sizes, rates):
             world_ms = prepare(count, rate, args, Path(tmp))
-            runs = ([] if args.no_echo else [('echo', 'estimator')]) + \
-                [('node', mode) for mode in args.modes]
-            for server, mode in runs:
-                r = measure(count, rate, args, Path(tmp), server, mode)
+            runs = ([] if args.no_echo else [('echo', 'estimator', 'on')]) + \
+                [('node', mode, flag) for mode in args.modes for flag in args.sleeping]
+            for server, mode, flag in runs:
+                r = measure(count, rate, args, Path(tmp), server, mode, flag)
                 r['settle_world_ms'] = world_ms
                 rows.append(r)
                 _print_row(r)
@@ -520,7 +534,8 @@ def _print_row(r: dict[str, Any]) -> None:
     t = r['timings'] or r['lock_timings']
     answer, world = t.get('answer_time_mean_ms'), t.get('time.world_ms')
     overhead = answer - world if answer is not None and world is not None else None
-    print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["startup_s"]:.2f} | '
+    print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["sleeping"]} ({r["asleep"]}) | '
+          f'{r["startup_s"]:.2f} | '
           f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
           f'{r["sent"]} | {r["dropped"]} | {r["p50"]:.2f} | {r["p99"]:.2f} | '
           f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '

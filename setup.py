@@ -41,7 +41,8 @@ setup(
     license='Apache-2.0',
     python_requires='>=3.11',
     packages=find_packages(include=['collres_ros', 'collres_ros.*']),
-    package_data={'collres_ros': ['*.so', '_lib/*.so', 'msg/*.msg', 'core/_native*.so']},
+    package_data={'collres_ros': ['*.so', '_lib/*.so', 'msg/*.msg', 'srv/*.srv',
+                                  'core/_native*.so']},
     install_requires=['numpy', 'coal', 'PyYAML', 'rosbags', 'matplotlib'],
     cmdclass={'build_py': BuildWithInterfaces},
     entry_points={

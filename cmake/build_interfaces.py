@@ -6,7 +6,7 @@ Used by the Makefile (in-tree, for the editable install) and by setup.py
 CMakeLists.txt (rosidl_generate_interfaces) against the ROS 2 wheels of the
 running interpreter's environment, into a scratch prefix, then copies:
 
-* ``collres_ros/msg/`` (generated Python, plus the .msg definitions),
+* ``collres_ros/msg/`` and ``collres_ros/srv/`` (generated Python, plus the definitions),
 * ``collres_ros/collres_ros_s__rosidl_typesupport_*.so`` (extension modules),
 * ``collres_ros/_lib/libcollres_ros__rosidl_*.so`` (preloaded by collres_ros/__init__.py,
   because rmw dlopen()s typesupport libraries by bare name),
@@ -73,9 +73,10 @@ def build(dest: str, build_dir: str) -> None:
             sys.stderr.write(result.stdout[-6000:])
             raise SystemExit(f'error: {" ".join(cmd[:2])} failed (exit {result.returncode})')
     generated = os.path.join(install, site, 'collres_ros')
-    shutil.rmtree(os.path.join(dest, 'msg'), ignore_errors=True)
-    shutil.copytree(os.path.join(generated, 'msg'), os.path.join(dest, 'msg'),
-                    ignore=shutil.ignore_patterns('*.c', '__pycache__'))
+    for kind in ('msg', 'srv'):
+        shutil.rmtree(os.path.join(dest, kind), ignore_errors=True)
+        shutil.copytree(os.path.join(generated, kind), os.path.join(dest, kind),
+                        ignore=shutil.ignore_patterns('*.c', '__pycache__'))
     for ext in glob.glob(os.path.join(generated, 'collres_ros_s__*.so')):
         shutil.copy2(ext, dest)
     lib_dir = os.path.join(dest, '_lib')
@@ -87,8 +88,9 @@ def build(dest: str, build_dir: str) -> None:
         os.remove(old)
     for ext in glob.glob(os.path.join(generated, 'core', '_native*.so')):
         shutil.copy2(ext, os.path.join(dest, 'core'))
-    for definition in glob.glob(os.path.join(ROOT, 'msg', '*.msg')):
-        shutil.copy2(definition, os.path.join(dest, 'msg'))
+    for kind in ('msg', 'srv'):
+        for definition in glob.glob(os.path.join(ROOT, kind, f'*.{kind}')):
+            shutil.copy2(definition, os.path.join(dest, kind))
     with open(stamp, 'w') as f:
         f.write(fingerprint)
     print(f'interfaces built into {dest}')

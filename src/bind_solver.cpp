@@ -152,6 +152,8 @@ void bind_solver(py::module_& m) {
       .def_readwrite("impact_converged", &SolverParams::impact_converged)
       .def_readwrite("position_iterations", &SolverParams::position_iterations)
       .def_readwrite("shock_sweeps", &SolverParams::shock_sweeps)
+      .def_readwrite("shock_ratio", &SolverParams::shock_ratio)
+      .def_readwrite("depth_sweeps", &SolverParams::depth_sweeps)
       .def_readwrite("restitution_threshold", &SolverParams::restitution_threshold)
       .def_readwrite("sticking_speed", &SolverParams::sticking_speed)
       .def_readwrite("linear_slop", &SolverParams::linear_slop)

@@ -277,13 +277,18 @@ int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int it
 
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<int32_t>& order,
-                     std::vector<ContactRow>& scratch, int sweeps) {
+                     std::vector<ContactRow>& scratch, int sweeps, double ratio) {
   double* v = bodies.velocity;
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
     const ContactRow& row = rows[r];
     int32_t la = level[row.a], lb = level[row.b];
-    if (!row.bounce && la >= 0 && lb >= 0 && la != lb) order.push_back(static_cast<int32_t>(r));
+    if (row.bounce || la < 0 || lb < 0 || la == lb) continue;
+    // only on an immovable body or where the upper body is at least `ratio` times
+    // heavier than the lower one
+    const double inv_upper = la > lb ? row.ma : row.mb, inv_lower = la > lb ? row.mb : row.ma;
+    if (inv_lower == 0.0 || inv_upper * ratio <= inv_lower)
+      order.push_back(static_cast<int32_t>(r));
   }
   auto lower = [&](int32_t i) { return std::min(level[rows[i].a], level[rows[i].b]); };
   std::stable_sort(order.begin(), order.end(),

@@ -51,6 +51,8 @@ struct SolverParams {
   double impact_converged = 1e-10;      // relative impulse change that ends an impact stage
   int position_iterations = 4;          // split-impulse sweeps
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
+  double shock_ratio = 4.0;             // ... only under a body this many times heavier
+  double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack
   double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
   double linear_slop = 0.0001;          // m: penetration left alone by the position pass
@@ -92,6 +94,9 @@ struct ContactRow {
   double impact = 0.0;           // N s >= 0, normal impulse of the impact stages (their
                                  // compression and restitution; reported, not warm started)
   double impact_tangent[2] = {0, 0};  // N s, friction impulse of the impact stages, t1, t2
+  double landing = 0.0;          // N s, normal impulse that stopped the approach left at the
+                                 // touch of a contact closing within the step (reported,
+                                 // not warm started; StepSolver::land)
   double push = 0.0;             // m/s: pseudo normal speed the position pass asks for
   double pseudo = 0.0;           // N s (pseudo), accumulated by the position pass
 };
@@ -144,13 +149,15 @@ int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int it
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the
 // ground up, `level` (N,) the contact distance of each body
 // from an immovable one (0: immovable, -1: not connected to one), in which a row between
-// two levels treats its lower body as immovable. A heavy body on a light one is held in
-// the same step instead of after m_heavy / m_light sweeps; the rows' accumulated normal
-// impulses take up the change (what the next step warm starts from). `order` and
-// `scratch` are scratch space.
+// two levels treats its lower body as immovable. Only rows on an immovable body or under
+// an upper body at least `ratio` times heavier (by inverse mass) take part: a heavy body
+// on a light one is held in the same step instead of after m_heavy / m_light sweeps,
+// while between equal masses the one-sided rows would disturb the converging sweeps (a
+// tower of equal cubes walks). The rows' accumulated normal impulses take up the change
+// (what the next step warm starts from). `order` and `scratch` are scratch space.
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<int32_t>& order,
-                     std::vector<ContactRow>& scratch, int sweeps);
+                     std::vector<ContactRow>& scratch, int sweeps, double ratio);
 
 // Impacts as successive stages, before the resting contacts are solved. A stage takes
 // every row that approaches faster than `threshold` (and faster than its speculative

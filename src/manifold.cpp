@@ -14,6 +14,42 @@ constexpr double kRetryStep = 1e-6;     // m, B's step for a failed query (below
 
 Vec3 to_vec(const coal::Vec3s& v) { return Vec3(v[0], v[1], v[2]); }
 
+// Where the line p + t n (world, n unit) meets the surface of a box or a half-space
+// (t in m): for `entry` the smallest t in the solid (its surface facing -n, as B's faces
+// A), else the largest (facing +n, as A's faces B). False for other shapes and when the
+// line misses the solid.
+bool surface_along(const coal::CollisionGeometry& g, const coal::Transform3s& tf,
+                   const Vec3& p, const Vec3& n, bool entry, double& t) {
+  const Vec3 q = tf.getRotation().transpose() * (p - to_vec(tf.getTranslation()));
+  const Vec3 d = tf.getRotation().transpose() * n;
+  if (g.getNodeType() == coal::GEOM_BOX) {
+    // slabs grown by a rounding allowance: a patch's corner point grazes the box's corner
+    const Vec3 h = to_vec(static_cast<const coal::Box&>(g).halfSide);
+    const double grow = 1e-9 * h.maxCoeff();
+    double lo = -std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int i = 0; i < 3; ++i) {
+      if (std::abs(d[i]) < 1e-12) {
+        if (std::abs(q[i]) > h[i] + grow) return false;
+        continue;
+      }
+      const double t1 = (-h[i] - grow - q[i]) / d[i], t2 = (h[i] + grow - q[i]) / d[i];
+      lo = std::max(lo, std::min(t1, t2));
+      hi = std::min(hi, std::max(t1, t2));
+    }
+    if (lo > hi) return false;
+    t = entry ? lo : hi;
+    return true;
+  }
+  if (g.getNodeType() == coal::GEOM_HALFSPACE) {
+    const auto* half = static_cast<const coal::Halfspace*>(&g);
+    const double along = to_vec(half->n).dot(d);
+    if (std::abs(along) < 1e-12) return false;
+    t = (half->d - to_vec(half->n).dot(q)) / along;
+    return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 PairQuery::PairQuery() {
@@ -105,9 +141,15 @@ void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transfor
       polygon_.clear();
       for (std::size_t k = 0; k < patch.size(); ++k) polygon_.push_back(to_vec(patch.getPoint(k)));
       reduce_manifold(polygon_, normal, keep_);
+      // each point's own depth where the surface is known (boxes, half-spaces): a patch
+      // gathers points within kPatchTolerance of the plane, and a tilted face's far
+      // corners are not at the patch's one depth (a box would rest on them in the air)
       for (int k : keep_) {
-        points.push_back({polygon_[k] - half - 0.5 * loaded_shift_,
-                          polygon_[k] + half - 0.5 * loaded_shift_});
+        Vec3 on_a = polygon_[k] - half, on_b = polygon_[k] + half;
+        double t = 0.0;
+        if (surface_along(ga, ta, polygon_[k], normal, false, t)) on_a = polygon_[k] + t * normal;
+        if (surface_along(gb, moved, polygon_[k], normal, true, t)) on_b = polygon_[k] + t * normal;
+        points.push_back({on_a - 0.5 * loaded_shift_, on_b - 0.5 * loaded_shift_});
       }
       return;
     }

@@ -52,8 +52,9 @@ class PairQuery {
                   PointPair& closest);
   // The manifold of the loaded contact on the same pair (same poses): the coal patch
   // where faces touch, reduced to at most four points, else the witness points. The
-  // patch's points lie on the separating plane at one depth: each body's point is half of
-  // it along the normal from there.
+  // patch's points lie on the separating plane; each body's point is where the line
+  // along the normal through it meets that body's surface (boxes and half-spaces), else
+  // half the patch's one depth along the normal from there.
   void manifold(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                 const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                 std::vector<PointPair>& points);

@@ -53,15 +53,22 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio,
                      params.match_radius);
   warm_start(rows_, solver);
-  // iterate: sequential impulses (more sweeps while resting contacts are new), then
-  // shock propagation from the ground up
+  // iterate: sequential impulses (more sweeps while resting contacts are new, and at
+  // least depth_sweeps per level of the deepest stack), then shock propagation from the
+  // ground up
+  const int32_t depth = levels(n);
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
+  iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
   StepStats stats;
   stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged, &spins_);
   stats.rows = static_cast<int64_t>(rows_.size());
-  levels(n);
-  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps);
+  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps,
+                  params.shock_ratio);
+  // landing: the poses travel with these velocities; a speculative contact that closes
+  // within the step ends it touching, and with no approach left for the next step
+  travel_.assign(velocity_.begin(), velocity_.end());
+  land(solver, params);
   // store impulses for next step's warm start, then report them
   report(contacts, params, report_out);
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
@@ -260,6 +267,31 @@ double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double r
   return static_cast<double>(cold) / static_cast<double>(std::max<int64_t>(1, persistent));
 }
 
+void StepSolver::land(SolverBodies& solver, const SolverParams& p) {
+  // the landing rows: speculative (a gap at the reference time) and holding, i.e. the
+  // contact closes within the step and the solve let it approach by its gap only
+  landing_.resize(rows_.size());
+  bool any = false;
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    ContactRow& r = rows_[i];
+    landing_[i] = r.normal;
+    r.landing = 0.0;
+    if (gap_[r.contact] > 0.0 && r.allowance > 0.0 && r.normal > 0.0) {
+      r.allowance = 0.0;
+      any = true;
+    }
+  }
+  if (!any) return;
+  // every row again, the landing ones without allowance: the velocities (not the poses,
+  // which travel_ holds) leave the touching contacts at rest along their normals
+  solve_velocities(rows_, solver, p.velocity_iterations, p.converged, &spins_);
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    ContactRow& r = rows_[i];
+    r.landing = r.normal - landing_[i];     // reported, not warm started
+    r.normal = landing_[i];
+  }
+}
+
 void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOut& out) {
   const int64_t m = c.count;
   cached_normal_.assign(m, 0.0);      // what is stored for the warm start
@@ -271,7 +303,7 @@ void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOu
   for (const ContactRow& r : rows_) {
     const int64_t k = r.contact;
     cached_normal_[k] = r.normal;
-    out.normal_impulse[k] = r.normal + r.impact;
+    out.normal_impulse[k] = r.normal + r.impact + r.landing;
     store3(out.friction_impulse + 3 * k, friction_world(r));
     out.state[k] = contact_state(r, velocity_.data(), p.sticking_speed);
   }
@@ -302,7 +334,7 @@ void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOu
   }
 }
 
-void StepSolver::levels(int64_t n) {
+int32_t StepSolver::levels(int64_t n) {
   // contact graph of the rows (CSR), then breadth first from the immovable bodies
   first_.assign(n + 1, 0);
   for (const ContactRow& r : rows_) {
@@ -323,8 +355,10 @@ void StepSolver::levels(int64_t n) {
       level_[i] = 0;
       queue_.push_back(static_cast<int32_t>(i));
     }
+  int32_t depth = 0;
   for (size_t head = 0; head < queue_.size(); ++head) {
     int32_t i = queue_[head];
+    depth = std::max(depth, level_[i]);
     for (int32_t k = first_[i]; k < first_[i + 1]; ++k) {
       int32_t j = adjacency_[k];
       if (level_[j] < 0) {
@@ -333,6 +367,7 @@ void StepSolver::levels(int64_t n) {
       }
     }
   }
+  return depth;
 }
 
 void StepSolver::advance(const BodyStatesView& previous, const BodyStatesView& current,
@@ -341,14 +376,15 @@ void StepSolver::advance(const BodyStatesView& previous, const BodyStatesView& c
   for (int64_t i = 0; i < n; ++i) {
     if (!touched_[i]) continue;
     const double* v = velocity_.data() + 6 * i;
+    const double* u = travel_.data() + 6 * i;
     Vec3 x0 = load3(previous.position + 3 * i);
     Quat q0 = load4(previous.orientation + 4 * i);
     if (!impacted_[i]) {
-      // persistent contact only: previous pose advanced by the new velocity for dt
+      // persistent contact only: previous pose advanced by the travel velocity for dt
       store3(out.linear + 3 * i, load3(v));
       store3(out.angular + 3 * i, load3(v + 3));
-      store3(out.position + 3 * i, x0 + dt * load3(v));
-      store4(out.orientation + 4 * i, integrate(q0, load3(v + 3), dt));
+      store3(out.position + 3 * i, x0 + dt * load3(u));
+      store4(out.orientation + 4 * i, integrate(q0, load3(u + 3), dt));
       continue;
     }
     // impact: rewind to the time of impact, advance for the rest of the step
@@ -357,7 +393,7 @@ void StepSolver::advance(const BodyStatesView& previous, const BodyStatesView& c
     for (int d = 0; d < 6; ++d) {
       double external = now_[6 * i + d] - then_[6 * i + d];
       end[d] = v[d] + (0.5 - f) * external;        // mid-step twist, as the input's
-      mean[d] = v[d] + 0.5 * (1.0 - f) * external;
+      mean[d] = u[d] + 0.5 * (1.0 - f) * external;   // the travel of the poses
     }
     store3(out.linear + 3 * i, load3(end));
     store3(out.angular + 3 * i, load3(end + 3));
@@ -374,7 +410,7 @@ void StepSolver::push_out(const BodyProperties& bodies, const SolverParams& p, d
   // remaining time; beyond the slop a fraction of it (at most max_correction) is removed
   for (ContactRow& r : rows_) {
     double rel[3];
-    row_velocity(r, velocity_.data(), rel);
+    row_velocity(r, travel_.data(), rel);
     double predicted = gap_[r.contact] + rel[0] * remaining_[r.contact];
     double depth = std::min(p.position_correction *
                                 std::max(-predicted - p.linear_slop, 0.0),

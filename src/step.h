@@ -27,15 +27,21 @@
 //    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
 //    every row starts cold, so no timing of the inputs can launch a resting body;
 // 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
-//    a block (more sweeps while the resting contacts are new), then
+//    a block (more sweeps while the resting contacts are new, and at least depth_sweeps
+//    per level of the deepest stack: a load passes down one level per sweep), then
 //    shock propagation from the ground up (a heavy body on a light one);
-// 6. store impulses for the next step (without the impact stages' part);
-// 7. advance: impacted bodies from their time of impact with the new velocity for the
+// 6. landing: the poses travel with the velocities solved so far; a speculative contact
+//    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
+//    is solved again with no allowance, for the velocities only, so it ends the step
+//    touching and with no approach left to bounce on next step (land);
+// 7. store impulses for the next step (without the impact stages' and landing's part);
+// 8. advance: impacted bodies from their time of impact with the travel velocity for the
 //    rest of the step, (1 - f) dt; persistent-only bodies from the previous pose for dt;
-// 8. split-impulse position pass: penetration beyond the slop predicted at the end of the
+//    the state's twist is the landed velocity;
+// 9. split-impulse position pass: penetration beyond the slop predicted at the end of the
 //    step is pushed out (poses only, no velocity: no energy gain);
-// 9. report: normal impulse (with the impact stages'), friction impulse, state per contact; a
-//    sticking pair whose friction impulses cancel is reported RESTING.
+// 10. report: normal impulse (with the impact stages' and landing's), friction impulse,
+//    state per contact; a sticking pair whose friction impulses cancel is RESTING.
 // Bodies without contact keep their current state (the caller's output arrays start as
 // a copy of the current states and only touched movable bodies are written).
 #pragma once
@@ -125,11 +131,12 @@ class StepSolver {
   void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
   double warm(const ContactsView& c, double dt, bool enabled, double ratio,
               double match_radius);
-  void levels(int64_t n);
+  int32_t levels(int64_t n);   // contact levels (level_); returns the largest
   void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
                BodyStatesOut& out);
   void push_out(const BodyProperties& bodies, const SolverParams& p, double dt,
                 BodyStatesOut& out);
+  void land(SolverBodies& solver, const SolverParams& p);
   void report(const ContactsView& c, const SolverParams& p, ContactsOut& out);
 
   ContactCache cache_;
@@ -137,6 +144,7 @@ class StepSolver {
   bool last_warm_ = false;            // that step was not fresh: its impulses may seed
   // per body (scratch, reused across steps)
   std::vector<double> velocity_;     // (N, 6) working velocity
+  std::vector<double> travel_;       // (N, 6) velocity the poses advance with (before landing)
   std::vector<double> now_;          // (N, 6) current twist (held, non-finite: 0)
   std::vector<double> then_;         // (N, 6) previous twist (held, non-finite: 0)
   std::vector<double> pseudo_;       // (N, 6) split-impulse pseudo velocity
@@ -148,7 +156,7 @@ class StepSolver {
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
-  std::vector<double> cached_normal_, cached_friction_, impact_work_;
+  std::vector<double> cached_normal_, cached_friction_, impact_work_, landing_;
   std::vector<uint8_t> found_;
   std::vector<int64_t> order_, pair_order_;
   std::vector<ContactRow> rows_, shock_rows_;

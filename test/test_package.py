@@ -28,7 +28,7 @@ IMPORT_TO_KEY = {
 def _imported_top_level_modules() -> set[str]:
     names: set[str] = set()
     for path in (ROOT / 'collres_ros').rglob('*.py'):
-        if '/msg/' in str(path):
+        if '/msg/' in str(path) or '/srv/' in str(path):
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Import):
@@ -104,8 +104,9 @@ def test_colcon_builds_the_package_against_the_ros_environment(tmp_path: Path) -
     source = tmp_path / 'src' / 'collres_ros'
     shutil.copytree(ROOT, source, ignore=shutil.ignore_patterns(
         '.venv', '.git', 'build', 'install', 'log', 'demo_out', '_lib', '*.so', '__pycache__',
-        'msg', 'test', 'bench', '.pytest_cache', '.hypothesis'))
+        'msg', 'srv', 'test', 'bench', '.pytest_cache', '.hypothesis'))
     shutil.copytree(ROOT / 'msg', source / 'msg')
+    shutil.copytree(ROOT / 'srv', source / 'srv')
     prefix = sys.prefix
     env = dict(os.environ, AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix,
                PATH=f'{os.path.dirname(sys.executable)}:{os.environ["PATH"]}')
@@ -131,6 +132,9 @@ def test_colcon_builds_the_package_against_the_ros_environment(tmp_path: Path) -
              'from rclpy.serialization import serialize_message, deserialize_message\n'
              'm = ContactArray(contacts=[Contact(body_a="a", state=Contact.IMPACT)])\n'
              'assert deserialize_message(serialize_message(m), ContactArray) == m\n'
+             'from collres_ros.srv import GetContacts\n'
+             'r = GetContacts.Response(stepped=True, contacts=[Contact(body_b="b")])\n'
+             'assert deserialize_message(serialize_message(r), GetContacts.Response) == r\n'
              'import collres_ros.msg; print(collres_ros.msg.__file__)\n'
              'from collres_ros.core import _native; print(_native.__file__)\n'
              'assert _native.combine(0.25, 1.0, _native.CombineRule.geometric) == 0.5\n')

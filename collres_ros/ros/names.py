@@ -18,6 +18,7 @@ BODY_MARKERS = 'body_markers'               # out: MarkerArray, each body's shap
 TF = '/tf'                                  # out: tf2_msgs/TFMessage (where installed)
 DIAGNOSTICS = '/diagnostics'                # out: DiagnosticArray (absolute: diagnostic_updater)
 CLOCK = '/clock'                            # sim out: rosgraph_msgs/Clock
+GET_CONTACTS = 'get_contacts'               # service: GetContacts, the last step's contacts
 
 
 BODIES = 'bodies/'   # the per-body topics' prefix
@@ -36,6 +37,11 @@ def twist_topic(name: str, corrected: bool = False) -> str:
 def wrench_topic(name: str) -> str:
     """``bodies/<name>/contact_wrench`` (output, WrenchStamped)."""
     return f'{BODIES}{name}/contact_wrench'
+
+
+def in_contact_topic(name: str) -> str:
+    """``bodies/<name>/in_contact`` (output, std_msgs/Bool, with ``contact_state``)."""
+    return f'{BODIES}{name}/in_contact'
 
 
 def output_topics(body_names: list[str]) -> list[str]:

@@ -21,10 +21,12 @@ every non-stale dynamic body has both for one stamp, see ``sync.py``); out
 ``body_states/corrected``, ``bodies/<name>/{pose,twist}/corrected`` (for
 per-body steps), ``contacts``, ``contact_markers`` and ``body_markers`` (built
 only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
-``contact_wrench``), ``/tf`` (with ``publish_tf``, where tf2_msgs is installed),
-``/diagnostics``. The per-body subscriptions belong to a second node,
-``<name>_per_body``, spun in a thread of its own (``PerBodyInputs``): the
-``body_states`` path costs the same whatever the number of bodies' topics.
+``contact_wrench``), ``bodies/<name>/in_contact`` (with ``contact_state``), ``/tf``
+(with ``publish_tf``, where tf2_msgs is installed), ``/diagnostics``; the service
+``get_contacts`` answers the last step's contacts (``ros/contact_sensing.py``). The
+per-body subscriptions belong to a second node, ``<name>_per_body``, spun in a thread of
+its own (``PerBodyInputs``): the ``body_states`` path costs the same whatever the number of
+bodies' topics.
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
 ``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
@@ -78,6 +80,7 @@ from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
 from collres_ros.ros import cli, codec, messages, names, params, qos
+from collres_ros.ros.contact_sensing import ContactSensing
 from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array, sleep_values,
                                          status_name)
 from collres_ros.ros.health import Health
@@ -103,6 +106,11 @@ except ImportError:
 TIMED = ('decode', 'resolve', 'world', 'encode', 'publish')
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
 UNPAIRED_AFTER = 1.0   # s of per-body inputs without a per-body step before /diagnostics warns
+
+
+def contact_state(settings: Any) -> tuple[bool, float, int]:
+    """The in_contact settings of the node settings (a change restarts the states)."""
+    return settings.contact_state, settings.contact_on_impulse, settings.contact_off_steps
 
 
 def params_file_dir(argv: Sequence[str]) -> Optional[Path]:
@@ -154,6 +162,9 @@ class CollresNode(Node):
         self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame,
                                               self.scene.bodies)
         self.refused: Counter[str] = Counter()   # inputs refused before the resolver
+        # bodies/<name>/in_contact (with contact_state) and the get_contacts service
+        self.contact_sensing = ContactSensing(self, body_names, self.encoder.contacts)
+        self._configure_contact_state()
         statics = [b.name for b in self.scene.bodies if b.static]
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]
         self.sync = StampSync(self.dynamic, statics, seconds_ns(self.scene.node.sync_slop),
@@ -190,6 +201,7 @@ class CollresNode(Node):
     def release_resolution(self) -> None:
         """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
         self.per_body_inputs.close()
+        self.contact_sensing.close()
         self.serving = self.configured = False
         self.destroy_timer(self._timer)
         for subscription in self._inputs:
@@ -248,6 +260,8 @@ class CollresNode(Node):
         self.states_codec.max_bodies = new.node.max_message_bodies
         self.sync.slop_ns = seconds_ns(new.node.sync_slop)
         self.sync.stale_timeout_ns = seconds_ns(new.node.stale_timeout)
+        if contact_state(new.node) != contact_state(old.node):
+            self._configure_contact_state()
         if new.node.diagnostics_period != old.node.diagnostics_period:
             self.destroy_timer(self._timer)
             self._timer = self._diagnostics_timer()
@@ -338,6 +352,7 @@ class CollresNode(Node):
             self._publisher(topic, CLASSES[kind]).publish(data)
         done = time.perf_counter()
         self.last_step = step
+        self.contact_sensing.step(step)
         self._served += len(step.names)
         w = self._window
         w['steps'] += 1
@@ -361,6 +376,11 @@ class CollresNode(Node):
             self._warn(item.reason, f'input refused [{item.reason}]: {item.detail}')
         for item in step.resets:
             self._warn(item.reason, f'fresh start [{item.reason}]: {item.detail}')
+
+    def _configure_contact_state(self) -> None:
+        node = self.scene.node
+        self.contact_sensing.configure(node.contact_state, node.contact_on_impulse,
+                                       node.contact_off_steps)
 
     def _publisher(self, topic: str, kind: type) -> Any:
         publisher = self._publishers_by_topic.get(topic)

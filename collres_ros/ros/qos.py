@@ -52,6 +52,16 @@ def state_qos(depth: int) -> QoSProfile:
                       liveliness=LivelinessPolicy.AUTOMATIC)
 
 
+def latched_qos() -> QoSProfile:
+    """Reliable, transient local, keep last 1: a state published on change
+    (``bodies/<name>/in_contact``), which a subscriber that joins later still receives, as
+    robot_state_publisher offers ``robot_description``."""
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                      history=HistoryPolicy.KEEP_LAST, depth=1,
+                      liveliness=LivelinessPolicy.AUTOMATIC)
+
+
 def offered(topic: str, queue_depth: int) -> QoSProfile:
     """The profile collres_node (or, for its inputs, collres_sim) offers on ``topic``.
 

@@ -169,21 +169,23 @@ def test_slow_approach_rests_without_bounce():
     """Below restitution_threshold the contact is RESTING: no bounce (the resting rule).
 
     The pair is 1 cm apart at the previous state (a speculative contact): it
-    may close that gap during the step, then stops with zero relative speed.
+    may close that gap during the step, then stops with zero relative speed in that
+    same step (no approach is left for the next step to bounce on), and stays.
     """
     world, before, result = head_on(1.0, 1.0, 1.0, 0.2, -0.2, start=0.105)
     first = result.states
     gap = first.position[1, 0] - first.position[0, 0] - 0.2
     print(f'after step 1: gap {gap}, relative velocity {first.linear[1, 0] - first.linear[0, 0]}')
-    assert gap >= -1e-9
-    second = first.copy()
-    second.position += second.linear * 0.1
-    result = world.step(first, second, 0.1)
-    out = result.states
+    assert abs(gap) <= 1e-9
     assert result.report.contacts.count >= 1 and result.report.normal_impulse.sum() > 0.0
     assert np.all(result.report.state == ContactState.RESTING)
+    assert abs(first.linear[1, 0] - first.linear[0, 0]) < 1e-9
+    second = first.copy()
+    second.position += second.linear * 0.1
+    out = world.step(first, second, 0.1).states
     print('relative velocity after step 2', out.linear[1, 0] - out.linear[0, 0])
     assert abs(out.linear[1, 0] - out.linear[0, 0]) < 1e-9
+    assert out.position[1, 0] - out.position[0, 0] - 0.2 == pytest.approx(gap, abs=1e-9)
 
 
 def test_tunnelling_sphere_bounces_back_from_thin_wall():

@@ -9,7 +9,9 @@ the event under test happened (bounces, friction impulses, contacts).
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import BodySpec, ContactState
 
 from contacts import box, sphere, states  # noqa: I100
@@ -149,3 +151,51 @@ def test_penetration_is_pushed_out_without_velocity():
     assert depth[-1] < 0.006                        # back within the slop (5 mm) + margin
     assert np.all(np.diff(depth) <= 1e-9)
     assert max(speed) < 1e-3
+
+
+def bounces_to_rest(e: float, h: float, threshold: float) -> float:
+    """Time (s) a ball dropped from h comes to rest on a floor: the bounces whose approach
+    reaches the restitution threshold, each leaving at e times its approach, then rest.
+    As the threshold goes to 0 this is t0 (1 + e) / (1 - e), t0 = sqrt(2 h / g)."""
+    t0 = np.sqrt(2 * h / G)
+    bounces = int(np.floor(np.log(threshold / (G * t0)) / np.log(e))) + 1
+    return t0 * (1 + 2 * e * (1 - e ** bounces) / (1 - e))
+
+
+def rest_time(rate: float, threshold: float, e: float = 0.8, h: float = 0.3,
+              r: float = 0.1) -> tuple[float, np.ndarray]:
+    """When the ball last left the floor by more than 10 um (s), and its heights (m)."""
+    sim = Simulation([floor(e=0.0), sphere('ball', r, 1.0, e=e)],
+                     states([[0, 0, 0], [0, 0, h + r]], np.zeros((2, 3))), rate,
+                     SolverSettings(restitution_threshold=threshold))
+    trace = sim.run(3.0)
+    height = trace.positions()[:, 1, 2] - r
+    above = np.flatnonzero(height > 1e-5)
+    return (above[-1] + 1) / rate, height
+
+
+def test_bouncing_ball_comes_to_rest_when_the_bounce_law_says():
+    """A contact that stops mid-step leaves no sinking velocity for the next step: the
+    ball dropped from 0.3 m (e 0.8, 240 Hz, threshold 0.05 m/s) rests within a few
+    steps of the bounce law (before: 12 % late, hopping on 1.5 g dt of approach; the
+    integrator's own timing of 18 bounces accounts for ~5 steps)."""
+    rate, e, threshold = 240.0, 0.8, 0.05
+    rest, height = rest_time(rate, threshold, e)
+    law = bounces_to_rest(e, 0.3, threshold)
+    limit = np.sqrt(2 * 0.3 / G) * (1 + e) / (1 - e)
+    print(f'rests at {rest:.4f} s; law with the threshold {law:.4f} s, '
+          f't0 (1 + e) / (1 - e) = {limit:.4f} s')
+    assert abs(rest - law) <= 8 / rate
+    assert abs(rest - limit) <= 0.03 * limit
+    assert np.all(np.abs(height[int(rest * rate):]) < 1e-5)
+
+
+@pytest.mark.parametrize('rate', [60.0, 120.0, 240.0])
+def test_any_threshold_above_g_dt_lets_a_ball_rest(rate):
+    """The README's rule: a restitution threshold above g dt (the approach a resting body
+    gathers in one step) brings a bouncing ball to rest as the bounce law says."""
+    threshold = 1.1 * G / rate
+    rest, _ = rest_time(rate, threshold)
+    law = bounces_to_rest(0.8, 0.3, threshold)
+    print(f'{rate:.0f} Hz, threshold {threshold:.4f} m/s: rests at {rest:.4f} s, law {law:.4f} s')
+    assert abs(rest - law) <= 8 / rate

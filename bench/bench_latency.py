@@ -37,10 +37,13 @@ answer. The node's callback split comes from its ``/diagnostics`` values:
 ``callback_time_mean_ms``; an older node reports only the callback and
 ``step_time_mean_ms`` (resolve), so the others show ``n/a``.
 
-``--sleeping``: the node runs with ``solver.sleeping`` on (the default: the settled pile
-falls asleep during the lock-step run, 0.5 s after its start) and/or off (every step
-detected and solved); the row says which, and how many bodies the node's last
-/diagnostics reported asleep.
+``--sleeping``: the node runs with ``solver.sleeping`` on (the default) and/or off (every
+step detected and solved); the row says which, and how many bodies the node's last
+/diagnostics reported asleep. The pile falls asleep in the lock-step run once the node has
+answered ``time_to_sleep`` (0.5 s) of stamps of a still pile, 50 steps at 100 Hz: give
+1000 bodies a ``--settle`` that brings them to rest (3 s) and a ``--lockstep`` long enough
+for 50 awake steps. A step the node misses starts its bodies fresh, which wakes every island:
+a pile never falls asleep under a node that drops steps.
 
 Runs against whatever ``collres_ros`` the interpreter imports (set PYTHONPATH
 to a checkout to measure that one; its generated ``msg/`` must be present).

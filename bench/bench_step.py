@@ -21,6 +21,21 @@ pybullet rapier3d`` when one is missing), reporting ms per step and contact poin
 step. Ratios are ours / theirs in the same run. The table is also written as JSON
 (``--out``, default ``bench_out/step.json``). Timings on a shared machine: read the
 ratios, not the absolute numbers.
+
+The columns above are the awake step (``solver.sleeping`` off). Then, per pile and size,
+sleeping (``solver.sleeping`` on, the same run; ``--no-sleeping`` skips it):
+
+* asleep: the pile, with one more box held still above it (its upstream applies no
+  gravity yet), settled at 120 Hz until every island sleeps (the time it took); then
+  ``--steps`` steps timed, and their ratio to the awake step;
+* kept moving: the settled pile with a random velocity kick (0.2 m/s rms) on every body
+  every step, so nothing ever sleeps, stepped by two worlds, sleeping on and off, on the
+  same inputs in alternating order: the overhead of the bookkeeping (on / off - 1);
+* the drop: the box released onto the sleeping pile: the step its first contact with the
+  pile appears and the first wake before it, the bodies and islands woken by then and by
+  the end, its vertical speed before and after the impact (the first IMPACT contact), the
+  deepest penetration of the answers (a detector of its own on the answered poses), and
+  the largest step time meanwhile.
 """
 
 from __future__ import annotations
@@ -88,14 +103,17 @@ def coal_detection(bodies, state, repeats: int = 20) -> tuple[float, int]:
     return 1000.0 * float(np.median(times)), int(contacts)
 
 
+AWAKE = SolverSettings(sleeping=False)
+
+
 def settled_steps(kind: str, size: int, steps: int, settle_s: float, dt: float):
-    """Settle a pile at step ``dt``, then time ``steps`` more World.step calls.
+    """Settle a pile at step ``dt``, then time ``steps`` more World.step calls (awake).
 
     Returns (bodies, final state, per-step lists: total s, detect s, solve s, contact
     points, solver rows, velocity sweeps).
     """
     bodies, state = make_pile(size, kind=kind)
-    world = World(bodies, SolverSettings())
+    world = World(bodies, AWAKE)
     for _ in range(int(settle_s / dt)):
         state = world.step(state, integrate(state, world.dynamic, dt), dt).states
     timed = {key: [] for key in ('total', 'detect', 'solve', 'contacts', 'rows', 'sweeps')}
@@ -136,6 +154,133 @@ def ours(kind: str, size: int, steps: int, settle_s: float) -> dict:
 
 
 PEER_PACKAGES = ('mujoco', 'pybullet', 'rapier3d')
+
+
+def sleeping(kind: str, size: int, steps: int, awake_ms: float, seed: int = 7) -> dict:
+    """The sleeping figures of one pile (module docstring): asleep, kept moving, the drop."""
+    from collres_ros.core.types import BodySpec, BodyStates
+    bodies, state = make_pile(size, kind=kind)
+    top = float(state.position[:, 2].max())
+    drop = BodySpec('dropped', 'box', (0.1, 0.1, 0.1), mass=1.0, restitution=0.2,
+                    static_friction=0.6, kinetic_friction=0.4)
+    bodies = bodies + [drop]
+    state = BodyStates(*(np.vstack([a, b]) for a, b in zip(
+        (state.position, state.orientation, state.linear, state.angular),
+        ([[0.0, 0.0, top + 1.0]], [[0.0, 0.0, 0.0, 1.0]], [[0.0] * 3], [[0.0] * 3]))))
+    world = World(bodies, SolverSettings())
+    box = len(bodies) - 1
+    held = world.dynamic.copy()
+    held[box] = False                      # the box's upstream applies no gravity yet
+    t, limit = 0.0, 20.0
+    while True:
+        result = world.step(state, integrate(state, held, DT), DT)
+        state, t = result.states, t + DT
+        if result.sleeping[world.dynamic].all() or t > limit:
+            break
+    asleep_after = t
+    times = []
+    for _ in range(steps):
+        current = integrate(state, held, DT)
+        start = time.perf_counter()
+        result = world.step(state, current, DT)
+        times.append(time.perf_counter() - start)
+        state = result.states
+    asleep_ms = 1000.0 * float(np.median(times))
+    counts = world.sleep.counts()
+    # the drop: gravity on the box from now on; the same drop from the same poses by an
+    # awake world (sleeping off) for comparison
+    at_release = state.copy()
+    drop = _drop(world, state, box, result.sleeping.copy())
+    plain = _drop(World(bodies, AWAKE), at_release, box, np.zeros(len(bodies), bool))
+    # kept moving: two worlds, the same kicked inputs, alternating order
+    bodies_pile, moving = make_pile(size, kind=kind)
+    worlds = {True: World(bodies_pile, SolverSettings()), False: World(bodies_pile, AWAKE)}
+    rng = np.random.default_rng(seed)
+    dyn = worlds[False].dynamic
+    kicked = {True: [], False: []}
+    for k in range(int(0.5 / DT) + 2 * steps):
+        current = integrate(moving, dyn, DT)
+        current.linear[dyn] += rng.normal(0.0, 0.2 / np.sqrt(3), (int(dyn.sum()), 3))
+        out = None
+        for flag in ((True, False) if k % 2 else (False, True)):
+            start = time.perf_counter()
+            res = worlds[flag].step(moving, current, DT)
+            kicked[flag].append(time.perf_counter() - start)
+            if not flag:
+                out = res.states
+            elif res.sleeping.any():
+                raise AssertionError('a kicked body fell asleep')
+        moving = out
+    skip = int(0.5 / DT)
+    on, off = (float(np.median(kicked[f][skip:])) for f in (True, False))
+    return {'asleep_after_s': asleep_after, 'asleep_ms': asleep_ms,
+            'asleep_ratio': asleep_ms / awake_ms, **counts,
+            'moving_on_ms': 1000.0 * on, 'moving_off_ms': 1000.0 * off,
+            'moving_overhead': on / off - 1.0,
+            'drop': drop, 'drop_awake': plain}
+
+
+def _drop(world: World, state, box: int, asleep_before: np.ndarray) -> dict:
+    """The box (index ``box``, held still so far) released onto the pile: when the pile
+    wakes and is touched, the impact, the answers' deepest penetration, the worst step."""
+    from collres_ros.core.detection import Detection
+    from collres_ros.core.types import ContactState
+    probe = Detection(world.specs, AWAKE)   # penetration of the answers (a detector of its own)
+    in_pile = world.dynamic.copy()
+    in_pile[box] = False
+    islands_before = world.sleep.counts()['sleeping_islands']
+    log = {'first_wake': None, 'hit': None, 'impact': None, 'v_before': 0.0, 'v_after': 0.0,
+           'deepest_m': 0.0, 'worst_ms': 0.0, 'woke_by_hit': 0}
+    for k in range(int(1.5 / DT)):
+        current = integrate(state, world.dynamic, DT)
+        start = time.perf_counter()
+        result = world.step(state, current, DT)
+        log['worst_ms'] = max(log['worst_ms'], 1000.0 * (time.perf_counter() - start))
+        c = result.report.contacts
+        touching = ((c.body_a == box) & in_pile[c.body_b]) | \
+            ((c.body_b == box) & in_pile[c.body_a])
+        sleeping = np.zeros(len(in_pile), bool) if result.sleeping is None else result.sleeping
+        woken = asleep_before & ~sleeping & in_pile
+        if log['first_wake'] is None and woken.any():
+            log['first_wake'] = k
+        if log['hit'] is None and touching.any():
+            log['hit'] = k
+            log['woke_by_hit'] = int(woken.sum())   # woken since the release
+        if log['impact'] is None and (touching
+                                      & (result.report.state == ContactState.IMPACT)).any():
+            log['impact'] = k
+            log['v_before'] = float(state.linear[box, 2])
+            log['v_after'] = float(result.states.linear[box, 2])
+        if log['hit'] is not None:
+            seen = probe.detect(result.states, result.states)
+            mine = (seen.body_a == box) | (seen.body_b == box)
+            if mine.any():
+                log['deepest_m'] = max(log['deepest_m'], float(-seen.separation[mine].min()))
+        state = result.states
+        if log['hit'] is not None and k > log['hit'] + int(0.5 / DT):
+            break
+    log['woke_total'] = int((asleep_before & ~sleeping & in_pile).sum())
+    log['islands_before'] = islands_before
+    log['islands_after'] = world.sleep.counts()['sleeping_islands']
+    return log
+
+
+def print_sleeping(row: dict) -> None:
+    s = row['sleeping']
+    print(f'  sleeping {row["pile"]} {row["bodies"]}: asleep after {s["asleep_after_s"]:.2f} s '
+          f'({s["sleeping_islands"]} islands); asleep step {s["asleep_ms"]:.3f} ms = '
+          f'{100 * s["asleep_ratio"]:.1f} % of the awake {row["step_ms"][0]:.2f} ms; kept '
+          f'moving {s["moving_on_ms"]:.2f} ms on / {s["moving_off_ms"]:.2f} ms off '
+          f'({100 * s["moving_overhead"]:+.1f} %)', flush=True)
+    d, p = s['drop'], s['drop_awake']
+    print(f'  drop onto the sleeping pile: first wake at step {d["first_wake"]}, first '
+          f'contact at {d["hit"]} ({d["woke_by_hit"]} bodies woken by then, '
+          f'{d["woke_total"]} by the end, of {s["sleeping_bodies"] - 1}; sleeping islands '
+          f'{d["islands_before"]} -> {d["islands_after"]}), impact at {d["impact"]}: box '
+          f'{d["v_before"]:.3f} -> {d["v_after"]:.3f} m/s, deepest penetration of the '
+          f'answers {1000 * d["deepest_m"]:.3f} mm, worst step {d["worst_ms"]:.2f} ms; '
+          f'awake: contact at {p["hit"]}, impact at {p["impact"]}: {p["v_before"]:.3f} -> '
+          f'{p["v_after"]:.3f} m/s, deepest {1000 * p["deepest_m"]:.3f} mm', flush=True)
 
 
 def peer_python(venv: Path) -> Path | None:
@@ -200,6 +345,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--peer-venv', type=Path, default=Path(os.environ.get(
         'COLLRES_PEER_VENV', cache / 'collres_ros' / 'peer-venv')))
     parser.add_argument('--no-peers', action='store_true', help='time the core only')
+    parser.add_argument('--no-sleeping', action='store_true', help='skip the sleeping figures')
     parser.add_argument('--out', type=Path, default=ROOT / 'bench_out' / 'step.json')
     args = parser.parse_args(argv)
     python = None if args.no_peers else peer_python(args.peer_venv)
@@ -214,6 +360,9 @@ def main(argv: list[str] | None = None) -> int:
             row['peers'] = peers(python, row, args.steps) if python else \
                 {name: None for name in PEER_ENGINES}
             print_row(row)
+            if not args.no_sleeping:
+                row['sleeping'] = sleeping(kind, size, args.steps, row['step_ms'][0])
+                print_sleeping(row)
             del row['_scene']
             rows.append(row)
     print('ms per step at 120 Hz (contact points per step in brackets); points/rows: our '

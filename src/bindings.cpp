@@ -5,4 +5,5 @@ PYBIND11_MODULE(_native, m) {
   m.doc() = "collres_ros compiled contact core (detection and sequential-impulse solver)";
   bind_solver(m);
   bind_detection(m);
+  bind_islands(m);
 }

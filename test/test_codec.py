@@ -119,8 +119,8 @@ def legacy_bytes(stamp: int, frame: str, names, values) -> bytes:
     types = get_types_from_msg(LEGACY_BODY_STATE, 'collres_ros_legacy/msg/BodyState')
     types.update(get_types_from_msg(LEGACY_ARRAY, 'collres_ros_legacy/msg/BodyStateArray'))
     store.register(types)
-    State, Array = (store.types[f'collres_ros_legacy/msg/{n}'] for n in ('BodyState',
-                                                                           'BodyStateArray'))
+    State = store.types['collres_ros_legacy/msg/BodyState']
+    Array = store.types['collres_ros_legacy/msg/BodyStateArray']
     g = store.types
     header = g['std_msgs/msg/Header'](g['builtin_interfaces/msg/Time'](
         stamp // 10**9, stamp % 10**9), frame)
@@ -131,7 +131,8 @@ def legacy_bytes(stamp: int, frame: str, names, values) -> bytes:
         twist = g['geometry_msgs/msg/Twist'](g['geometry_msgs/msg/Vector3'](*v[7:10]),
                                              g['geometry_msgs/msg/Vector3'](*v[10:13]))
         bodies.append(State(name, pose, twist))
-    return bytes(store.serialize_cdr(Array(header, bodies), 'collres_ros_legacy/msg/BodyStateArray'))
+    return bytes(store.serialize_cdr(Array(header, bodies),
+                                     'collres_ros_legacy/msg/BodyStateArray'))
 
 
 @SETTINGS
@@ -343,17 +344,21 @@ def test_malformed_messages_are_refused_not_crashed_on() -> None:
         codec.decode_twist(b'\x00\x01\x00\x00' + b'\x00' * 10)
 
 
-def test_states_padded_to_four_bytes_as_dds_delivers_them_are_read() -> None:
-    """DDS pads a serialised message to a multiple of 4 bytes (a BodyStateArray now ends
-    with the last body's one-byte ``sleeping``): read with and without the padding, on the
-    parsed and on the cached path; more than the padding is still refused."""
-    states = codec.StatesCodec(3)
-    data = states.encode(7, 'world', ['ball', 'box'], np.arange(26.0).reshape(2, 13),
-                         np.array([True, False]))
+def test_payload_padded_to_4_bytes_between_processes_is_read() -> None:
+    """Between processes rmw_fastrtps delivers a BodyStateArray (it ends with a bool) padded
+    with zeros to a multiple of 4 (272 bytes for a message of 269): decoded as the message;
+    a non-zero byte there, or 4 of them, is refused."""
+    names, values = ['ball', 'box'], np.arange(26, dtype=float).reshape(2, 13)
+    data = codec.StatesCodec().encode(5, 'world', names, values, np.array([True, False]))
     pad = -len(data) % 4
-    assert pad, 'the message ends unaligned (else this test tests nothing)'
-    for reader in (codec.StatesCodec(3), states):   # parsed first, then from the cache
-        for got in (reader.decode(data + b'\x00' * pad), reader.decode(data)):
-            assert got.names == ['ball', 'box'] and got.sleeping.tolist() == [True, False]
-            assert got.values.tolist() == np.arange(26.0).reshape(2, 13).tolist()
-    _refused(data + b'\x00' * (pad + 4), 'malformed', max_bodies=None)
+    assert pad   # 4 + header + bodies, the last one ending with its flag
+    padded = data + bytes(pad)
+    cached = codec.StatesCodec()
+    cached.decode(data)
+    for states in (codec.StatesCodec(), cached):   # parsed, and from a cached layout
+        got = states.decode(padded)
+        assert got.names == names and got.sleeping.tolist() == [True, False]
+        assert np.array_equal(got.values, values)
+    assert deserialize_message(padded, BodyStateArray).bodies[0].sleeping
+    _refused(data + bytes(pad - 1) + b'\x01', 'malformed', max_bodies=None)
+    _refused(data + bytes(pad + 4), 'malformed', max_bodies=None)

@@ -39,7 +39,8 @@ def test_hand_written_and_generated_modules_share_the_package() -> None:
     import collres_ros.msg as msg
     assert Path(msg.__file__).parent.parent == Path(types.__file__).parent.parent
     # the message constants equal the core's ContactState values
-    assert [Contact.IMPACT, Contact.RESTING, Contact.SLIDING, Contact.STICKING] == [
+    assert [Contact.IMPACT, Contact.RESTING, Contact.SLIDING, Contact.STICKING,
+            Contact.SLEEPING] == [
         int(s) for s in types.ContactState]
 
 

@@ -97,7 +97,7 @@ def test_outputs_of_a_step_with_a_contact():
     assert isinstance(markers, MarkerArray)
     assert markers.markers[0].action == Marker.DELETEALL
     # a constant number of markers, the contacts as list markers, one per state
-    assert len(markers.markers) == 9
+    assert len(markers.markers) == 11   # DELETEALL, points and normals of 5 states
     assert [(m.ns, m.id, m.type, m.action) for m in markers.markers[1:3]] == [
         ('contact_points', 1, Marker.SPHERE_LIST, Marker.ADD),
         ('contact_normals', 1, Marker.LINE_LIST, Marker.ADD)]

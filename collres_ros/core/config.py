@@ -94,6 +94,22 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               '(counted: contact_budget)', 1, 10_000_000,
               reason='bounds the solver\'s work (PhysX contact buffer); a 1000-cube pile has '
                      '16000'),
+    ParamSpec('sleeping', 'bool', True,
+              'Islands of bodies at rest for time_to_sleep sleep: answered with their held '
+              'pose and zero twist, without detection or solve, until a push, a touch, a '
+              'change or a clock jump wakes them (BodyState.sleeping flags them)',
+              reason='a settled pile then costs almost nothing (Box2D v3 and Jolt sleep by '
+                     'default; MuJoCo 4 leaves it off)'),
+    ParamSpec('sleep_threshold', 'double', 0.05,
+              'A body is still while the speed of its farthest point (linear + angular speed '
+              'times its bounding radius) stays below this; an input that departs from the '
+              'held state by more wakes its island',
+              0.0, 10.0, unit='m/s',
+              reason='Box2D v3\'s b2_sleepThreshold (0.05 m/s); Jolt uses 0.03 m/s'),
+    ParamSpec('time_to_sleep', 'double', 0.5,
+              'How long every body of an island must stay still before the island sleeps',
+              0.0, 3600.0, unit='s',
+              reason='Box2D\'s b2_timeToSleep and Jolt\'s mTimeBeforeSleep (0.5 s)'),
 )
 
 
@@ -117,6 +133,9 @@ class SolverSettings:
     max_dt: float = 0.5
     max_pairs: int = 20000
     max_contacts: int = 40000
+    sleeping: bool = True
+    sleep_threshold: float = 0.05
+    time_to_sleep: float = 0.5
 
     def with_values(self, **values: Any) -> 'SolverSettings':
         """Copy with some fields changed, each validated (ValueError names the field)."""

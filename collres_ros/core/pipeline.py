@@ -70,6 +70,8 @@ class ResolvedStep:
     # (broad-phase pairs, contact rows) the step budget (solver.max_pairs, max_contacts)
     # dropped: the deepest were kept; (0, 0) within the budget
     budget: tuple[int, int] = (0, 0)
+    # (K,) bool: the body's island sleeps (answered with its held pose, zero twist)
+    sleeping: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     def contact_names(self, k: int) -> tuple[str, str]:
         """Body names (A, B) of contact ``k``."""
@@ -154,6 +156,14 @@ class Resolver:
         """Change a body's material coefficients by name (``World.set_material``; values
         already validated by the caller)."""
         self.world.set_material(self.index_of[name], **values)
+
+    def sleep_counts(self) -> dict[str, int]:
+        """Dynamic bodies awake and asleep, islands awake (last step) and asleep; empty
+        when sleeping is off."""
+        if not self._settings.sleeping:
+            return {}
+        counts = self.world.sleep.counts()
+        return {'awake_bodies': int(self.dynamic.sum()) - counts['sleeping_bodies'], **counts}
 
     def reset(self) -> None:
         """Forget all history: every body back to its params state, never seen."""
@@ -258,7 +268,8 @@ class Resolver:
                             [self.names[i] for i in np.flatnonzero(stale)], dt,
                             time.perf_counter() - start, world_time,
                             np.concatenate([self.state.position, self.state.orientation], 1),
-                            budget)
+                            budget, np.zeros(len(index), bool) if result.sleeping is None
+                            else result.sleeping[index] & ~bad)
 
     def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
         resets = []

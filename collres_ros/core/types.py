@@ -32,6 +32,7 @@ class ContactState(IntEnum):
     RESTING = 2   # below the threshold, no tangential motion, no friction needed
     SLIDING = 3   # friction at the cone limit (kinetic coefficient)
     STICKING = 4  # friction inside the static cone held the contact still
+    SLEEPING = 5  # a contact of a sleeping island, held as it was when the island fell asleep
 
 
 class ContactKind(IntEnum):
@@ -139,6 +140,8 @@ class StepResult:
     states: BodyStates                 # corrected, non-penetrating states of all N bodies
     report: ContactReport
     rejected: list[Rejection] = field(default_factory=list)
+    # (N,) bool: answered as asleep (held pose, zero twist; ``core.sleep``); None: none
+    sleeping: np.ndarray | None = None
 
 
 SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')

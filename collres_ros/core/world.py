@@ -27,6 +27,10 @@ Static bodies (and inactive ones, for this step) have zero inverse mass and
 inertia: their ``current`` twist is a kinematic velocity, their state is
 returned as given.
 
+Islands at rest sleep (``core.sleep``, ``settings.sleeping``): a sleeping body is answered
+with its held pose and zero twist, left out of detection and solve, until something
+wakes its island in the step.
+
 Detection (``Detection.detect``) finds the contacts; everything that is
 per-contact work after it (reference frame, prepare, warm start, iterations,
 restitution, stored impulses, corrected poses, split-impulse push-out and
@@ -45,6 +49,7 @@ from collres_ros.core import _native
 from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.detection import Detection
 from collres_ros.core.shapes import mass_properties
+from collres_ros.core.sleep import Sleep
 from collres_ros.core.types import (BodySpec, BodyStates, CollisionFilter, ContactReport,
                                     ContactSet, Rejection, StepResult)
 
@@ -86,6 +91,7 @@ class World:
         self.torsional_friction = np.array([s.torsional_friction for s in self.specs], float)
         self._solver = _native.StepSolver()
         self._cache = self._solver.cache      # impulses of the last step, by pair and feature
+        self.sleep = Sleep(self.specs, self.dynamic, settings)
         self.settings = settings
         # last step: detection and solve time (s), velocity sweeps done, solver rows
         # last step: (broad-phase pairs, contact rows) the step budget dropped (max_pairs,
@@ -104,6 +110,7 @@ class World:
         self._settings = settings
         self._collision.settings = settings
         self._params = solver_params(settings)
+        self.sleep.settings = settings       # wakes every island
 
     @property
     def collision_filter(self) -> CollisionFilter:
@@ -111,22 +118,27 @@ class World:
 
     @collision_filter.setter
     def collision_filter(self, value: CollisionFilter) -> None:
-        """Which pairs may collide from the next step on (detection drops the others)."""
+        """Which pairs may collide from the next step on (detection drops the others);
+        wakes every island."""
         self._collision.collision_filter = value
+        self.sleep.wake_all()
 
     def set_material(self, index: int, **values: float | None) -> None:
         """Change one body's coefficients, by name: restitution, static_friction,
         kinetic_friction, rolling_resistance, torsional_friction (taken as valid: the
-        caller checks ranges; None leaves one as it is)."""
+        caller checks ranges; None leaves one as it is); wakes every island."""
         for name, value in values.items():
             if name not in MATERIALS:
                 raise TypeError(f'set_material: unknown coefficient {name!r}')
             if value is not None:
                 getattr(self, name)[index] = value
+        self.sleep.wake_all()
 
     def forget(self, bodies: np.ndarray) -> None:
-        """Drop the warm-start impulses of these body indices (e.g. after a reset)."""
+        """Drop the warm-start impulses of these body indices (e.g. after a reset); wakes
+        every island (a body added or reset)."""
         self._cache.forget(np.asarray(bodies, np.int64).ravel())
+        self.sleep.wake_all()
 
     def step(self, previous: BodyStates, current: BodyStates, dt: float,
              active: np.ndarray | None = None, fresh: bool = False) -> StepResult:
@@ -143,26 +155,47 @@ class World:
         ``SOLVER_TUNING`` ``warm_start_ratio``.
         """
         active = np.ones(current.count, bool) if active is None else np.asarray(active, bool)
-        previous = _hold(previous, current, ~active)
         started = time.perf_counter()
-        # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection)
-        contacts = _finite(self._collision.detect(previous, current, active))
-        self.budget = self._collision.budget
+        asleep = None
+        if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
+            current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
+        # (a sleeper's previous state is already its held one: its last answer)
+        previous = _hold(previous, current, ~active if asleep is None else ~active & ~asleep)
+        # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
+        # without an active dynamic body every pair is of two fixed bodies: nothing to detect
+        if (self.dynamic & active).any():
+            contacts = _finite(self._collision.detect(previous, current, active))
+            self.budget = self._collision.budget
+        else:
+            contacts, self.budget = ContactSet.empty(), (0, 0)
         detected = time.perf_counter()
         if contacts.count == 0:
             self.timing = {'detect': detected - started, 'solve': 0.0, 'iterations': 0,
                            'rows': 0}
             self._cache.clear()
-            return StepResult(current.copy(), ContactReport.empty(), [])
+            states = current.copy()
+            report, sleeping = self._settle(states, ContactReport.empty(), active, dt, asleep)
+            return StepResult(states, report, [], sleeping)
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
         warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
         states, report, sweeps, rows = self._solve(previous, current, contacts, active, dt, warm)
         # report: the final guard against non-finite output
         rejected = self._guard(states, current)
+        report, sleeping = self._settle(states, report, active, dt, asleep)
         self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
                        'iterations': sweeps, 'rows': rows}
-        return StepResult(states, report, rejected)
+        return StepResult(states, report, rejected, sleeping)
+
+    def _settle(self, states: BodyStates, report: ContactReport, active: np.ndarray,
+                dt: float, asleep: np.ndarray | None
+                ) -> tuple[ContactReport, np.ndarray | None]:
+        """Sleep timers and islands after the step (``core.sleep``): the report with the
+        sleeping islands' held contacts, and the bodies answered as asleep (None when
+        sleeping is off)."""
+        if asleep is None:
+            return report, None
+        return self.sleep.after(states, self.dynamic & active, report, dt, asleep)
 
     def _solve(self, previous: BodyStates, current: BodyStates, contacts: ContactSet,
                active: np.ndarray, dt: float, warm: bool

@@ -5,7 +5,10 @@ little-endian CDR (XCDR1), a 4-byte encapsulation header ``00 01 00 00``, then
 the fields, each aligned to its size counted from the byte after the header
 (float64 on 8, int32/uint32/float32 on 4); a string is a uint32 length that
 counts its terminating NUL, the UTF-8 bytes, the NUL; a sequence is a uint32
-count, then its elements. Nothing follows the last field.
+count, then its elements. Nothing follows the last field, except between
+processes: rmw_fastrtps delivers a payload whose size is not a multiple of 4 (a
+BodyStateArray ends with a bool) padded with zeros to 4, without saying so in the
+encapsulation options; decoding accepts those up to 3 zero bytes.
 
 Decode: ``BodyStateArray`` (``StatesCodec``), ``PoseStamped`` and
 ``TwistStamped`` (``decode_pose``, ``decode_twist``). Encode: ``BodyStateArray``,
@@ -155,6 +158,13 @@ def string_bytes(text: str) -> bytes:
 
 # --- reading ----------------------------------------------------------------------------------
 
+def padded_to(data: Any, size: int) -> bool:
+    """True when ``data`` is a message of ``size`` bytes, as it is or padded with zeros to a
+    multiple of 4 (as it arrives from another process)."""
+    extra = len(data) - size
+    return extra == 0 or (0 < extra < 4 and len(data) % 4 == 0 and not any(data[size:]))
+
+
 class Reader:
     """Read CDR fields from bytes; every read is bounds-checked (DecodeError 'malformed')."""
 
@@ -250,7 +260,8 @@ class _Layout:
     template: np.ndarray     # (size rounded up to 4 + 8k,) uint8: stamp 0, floats 0
     rows: np.ndarray         # (K, 13) int64: index of each double in the float64 view
     flags: np.ndarray        # (K,) int64: byte of each ``sleeping`` flag (empty: legacy)
-    check: np.ndarray        # positions that must equal the template (not stamp/float/pad/flag)
+    check: np.ndarray        # positions that must equal the template (not options, stamp,
+    #                          floats, padding, flags)
     legacy: bool             # bodies without the ``sleeping`` field (written before it existed)
 
 
@@ -274,6 +285,7 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
     first = (np.array(starts, np.int64) - 4) // 8
     rows = first[:, None] + np.arange(STATE_DOUBLES)
     keep = np.ones(size, bool)
+    keep[2:4] = False    # encapsulation options
     keep[4:12] = False
     keep[w.padding] = False
     float_bytes = (4 + 8 * rows.reshape(-1))[:, None] + np.arange(8)
@@ -282,12 +294,6 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
     keep[flag_bytes] = False
     return _Layout(frame_id, list(names), size, template, rows, flag_bytes,
                    np.flatnonzero(keep), legacy)
-
-
-def _padded(size: int) -> int:
-    """``size`` bytes rounded up to 4: DDS delivers a serialised message padded so (the CDR
-    encapsulation's options count the padding), rclpy's serialize_message does not pad."""
-    return (size + 3) & ~3
 
 
 def _doubles(buffer: Any) -> np.ndarray:
@@ -313,10 +319,9 @@ class StatesCodec:
             self._by_size.clear()
         if not layout.legacy:       # encode writes the current layout only
             self._by_names[(layout.frame_id, tuple(layout.names))] = layout
-        for size in {layout.size, _padded(layout.size)}:   # as serialised and as delivered
-            same = self._by_size.setdefault(size, [])
-            same.insert(0, layout)
-            del same[_LAYOUT_CACHE:]
+        same = self._by_size.setdefault(layout.size, [])
+        same.insert(0, layout)
+        del same[_LAYOUT_CACHE:]
         return layout
 
     def layout(self, frame_id: str, names: Sequence[str]) -> _Layout:
@@ -347,9 +352,11 @@ class StatesCodec:
         reader = Reader(data, 'BodyStateArray')
         stamp = reader.stamp()
         raw = np.frombuffer(data, np.uint8)
-        for layout in self._by_size.get(len(data), ()):
-            if np.array_equal(raw[layout.check], layout.template[layout.check]):
-                return self._decoded(stamp, layout, data, raw)
+        for size in range(len(data), len(data) - 4, -1) if len(data) % 4 == 0 else (len(data),):
+            for layout in self._by_size.get(size, ()):
+                if np.array_equal(raw[layout.check], layout.template[layout.check]) \
+                        and padded_to(data, size):
+                    return self._decoded(stamp, layout, data, raw)
         frame_id = reader.string()
         count = reader.u32()
         if self.max_bodies is not None and count > self.max_bodies:
@@ -400,11 +407,11 @@ def _parse_bodies(reader: Reader, frame_id: str, count: int, raw: np.ndarray,
         reader.f64s(STATE_DOUBLES)
         if not legacy:
             reader.u8()
-    if len(reader.data) not in (reader.pos, _padded(reader.pos)):
+    if not padded_to(reader.data, reader.pos):
         raise reader.fail(f'{len(reader.data) - reader.pos} bytes after the last body')
     layout = _states_layout(frame_id, names, legacy)
-    if len(reader.data) not in (layout.size, _padded(layout.size)) or not np.array_equal(
-            raw[layout.check], layout.template[layout.check]):
+    if layout.size != reader.pos or not np.array_equal(raw[layout.check],
+                                                       layout.template[layout.check]):
         raise reader.fail('layout does not match the names')
     return layout
 

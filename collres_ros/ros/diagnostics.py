@@ -84,6 +84,13 @@ def diagnostics_array(snapshot: DiagnosticsSnapshot) -> Any:
     return DiagnosticArray(header=Header(stamp=to_stamp(snapshot.stamp_ns)), status=[status])
 
 
+def sleep_values(resolver: Any) -> dict[str, Any]:
+    """/diagnostics values of sleeping: ``sleeping`` on/off, then (when on) dynamic bodies
+    awake and asleep, islands awake (in the last step) and asleep."""
+    counts = resolver.sleep_counts()
+    return {'sleeping': 'on' if counts else 'off', **counts}
+
+
 class OfflineDiagnostics:
     """/diagnostics of an offline run, as collres_node reports them, on the stamps' clock.
 
@@ -91,7 +98,7 @@ class OfflineDiagnostics:
     ``diagnostics_period``) with the node's fields: steps, rate (steps per
     second of stamp time here), contacts of the last step, the resolver's
     totals by reason, stale bodies, and the extras (bodies, sync_dropped,
-    contacts_total). Step times are wall-clock figures: reported only with
+    contacts_total, ``sleep_values``). Step times are wall-clock figures: reported only with
     ``timings=True``, otherwise 0, so that a replay is deterministic.
     """
 
@@ -135,6 +142,7 @@ class OfflineDiagnostics:
             counts={k: v for k, v in totals.items() if k not in ('steps', 'contacts')},
             stale=stale, status=status,
             extra={'bodies': len(resolver.bodies), 'sync_dropped': sync_dropped,
-                   'contacts_total': int(totals.get('contacts', 0))})
+                   'contacts_total': int(totals.get('contacts', 0)),
+                   **sleep_values(resolver)})
         self._last_ns, self._steps_at_last, self._times = stamp, self.steps, []
         return snapshot

@@ -7,11 +7,11 @@ contacts: the cost is a few numpy operations, not one Python object per
 contact. Add a topic (e.g. body markers) as another ``*_marker_specs``
 function and one line in ``messages.OutputEncoder``.
 
-``contact_markers``: nine markers every step (README "Contact markers"):
+``contact_markers``: eleven markers every step (README "Contact markers"):
 
 * ``DELETEALL`` first, so markers of contacts that ended disappear at once
   (each marker also has a ``lifetime``, so they vanish when the node stops);
-* per contact state (IMPACT, RESTING, SLIDING, STICKING; the marker id is the
+* per contact state (IMPACT, RESTING, SLIDING, STICKING, SLEEPING; the marker id is the
   ``Contact.state`` value), in that state's colour:
   ``contact_points`` (SPHERE_LIST): a sphere per contact point, and
   ``contact_normals`` (LINE_LIST): a segment per contact from the point along
@@ -41,7 +41,8 @@ STATE_COLOURS = {
     ContactState.IMPACT: (1.0, 0.2, 0.1, 1.0),     # red: it bounced
     ContactState.RESTING: (0.2, 0.6, 1.0, 1.0),    # blue: held, no friction needed
     ContactState.SLIDING: (1.0, 0.8, 0.1, 1.0),    # yellow: kinetic friction
-    ContactState.STICKING: (0.2, 0.9, 0.3, 1.0)}   # green: static friction held
+    ContactState.STICKING: (0.2, 0.9, 0.3, 1.0),   # green: static friction held
+    ContactState.SLEEPING: (0.6, 0.6, 0.6, 1.0)}   # grey: its island sleeps
 POINT_DIAMETER = 0.02      # m, contact point sphere
 LINE_WIDTH = 0.004         # m, normal segments
 NORMAL_MIN = 0.03          # m, normal length at zero impulse

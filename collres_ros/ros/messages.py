@@ -168,7 +168,7 @@ class OutputEncoder:
     def corrected(self, step: ResolvedStep) -> bytes:
         """body_states/corrected: the accepted bodies, world frame, at the step stamp."""
         return self.states.encode(step.stamp_ns, self.world_frame, step.names,
-                                  state_values(step.states))
+                                  state_values(step.states), step.sleeping)
 
     def per_body(self, step: ResolvedStep) -> list[tuple[str, str, bytes]]:
         """bodies/<name>/{pose,twist}/corrected; twists back in the frame they came in."""

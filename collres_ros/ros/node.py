@@ -81,7 +81,8 @@ from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
 from collres_ros.ros import cli, codec, messages, names, params, qos
 from collres_ros.ros.contact_sensing import ContactSensing
-from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array, status_name
+from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array, sleep_values,
+                                         status_name)
 from collres_ros.ros.health import Health
 from collres_ros.ros.losses import LossCounter
 from collres_ros.ros.stamps import seconds_ns
@@ -459,7 +460,8 @@ class CollresNode(Node):
                    'contacts_total': totals['contacts'],
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
                    'answer_time_mean_ms': mean('answer'),
-                   **{f'time.{key}_ms': mean(key) for key in TIMED}})
+                   **{f'time.{key}_ms': mean(key) for key in TIMED},
+                   **sleep_values(self.resolver)})
         self._window = self._new_window(now)
         return snap
 

@@ -1,0 +1,174 @@
+"""Sleeping islands: bodies at rest cost no detection and no solve (``src/islands.h``).
+
+Bodies joined by contacts that carried impulse form islands (static, kinematic and
+inactive bodies never join one). A body is still while the speed of its farthest point,
+|v| + |w| r (r its bounding radius about the centre of mass, m/s), stays below
+``sleep_threshold``; an island whose bodies have all been still for ``time_to_sleep`` (s)
+falls asleep. A sleeping body is answered with its held pose (its last answer, the
+``previous`` state) and zero twist, which is the answer the solver gives a body at rest,
+and is left out of the solve and of every pair detection queries (it is held as fixed).
+
+It wakes, in the step:
+
+* when its input departs from the held state beyond the threshold: a push (a velocity
+  change other than the external acceleration it had when it fell asleep: upstream keeps
+  integrating, so held twist + gravity dt does not wake it), a teleport or a correction
+  (a pose the input velocity cannot reach from the held pose within the threshold);
+* when the swept bounds of a moving body (kinematic, or awake and faster than the
+  threshold, or jolted beyond it) touch its island, before detection: no impact is missed;
+* after a step in which an awake body leaned on it (a contact with impulse);
+* everything wakes on a body added, removed or reset, a material, filter or settings
+  change, and a step without a usable previous one (a clock jump).
+
+The contacts of a sleeping island (among its bodies and with static ones) are held as they
+were in the step it fell asleep and reported every step with the state SLEEPING.
+
+Frames: world. Units: SI.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from collres_ros.core import _native
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.shapes import bounding_radius
+from collres_ros.core.types import BodySpec, BodyStates, ContactReport, ContactSet, ContactState
+
+
+class Sleep:
+    """The sleep state of a world's N bodies; ``before`` and ``after`` bracket a step."""
+
+    def __init__(self, specs: Sequence[BodySpec], dynamic: np.ndarray,
+                 settings: SolverSettings) -> None:
+        self.dynamic = np.asarray(dynamic, bool)
+        self._native = _native.Islands([bounding_radius(s) for s in specs],
+                                       self.dynamic.astype(np.uint8).tolist())
+        self._no_kinematic = np.zeros(len(self.dynamic), np.uint8)
+        self._static = np.flatnonzero(~self.dynamic)     # may move: kinematic
+        self._last_active: np.ndarray | None = None
+        self._held = ContactReport.empty()    # contacts of the sleeping islands
+        self._held_for = np.zeros(len(self.dynamic), bool)   # bodies asleep after last step
+        self.settings = settings
+
+    @property
+    def settings(self) -> SolverSettings:
+        return self._settings
+
+    @settings.setter
+    def settings(self, settings: SolverSettings) -> None:
+        """New settings (a parameter change) wake everything."""
+        self._settings = settings
+        native = _native.SleepSettings()
+        native.threshold = settings.sleep_threshold
+        native.time_to_sleep = settings.time_to_sleep
+        native.margin = settings.speculative_margin
+        self._native.settings = native
+        self.wake_all()
+
+    @property
+    def enabled(self) -> bool:
+        return bool(self._settings.sleeping)
+
+    def wake_all(self) -> None:
+        self._native.wake_all()
+        self._held = ContactReport.empty()
+        self._held_for = np.zeros(len(self.dynamic), bool)
+
+    def counts(self) -> dict[str, int]:
+        """Bodies and islands asleep, and awake islands of the last step."""
+        return {'sleeping_bodies': self._native.sleeping_bodies,
+                'sleeping_islands': self._native.sleeping_islands,
+                'awake_islands': self._native.awake_islands}
+
+    def before(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
+               dt: float, fresh: bool) -> tuple[BodyStates, np.ndarray, np.ndarray]:
+        """Wake what must wake, then (current, active, asleep): sleepers' current states
+        replaced by their held state (previous pose, zero twist) and marked inactive."""
+        if fresh or self._last_active is None or not np.array_equal(active, self._last_active):
+            self.wake_all()            # a clock jump, a body added or removed
+        self._last_active = active.copy()
+        kinematic = self._no_kinematic
+        if self._native.sleeping_bodies and len(self._static):
+            k = self._static
+            moved = active[k] & (
+                (previous.position[k] != current.position[k]).any(1)
+                | (previous.orientation[k] != current.orientation[k]).any(1)
+                | (current.linear[k] != 0.0).any(1) | (current.angular[k] != 0.0).any(1))
+            kinematic = self._no_kinematic.copy()
+            kinematic[k] = moved
+        self._native.wake(_rows(previous), _rows(current), active.astype(np.uint8), kinematic,
+                          float(dt))
+        asleep = self._native.asleep.astype(bool)
+        if not asleep.any():
+            return current, active, asleep
+        rows = asleep[:, None]
+        held = BodyStates(np.where(rows, previous.position, current.position),
+                          np.where(rows, previous.orientation, current.orientation),
+                          np.where(rows, 0.0, current.linear),
+                          np.where(rows, 0.0, current.angular))
+        return held, active & ~asleep, asleep
+
+    def after(self, out: BodyStates, movable: np.ndarray, report: ContactReport, dt: float,
+              asleep: np.ndarray) -> tuple[ContactReport, np.ndarray]:
+        """Islands, timers and falling asleep from the step's answers ``out`` (islands that
+        fall asleep get zero twist there). Returns the step's report with the held contacts
+        of the islands answered as asleep appended (state SLEEPING), and the (N,) bodies
+        answered as asleep."""
+        contacts = report.contacts
+        self._native.update(out.linear, out.angular, movable.astype(np.uint8),
+                            np.ascontiguousarray(contacts.body_a, np.int64),
+                            np.ascontiguousarray(contacts.body_b, np.int64),
+                            np.ascontiguousarray(report.normal_impulse, np.float64), float(dt))
+        now = self._native.asleep.astype(bool)
+        sleeping = asleep | now
+        # the held contacts are those of the bodies asleep after the last step: all still
+        # answered as asleep unless an island woke before this step's detection
+        woke = bool((self._held_for & ~asleep).any())
+        shown = _between(self._held, sleeping | ~self.dynamic) if woke else self._held
+        fell = now & ~asleep
+        if woke or fell.any() or (asleep & ~now).any():
+            kept = _between(self._held, now | ~self.dynamic)
+            new = _between(report, fell | ~self.dynamic)   # held from now on, as persistent
+            new.contacts.toi[:], new.contacts.kind[:] = 0.0, 0
+            new.state[:] = ContactState.SLEEPING
+            self._held = _joined(kept, new)
+        self._held_for = now
+        if shown.contacts.count:
+            report = _joined(report, shown)
+        return report, sleeping
+
+
+def _between(report: ContactReport, bodies: np.ndarray) -> ContactReport:
+    """The contacts of ``report`` whose two bodies are both in the (N,) mask ``bodies``,
+    each a copy."""
+    c = report.contacts
+    keep = bodies[np.asarray(c.body_a, np.int64)] & bodies[np.asarray(c.body_b, np.int64)] \
+        if c.count else np.zeros(0, bool)
+    return ContactReport(ContactSet(c.body_a[keep], c.body_b[keep], c.point[keep],
+                                    c.normal[keep], c.separation[keep], c.toi[keep],
+                                    c.kind[keep], c.feature[keep]),
+                         report.normal_impulse[keep], report.friction_impulse[keep],
+                         report.state[keep])
+
+
+def _joined(a: ContactReport, b: ContactReport) -> ContactReport:
+    """The contacts of ``a`` then those of ``b``."""
+    if not b.contacts.count:
+        return a
+    if not a.contacts.count:
+        return b
+    ca, cb = a.contacts, b.contacts
+    return ContactReport(ContactSet(*(np.concatenate([getattr(ca, f), getattr(cb, f)])
+                                      for f in ('body_a', 'body_b', 'point', 'normal',
+                                                'separation', 'toi', 'kind', 'feature'))),
+                         np.concatenate([a.normal_impulse, b.normal_impulse]),
+                         np.concatenate([a.friction_impulse, b.friction_impulse]),
+                         np.concatenate([a.state, b.state]))
+
+
+def _rows(states: BodyStates) -> tuple[np.ndarray, ...]:
+    return tuple(np.ascontiguousarray(a, np.float64) for a in (
+        states.position, states.orientation, states.linear, states.angular))

@@ -1,0 +1,252 @@
+"""Islands and sleeping (core/sleep.py, src/islands.h): the rules, each stated as a law.
+
+A box resting on the floor, integrated with gravity by test/core/integrator.py (upstream
+keeps integrating: a sleeping body's input is the held pose + gravity dt, which must not
+wake it):
+
+* it falls asleep after ``time_to_sleep`` of answers slower than ``sleep_threshold``;
+* asleep, its answer is the held pose and zero twist, equal within 1e-9 to what the solver
+  (sleeping off) answers the same inputs, and no detection runs;
+* it wakes in the step on a push above the threshold (not below), a teleport, a touch (a
+  falling ball's swept bounds, before the contact: the impact obeys the same laws as
+  without sleeping, and a second island far away stays asleep), a material, settings or
+  filter change, a body reset or removed, and a clock jump.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.detection import Detection
+from collres_ros.core.types import BodySpec, ContactState
+from collres_ros.core.world import World
+
+from contacts import box, sphere, states  # noqa: I100
+from integrator import Simulation
+
+RATE = 100.0
+SIZE = 0.2
+
+
+def floor() -> BodySpec:
+    return BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True,
+                    static_friction=0.5, kinetic_friction=0.3)
+
+
+class CountingDetection(Detection):
+    """The real detector, counting its calls."""
+
+    calls = 0
+
+    def detect(self, previous, current, active=None):
+        self.calls += 1
+        return super().detect(previous, current, active)
+
+
+def resting_boxes(xs=(0.0,), settings: SolverSettings | None = None,
+                  extra: list | None = None) -> Simulation:
+    """Boxes resting on the floor at these x (and ``extra`` bodies: (spec, position))."""
+    extra = extra or []
+    bodies = [floor()] + [box(f'box{k}', (SIZE,) * 3, 1.0, mu_s=0.5, mu_k=0.3)
+                          for k in range(len(xs))] + [spec for spec, _ in extra]
+    positions = [[0, 0, 0]] + [[x, 0, SIZE / 2] for x in xs] + [p for _, p in extra]
+    return Simulation(bodies, states(positions, np.zeros((len(bodies), 3))), RATE,
+                      settings or SolverSettings())
+
+
+def run_until_asleep(sim: Simulation, limit: float = 3.0) -> int:
+    for k in range(int(limit * RATE)):
+        result = sim.step()
+        if result.sleeping is not None and result.sleeping[1:].all():
+            return k
+    raise AssertionError('never fell asleep')
+
+
+def step_with(sim: Simulation, change=None, **kwargs):
+    """One step with the integrator's input, changed by ``change(current)`` first."""
+    current = sim.integrate(sim.state)
+    if change is not None:
+        change(current)
+    result = sim.world.step(sim.state, current, sim.dt, **kwargs)
+    sim.state = result.states
+    return result
+
+
+@pytest.mark.parametrize('time_to_sleep', [0.25, 0.5])
+def test_falls_asleep_after_time_to_sleep_under_the_threshold(time_to_sleep: float) -> None:
+    sim = resting_boxes(settings=SolverSettings(time_to_sleep=time_to_sleep))
+    flags, speeds = [], []
+    for _ in range(int(2 * time_to_sleep * RATE)):
+        result = sim.step()
+        flags.append(bool(result.sleeping[1]))
+        speeds.append(np.linalg.norm(result.states.linear[1]))
+    first = flags.index(True)
+    print(f'asleep at step {first} ({(first + 1) / RATE:.2f} s), time_to_sleep {time_to_sleep}')
+    assert max(speeds[:first]) < SolverSettings().sleep_threshold   # still from the start
+    assert abs((first + 1) / RATE - time_to_sleep) <= 1.0 / RATE + 1e-9
+    assert all(flags[first:]), 'held input (held pose + gravity dt) woke it'
+    assert not sim.world.sleep.counts()['awake_islands']
+
+
+def test_a_moving_body_never_sleeps() -> None:
+    """A box kept sliding faster than the threshold (no friction) stays awake."""
+    sim = Simulation([BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True,
+                               static_friction=0.0, kinetic_friction=0.0),
+                      box('box', (SIZE,) * 3, 1.0, mu_s=0.0, mu_k=0.0)],
+                     states([[0, 0, 0], [0, 0, SIZE / 2]], [[0, 0, 0], [0.06, 0, 0]]), RATE)
+    assert not any(sim.step().sleeping[1] for _ in range(200))
+
+
+def test_sleeping_answer_equals_the_solvers_for_a_resting_body_and_skips_detection() -> None:
+    sim = resting_boxes()
+    detection = CountingDetection(sim.world.specs, SolverSettings(sleeping=False))
+    twin = World(sim.world.specs, SolverSettings(sleeping=False), detector=detection)
+    counting = CountingDetection(sim.world.specs, sim.world.settings)
+    sim.world = World(sim.world.specs, sim.world.settings, detector=counting)
+    asleep_steps = 0
+    for _ in range(150):
+        previous, current = sim.state, sim.integrate(sim.state)
+        ours = sim.world.step(previous, current, sim.dt)
+        theirs = twin.step(previous, current, sim.dt)
+        sim.state = ours.states
+        if ours.sleeping[1]:
+            asleep_steps += 1
+            calls = counting.calls
+            np.testing.assert_array_equal(ours.states.linear[1], 0.0)
+            np.testing.assert_array_equal(ours.states.angular[1], 0.0)
+            if asleep_steps > 1:   # after the step it fell asleep in: the held pose
+                np.testing.assert_array_equal(ours.states.position[1], previous.position[1])
+                np.testing.assert_array_equal(ours.states.orientation[1],
+                                              previous.orientation[1])
+            for name in ('position', 'orientation', 'linear', 'angular'):
+                np.testing.assert_allclose(getattr(ours.states, name)[1],
+                                           getattr(theirs.states, name)[1], rtol=0, atol=1e-9)
+            # its contacts are still reported (from the next step on: held, SLEEPING)
+            assert ours.report.contacts.count == 4
+            assert (ours.report.state == ContactState.SLEEPING).all() == (asleep_steps > 1)
+        else:
+            calls = None
+        if calls is not None and asleep_steps > 1:
+            assert counting.calls == calls, 'a sleeping island was detected'
+    assert asleep_steps > 50
+    print(f'{asleep_steps} steps asleep, detection ran {counting.calls} times of 150')
+    assert counting.calls <= 150 - asleep_steps + 1
+
+
+def _push(v):
+    def change(current):
+        current.linear[1] += v
+    return change
+
+
+def test_wakes_on_a_push_above_the_threshold_not_below() -> None:
+    sim = resting_boxes()
+    run_until_asleep(sim)
+    assert step_with(sim, _push([0.02, 0.0, 0.0])).sleeping[1]     # below 0.05 m/s
+    result = step_with(sim, _push([0.5, 0.0, 0.0]))
+    assert not result.sleeping[1]
+    assert result.states.linear[1, 0] > 0.4                       # pushed, friction 0.03
+    assert (result.report.state != ContactState.SLEEPING).all()
+
+
+def test_wakes_on_a_teleport() -> None:
+    sim = resting_boxes()
+    run_until_asleep(sim)
+
+    def teleport(current):
+        current.position[1, 0] += 0.05
+
+    result = step_with(sim, teleport)
+    assert not result.sleeping[1]
+    assert (result.report.state != ContactState.SLEEPING).all()   # solved again
+
+
+def test_a_falling_ball_wakes_only_the_island_it_lands_on_and_bounces_as_without_sleep(
+) -> None:
+    """Two sleeping boxes 1 m apart; a ball dropped on the first. The first wakes no later
+    than the step of contact, the second never; the bounce is the one without sleeping
+    (the box on the inelastic floor takes part: the ball keeps less than e of its speed)."""
+    r, e = 0.05, 0.6
+    ball = sphere('ball', r, 0.2, e=e)
+    runs = {}
+    for sleeping in (True, False):
+        sim = resting_boxes((0.0, 1.0), SolverSettings(sleeping=sleeping))
+        if sleeping:
+            run_until_asleep(sim)
+        else:
+            for _ in range(int(1.5 * RATE)):
+                sim.step()
+        rested = sim.state.copy()
+        bodies = sim.world.specs + [ball]
+        drop = Simulation(bodies, states(np.vstack([rested.position, [[0.0, 0.0, 0.6]]]),
+                                         np.zeros((4, 3))), RATE, sim.world.settings)
+        drop.state.orientation[:3] = rested.orientation
+        if sleeping:   # carry the sleep over: the boxes' world, plus the ball
+            drop.world = World(bodies, sim.world.settings)
+            for _ in range(int(0.6 * RATE)):       # fall asleep again before the drop
+                drop.world.step(drop.state, drop.integrate(drop.state), drop.dt)
+        trace = []
+        for k in range(int(0.8 * RATE)):
+            before = drop.state.copy()
+            result = drop.step()
+            c = result.report.contacts
+            ball_box = [(int(a), int(b)) for a, b in zip(c.body_a, c.body_b)
+                        if {int(a), int(b)} == {1, 3}]
+            trace.append((k, before, result, bool(ball_box)))
+        runs[sleeping] = trace
+    sleep_trace, plain = runs[True], runs[False]
+    hit = next(k for k, _, _, touching in plain if touching)
+    assert next(k for k, _, _, touching in sleep_trace if touching) == hit
+    _, before, result, _ = sleep_trace[hit]
+    assert before is not None
+    woke = next(k for k, _, res, _ in sleep_trace if not res.sleeping[1])
+    print(f'ball touches at step {hit}, box0 wakes at step {woke}')
+    assert woke <= hit
+    assert all(res.sleeping[2] for _, _, res, _ in sleep_trace), 'the far island woke'
+    # the bounce: as without sleeping, restitution along the normal, no energy gain
+    bounce = next(k for k, _, res, _ in plain if res.states.linear[3, 2] > 0.0)
+    assert bounce >= hit
+    impacts = sleep_trace[bounce][2].report.state
+    assert (impacts == ContactState.IMPACT).any()
+    v_in = sleep_trace[bounce - 1][2].states.linear[3, 2]   # last answer before the bounce
+    v_out = sleep_trace[bounce][2].states.linear[3, 2]
+    v_plain = plain[bounce][2].states.linear[3, 2]
+    print(f'ball {v_in:.4f} -> {v_out:.4f} m/s at step {bounce} (without sleeping '
+          f'{v_plain:.4f})')
+    assert v_out == pytest.approx(v_plain, abs=1e-6)
+    assert 0.0 < v_out <= e * abs(v_in)      # restitution along the normal at most e
+    gap = min(res.states.position[3, 2] - r - res.states.position[1, 2] - SIZE / 2
+              for _, _, res, _ in sleep_trace)   # ball above the box's top face, answers
+    print(f'smallest gap ball-box {gap:.2e} m')
+    assert gap >= -SolverSettings().linear_slop - 1e-9
+
+
+@pytest.mark.parametrize('change', ['material', 'settings', 'filter', 'forget', 'clock',
+                                    'removed'])
+def test_wakes_on_a_change(change: str) -> None:
+    sim = resting_boxes()
+    run_until_asleep(sim)
+    world = sim.world
+    kwargs = {}
+    if change == 'material':
+        world.set_material(1, restitution=0.3)
+    elif change == 'settings':
+        world.settings = replace(world.settings, velocity_iterations=12)
+    elif change == 'filter':
+        world.collision_filter = world.collision_filter.ignoring()
+    elif change == 'forget':
+        world.forget(np.array([1]))
+    elif change == 'clock':
+        kwargs['fresh'] = True
+    else:   # the floor stops being published: the scene changed
+        kwargs['active'] = np.array([False, True])
+    assert not step_with(sim, **kwargs).sleeping[1]
+
+
+def test_off_never_sleeps() -> None:
+    sim = resting_boxes(settings=SolverSettings(sleeping=False))
+    assert all(sim.step().sleeping is None for _ in range(100))

@@ -1,0 +1,54 @@
+"""collres_node over real DDS with sleeping on (the default): a resting ball and box are
+answered every step, flagged ``sleeping`` with zero twist once asleep, counted in
+/diagnostics, and a push wakes the ball in the step."""
+
+from __future__ import annotations
+
+import pytest
+from test_node import DT, T0, body, diagnostics_values, running, step  # noqa: F401
+
+from collres_ros.ros.messages import stamp_ns
+
+pytestmark = pytest.mark.slow
+G = 9.81
+
+
+def test_the_node_flags_sleeping_bodies_and_keeps_answering(running):  # noqa: F811
+    peer, node = running
+    dt = DT * 1e-9
+    state = {'ball': (0.1, 0.0, 0.0), 'box': (0.1, 0.0, 1.0)}   # z, vz, x: at rest
+    flags = []
+    n = 100                                                      # 1 s of 10 ms steps
+    for k in range(n):
+        inputs = []
+        for name, (z, vz, x) in state.items():   # the simulator's semi-implicit Euler
+            vz -= G * dt
+            inputs.append(body(name, z + vz * dt, vz, x=x))
+        out = step(peer, T0 + k * DT, inputs)
+        answers = {b.name: b for b in out.bodies}
+        flags.append({name: b.sleeping for name, b in answers.items()})
+        for name, b in answers.items():
+            state[name] = (b.pose.position.z, b.twist.linear.z, b.pose.position.x)
+            if b.sleeping:
+                assert (b.twist.linear.x, b.twist.linear.y, b.twist.linear.z) == (0, 0, 0)
+    stamps = [stamp_ns(m.header.stamp) for m in peer.messages('body_states/corrected')]
+    assert stamps == [T0 + k * DT for k in range(n)], 'a step was not answered once'
+    first = min(k for k, f in enumerate(flags) if f['ball'] and f['box'])
+    print(f'both asleep from step {first} ({(first + 1) * dt:.2f} s)')
+    assert 45 <= first <= 60          # time_to_sleep 0.5 s of still answers
+    assert all(f['ball'] and f['box'] for f in flags[first:])
+    assert peer.wait(lambda: diagnostics_values(peer).get('sleeping_bodies') == '2', 5.0), \
+        diagnostics_values(peer)
+    values = diagnostics_values(peer)
+    assert (values['sleeping'], values['awake_bodies'], values['sleeping_islands']) == \
+        ('on', '0', '2')
+    # a push (1 m/s along x) wakes the ball in its step; the box sleeps on
+    z, vz, x = state['ball']
+    pushed = body('ball', z + (vz - G * dt) * dt, vz - G * dt, x=x + 1.0 * dt)
+    pushed.twist.linear.x = 1.0
+    out = step(peer, T0 + n * DT, [pushed, body('box', state['box'][0] - G * dt * dt,
+                                                -G * dt, x=1.0)])
+    answers = {b.name: b for b in out.bodies}
+    assert not answers['ball'].sleeping and answers['box'].sleeping
+    assert answers['ball'].twist.linear.x > 0.5
+    assert node.poll() is None and 'Traceback' not in node.output()

@@ -161,8 +161,11 @@ def test_in_contact_and_get_contacts_over_dds(ros_domain, tmp_path) -> None:
         before = ask()
         assert not before.stepped and list(before.contacts) == []
 
+        answers = []
+
         def resolve(k, z, vz):
             out = step(peer, T0 + k * 10**7, [body('ball', z, vz)]).bodies[0]
+            answers.append((out.pose.position.z, out.twist.linear.z))
             if k == 11:    # resting: what touches the ball, by the service
                 answer = ask('ball', 'nope')
                 assert answer.stepped and list(answer.unknown_bodies) == ['nope']
@@ -177,6 +180,16 @@ def test_in_contact_and_get_contacts_over_dds(ros_domain, tmp_path) -> None:
         drive(resolve)
         # on at the first step, no chatter over the hop, off in the jump, on at landing
         assert peer.wait(lambda: seen() == [False, True, False, True], 10.0), seen()
+        # a runtime change of the thresholds starts every body out of contact again; the
+        # ball, still resting, is in contact from its next step
+        from test_node_filter import _set
+        assert _set(peer, 'contact_off_steps', 5).successful
+        assert peer.wait(lambda: seen() == [False, True, False, True, False], 10.0), seen()
+        z, vz = answers[-1]
+        vz -= G * DT
+        step(peer, T0 + STEPS * 10**7, [body('ball', z + vz * DT, vz)])
+        assert peer.wait(lambda: seen() == [False, True, False, True, False, True], 10.0), \
+            seen()
         # a subscriber that joins now still gets the current state (transient local)
         late = Peer(ros_domain, 'collres_late_peer')
         try:

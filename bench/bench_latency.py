@@ -2,6 +2,7 @@
 
     .venv/bin/python bench/bench_latency.py [--sizes 10 100 1000] [--rates 100 100 30]
         [--duration 10] [--settle 2.0] [--modes estimator simulator] [--no-echo]
+        [--sleeping on off]
 
 For each size the pile of bench/pile.py is settled in-process with the core
 (120 Hz, semi-implicit Euler), written as a params file, and then three
@@ -42,6 +43,14 @@ answer. The node's callback split comes from its ``/diagnostics`` values:
 ``callback_time_mean_ms``; an older node reports only the callback and
 ``step_time_mean_ms`` (resolve), so the others show ``n/a``.
 
+``--sleeping``: the node runs with ``solver.sleeping`` on (the default) and/or off (every
+step detected and solved); the row says which, and how many bodies the node's last
+/diagnostics reported asleep. The pile falls asleep in the lock-step run once the node has
+answered ``time_to_sleep`` (0.5 s) of stamps of a still pile, 50 steps at 100 Hz: give
+1000 bodies a ``--settle`` that brings them to rest (3 s) and a ``--lockstep`` long enough
+for 50 awake steps. A step the node misses starts its bodies fresh, which wakes every island:
+a pile never falls asleep under a node that drops steps.
+
 Runs against whatever ``collres_ros`` the interpreter imports (set PYTHONPATH
 to a checkout to measure that one; its generated ``msg/`` must be present).
 """
@@ -77,11 +86,11 @@ TIMING_KEYS = ('time.decode_ms', 'time.resolve_ms', 'time.world_ms', 'time.world
 # --- the scene ----------------------------------------------------------------------------------
 
 def settled_pile(count: int, settle_s: float) -> tuple[list[Any], Any, float]:
-    """(bodies, settled states, mean World.step ms of the last settling steps)."""
+    """(bodies, settled states, mean World.step ms of the last settling steps, awake)."""
     from collres_ros.core.config import SolverSettings
     from collres_ros.core.world import World
     bodies, state = make_pile(count)
-    world = World(bodies, SolverSettings())
+    world = World(bodies, SolverSettings(sleeping=False))   # the awake step
     times = []
     for _ in range(max(1, int(round(settle_s / SETTLE_DT)))):
         current = integrate(state, world.dynamic, SETTLE_DT)
@@ -95,7 +104,7 @@ def _list(values: Any) -> str:
     return '[' + ', '.join(repr(float(v)) for v in values) + ']'
 
 
-def write_scene(path: Path, bodies: list[Any], state: Any) -> Path:
+def write_scene(path: Path, bodies: list[Any], state: Any, sleeping: bool = True) -> Path:
     """A params file of the pile, initial poses = the settled state."""
     lines = ['/**:', '  ros__parameters:', '    world_frame: world',
              f'    bodies: [{", ".join(b.name for b in bodies)}]', '    body:']
@@ -111,7 +120,8 @@ def write_scene(path: Path, bodies: list[Any], state: Any) -> Path:
         fields += [f'position: {_list(state.position[k])}',
                    f'orientation: {_list(state.orientation[k])}']
         lines.append(f'      {b.name}: {{{", ".join(fields)}}}')
-    lines += ['/**/collres_node:', '  ros__parameters:', '    diagnostics_period: 0.5',
+    lines += ['    solver:', f'      sleeping: {str(sleeping).lower()}',
+              '/**/collres_node:', '  ros__parameters:', '    diagnostics_period: 0.5',
               '    queue_depth: 10']
     path.write_text('\n'.join(lines) + '\n')
     return path
@@ -410,16 +420,16 @@ def _timings(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> dict[
 
 
 def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
-            server: str, mode: str) -> dict[str, Any]:
+            server: str, mode: str, sleeping: str = 'on') -> dict[str, Any]:
     """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo')."""
-    scene, data = workdir / f'pile{count}.yaml', workdir / f'input{count}.cdr'
+    scene, data = workdir / f'pile{count}_{sleeping}.yaml', workdir / f'input{count}.cdr'
     env = ros_env(args.domain)
     if server == 'node':
         command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
                    '--params-file', str(scene)]
     else:
         command = [sys.executable, __file__, '--role', 'echo', '--domain', str(args.domain)]
-    tag = f'{server}{count}{mode}'
+    tag = f'{server}{count}{mode}{sleeping}'
     begin = time.monotonic()
     with open(workdir / f'{tag}.log', 'wb') as log:
         node = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT,
@@ -459,7 +469,10 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
     latencies = [(listener.arrived[s] - t) / 1e6 for s, t in sent.items()
                  if s in listener.arrived]
     warm = latencies[len(latencies) // 10:] or latencies
+    asleep = listener.diagnostics[-1][1].get('sleeping_bodies', '-') \
+        if listener.diagnostics else '-'
     return {'server': server, 'mode': mode, 'bodies': count, 'rate': rate,
+            'sleeping': sleeping if server == 'node' else '-', 'asleep': asleep,
             'startup_s': startup, 'lockstep': result['lockstep'], 'sent': len(sent),
             'answered': len(latencies), 'dropped': len(sent) - len(latencies),
             'p50': float(np.percentile(warm, 50)) if warm else float('nan'),
@@ -470,13 +483,14 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
 
 
 def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> None:
-    """The settled pile's params file and input bytes."""
+    """The settled pile's params files (solver.sleeping on and off) and input bytes."""
     bodies, state, _ = settled_pile(count, args.settle)
-    write_scene(workdir / f'pile{count}.yaml', bodies, state)
+    for flag in ('on', 'off'):
+        write_scene(workdir / f'pile{count}_{flag}.yaml', bodies, state, flag == 'on')
     (workdir / f'input{count}.cdr').write_bytes(input_bytes(bodies, state, 1.0 / rate))
 
 
-def in_process(count: int, rate: float, mode: str, workdir: Path, steps: int, last: int
+def in_process(count: int, rate: float, mode: str, scene: Path, steps: int, last: int
                ) -> tuple[float, float]:
     """(wall, CPU) median ms of World.step over the ``last`` of ``steps`` steps of the
     node's own workload, in this process.
@@ -491,10 +505,10 @@ def in_process(count: int, rate: float, mode: str, workdir: Path, steps: int, la
     from collres_ros.core.pipeline import Resolver
     from collres_ros.core.types import InputBatch
     from collres_ros.ros import messages, params
-    resolver = Resolver.for_scene(params.load_scene(workdir / f'pile{count}.yaml'))
+    resolver = Resolver.for_scene(params.load_scene(scene))
     encoder = messages.OutputEncoder(resolver.names, resolver.world_frame, resolver.bodies)
     period = int(round(1e9 / rate))
-    inputs = Inputs((workdir / f'input{count}.cdr').read_bytes(), mode, period * 1e-9)
+    inputs = Inputs((scene.parent / f'input{count}.cdr').read_bytes(), mode, period * 1e-9)
     world_step = resolver.world.step
     wall, cpu = [], []
 
@@ -534,6 +548,8 @@ def main(argv: list[str] | None = None) -> int:
                         choices=('estimator', 'simulator', 'per_body'),
                         help='how the publisher drives the node (see the docstring)')
     parser.add_argument('--no-echo', action='store_true', help='skip the echo floor')
+    parser.add_argument('--sleeping', nargs='+', default=['on'], choices=('on', 'off'),
+                        help='solver.sleeping of the node (see the docstring)')
     parser.add_argument('--json', help='also write the rows here')
     parser.add_argument('--role', default='main', help=argparse.SUPPRESS)
     parser.add_argument('--bytes', help=argparse.SUPPRESS)
@@ -547,22 +563,22 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == 'echo':
         return echo(args)
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
-    print('| bodies | server | mode | start s | lock-step Hz | lock-step p50 ms | paced Hz '
-          '| sent | dropped | p50 ms | p99 ms | callback ms | decode | resolve '
-          '| World.step wall / CPU (in-process wall / CPU) | answer ms | encode | publish '
-          '| overhead ms |')
-    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
+    print('| bodies | server | mode | sleeping (asleep) | start s | lock-step Hz | '
+          'lock-step p50 ms | paced Hz | sent | dropped | p50 ms | p99 ms | callback ms | '
+          'decode | resolve | World.step wall / CPU (in-process wall / CPU) | answer ms | '
+          'encode | publish | overhead ms |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         for count, rate in zip(args.sizes, rates):
             prepare(count, rate, args, Path(tmp))
-            runs = ([] if args.no_echo else [('echo', 'estimator')]) + \
-                [('node', mode) for mode in args.modes]
-            for server, mode in runs:
-                r = measure(count, rate, args, Path(tmp), server, mode)
+            runs = ([] if args.no_echo else [('echo', 'estimator', 'on')]) + \
+                [('node', mode, flag) for mode in args.modes for flag in args.sleeping]
+            for server, mode, flag in runs:
+                r = measure(count, rate, args, Path(tmp), server, mode, flag)
                 r['in_process_ms'] = in_process(
-                    count, rate, mode, Path(tmp), r['lockstep']['steps'] + r['sent'],
-                    r['sent'])
+                    count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml',
+                    r['lockstep']['steps'] + r['sent'], r['sent'])
                 rows.append(r)
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
@@ -581,7 +597,8 @@ def _print_row(r: dict[str, Any]) -> None:
     t = r['timings'] or r['lock_timings']
     answer, world = t.get('answer_time_mean_ms'), t.get('time.world_ms')
     overhead = answer - world if answer is not None and world is not None else None
-    print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["startup_s"]:.2f} | '
+    print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["sleeping"]} ({r["asleep"]}) | '
+          f'{r["startup_s"]:.2f} | '
           f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
           f'{r["sent"]} | {r["dropped"]} | {r["p50"]:.2f} | {r["p99"]:.2f} | '
           f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '

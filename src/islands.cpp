@@ -38,6 +38,7 @@ Islands::Islands(std::vector<double> radius, std::vector<std::uint8_t> dynamic)
   island_.assign(n, -1);
   timer_.assign(n, 0.0);
   accel_.assign(6 * n, 0.0);
+  change_.assign(6 * n, 0.0);
   parent_.resize(n);
   root_still_.resize(n);
 }
@@ -72,12 +73,17 @@ int Islands::wake(const SleepStates& previous, const SleepStates& current,
     const double r = radius_[i];
     bool moving = kinematic != nullptr && kinematic[i];
     if (dynamic_[i] && active[i]) {
-      double jolt_v[3], jolt_w[3];
+      // the velocity change beyond the acceleration's over dt, or beyond last step's change
+      // (an upstream that integrates its own period while the node's dt spans a lost input)
+      double per_dt_v[3], per_dt_w[3], per_step_v[3], per_step_w[3];
       for (int k = 0; k < 3; ++k) {
-        jolt_v[k] = v1[k] - v0[k] - accel_[6 * i + k] * dt;
-        jolt_w[k] = w1[k] - w0[k] - accel_[6 * i + 3 + k] * dt;
+        per_dt_v[k] = v1[k] - v0[k] - accel_[6 * i + k] * dt;
+        per_dt_w[k] = w1[k] - w0[k] - accel_[6 * i + 3 + k] * dt;
+        per_step_v[k] = v1[k] - v0[k] - change_[6 * i + k];
+        per_step_w[k] = w1[k] - w0[k] - change_[6 * i + 3 + k];
       }
-      const double jolt = speed(i, jolt_v, jolt_w);
+      const double jolt = std::min(speed(i, per_dt_v, per_dt_w),
+                                   speed(i, per_step_v, per_step_w));
       if (asleep_[i]) {
         double dx[3] = {x1[0] - x0[0], x1[1] - x0[1], x1[2] - x0[2]};
         const double rr = std::isfinite(r) ? r : 0.0;
@@ -143,8 +149,10 @@ int Islands::wake(const SleepStates& previous, const SleepStates& current,
   for (int i = 0; i < n; ++i) {
     if (asleep_[i] || !dynamic_[i] || !active[i]) continue;
     for (int k = 0; k < 3; ++k) {
-      accel_[6 * i + k] = (current.linear[3 * i + k] - previous.linear[3 * i + k]) / dt;
-      accel_[6 * i + 3 + k] = (current.angular[3 * i + k] - previous.angular[3 * i + k]) / dt;
+      change_[6 * i + k] = current.linear[3 * i + k] - previous.linear[3 * i + k];
+      change_[6 * i + 3 + k] = current.angular[3 * i + k] - previous.angular[3 * i + k];
+      accel_[6 * i + k] = change_[6 * i + k] / dt;
+      accel_[6 * i + 3 + k] = change_[6 * i + 3 + k] / dt;
     }
   }
   return woken;
@@ -210,9 +218,8 @@ int Islands::update(double* out_linear, double* out_angular,
     std::sort(touched.begin(), touched.end());
     for (int i = 0; i < n; ++i) {
       if (asleep_[i] && std::binary_search(touched.begin(), touched.end(), island_[i])) {
-        asleep_[i] = 0;
-        island_[i] = -1;
-        timer_[i] = 0.0;
+        asleep_[i] = 0;   // its still time is kept: nothing says it moved, and an island
+        island_[i] = -1;  // that leans on it joins it and sleeps with it when ready
       }
     }
   }

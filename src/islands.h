@@ -10,10 +10,13 @@
 //
 // In a pipeline the bodies keep arriving: upstream integrates a sleeping body from the
 // held answer (held pose, zero twist), so its input is the held pose plus what its
-// integrator adds (gravity dt). Each body's external acceleration a = (v_in - v_last) / dt
-// is kept (6 values: linear m/s^2, angular rad/s^2, world frame); while asleep it is the
-// one measured when it fell asleep, and an input departs from the held state when
-//   jolt  = speed of (v_in - v_last - a dt) > threshold         (a push), or
+// integrator adds (gravity dt). Each body's velocity change per input, dv = v_in - v_last,
+// and its external acceleration a = dv / dt are kept (6 values each: linear, angular, world
+// frame); while asleep they are the ones measured when it fell asleep, and an input departs
+// from the held state when
+//   jolt  = speed of the smaller of (v_in - v_last - a dt) and (v_in - v_last - dv)
+//         > threshold                 (a push; the second form holds when an input was lost
+//                                      and dt spans two of the upstream's periods), or
 //   |x_in - x_held| > (|v_in| + threshold) dt, or the turn from the held orientation
 //   times r > (|w_in| r + threshold) dt                           (a teleport, a correction).
 // Before detection (Islands::wake) an island wakes when one of its bodies departs, or when
@@ -78,7 +81,9 @@ class Islands {
   // M contacts (a, b) with normal impulse > 0, timers from the answers' twists, islands all
   // still for time_to_sleep fall asleep (their answer's twist is zeroed: the held state).
   // A contact with impulse between a movable body and a sleeper wakes the sleeper's island
-  // (from the next step). Returns the bodies that fell asleep.
+  // (from the next step) and keeps its bodies' still time (so that an island resting against
+  // a smaller one that fell asleep first joins it and sleeps with it, instead of waking it
+  // again and again). Returns the bodies that fell asleep.
   int update(double* out_linear, double* out_angular,
              const std::uint8_t* movable, const std::int64_t* a, const std::int64_t* b,
              const double* normal_impulse, std::int64_t m, double dt);
@@ -98,6 +103,7 @@ class Islands {
   std::vector<std::int64_t> island_;  // sleeping island id (-1: awake)
   std::vector<double> timer_;         // s still
   std::vector<double> accel_;         // (N, 6) last external acceleration, m/s^2, rad/s^2
+  std::vector<double> change_;        // (N, 6) last velocity change per input, m/s, rad/s
   std::vector<int> parent_;           // union-find of the last update
   std::vector<int> root_still_;       // per root: 1 while every member is ready
   std::int64_t next_id_ = 0;

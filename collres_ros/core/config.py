@@ -178,8 +178,9 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               'an immovable body); more sweeps than velocity_iterations only for deep stacks',
               0.0, 100.0,
               reason='a load passes down a stack one level per sweep: 20 cubes of 5 cm to '
-                     '1 m drift 1.5-1.7 mm in 10 s at 240 Hz (1 sweep per level: 20 cm '
-                     'cubes 2.4 mm, 5 cm cubes fall)'),
+                     '1 m move 1.5 mm in 10 s at 240 Hz (measured before the per-point '
+                     'patch depths with 1 sweep per level: 20 cm cubes 2.4 mm, 5 cm cubes '
+                     'fell)'),
     ParamSpec('converged', 'double', 1e-6,
               'Velocity sweeps stop when no impulse changes by more than this times the '
               'largest normal impulse', 0.0, 1.0,

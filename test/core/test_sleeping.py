@@ -7,6 +7,7 @@ wake it):
 * it falls asleep after ``time_to_sleep`` of answers slower than ``sleep_threshold``;
 * asleep, its answer is the held pose and zero twist, equal within 1e-9 to what the solver
   (sleeping off) answers the same inputs, and no detection runs;
+* a lost input (the node's dt spans two upstream periods) does not wake it;
 * it wakes in the step on a push above the threshold (not below), a teleport, a touch (a
   falling ball's swept bounds, before the contact: the impact obeys the same laws as
   without sleeping, and a second island far away stays asleep), a material, settings or
@@ -151,6 +152,22 @@ def test_wakes_on_a_push_above_the_threshold_not_below() -> None:
     assert not result.sleeping[1]
     assert result.states.linear[1, 0] > 0.4                       # pushed, friction 0.03
     assert (result.report.state != ContactState.SLEEPING).all()
+
+
+def test_a_lost_input_does_not_wake_it() -> None:
+    """An input lost on the way: the node's dt spans two of the upstream's periods while
+    the upstream still integrated one period from the held answer (held twist + g dt)."""
+    sim = resting_boxes()
+    run_until_asleep(sim)
+    for span in (2, 3):
+        current = sim.integrate(sim.state)
+        result = sim.world.step(sim.state, current, span * sim.dt)
+        assert result.sleeping[1], f'woken by a dt of {span} periods'
+        sim.state = result.states
+    # and a push over such a step still wakes it
+    current = sim.integrate(sim.state)
+    current.linear[1, 0] += 0.5
+    assert not sim.world.step(sim.state, current, 2 * sim.dt).sleeping[1]
 
 
 def test_wakes_on_a_teleport() -> None:

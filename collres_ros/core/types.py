@@ -145,6 +145,8 @@ class StepResult:
 
 
 SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')
+# A body of several convex pieces (``BodySpec.pieces``); not a code of the compiled core.
+COMPOUND = 'compound'
 
 
 @dataclass(frozen=True)
@@ -204,13 +206,34 @@ class CollisionFilter:
 
 
 @dataclass(frozen=True)
+class Piece:
+    """One convex piece of a compound body, placed in the body frame.
+
+    ``shape``, ``size`` and ``points`` as a ``BodySpec``'s (any shape but a
+    plane); the piece's own frame (its shape frame: origin at its centre, a
+    cone's at its centre of mass) sits at ``position`` (m) with ``orientation``
+    (unit quaternion x, y, z, w) in the body frame. ``name`` names it in
+    contacts and errors.
+    """
+
+    name: str
+    shape: str
+    size: tuple[float, ...] = ()
+    points: tuple[tuple[float, float, float], ...] = ()
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    orientation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
 class BodySpec:
     """What a body is: shape, mass properties and material (body frame = shape frame).
 
     ``size`` by shape: sphere (r,); box (x, y, z) full edges; capsule, cylinder,
     cone (r, length) along the body z axis; plane (nx, ny, nz, d): the
     half-space n.x <= d in the body frame (static only); convex: ``points``
-    (K, 3) in the body frame, ``size`` unused. ``mass`` in kg is ignored for
+    (K, 3) in the body frame, ``size`` unused; compound (``COMPOUND``): the
+    convex ``pieces``, ``size`` and ``points`` unused (uniform density over the
+    pieces' volumes). ``mass`` in kg is ignored for
     static bodies (infinite mass). ``inertia`` (ixx, iyy, izz) in kg m^2 about
     the origin in the body frame, or None to derive it from shape and mass.
     """
@@ -227,6 +250,7 @@ class BodySpec:
     points: tuple[tuple[float, float, float], ...] = ()
     rolling_resistance: float = ROLLING_RESISTANCE      # see config.BODY_PARAMS
     torsional_friction: float = TORSIONAL_FRICTION
+    pieces: tuple[Piece, ...] = ()
 
 
 @dataclass(frozen=True)

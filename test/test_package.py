@@ -13,7 +13,8 @@ import pytest
 from catkin_pkg.package import parse_package
 
 ROOT = Path(__file__).resolve().parents[1]
-EXECUTABLES = ('collres_node', 'collres_sim', 'collres_replay', 'collres_demo')
+EXECUTABLES = ('collres_node', 'collres_sim', 'collres_replay', 'collres_demo',
+               'collres_decompose')
 
 # Python import -> the package.xml key that provides it.
 IMPORT_TO_KEY = {

@@ -284,6 +284,11 @@ COLLISION_RULE = 'a pair collides when (group_a & mask_b) != 0 and (group_b & ma
 # window's steps are a WARN (two clocks on one topic, a source whose time keeps jumping)
 TIME_JUMP_WARN_FRACTION = 0.25
 
+# Convex decomposition (collres_decompose, body.<name>.decompose): CoACD's default concavity
+# threshold and SDFormat's default most hulls.
+DECOMPOSE_THRESHOLD = 0.05
+DECOMPOSE_MAX_HULLS = 16
+
 # Rolling resistance and torsional friction defaults (dimensionless; see BODY_PARAMS).
 ROLLING_RESISTANCE = 0.01
 TORSIONAL_FRICTION = 0.01
@@ -339,11 +344,31 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
               -VELOCITY_LIMIT, VELOCITY_LIMIT,
               unit='rad/s'),
     ParamSpec('mesh', 'string', '',
-              'convex: mesh file (OBJ/STL vertices), relative to the params file or absolute; '
-              f'a regular .obj or .stl file of at most {MESH_MAX_BYTES // 2**20} MiB'),
+              'convex: mesh file (OBJ/STL), relative to the params file or absolute; '
+              f'a regular .obj or .stl file of at most {MESH_MAX_BYTES // 2**20} MiB; the '
+              'body is the convex hull of its vertices unless decompose is true',
+              reason='a hull, as MuJoCo and Drake make of a mesh: a concave mesh needs '
+                     'decompose'),
     ParamSpec('points', 'double_array', [],
               'convex: vertices [x0, y0, z0, x1, ...] in the body frame', -SIZE_RANGE[1],
               SIZE_RANGE[1], unit='m'),
+    ParamSpec('shapes', 'string_array', [],
+              'Compound body: the names of its convex pieces (letters, digits, _), each '
+              'described by body.<name>.piece.<piece>.*; shape, size, mesh and points of the '
+              'body are then not set. Mass spreads over the pieces\' volumes; a dynamic '
+              'compound\'s pieces must have their centre of mass at the body origin',
+              reason='empty: the body is the one shape above'),
+    ParamSpec('decompose', 'bool', False,
+              'convex with a mesh: the body is the convex decomposition of the mesh (CoACD), '
+              'read from the cache next to the mesh (collres_decompose writes it; made at start '
+              'when missing, with a log line)',
+              reason='decomposition takes seconds to minutes: opt-in, cached'),
+    ParamSpec('decompose_threshold', 'double', DECOMPOSE_THRESHOLD,
+              'decompose: CoACD\'s concavity threshold (smaller: more, finer hulls)', 0.01, 1.0,
+              reason='CoACD\'s default'),
+    ParamSpec('decompose_max_hulls', 'integer', DECOMPOSE_MAX_HULLS,
+              'decompose: most convex hulls of the decomposition', 1, 256,
+              reason='SDFormat\'s default max_convex_hulls'),
     ParamSpec('collision_group', 'integer', DEFAULT_COLLISION_GROUP,
               f'Collision category bits the body is in: {COLLISION_RULE} (Box2D category '
               'bits, Gazebo collide_bitmask); 0: it collides with nothing',
@@ -353,6 +378,24 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
               f'Collision bits the body collides with ({ALL_COLLISION_BITS:#x}: all 16; '
               'see collision_group)', 0, ALL_COLLISION_BITS,
               reason='all bits: a scene that does not filter collides as before'),
+)
+
+
+# The pieces of a compound body: `body.<name>.piece.<piece>.<param>`.
+PIECE_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('shape', 'string', 'box', 'Collision shape of the piece',
+              choices=('sphere', 'box', 'capsule', 'cylinder', 'cone', 'convex')),
+    ParamSpec('size', 'double_array', [0.1, 0.1, 0.1],
+              'As body.<name>.size (no plane)', *SIZE_RANGE, unit='m'),
+    ParamSpec('mesh', 'string', '', 'convex: mesh file, as body.<name>.mesh (its hull)'),
+    ParamSpec('points', 'double_array', [],
+              'convex: vertices [x0, y0, z0, x1, ...] in the piece frame', -SIZE_RANGE[1],
+              SIZE_RANGE[1], unit='m'),
+    ParamSpec('position', 'double_array', [0.0, 0.0, 0.0],
+              'Position of the piece\'s frame (its centre; a cone\'s centre of mass) in the '
+              'body frame', -SIZE_RANGE[1], SIZE_RANGE[1], unit='m'),
+    ParamSpec('orientation', 'double_array', [0.0, 0.0, 0.0, 1.0],
+              'Orientation of the piece\'s frame in the body frame, quaternion x, y, z, w'),
 )
 
 

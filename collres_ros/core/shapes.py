@@ -339,6 +339,40 @@ def mesh_points(data: bytes, suffix: str, name: str = 'mesh') -> np.ndarray:
     return hull_vertices(points)
 
 
+def mesh_triangles(data: bytes, suffix: str, name: str = 'mesh'
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The surface of an OBJ or STL file: vertices (K, 3) in the file's units and triangles
+    (T, 3) int32 indices into them (OBJ polygons fanned; STL corners merged where equal).
+    ValueError naming ``name`` when the file has no triangle or a face names no vertex."""
+    suffix = suffix.lower()
+    if suffix == '.obj':
+        vertices = _obj_vertices(data)
+        triangles = []
+        for line in _OBJ_FACE.findall(data):
+            try:
+                corners = [int(token.split(b'/')[0]) for token in line.split()]
+            except ValueError:
+                raise ValueError(f'{name}: face {line[:60].decode(errors="replace")!r} is not '
+                                 'vertex numbers') from None
+            corners = [c - 1 if c > 0 else len(vertices) + c for c in corners]
+            triangles += [(corners[0], corners[k], corners[k + 1])
+                          for k in range(1, len(corners) - 1)]
+        faces = np.array(triangles, dtype=np.int64).reshape(-1, 3)
+    elif suffix == '.stl':
+        corners = _stl_vertices(data)
+        vertices, inverse = np.unique(corners, axis=0, return_inverse=True)
+        faces = inverse.reshape(-1, 3)
+    else:
+        raise ValueError(f'{name}: unsupported mesh format (use .obj or .stl)')
+    if faces.shape[0] == 0:
+        raise ValueError(f'{name}: no triangles found')
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise ValueError(f'{name}: a face names a vertex the file does not have')
+    return np.ascontiguousarray(vertices, dtype=float), faces.astype(np.int32)
+
+
+# a face line: `f a b c ...` (OBJ), each corner `v`, `v/t`, `v//n` or `v/t/n`
+_OBJ_FACE = re.compile(rb'^[ \t]*f[ \t]+([^\r\n]+)', re.MULTILINE)
 # a vertex line: `v x y z [w]` (OBJ), `vertex x y z` (ASCII STL); numbers as float() reads them
 _OBJ_VERTEX = re.compile(rb'^[ \t]*v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)', re.MULTILINE)
 _STL_VERTEX = re.compile(rb'^[ \t]*vertex[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)', re.MULTILINE)

@@ -227,7 +227,7 @@ class CollresNode(Node):
         params.declare_all(self, (
             (spec.name, params.declared_value(spec, self.scene.values[spec.name]),
              params.descriptor(spec, not params.is_runtime_changeable(spec.name)))
-            for spec in params.node_specs(self.scene.names)))
+            for spec in params.node_specs(self.scene.names, self.scene.pieces)))
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         changes = {p.name: params.plain_value(p.value) for p in parameters

@@ -23,6 +23,7 @@ IMPORT_TO_KEY = {
     'builtin_interfaces': 'builtin_interfaces', 'rcl_interfaces': 'rclpy',
     'numpy': 'python3-numpy', 'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib',
     'coal': 'coal', 'ament_index_python': 'rclpy', 'rosbags': 'python3-rosbags-pip',
+    'coacd': 'python3-coacd-pip', 'urdf_parser_py': 'urdfdom_py',
 }
 
 

@@ -522,4 +522,14 @@ SCENE_PARAMS: tuple[ParamSpec, ...] = (
               'Pairs of bodies that never collide, each "a:b" (two different names from '
               'bodies), whatever their collision bits (as MoveIt\'s allowed collision matrix)',
               reason='none: every pair the bits allow collides'),
+    ParamSpec('robot_description', 'string', '',
+              'URDF text (as robot_state_publisher\'s parameter): every link with <collision> '
+              'elements becomes a kinematic body named after the link (sphere, box, cylinder, '
+              'mesh hull with scale; one piece per element), posed from body_states by link '
+              'name; its body.<link>.* parameters may still be set',
+              reason='empty: no robot'),
+    ParamSpec('robot_self_collision', 'bool', False,
+              'Links of robot_description collide with one another (links joined by a joint '
+              'never do)',
+              reason='off, as MoveIt\'s default allowed collision matrix for a posed arm'),
 )

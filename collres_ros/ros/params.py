@@ -34,7 +34,7 @@ from collres_ros.core.config import (
     SolverSettings, check_value, range_text)
 from collres_ros.core.shapes import centre_of_mass, hull_problem, hull_vertices, mesh_points
 from collres_ros.core.types import COMPOUND, BodySpec, BodyStates, CollisionFilter, Piece
-from collres_ros.ros import params_yaml
+from collres_ros.ros import params_yaml, robot
 
 NODE_NAME = 'collres_node'
 SIM_NAME = 'collres_sim'
@@ -77,6 +77,8 @@ class Scene:
     sim: SimSettings = SimSettings()
     values: Mapping[str, Any] = field(default_factory=dict)
     base_dir: Optional[Path] = None
+    # link pairs of robot_description that never collide (robot.Robot.ignored)
+    robot_ignored: tuple[tuple[str, str], ...] = ()
 
     @property
     def names(self) -> list[str]:
@@ -99,8 +101,9 @@ class Scene:
 
     @property
     def collision_filter(self) -> CollisionFilter:
-        """Which pairs may collide: the bodies' collision bits and ``ignore_pairs``."""
-        return collision_filter_of(self.values, self.names)
+        """Which pairs may collide: the bodies' collision bits, ``ignore_pairs`` and the
+        robot's link pairs."""
+        return collision_filter_of(self.values, self.names, self.robot_ignored)
 
 
 # --- the table of every parameter -------------------------------------------------------------
@@ -401,12 +404,15 @@ def ignored_pairs(entries: Iterable[str], names: list[str]) -> list[tuple[int, i
     return pairs
 
 
-def collision_filter_of(values: Mapping[str, Any], names: list[str]) -> CollisionFilter:
-    """The collision filter of validated values: per-body bits and ``ignore_pairs``."""
+def collision_filter_of(values: Mapping[str, Any], names: list[str],
+                        also: Iterable[tuple[str, str]] = ()) -> CollisionFilter:
+    """The collision filter of validated values: per-body bits, ``ignore_pairs`` and
+    ``also`` (pairs of body names, e.g. a robot's links)."""
     return CollisionFilter(
         tuple(values[f'body.{n}.collision_group'] for n in names),
         tuple(values[f'body.{n}.collision_mask'] for n in names),
-        tuple(ignored_pairs(values['ignore_pairs'], names)))
+        tuple(ignored_pairs(values['ignore_pairs'], names))
+        + tuple((names.index(a), names.index(b)) for a, b in also))
 
 
 def _shape(key: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool,
@@ -538,9 +544,15 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
     values are untrusted (a bag's recorded params) and name no file to read.
     """
     raw = dict(values)
-    bodies_value = _typed(SCENE_PARAMS[1], raw.get('bodies'))
-    if not bodies_value:
-        _fail('bodies', 'at least one body name required', bodies_value)
+    listed = _typed(SCENE_PARAMS[1], raw.get('bodies'))
+    links = _robot(raw, base_dir, files)
+    if not listed and not links.links:
+        _fail('bodies', 'at least one body name required', listed)
+    for name in links.links:
+        if name in listed:
+            _fail('bodies', f'{name!r} is also a link of robot_description', listed)
+    raw = {**links.values, **raw}   # a link's body.<link>.* set by the user wins
+    bodies_value = list(listed) + list(links.links)
     for name in bodies_value:
         if not NAME_PATTERN.match(name):
             raise ValueError(f'bodies: name {_short(name)!r} must match {NAME_PATTERN.pattern} '
@@ -596,8 +608,23 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
     node = NodeSettings(**{f.name: typed[f.name] for f in fields(NodeSettings)})
     sim = SimSettings(gravity=gravity, rate_hz=typed['rate_hz'],  # type: ignore[arg-type]
                       duration=typed['duration'], publish_per_body=typed['publish_per_body'])
+    typed['bodies'] = listed
     return Scene(world_frame, tuple(spec for spec, _ in built), initial, solver, node, sim,
-                 typed, base_dir)
+                 typed, base_dir, links.ignored)
+
+
+def _robot(raw: Mapping[str, Any], base_dir: Optional[Path], files: bool) -> robot.Robot:
+    """The link bodies of ``robot_description`` (none when it is empty)."""
+    spec = {s.name: s for s in SCENE_PARAMS}
+    text = _typed(spec['robot_description'], raw.get('robot_description'))
+    if not text:
+        return robot.Robot('', (), {}, ())
+    if not files:
+        _fail('robot_description', 'a recorded scene carries its links as bodies, it names '
+              'no file', _short(text))
+    return robot.robot_from_urdf(text, base_dir, _read_mesh,
+                                 _typed(spec['robot_self_collision'],
+                                        raw.get('robot_self_collision')))
 
 
 def scene_to_yaml(scene: Scene) -> str:
@@ -608,6 +635,10 @@ def scene_to_yaml(scene: Scene) -> str:
     """
     import yaml
     values = dict(scene.values)
+    if scene.values.get('robot_description'):   # links written out as bodies, pairs too
+        values.update({'robot_description': '', 'bodies': scene.names,
+                       'ignore_pairs': list(scene.values['ignore_pairs'])
+                       + [f'{a}{PAIR_SEPARATOR}{b}' for a, b in scene.robot_ignored]})
     for body in scene.bodies:
         key = f'body.{body.name}'
         if body.shape == 'convex':

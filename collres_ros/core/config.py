@@ -94,6 +94,11 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               '(counted: contact_budget)', 1, 10_000_000,
               reason='bounds the solver\'s work (PhysX contact buffer); a 1000-cube pile has '
                      '16000'),
+    ParamSpec('max_contacts_per_pair', 'integer', 8,
+              'Contact rows kept per pair of bodies, the deepest (a pair of compound bodies '
+              'has up to 4 per pair of pieces)', 1, 1000,
+              reason='two flat feet of a compound keep 4 points each; more points add '
+                     'solver work, not support (Gazebo caps a pair with max_contacts)'),
     ParamSpec('sleeping', 'bool', True,
               'Islands of bodies at rest for time_to_sleep sleep: answered with their held '
               'pose and zero twist, without detection or solve, until a push, a touch, a '
@@ -133,6 +138,7 @@ class SolverSettings:
     max_dt: float = 0.5
     max_pairs: int = 20000
     max_contacts: int = 40000
+    max_contacts_per_pair: int = 8
     sleeping: bool = True
     sleep_threshold: float = 0.05
     time_to_sleep: float = 0.5

@@ -58,12 +58,11 @@ def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
     if shape == 'convex':
         return convex_hull(convex_points(spec))
     if shape == COMPOUND:
-        raise ValueError(_NO_COMPOUND_DETECTION.format(spec.name))
+        raise ValueError(_ONE_PER_PIECE.format(spec.name))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 
-_NO_COMPOUND_DETECTION = ('{}: compound bodies (shapes, decompose) are not detected by the '
-                          'compiled core yet: their mass properties and parameters only')
+_ONE_PER_PIECE = '{}: a compound body has a geometry per piece (piece_spec)'
 
 
 def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
@@ -83,7 +82,7 @@ def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
     if shape == 'convex':
         return [], convex_points(spec).reshape(-1).tolist()
     if shape == COMPOUND:
-        raise ValueError(_NO_COMPOUND_DETECTION.format(spec.name))
+        raise ValueError(_ONE_PER_PIECE.format(spec.name))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 

@@ -80,7 +80,9 @@ class ContactSet:
     (0 for PERSISTENT contacts: they touch from the start of the step).
     ``feature`` identifies the point within its pair across steps for warm
     starting (e.g. the index in a face-on-face manifold); the pair itself is
-    identified by (body_a, body_b) with body_a < body_b.
+    identified by (body_a, body_b) with body_a < body_b. ``piece_a`` /
+    ``piece_b``: the index of the touching piece among each compound body's
+    ``BodySpec.pieces`` (0 for a body of one shape; None: all 0).
     """
 
     body_a: np.ndarray        # (M,) int64
@@ -91,10 +93,25 @@ class ContactSet:
     toi: np.ndarray           # (M,) fraction of the step in [0, 1]
     kind: np.ndarray          # (M,) int8, ContactKind
     feature: np.ndarray       # (M,) int64
+    piece_a: np.ndarray | None = None   # (M,) int32, or None: every piece 0
+    piece_b: np.ndarray | None = None
 
     @property
     def count(self) -> int:
         return int(self.body_a.shape[0])
+
+    def pieces(self) -> tuple[np.ndarray, np.ndarray]:
+        """(piece_a, piece_b) as (M,) int32 arrays (zeros when not given)."""
+        zeros = np.zeros(self.count, np.int32)
+        return (zeros if self.piece_a is None else self.piece_a,
+                zeros if self.piece_b is None else self.piece_b)
+
+    def select(self, keep: np.ndarray) -> 'ContactSet':
+        """The contacts a boolean mask or an index array keeps, each array a copy."""
+        piece_a, piece_b = self.pieces()
+        return ContactSet(self.body_a[keep], self.body_b[keep], self.point[keep],
+                          self.normal[keep], self.separation[keep], self.toi[keep],
+                          self.kind[keep], self.feature[keep], piece_a[keep], piece_b[keep])
 
     @property
     def depth(self) -> np.ndarray:

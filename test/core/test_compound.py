@@ -91,5 +91,5 @@ def test_bounds_hold_every_piece_and_detection_refuses_compounds_clearly() -> No
     body = compound(Piece('a', 'sphere', (0.1,), position=(0.3, 0.4, 0.0)),
                     Piece('b', 'box', (0.2, 0.2, 0.2)))
     assert bounding_radius(body) == pytest.approx(0.6)
-    with pytest.raises(ValueError, match='compound bodies'):
-        make_geometry(body)
+    with pytest.raises(ValueError, match='a geometry per piece'):
+        make_geometry(body)   # one per piece

@@ -91,9 +91,16 @@ void bind_detection(py::module_& m) {
       .def(py::init([](const std::vector<int>& kinds, const std::vector<std::vector<double>>& sizes,
                        const std::vector<std::vector<double>>& points,
                        const std::vector<double>& radius, const std::vector<bool>& fixed,
-                       const std::vector<int>& body, const std::vector<int>& piece,
-                       const std::vector<std::vector<double>>& pose, int bodies) {
+                       std::vector<int> body, std::vector<int> piece,
+                       std::vector<std::vector<double>> pose, int bodies) {
              const std::size_t n = kinds.size();
+             if (body.empty() && piece.empty() && pose.empty() && bodies < 0) {
+               // one shape per body, each on its body's frame
+               for (std::size_t k = 0; k < n; ++k) body.push_back(static_cast<int>(k));
+               piece.assign(n, 0);
+               pose.assign(n, {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0});
+               bodies = static_cast<int>(n);
+             }
              if (sizes.size() != n || points.size() != n || radius.size() != n ||
                  fixed.size() != n || body.size() != n || piece.size() != n ||
                  pose.size() != n) {
@@ -121,12 +128,14 @@ void bind_detection(py::module_& m) {
              return std::make_unique<collres::Detector>(std::move(shapes), bodies);
            }),
            py::arg("kinds"), py::arg("sizes"), py::arg("points"), py::arg("radius"),
-           py::arg("static"), py::arg("body"), py::arg("piece"), py::arg("pose"),
-           py::arg("bodies"),
+           py::arg("static"), py::arg("body") = std::vector<int>{},
+           py::arg("piece") = std::vector<int>{},
+           py::arg("pose") = std::vector<std::vector<double>>{}, py::arg("bodies") = -1,
            "Per shape, in body order: shape code (index in SHAPE_KINDS), sizes, convex "
            "vertices (flat, m, piece frame), bounding radius about the body origin (m), "
            "static, its body, its index among that body's pieces, the piece frame's pose in "
-           "the body frame (x, y, z m, qx, qy, qz, qw); the number of bodies.")
+           "the body frame (x, y, z m, qx, qy, qz, qw); the number of bodies. Without the "
+           "last four: one shape per body.")
       .def("set_settings",
            [](collres::Detector& d, double speculative_margin, double toi_tolerance,
               int toi_max_iterations, bool ccd, double linear_slop,

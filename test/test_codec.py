@@ -203,12 +203,16 @@ def test_wrench_stamped_encodes_as_rclpy(stamp: int, frame: str, rows: list) -> 
 @st.composite
 def contact_arrays(draw):
     pool = draw(st.lists(NAMES, min_size=1, max_size=6))
+    pieces = draw(st.lists(NAMES, min_size=1, max_size=6))
     count = draw(st.integers(0, 12))
     index = st.integers(0, len(pool) - 1)
+    piece = st.integers(0, len(pieces) - 1)
     rows = st.lists(FLOATS, min_size=11, max_size=11)
-    return (draw(STAMPS), draw(NAMES), pool,
+    return (draw(STAMPS), draw(NAMES), pool, pieces,
             np.array(draw(st.lists(index, min_size=count, max_size=count)), np.int64),
             np.array(draw(st.lists(index, min_size=count, max_size=count)), np.int64),
+            np.array(draw(st.lists(piece, min_size=count, max_size=count)), np.int64),
+            np.array(draw(st.lists(piece, min_size=count, max_size=count)), np.int64),
             np.array(draw(st.lists(rows, min_size=count, max_size=count)), float
                      ).reshape(count, 11),
             np.array(draw(st.lists(STAMPS, min_size=count, max_size=count)), np.int64),
@@ -219,13 +223,15 @@ def contact_arrays(draw):
 @SETTINGS
 @given(contact_arrays())
 def test_contact_array_encodes_as_rclpy(case) -> None:
-    stamp, frame, pool, a, b, v, toi, state = case
+    stamp, frame, pool, pieces, a, b, pa, pb, v, toi, state = case
     ours = codec.encode_contacts(stamp, frame, codec.NamePool(pool), a, b, v[:, 0:3],
-                                 v[:, 3:6], v[:, 6], toi, v[:, 7], v[:, 8:11], state)
+                                 v[:, 3:6], v[:, 6], toi, v[:, 7], v[:, 8:11], state,
+                                 (codec.NamePool(pieces), pa, pb))
     msg = ContactArray()
     msg.header.stamp, msg.header.frame_id = stamp_of(stamp), frame
     for k in range(len(a)):
-        c = Contact(body_a=pool[a[k]], body_b=pool[b[k]], state=int(state[k]))
+        c = Contact(body_a=pool[a[k]], body_b=pool[b[k]], piece_a=pieces[pa[k]],
+                    piece_b=pieces[pb[k]], state=int(state[k]))
         c.position.x, c.position.y, c.position.z = v[k, 0:3].tolist()
         c.normal.x, c.normal.y, c.normal.z = v[k, 3:6].tolist()
         c.depth, c.normal_impulse = float(v[k, 6]), float(v[k, 7])
@@ -235,8 +241,14 @@ def test_contact_array_encodes_as_rclpy(case) -> None:
     theirs = bytes(serialize_message(msg))
     assert ours == zero_filled(theirs, 'collres_ros/msg/ContactArray')
     back = deserialize_message(ours, ContactArray)
-    assert [(c.body_a, c.body_b, c.state) for c in back.contacts] == \
-        [(c.body_a, c.body_b, c.state) for c in msg.contacts]
+    assert [(c.body_a, c.body_b, c.piece_a, c.piece_b, c.state) for c in back.contacts] == \
+        [(c.body_a, c.body_b, c.piece_a, c.piece_b, c.state) for c in msg.contacts]
+    # without pieces (no compound body) every piece name is ''
+    alone = codec.encode_contacts(stamp, frame, codec.NamePool(pool), a, b, v[:, 0:3],
+                                  v[:, 3:6], v[:, 6], toi, v[:, 7], v[:, 8:11], state)
+    for c in msg.contacts:
+        c.piece_a = c.piece_b = ''
+    assert alone == zero_filled(bytes(serialize_message(msg)), 'collres_ros/msg/ContactArray')
 
 
 @st.composite

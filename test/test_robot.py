@@ -118,3 +118,21 @@ def test_rpy_is_fixed_axis_roll_then_pitch_then_yaw(rpy) -> None:
     rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
     np.testing.assert_allclose(to_matrix(np.array(quaternion_of_rpy(*rpy))), rz @ ry @ rx,
                                atol=1e-15)
+
+
+def test_link_poses_follow_the_joints() -> None:
+    """Forward kinematics of the test arm: shoulder 0.05 m above the base, elbow 0.3 m up
+    the upper arm, the wrist 0.25 m along the forearm's x; turning the shoulder by pi/2
+    about y lays the arm along +x."""
+    from collres_ros.ros.robot import link_poses
+    upright = link_poses(URDF)
+    np.testing.assert_allclose(upright['upper_arm'][0], [0, 0, 0.05], atol=1e-15)
+    np.testing.assert_allclose(upright['forearm'][0], [0, 0, 0.35], atol=1e-15)
+    np.testing.assert_allclose(upright['hand'][0], [0.25, 0, 0.35], atol=1e-15)
+    laid = link_poses(URDF, {'shoulder': math.pi / 2})
+    np.testing.assert_allclose(laid['forearm'][0], [0.3, 0, 0.05], atol=1e-12)
+    np.testing.assert_allclose(to_matrix(laid['forearm'][1]) @ [0, 0, 1], [1, 0, 0],
+                               atol=1e-12)
+    np.testing.assert_allclose(laid['hand'][0], [0.3, 0, 0.05 - 0.25], atol=1e-12)
+    np.testing.assert_allclose(laid['tool0'][0], laid['hand'][0] + to_matrix(
+        laid['hand'][1]) @ [0, 0, 0.12], atol=1e-12)

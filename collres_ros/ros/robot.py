@@ -152,3 +152,49 @@ def _geometry(where: str, at: str, geometry: Any, base_dir: Optional[Path],
                              f'finite or beyond {SIZE_RANGE[1]:g} m')
         return {f'{at}.shape': 'convex', f'{at}.points': points.reshape(-1).tolist()}
     raise ValueError(f'{where}: no collision shape for <{kind.lower()}>')
+
+
+Pose = tuple[np.ndarray, np.ndarray]   # position (3,) m, quaternion (4,) x, y, z, w
+
+
+def link_poses(text: str, positions: Optional[dict[str, float]] = None,
+               base: Pose = (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))) -> dict[str, Pose]:
+    """World pose (position m, quaternion x, y, z, w) of every link of a URDF text, by
+    forward kinematics: a child link sits at its joint's origin in its parent's frame, turned
+    about the joint axis by the joint's position (rad; revolute, continuous) or moved along
+    it (m; prismatic); other joints are fixed. Root links sit at ``base``; joints missing
+    from ``positions`` are at 0."""
+    from collres_ros.core.rotation import multiply, to_matrix
+    model = parse(text)
+    positions = positions or {}
+    by_child = {j.child: j for j in model.joints}
+    poses: dict[str, Pose] = {}
+
+    def pose(link: str, depth: int = 0) -> Pose:
+        if link in poses:
+            return poses[link]
+        joint = by_child.get(link)
+        if joint is None or depth > len(model.links):
+            found = (np.array(base[0], float), np.array(base[1], float))
+        else:
+            p, q = pose(joint.parent, depth + 1)
+            origin = joint.origin
+            xyz = np.array(origin.xyz if origin and origin.xyz else (0, 0, 0), float)
+            rpy = origin.rpy if origin and origin.rpy else (0, 0, 0)
+            p = p + to_matrix(q) @ xyz
+            q = multiply(q, np.array(quaternion_of_rpy(*rpy)))
+            axis = np.array(joint.axis if joint.axis else (1, 0, 0), float)
+            axis /= max(np.linalg.norm(axis), 1e-300)
+            value = float(positions.get(joint.name, 0.0))
+            if joint.type in ('revolute', 'continuous'):
+                turn = np.append(axis * np.sin(value / 2), np.cos(value / 2))
+                q = multiply(q, turn)
+            elif joint.type == 'prismatic':
+                p = p + to_matrix(q) @ (axis * value)
+            found = (p, q / np.linalg.norm(q))
+        poses[link] = found
+        return found
+
+    for link in model.links:
+        pose(link.name)
+    return poses

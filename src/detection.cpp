@@ -40,9 +40,32 @@ void ContactRows::reserve(std::size_t rows) {
   feature.reserve(rows);
   piece_a.reserve(rows);
   piece_b.reserve(rows);
+  manifolds.reserve(kManifoldFields * rows);
+}
+
+void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t first) {
+  if (size() > first) {
+    manifolds.insert(manifolds.end(), {a, b, static_cast<std::int64_t>(first),
+                                       static_cast<std::int64_t>(size() - first)});
+  }
 }
 
 void ContactRows::keep(const std::vector<std::size_t>& rows) {
+  // each manifold's kept rows, counted before the columns are compacted
+  std::size_t to = 0, next = 0;
+  for (std::size_t k = 0; k < manifolds.size(); k += kManifoldFields) {
+    const auto end = static_cast<std::size_t>(manifolds[k + 2] + manifolds[k + 3]);
+    std::size_t first = next;
+    while (next < rows.size() && rows[next] < end) ++next;
+    if (next > first) {
+      manifolds[to] = manifolds[k];
+      manifolds[to + 1] = manifolds[k + 1];
+      manifolds[to + 2] = static_cast<std::int64_t>(first);
+      manifolds[to + 3] = static_cast<std::int64_t>(next - first);
+      to += kManifoldFields;
+    }
+  }
+  manifolds.resize(to);
   auto compact = [&rows](auto& column, std::size_t width) {
     std::size_t to = 0;
     for (const std::size_t row : rows) {
@@ -90,6 +113,7 @@ void ContactRows::clear() {
   feature.clear();
   piece_a.clear();
   piece_b.clear();
+  manifolds.clear();
 }
 
 Detector::Detector(std::vector<BodyShape> shapes, int bodies)
@@ -263,42 +287,57 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   last_rows_ = out.size();
 }
 
-// Rows grouped by pair of bodies in (a, b) order (piece pairs of one pair of bodies may be
-// apart: piece order is body order, but a's first piece meets c before a's second meets b),
-// each group cut to its max_contacts_per_pair deepest rows, in their order.
+// Rows grouped by pair of bodies in (a, b) order, manifold by manifold (piece pairs of one
+// pair of bodies may be apart: piece order is body order, but a's first piece meets c
+// before a's second meets b), then each pair cut to its max_contacts_per_pair deepest rows
+// (ties by position), in their order; a manifold keeps its kept rows.
 void Detector::group_by_bodies(ContactRows& out) {
-  const std::size_t count = out.size();
-  order_.resize(count);
-  for (std::size_t k = 0; k < count; ++k) order_[k] = k;
-  std::stable_sort(order_.begin(), order_.end(), [&out](std::size_t i, std::size_t j) {
-    return out.body_a[i] < out.body_a[j] ||
-           (out.body_a[i] == out.body_a[j] && out.body_b[i] < out.body_b[j]);
+  const std::size_t spans = out.manifolds.size() / kManifoldFields;
+  const std::int64_t* m = out.manifolds.data();
+  rank_.resize(spans);
+  for (std::size_t k = 0; k < spans; ++k) rank_[k] = k;
+  std::stable_sort(rank_.begin(), rank_.end(), [m](std::size_t i, std::size_t j) {
+    const std::int64_t* x = m + kManifoldFields * i;
+    const std::int64_t* y = m + kManifoldFields * j;
+    return x[0] < y[0] || (x[0] == y[0] && x[1] < y[1]);
   });
+  order_.clear();
+  std::vector<std::int64_t> manifolds;
+  manifolds.reserve(out.manifolds.size());
+  for (const std::size_t k : rank_) {
+    const std::int64_t* span = m + kManifoldFields * k;
+    manifolds.insert(manifolds.end(), {span[0], span[1],
+                                       static_cast<std::int64_t>(order_.size()), span[3]});
+    for (std::int64_t r = 0; r < span[3]; ++r) {
+      order_.push_back(static_cast<std::size_t>(span[2] + r));
+    }
+  }
+  out.take(order_, grouped_);
+  grouped_.manifolds.swap(manifolds);
+  std::swap(out, grouped_);
+  // the cap, per pair of bodies (rows are now grouped by pair)
   const auto cap = static_cast<std::size_t>(std::max(settings_.max_contacts_per_pair, 1));
+  const std::size_t count = out.size();
   const std::vector<double>& gap = out.separation;
-  rank_.clear();
+  std::vector<std::size_t> kept;
+  bool cut = false;
   for (std::size_t lo = 0; lo < count;) {
     std::size_t hi = lo + 1;
-    while (hi < count && out.body_a[order_[hi]] == out.body_a[order_[lo]] &&
-           out.body_b[order_[hi]] == out.body_b[order_[lo]]) {
+    while (hi < count && out.body_a[hi] == out.body_a[lo] && out.body_b[hi] == out.body_b[lo]) {
       ++hi;
     }
-    if (hi - lo > cap) {   // the deepest, ties by position; then back in their order
-      std::vector<std::size_t> at(hi - lo);
-      for (std::size_t k = 0; k < at.size(); ++k) at[k] = lo + k;
-      std::stable_sort(at.begin(), at.end(), [this, &gap](std::size_t i, std::size_t j) {
-        return gap[order_[i]] < gap[order_[j]];
-      });
-      at.resize(cap);
-      std::sort(at.begin(), at.end());
-      for (const std::size_t k : at) rank_.push_back(order_[k]);
-    } else {
-      rank_.insert(rank_.end(), order_.begin() + lo, order_.begin() + hi);
+    const std::size_t first = kept.size();
+    for (std::size_t r = lo; r < hi; ++r) kept.push_back(r);
+    if (hi - lo > cap) {
+      cut = true;
+      std::stable_sort(kept.begin() + first, kept.end(),
+                       [&gap](std::size_t i, std::size_t j) { return gap[i] < gap[j]; });
+      kept.resize(first + cap);
+      std::sort(kept.begin() + first, kept.end());
     }
     lo = hi;
   }
-  out.take(rank_, grouped_);
-  std::swap(out, grouped_);
+  if (cut) out.keep(kept);
 }
 
 // m, how far apart the pair's bounding spheres are at s = 1 (negative: overlapping); for a
@@ -392,6 +431,7 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
   }
   if (gap > settings_.speculative_margin) return true;
   next_.begin(key, stored->rel_p, stored->rel_q);
+  const std::size_t first = out.size();
   for (int k = 0; k < stored->count; ++k) {
     const StoredRow& row = stored_.row(stored->first + k);
     const Vec3 on_a = A.r1 * row.local_a + A.p1;
@@ -410,6 +450,7 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
     out.feature.push_back(row.feature);
     next_.add_row(row);
   }
+  out.close_manifold(shapes_[a].body, shapes_[b].body, first);
   return true;
 }
 
@@ -583,6 +624,7 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
                 A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1);
   }
   row_codes_.clear();
+  const std::size_t first = out.size();
   for (const PointPair& p : points_) {
     double separation = (p.on_b - p.on_a).dot(normal);
     if (std::isfinite(cap)) separation = std::min(separation, cap);
@@ -611,6 +653,7 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
     out.feature.push_back(feature);
     if (store) next_.add_row({local_a, local_b, ra.transpose() * normal, feature});
   }
+  out.close_manifold(shapes_[a].body, shapes_[b].body, first);
 }
 
 }  // namespace collres

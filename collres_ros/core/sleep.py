@@ -159,11 +159,7 @@ def _joined(a: ContactReport, b: ContactReport) -> ContactReport:
     if not a.contacts.count:
         return b
     ca, cb = a.contacts, b.contacts
-    pieces = [np.concatenate([x, y]) for x, y in zip(ca.pieces(), cb.pieces())]
-    return ContactReport(ContactSet(*(np.concatenate([getattr(ca, f), getattr(cb, f)])
-                                      for f in ('body_a', 'body_b', 'point', 'normal',
-                                                'separation', 'toi', 'kind', 'feature')),
-                                    *pieces),
+    return ContactReport(ContactSet.joined(ca, cb),
                          np.concatenate([a.normal_impulse, b.normal_impulse]),
                          np.concatenate([a.friction_impulse, b.friction_impulse]),
                          np.concatenate([a.state, b.state]))

@@ -80,7 +80,12 @@ class ContactSet:
     (0 for PERSISTENT contacts: they touch from the start of the step).
     ``feature`` identifies the point within its pair across steps for warm
     starting (e.g. the index in a face-on-face manifold); the pair itself is
-    identified by (body_a, body_b) with body_a < body_b. ``piece_a`` /
+    identified by (body_a, body_b) with body_a < body_b.
+    ``manifolds`` (K, 4) int64, one row (body_a, body_b, first, count) per manifold:
+    the rows ``first .. first + count - 1``, all of that pair, found together (1-4
+    points sharing a contact patch); the manifolds tile the M rows in order, and the
+    solver solves each as one constraint. One pair may have several manifolds (e.g.
+    pieces of compound bodies). Hand-made sets take ``pair_manifolds``. ``piece_a`` /
     ``piece_b``: the index of the touching piece among each compound body's
     ``BodySpec.pieces`` (0 for a body of one shape; None: all 0).
     """
@@ -93,6 +98,7 @@ class ContactSet:
     toi: np.ndarray           # (M,) fraction of the step in [0, 1]
     kind: np.ndarray          # (M,) int8, ContactKind
     feature: np.ndarray       # (M,) int64
+    manifolds: np.ndarray     # (K, 4) int64: body_a, body_b, first row, row count
     piece_a: np.ndarray | None = None   # (M,) int32, or None: every piece 0
     piece_b: np.ndarray | None = None
 
@@ -107,11 +113,31 @@ class ContactSet:
                 zeros if self.piece_b is None else self.piece_b)
 
     def select(self, keep: np.ndarray) -> 'ContactSet':
-        """The contacts a boolean mask or an index array keeps, each array a copy."""
+        """The rows where the (M,) bool mask ``keep`` is true, copied; each manifold keeps
+        its kept rows (none: it goes)."""
+        keep = np.asarray(keep, bool)
+        counts = self.manifolds[:, 3] if self.count else np.zeros(0, np.int64)
+        owner = np.repeat(np.arange(len(counts)), counts)
+        kept = np.bincount(owner[keep], minlength=len(counts)).astype(np.int64)
+        spans = self.manifolds[kept > 0].copy()
+        spans[:, 3] = kept[kept > 0]
+        spans[:, 2] = np.cumsum(spans[:, 3]) - spans[:, 3]
         piece_a, piece_b = self.pieces()
         return ContactSet(self.body_a[keep], self.body_b[keep], self.point[keep],
                           self.normal[keep], self.separation[keep], self.toi[keep],
-                          self.kind[keep], self.feature[keep], piece_a[keep], piece_b[keep])
+                          self.kind[keep], self.feature[keep], spans, piece_a[keep],
+                          piece_b[keep])
+
+    @staticmethod
+    def joined(a: 'ContactSet', b: 'ContactSet') -> 'ContactSet':
+        """The rows (and manifolds) of ``a`` then those of ``b``."""
+        shifted = b.manifolds.copy()
+        shifted[:, 2] += a.count
+        pieces = [np.concatenate([x, y]) for x, y in zip(a.pieces(), b.pieces())]
+        return ContactSet(*(np.concatenate([getattr(a, f), getattr(b, f)])
+                            for f in ('body_a', 'body_b', 'point', 'normal', 'separation',
+                                      'toi', 'kind', 'feature')),
+                          np.concatenate([a.manifolds, shifted]), *pieces)
 
     @property
     def depth(self) -> np.ndarray:
@@ -122,7 +148,18 @@ class ContactSet:
         return ContactSet(
             np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
             np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int8),
-            np.zeros(0, np.int64))
+            np.zeros(0, np.int64), np.zeros((0, 4), np.int64))
+
+
+def pair_manifolds(body_a: np.ndarray, body_b: np.ndarray) -> np.ndarray:
+    """``ContactSet.manifolds`` of a hand-made set: each run of consecutive rows of one
+    pair is one manifold, (K, 4) int64 (body_a, body_b, first, count)."""
+    a, b = np.asarray(body_a, np.int64), np.asarray(body_b, np.int64)
+    if a.shape[0] == 0:
+        return np.zeros((0, 4), np.int64)
+    first = np.flatnonzero(np.r_[True, (a[1:] != a[:-1]) | (b[1:] != b[:-1])])
+    count = np.diff(np.r_[first, a.shape[0]])
+    return np.stack([a[first], b[first], first, count], axis=1).astype(np.int64)
 
 
 @dataclass

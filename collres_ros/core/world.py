@@ -210,7 +210,8 @@ class World:
         report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
                                           contacts.normal, contacts.separation, np.empty(m),
                                           np.empty(m, np.int8), contacts.feature,
-                                          contacts.piece_a, contacts.piece_b),
+                                          contacts.manifolds, contacts.piece_a,
+                                          contacts.piece_b),
                                np.empty(m), np.empty((m, 3)), np.empty(m, np.uint8))
         flat = (lambda array, dtype=np.float64: np.ascontiguousarray(array, dtype))
         sweeps, rows = self._solver.step(
@@ -225,6 +226,7 @@ class World:
             point=flat(contacts.point), normal=flat(contacts.normal),
             separation=flat(contacts.separation), toi=flat(contacts.toi),
             kind=flat(contacts.kind, np.int8), feature=flat(contacts.feature, np.int64),
+            manifolds=flat(contacts.manifolds, np.int64),
             dt=float(dt), warm=warm, params=self._params, normal_impulse=report.normal_impulse,
             friction_impulse=report.friction_impulse, state=report.state,
             reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
@@ -291,7 +293,7 @@ def _finite(contacts: ContactSet) -> ContactSet:
         normal = contacts.normal / norm[:, None] if contacts.count else contacts.normal
         return ContactSet(contacts.body_a, contacts.body_b, contacts.point, normal,
                           contacts.separation, contacts.toi, contacts.kind, contacts.feature,
-                          contacts.piece_a, contacts.piece_b)
+                          contacts.manifolds, contacts.piece_a, contacts.piece_b)
     kept = contacts.select(ok)
     kept.normal /= norm[ok, None]
     return kept

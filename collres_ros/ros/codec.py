@@ -19,6 +19,10 @@ before it reads it (a message announcing more bodies than the scene has is
 refused at once) and refuses negative stamps and ``nanosec >= 1e9``:
 ``DecodeError`` with a reason key and one line.
 
+``contacts_message`` and ``markers_message`` give the same bytes as a ``Restampable``: a
+message that equals the last one but for its stamps (the held contacts of a sleeping pile) is
+then restamped in place (one scatter) instead of encoded again.
+
 Padding bytes are written as zeros (rclpy leaves them uninitialised), so
 compare decoded values, or bytes outside the padding, never raw bytes with rclpy's.
 
@@ -527,6 +531,35 @@ def encode_tf(stamp_ns: int, frame_id: str, children: NamePool, poses: np.ndarra
     return bytes(buf)
 
 
+# --- restamping --------------------------------------------------------------------------------
+
+class Restampable:
+    """An encoded message whose stamps (``builtin_interfaces/Time``) can be rewritten in
+    place, for a message that is the same as the last one but for its stamps (the held
+    contacts of a sleeping pile): one scatter instead of encoding it again.
+
+    ``buffer``: the message bytes (uint8, writable, at least ``size`` long and a whole
+    number of 4-byte words); ``stamps``: where each stamp starts, in 4-byte words from after
+    the encapsulation header (a stamp is 4-aligned: int32 sec, uint32 nanosec).
+    """
+
+    def __init__(self, buffer: np.ndarray, size: int, stamps: np.ndarray) -> None:
+        self.buffer, self.size = buffer, size
+        self.stamps = np.asarray(stamps, np.int64)
+        self._words = buffer[4:4 + 4 * ((len(buffer) - 4) // 4)].view('<i4')
+
+    def data(self) -> bytes:
+        return self.buffer[:self.size].tobytes()
+
+    def restamped(self, stamps_ns: int | np.ndarray) -> bytes:
+        """The message with its stamps set to ``stamps_ns`` (ns: one for all, or one per
+        stamp in the order of ``stamps``; negative times clamp to 0)."""
+        ns = np.maximum(np.asarray(stamps_ns, np.int64), 0)
+        self._words[self.stamps] = ns // NS_PER_S
+        self._words[self.stamps + 1] = (ns % NS_PER_S).astype(np.uint32).view(np.int32)
+        return self.data()
+
+
 # --- ContactArray -----------------------------------------------------------------------------
 
 class NamePool:
@@ -581,12 +614,25 @@ def encode_contacts(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.nda
     normal_impulse, friction_impulse (3), then state (uint8). Records start 4-aligned;
     after the first one, always at 4 mod 8 (97 bytes of block + 3 of padding).
     """
+    return contacts_message(stamp_ns, frame_id, pool, body_a, body_b, point, normal, depth,
+                            toi_ns, normal_impulse, friction_impulse, state, pieces).data()
+
+
+def contacts_message(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.ndarray,
+                     body_b: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                     depth: np.ndarray, toi_ns: np.ndarray, normal_impulse: np.ndarray,
+                     friction_impulse: np.ndarray, state: np.ndarray,
+                     pieces: tuple[NamePool, np.ndarray, np.ndarray] | None = None
+                     ) -> 'Restampable':
+    """``encode_contacts`` as a ``Restampable``: its stamps are the header's, then each
+    contact's time_of_impact."""
     w = Writer()
     w.header(stamp_ns, frame_id)
     count = int(len(body_a))
     w.u32(count)
     if count == 0:
-        return w.bytes()
+        return Restampable(np.frombuffer(w.bytes(), np.uint8).copy(), len(w.buf),
+                           np.array([0], np.int64))
     a = np.asarray(body_a, np.int64)
     b = np.asarray(body_b, np.int64)
     names, pa, pb = pieces if pieces is not None else (
@@ -631,7 +677,7 @@ def encode_contacts(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.nda
                                 (names, pb[rest], int(4 * names.words[pb[rest]].max()))),
                           int(start[1]), int(record[1]), int(block[1] - start[1]),
                           {k: v[rest] for k, v in columns.items()})
-    return buf[:size].tobytes()
+    return Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
 
 
 def _contacts_general(buf: np.ndarray, *strings_and: Any) -> None:
@@ -730,11 +776,19 @@ _MARKER_TAIL = _marker_tail()
 
 def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) -> bytes:
     """Serialised visualization_msgs/MarkerArray (Jazzy's Marker: texture, uv, mesh_file empty)."""
+    return markers_message(stamp_ns, frame_id, markers).data()
+
+
+def markers_message(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
+                    ) -> Restampable:
+    """``encode_markers`` as a ``Restampable``: its stamps are each marker's header's."""
     buf = bytearray(ENCAPSULATION)
     buf += _U32.pack(len(markers))
     header = _STAMP.pack(*stamp_parts(stamp_ns)) + string_bytes(frame_id)
+    stamps = []
     for m in markers:
         _pad(buf, 4)
+        stamps.append((len(buf) - 4) // 4)
         buf += header
         _pad(buf, 4)
         buf += string_bytes(m.ns)
@@ -755,4 +809,6 @@ def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) 
         if len(colors):
             buf += np.ascontiguousarray(colors, '<f4').tobytes()
         buf += _MARKER_TAIL
-    return bytes(buf)
+    size = len(buf)
+    buf += bytes(-(size - 4) % 4)
+    return Restampable(np.frombuffer(buf, np.uint8), size, np.array(stamps, np.int64))

@@ -680,6 +680,27 @@ def contacts_message(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.nd
     return Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
 
 
+def upgrade_contacts(data: bytes) -> bytes:
+    """A ContactArray recorded before Contact had ``piece_a`` / ``piece_b`` (bags of earlier
+    versions), in today's layout with those names '' (DecodeError when it is malformed)."""
+    r = Reader(data, 'ContactArray (before piece_a)')
+    stamp, frame = r.header()
+    count = r.u32()
+    names: dict[str, int] = {}
+    pairs, values, toi, state = [], [], [], []
+    for _ in range(count):
+        pairs.append([names.setdefault(r.string(), len(names)) for _ in range(2)])
+        head = r.f64s(7)                      # position, normal, depth
+        toi.append(r.stamp())
+        values.append(np.concatenate([head, r.f64s(4)]))   # normal impulse, friction
+        state.append(r.u8())
+    index = np.array(pairs, np.int64).reshape(count, 2)
+    v = np.array(values, float).reshape(count, 11)
+    return encode_contacts(stamp, frame, NamePool(list(names)), index[:, 0], index[:, 1],
+                           v[:, 0:3], v[:, 3:6], v[:, 6], np.array(toi, np.int64), v[:, 7],
+                           v[:, 8:11], np.array(state, np.uint8))
+
+
 def _contacts_general(buf: np.ndarray, *strings_and: Any) -> None:
     """Contact records anywhere: names gathered word by word, fields scattered.
     ``strings_and``: four (pool, indices, byte offsets) of the record's strings, then the

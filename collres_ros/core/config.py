@@ -534,6 +534,11 @@ SCENE_PARAMS: tuple[ParamSpec, ...] = (
               'mesh hull with scale; one piece per element), posed from body_states by link '
               'name; its body.<link>.* parameters may still be set',
               reason='empty: no robot'),
+    ParamSpec('robot_description_topic', 'bool', False,
+              'When robot_description is empty, wait at start for the URDF on the '
+              'robot_description topic (std_msgs/String, reliable, transient local, as '
+              'robot_state_publisher publishes it) and take it as robot_description',
+              reason='off: a scene without a robot starts at once'),
     ParamSpec('robot_self_collision', 'bool', False,
               'Links of robot_description collide with one another (links joined by a joint '
               'never do)',

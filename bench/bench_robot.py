@@ -53,7 +53,7 @@ scene = params.scene_from_values(values)
 links = [n for n in scene.names if n not in names]
 index = {n: scene.index(n) for n in scene.names}
 world = World(scene.bodies, SolverSettings(max_contacts_per_pair=cap, sleeping=False),
-              scene.collision_filter)
+              collision_filter=scene.collision_filter)
 rate = 240.0; dt = 1.0 / rate; g = np.array([0, 0, -9.81])
 def arm(t):
     s = math.sin(2 * math.pi * 0.5 * t)

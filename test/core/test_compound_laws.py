@@ -112,20 +112,23 @@ def test_a_sliding_dumbbell_rolls_off_at_the_speed_its_inertia_gives() -> None:
     assert abs(sim.state.position[1, 2] - r) < 1e-3
 
 
-def test_a_box_rests_inside_a_bin_of_static_pieces() -> None:
-    """A bin 0.4 m square inside, floor 0.02 m thick with its top at z = 0 and walls 0.2 m
-    tall: a 0.1 m cube dropped into it from 0.1 m rests on the bin's floor."""
-    wall = 0.02
-    bin_ = BodySpec('bin', COMPOUND, static=True, pieces=(
+def bin_of_pieces(wall: float = 0.02) -> BodySpec:
+    """A static bin 0.4 m square inside: a floor ``wall`` thick with its top at z = 0 and
+    four walls 0.2 m tall, five box pieces."""
+    return BodySpec('bin', COMPOUND, static=True, pieces=(
         Piece('floor', 'box', (0.44, 0.44, wall), position=(0.0, 0.0, -wall / 2)),
         Piece('east', 'box', (wall, 0.44, 0.2), position=(0.21, 0.0, 0.1)),
         Piece('west', 'box', (wall, 0.44, 0.2), position=(-0.21, 0.0, 0.1)),
         Piece('north', 'box', (0.4, wall, 0.2), position=(0.0, 0.21, 0.1)),
         Piece('south', 'box', (0.4, wall, 0.2), position=(0.0, -0.21, 0.1))))
+
+
+def test_a_box_rests_inside_a_bin_of_static_pieces() -> None:
+    """A 0.1 m cube dropped into the bin from 0.1 m rests on the bin's floor."""
     cube = BodySpec('cube', 'box', (0.1, 0.1, 0.1), mass=1.0)
-    sim = Simulation([bin_, cube], states(((0, 0, 0), (0, 0, 0), (0, 0, 0)),
-                                          ((0.05, 0.0, 0.15), (0.3, 0.0, 0.0), (0, 0, 0))),
-                     RATE)
+    start = states(((0, 0, 0), (0, 0, 0), (0, 0, 0)),
+                   ((0.05, 0.0, 0.15), (0.3, 0.0, 0.0), (0, 0, 0)))
+    sim = Simulation([bin_of_pieces(), cube], start, RATE)
     for _ in range(480):
         result = sim.step()
     position = sim.state.position[1]

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from integrator import Simulation
+from test_compound_laws import bin_of_pieces
 
 from collres_ros.core import decomposition
 from collres_ros.core.shapes import load_mesh_points
@@ -72,14 +73,7 @@ def test_a_ball_rolls_inside_the_notch_the_hull_fills(hulls) -> None:
 
 
 def test_the_decomposed_channel_rests_in_a_bin_of_static_pieces(hulls) -> None:
-    wall = 0.02
-    bin_ = BodySpec('bin', COMPOUND, static=True, pieces=(
-        Piece('floor', 'box', (0.44, 0.44, wall), position=(0.0, 0.0, -wall / 2)),
-        Piece('east', 'box', (wall, 0.44, 0.2), position=(0.21, 0.0, 0.1)),
-        Piece('west', 'box', (wall, 0.44, 0.2), position=(-0.21, 0.0, 0.1)),
-        Piece('north', 'box', (0.4, wall, 0.2), position=(0.0, 0.21, 0.1)),
-        Piece('south', 'box', (0.4, wall, 0.2), position=(0.0, -0.21, 0.1))))
-    sim = Simulation([bin_, channel(hulls, False)],
+    sim = Simulation([bin_of_pieces(), channel(hulls, False)],
                      start((0, 0, 0), (0.05, 0.0, -UNDERSIDE + 0.05)), RATE)
     for _ in range(int(2.0 * RATE)):
         result = sim.step()

@@ -189,3 +189,8 @@ def test_scripted_joints_drive_the_links_in_collres_sim(package, tmp_path) -> No
                       ('crate', 'hand', 'finger'), ('crate', 'forearm', 'tube')}
     crate = [b for b in inputs[-1].bodies if b.name == 'crate'][0]
     assert abs(crate.pose.position.x - 0.45) > 0.05   # moved by the arm (out and back)
+    # the bag's own params (links as bodies, no script) replay it to the same contacts
+    from collres_ros.replay import main as replay_main
+    assert replay_main([str(tmp_path / 'bag'), str(tmp_path / 'out'), '--quiet']) == 0
+    replayed = [m.msg for m in read_messages(tmp_path / 'out') if m.topic == '/contacts']
+    assert replayed == [m.msg for m in messages if m.topic == '/contacts']

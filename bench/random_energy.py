@@ -31,7 +31,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'
 
 from collres_ros.core.config import SolverSettings  # noqa: E402
 from collres_ros.core.rotation import normalize, to_matrix  # noqa: E402
-from collres_ros.core.types import BodySpec, BodyStates, ContactKind, ContactSet  # noqa: E402
+from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactSet,  # noqa: E402
+                                    pair_manifolds)
 from collres_ros.core.world import World  # noqa: E402
 
 RULES = ('average', 'min', 'max', 'multiply')
@@ -103,7 +104,8 @@ def case(rng: np.random.Generator, clusters: float):
     m = len(a)
     contacts = ContactSet(np.array(a, np.int64), np.array(b, np.int64), np.array(point),
                           np.array(normal), np.array(separation), np.zeros(m),
-                          np.array(kind, np.int8), np.arange(m, dtype=np.int64))
+                          np.array(kind, np.int8), np.arange(m, dtype=np.int64),
+                          pair_manifolds(np.array(a, np.int64), np.array(b, np.int64)))
     settings = SolverSettings(restitution_rule=RULES[int(rng.integers(len(RULES)))],
                               friction_rule=FRICTION_RULES[int(rng.integers(5))],
                               restitution_threshold=float(rng.choice([0.0, 0.5])))

@@ -140,17 +140,20 @@ void bind_detection(py::module_& m) {
                d.detect(poses, rows);
              }
              const auto m_rows = static_cast<py::ssize_t>(rows.size());
+             const auto k_manifolds = static_cast<py::ssize_t>(rows.manifolds.size() /
+                                                               collres::kManifoldFields);
              return py::make_tuple(
                  owned(std::move(rows.body_a), {m_rows}), owned(std::move(rows.body_b), {m_rows}),
                  owned(std::move(rows.point), {m_rows, 3}),
                  owned(std::move(rows.normal), {m_rows, 3}),
                  owned(std::move(rows.separation), {m_rows}), owned(std::move(rows.toi), {m_rows}),
-                 owned(std::move(rows.kind), {m_rows}), owned(std::move(rows.feature), {m_rows}));
+                 owned(std::move(rows.kind), {m_rows}), owned(std::move(rows.feature), {m_rows}),
+                 owned(std::move(rows.manifolds), {k_manifolds, collres::kManifoldFields}));
            },
            py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
            py::arg("angular"), py::arg("active") = py::none(),
            "Contacts of the step: (body_a, body_b, point, normal, separation, toi, kind, "
-           "feature), the fields of ContactSet.")
+           "feature, manifolds), the fields of ContactSet.")
       .def("candidate_pairs",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,

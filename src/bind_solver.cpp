@@ -58,7 +58,7 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
                       const py::array& torsional_friction, const py::array& a, const py::array& b, const py::array& point,
                       const py::array& normal, const py::array& separation,
                       const py::array& toi, const py::array& kind, const py::array& feature,
-                      double dt, bool warm, const SolverParams& params,
+                      const py::array& manifolds, double dt, bool warm, const SolverParams& params,
                       const py::array& normal_impulse, const py::array& friction_impulse,
                       const py::array& state, const py::array& reported_toi,
                       const py::array& reported_kind) {
@@ -95,6 +95,19 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
   for (py::ssize_t k = 0; k < m; ++k)
     if (c.a[k] < 0 || c.a[k] >= n || c.b[k] < 0 || c.b[k] >= n)
       throw py::index_error("contact body index out of range");
+  c.manifold_count = manifolds.ndim() == 2 ? manifolds.shape(0) : -1;
+  c.manifolds = checked<int64_t>(manifolds, "manifolds", {c.manifold_count, kManifoldFields});
+  // the manifolds tile the rows in order, each of one pair (its rows' a and b)
+  int64_t next = 0;
+  for (int64_t s = 0; s < c.manifold_count; ++s) {
+    const int64_t* span = c.manifolds + kManifoldFields * s;
+    bool ok = span[2] == next && span[3] >= 1 && span[2] + span[3] <= m;
+    for (int64_t k = span[2]; ok && k < span[2] + span[3]; ++k)
+      ok = c.a[k] == span[0] && c.b[k] == span[1];
+    if (!ok) throw py::value_error("manifolds: not (a, b, first, count) spans tiling the rows");
+    next = span[2] + span[3];
+  }
+  if (next != m) throw py::value_error("manifolds: not (a, b, first, count) spans tiling the rows");
   ContactsOut r;
   r.normal_impulse = checked<double>(normal_impulse, "normal_impulse", {m}, true);
   r.friction_impulse = checked<double>(friction_impulse, "friction_impulse", {m, 3}, true);
@@ -190,7 +203,8 @@ void bind_solver(py::module_& m) {
            py::arg("static_friction"), py::arg("kinetic_friction"),
            py::arg("rolling_resistance"), py::arg("torsional_friction"), py::arg("body_a"),
            py::arg("body_b"), py::arg("point"), py::arg("normal"), py::arg("separation"),
-           py::arg("toi"), py::arg("kind"), py::arg("feature"), py::arg("dt"),
+           py::arg("toi"), py::arg("kind"), py::arg("feature"), py::arg("manifolds"),
+           py::arg("dt"),
            py::arg("warm"), py::arg("params"), py::arg("normal_impulse"),
            py::arg("friction_impulse"), py::arg("state"), py::arg("reported_toi"),
            py::arg("reported_kind"),

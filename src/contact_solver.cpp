@@ -82,19 +82,19 @@ double solve_spin(SpinRow& s, const std::vector<ContactRow>& rows, double* v) {
   const Vec3 old_roll = s.torque - old_twist * s.n;
   Vec3 roll = old_roll;
   const double speed2 = dot(rolling, rolling);
-  const double k_roll = dot(rolling, s.inv_a * rolling) + dot(rolling, s.inv_b * rolling);
+  const double k_roll = dot(rolling, mul(s.inv_a, rolling)) + dot(rolling, mul(s.inv_b, rolling));
   if (speed2 > 0.0 && k_roll > kTiny * speed2) roll = old_roll - (speed2 / k_roll) * rolling;
   const double roll_size = length(roll), roll_limit = s.roll * normal;
   if (roll_size > roll_limit) roll = (roll_limit / roll_size) * roll;
   // spin about the normal, within twist * N
-  const double k_n = dot(s.n, s.inv_a * s.n) + dot(s.n, s.inv_b * s.n);
+  const double k_n = dot(s.n, mul(s.inv_a, s.n)) + dot(s.n, mul(s.inv_b, s.n));
   double twist = k_n > kTiny ? old_twist - spin / k_n : old_twist;
   twist = std::clamp(twist, -s.twist * normal, s.twist * normal);
   const Vec3 change = (roll - old_roll) + (twist - old_twist) * s.n;
   s.torque = roll + twist * s.n;
-  if (change.x == 0.0 && change.y == 0.0 && change.z == 0.0) return 0.0;
-  store3(wa, load3(wa) - s.inv_a * change);
-  store3(wb, load3(wb) + s.inv_b * change);
+  if (change.x() == 0.0 && change.y() == 0.0 && change.z() == 0.0) return 0.0;
+  store3(wa, load3(wa) - mul(s.inv_a, change));
+  store3(wb, load3(wb) + mul(s.inv_b, change));
   return length(change) / s.lever;
 }
 
@@ -214,8 +214,8 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
     Vec3 d = direction(row, k);
     row.ang_a[k] = cross(row.ra, d);
     row.ang_b[k] = cross(row.rb, d);
-    row.dw_a[k] = ia * row.ang_a[k];
-    row.dw_b[k] = ib * row.ang_b[k];
+    row.dw_a[k] = mul(ia, row.ang_a[k]);
+    row.dw_b[k] = mul(ib, row.ang_b[k]);
   }
   // K_ij = (m_A + m_B) d_i . d_j + (r_A x d_i) I_A^-1 (r_A x d_j) + (same for B)
   auto block = [&](int i, int j) {
@@ -245,18 +245,18 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
   }
 }
 
-int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
-                     double converged, std::vector<SpinRow>* spins) {
+int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
+                     SolverBodies& bodies, int iterations, double converged,
+                     std::vector<SpinRow>* spins) {
   double* v = bodies.velocity;
-  const size_t count = rows.size();
   int done = 0;
   while (done < iterations) {
     ++done;
     double change = 0.0, largest = 0.0;
-    for (size_t lo = 0; lo < count;) {
-      size_t hi = lo + 1;      // the rows of one pair are consecutive (see prepare)
-      while (hi < count && rows[hi].a == rows[lo].a && rows[hi].b == rows[lo].b) ++hi;
-      const int k = static_cast<int>(hi - lo);
+    for (const Manifold& manifold : manifolds) {
+      const size_t lo = static_cast<size_t>(manifold.first);
+      const size_t hi = lo + static_cast<size_t>(manifold.count);
+      const int k = manifold.count;
       double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], k, v) : -1.0;
       if (step >= 0.0) {
         for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], v));
@@ -266,7 +266,6 @@ int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int it
       }
       change = std::max(change, step);
       for (size_t i = lo; i < hi; ++i) largest = std::max(largest, rows[i].normal);
-      lo = hi;
     }
     if (spins != nullptr)
       for (SpinRow& s : *spins) change = std::max(change, solve_spin(s, rows, v));
@@ -301,10 +300,10 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
     bool upper_b = level[r.b] > level[r.a];
     if (upper_b) {
       r.ma = 0.0;
-      for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3{};
+      for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3::Zero();
     } else {
       r.mb = 0.0;
-      for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3{};
+      for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3::Zero();
     }
     double k_n = r.ma + r.mb + dot(r.ang_a[0], r.dw_a[0]) + dot(r.ang_b[0], r.dw_b[0]);
     if (!(k_n > kTiny)) continue;
@@ -351,7 +350,8 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
 
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     const ImpactSettings& settings, std::vector<ContactRow>& scratch,
-                    std::vector<int32_t>& members, std::vector<double>& work) {
+                    std::vector<Manifold>& blocks, std::vector<int32_t>& members,
+                    std::vector<double>& work) {
   double* v = bodies.velocity;
   int stage = 0;
   for (; stage < settings.stages; ++stage) {
@@ -364,9 +364,10 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
         members.push_back(static_cast<int32_t>(i));
     }
     if (members.empty()) break;
-    // the stage's rows (copies, in pair order: a manifold stays a block), from zero
+    // the stage's rows (copies, in row order: a manifold's rows stay one block), from zero
     const size_t k = members.size();
     scratch.clear();
+    blocks.clear();
     work.assign(19 * k, 0.0);   // per row: velocity before (n, t1, t2), after the
                                 // compression (n, t1, t2), restitution impulse; then
                                 // A's and B's twists before the stage (12 per row)
@@ -378,6 +379,9 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
       c.normal = c.tangent[0] = c.tangent[1] = 0.0;
       c.allowance = 0.0;          // a speculative row that closes bounces off its approach
       row_velocity(c, v, &work[7 * j]);
+      if (j == 0 || c.manifold != rows[members[j - 1]].manifold)
+        blocks.push_back({c.a, c.b, static_cast<int32_t>(j), 0});
+      ++blocks.back().count;
       scratch.push_back(c);
     }
     // exact inelastic compression with friction; the energy it took (J). Coulomb
@@ -385,7 +389,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
     // is compressed again without friction, which never gains (a projection)
     double taken = 0.0;
     for (int attempt = 0; attempt < 2; ++attempt) {
-      solve_velocities(scratch, bodies, settings.sweeps, settings.converged);
+      solve_velocities(scratch, blocks, bodies, settings.sweeps, settings.converged);
       taken = 0.0;
       for (size_t j = 0; j < k; ++j) {
         const ContactRow& c = scratch[j];

@@ -14,7 +14,9 @@
 // restitution, store impulses; then a split-impulse position stage (pseudo velocities
 // applied to the poses only, never to the velocities: no energy gain) and the contact
 // states. Rows live in one flat array of plain structs (each Gauss-Seidel update reads
-// all fields of one row together); body data are the caller's flat arrays.
+// all fields of one row together); each manifold is one constraint (Manifold: its rows
+// as a span of that array, as detection found them, never regrouped by pair); body data
+// are the caller's flat arrays.
 #pragma once
 
 #include <cstdint>
@@ -76,12 +78,15 @@ struct SolverParams {
 struct ContactRow {
   int32_t a = 0, b = 0;          // body indices
   int32_t contact = 0;           // index in the caller's contact arrays
+  int32_t manifold = 0;          // index of its Manifold
   bool bounce = false;           // took part in an impact stage (resolve_impacts)
   bool sticking = false;         // slow enough to stick: mu is the static coefficient
-  Vec3 n, t1, t2;                // unit, world; n from A to B
-  Vec3 ra, rb;                   // m, contact point minus each centre of mass
-  Vec3 ang_a[3], ang_b[3];       // r_A x d, r_B x d for d = n, t1, t2 (m)
-  Vec3 dw_a[3], dw_b[3];         // I_A^-1 (r_A x d), I_B^-1 (r_B x d): rad/s per N s
+  Vec3 n = Vec3::Zero(), t1 = Vec3::Zero(), t2 = Vec3::Zero();  // unit, world; n A to B
+  Vec3 ra = Vec3::Zero(), rb = Vec3::Zero();  // m, contact point minus each centre of mass
+  Vec3 ang_a[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  // r_A x d, r_B x d for
+  Vec3 ang_b[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  // d = n, t1, t2 (m)
+  Vec3 dw_a[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};   // I_A^-1 (r_A x d),
+  Vec3 dw_b[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};   // I_B^-1 (r_B x d): rad/s per N s
   double ma = 0.0, mb = 0.0;     // inverse masses, 1/kg
   double normal_mass = 0.0;      // kg, 1 / (J_n M^-1 J_n^T), 0 when both immovable
   double kt[3] = {0, 0, 0};      // 1/kg: tangential block K_11, K_12 + K_21, K_22
@@ -101,7 +106,14 @@ struct ContactRow {
   double pseudo = 0.0;           // N s (pseudo), accumulated by the position pass
 };
 
-// Rolling resistance and torsional friction of one manifold (a pair's consecutive rows):
+// One manifold's constraint: its rows [first, first + count) of the row array, all of
+// body pair (a, b); the normal rows of 2 to 4 points are solved together as one block.
+struct Manifold {
+  int32_t a = 0, b = 0;          // body indices
+  int32_t first = 0, count = 0;  // its rows
+};
+
+// Rolling resistance and torsional friction of one manifold (its rows):
 // an angular impulse (N m s) on B, opposite on A, against the bodies' relative angular
 // velocity w = w_B - w_A: its part across the normal n (rolling) within roll * N, its
 // part along n (spin about the normal) within twist * N, N (N s) the pair's normal
@@ -111,12 +123,12 @@ struct ContactRow {
 // tan(theta) <= mu_r, and its spin about the normal slows at mu_t r m g / I.
 struct SpinRow {
   int32_t a = 0, b = 0;            // body indices
-  int32_t first = 0, count = 0;    // the pair's rows
-  Vec3 n;                          // unit, world, A to B (the first row's normal)
-  Mat3 inv_a, inv_b;               // I_A^-1, I_B^-1, world, 1/(kg m^2)
+  int32_t first = 0, count = 0;    // the manifold's rows
+  Vec3 n = Vec3::Zero();           // unit, world, A to B (the first row's normal)
+  Mat3 inv_a = Mat3::Zero(), inv_b = Mat3::Zero();  // I_A^-1, I_B^-1, world, 1/(kg m^2)
   double lever = 0.0;              // m, > 0
   double roll = 0.0, twist = 0.0;  // m: coefficient times lever
-  Vec3 torque;                     // N m s, accumulated angular impulse on B (-on A)
+  Vec3 torque = Vec3::Zero();      // N m s, accumulated angular impulse on B (-on A)
 };
 
 // Per-body solver data: velocities (N, 6) and inverse mass properties.
@@ -136,14 +148,16 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
 // Apply the rows' accumulated impulses (warm start) to the velocities.
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 
-// Sequential impulses: normal clamped >= 0 against the speculative allowance (the
-// consecutive rows of one pair, 2 to 4 of them, solved exactly as one small LCP), friction
+// Sequential impulses over the manifolds, in their order: normal clamped >= 0 against
+// the speculative allowance (a manifold's rows, 2 to 4 of them, solved exactly as one
+// small LCP; one row, or more than 4, row by row), friction
 // along minus the slip velocity clamped to the circular cone mu * normal. Stops early
 // when a sweep changes no impulse by more than params.converged times the largest
 // normal impulse. `spins` (rolling resistance and torsional friction, may be null) are
 // solved after the rows in each sweep. Returns the sweeps done.
-int solve_velocities(std::vector<ContactRow>& rows, SolverBodies& bodies, int iterations,
-                     double converged, std::vector<SpinRow>* spins = nullptr);
+int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
+                     SolverBodies& bodies, int iterations, double converged,
+                     std::vector<SpinRow>* spins = nullptr);
 
 // Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the
@@ -173,7 +187,9 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
 // touching bodies passes an impact on as successive binary impacts (Newton's cradle).
 // Per-object restitution (e_A != e_B) is applied as given, without that bound. Stops when
 // no row approaches or after `stages` stages (the rest is left to the resting solve);
-// returns the stages done. `scratch` and `work` are scratch space.
+// returns the stages done. A stage's rows of one manifold (ContactRow::manifold, rows of
+// a manifold consecutive) form one block. `scratch`, `blocks`, `members` and `work` are
+// scratch space.
 struct ImpactSettings {
   double threshold = 0.5;    // m/s: slower approaches do not bounce
   int stages = 64;           // most stages per step
@@ -182,7 +198,8 @@ struct ImpactSettings {
 };
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     const ImpactSettings& settings, std::vector<ContactRow>& scratch,
-                    std::vector<int32_t>& members, std::vector<double>& work);
+                    std::vector<Manifold>& blocks, std::vector<int32_t>& members,
+                    std::vector<double>& work);
 
 // Split-impulse push-out: pseudo velocities (N, 6, zeroed here) that give each row its
 // `push` normal speed; rows with push 0 keep the pseudo motion from driving them deeper.

@@ -32,9 +32,32 @@ void ContactRows::reserve(std::size_t rows) {
   toi.reserve(rows);
   kind.reserve(rows);
   feature.reserve(rows);
+  manifolds.reserve(kManifoldFields * rows);
+}
+
+void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t first) {
+  if (size() > first) {
+    manifolds.insert(manifolds.end(), {a, b, static_cast<std::int64_t>(first),
+                                       static_cast<std::int64_t>(size() - first)});
+  }
 }
 
 void ContactRows::keep(const std::vector<std::size_t>& rows) {
+  // each manifold's kept rows, counted before the columns are compacted
+  std::size_t to = 0, next = 0;
+  for (std::size_t k = 0; k < manifolds.size(); k += kManifoldFields) {
+    const auto end = static_cast<std::size_t>(manifolds[k + 2] + manifolds[k + 3]);
+    std::size_t first = next;
+    while (next < rows.size() && rows[next] < end) ++next;
+    if (next > first) {
+      manifolds[to] = manifolds[k];
+      manifolds[to + 1] = manifolds[k + 1];
+      manifolds[to + 2] = static_cast<std::int64_t>(first);
+      manifolds[to + 3] = static_cast<std::int64_t>(next - first);
+      to += kManifoldFields;
+    }
+  }
+  manifolds.resize(to);
   auto compact = [&rows](auto& column, std::size_t width) {
     std::size_t to = 0;
     for (const std::size_t row : rows) {
@@ -61,6 +84,7 @@ void ContactRows::clear() {
   toi.clear();
   kind.clear();
   feature.clear();
+  manifolds.clear();
 }
 
 Detector::Detector(std::vector<BodyShape> shapes)
@@ -301,6 +325,7 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
   }
   if (gap > settings_.speculative_margin) return true;
   next_.begin(key, stored->rel_p, stored->rel_q);
+  const std::size_t first = out.size();
   for (int k = 0; k < stored->count; ++k) {
     const StoredRow& row = stored_.row(stored->first + k);
     const Vec3 on_a = A.r1 * row.local_a + A.p1;
@@ -317,6 +342,7 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
     out.feature.push_back(row.feature);
     next_.add_row(row);
   }
+  out.close_manifold(a, b, first);
   return true;
 }
 
@@ -490,6 +516,7 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
                 A.q1.conjugate() * B.q1);
   }
   row_codes_.clear();
+  const std::size_t first = out.size();
   for (const PointPair& p : points_) {
     double separation = (p.on_b - p.on_a).dot(normal);
     if (std::isfinite(cap)) separation = std::min(separation, cap);
@@ -510,6 +537,7 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
     out.feature.push_back(feature);
     if (store) next_.add_row({local_a, local_b, ra.transpose() * normal, feature});
   }
+  out.close_manifold(a, b, first);
 }
 
 }  // namespace collres

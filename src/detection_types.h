@@ -8,17 +8,19 @@
 #include <cstdint>
 #include <vector>
 
-#include <Eigen/Core>
-#include <Eigen/Geometry>
+#include "vec_math.h"
 
 namespace collres {
 
-using Vec3 = Eigen::Matrix<double, 3, 1>;
-using Mat3 = Eigen::Matrix<double, 3, 3>;
-using Quat = Eigen::Quaternion<double>;
-
-// How a contact's pair was classified (values of collres_ros.core.types.ContactKind).
+// How a contact's pair was classified (values of collres_ros.core.types.ContactKind); the
+// solver reports a persistent contact that closes fast within the step as an impact.
 enum class ContactKind : std::int8_t { persistent = 0, impact = 1, tunnelled = 2 };
+
+// One manifold: the rows [first, first + count) of one body pair (a < b), 1 to 4 points
+// (more only in hand-made sets) that detection found together, solved as one constraint.
+// Manifolds tile the rows in order; one pair may have several (e.g. the pieces of
+// compound bodies), each its own constraint.
+constexpr int kManifoldFields = 4;   // a, b, first, count: one (K, 4) int64 row each
 
 // The parameters detection reads (collres_ros.core.config.SolverSettings, same names).
 struct DetectionSettings {
@@ -52,8 +54,8 @@ struct StepPoses {
   const std::uint8_t* active = nullptr;  // (N,) or null: 0 = frozen, held at its current pose
 };
 
-// Contact rows of one step, M of them, grouped by pair in increasing (a, b) order
-// (collres_ros.core.types.ContactSet, field by field).
+// Contact rows of one step, M of them, grouped by pair in increasing (a, b) order, and
+// their K manifolds (collres_ros.core.types.ContactSet, field by field).
 struct ContactRows {
   std::vector<std::int64_t> body_a, body_b;  // (M,)
   std::vector<double> point;       // (M, 3) m, world, at the contact configuration
@@ -62,10 +64,15 @@ struct ContactRows {
   std::vector<double> toi;         // (M,) fraction of the step in [0, 1]
   std::vector<std::int8_t> kind;   // (M,) ContactKind
   std::vector<std::int64_t> feature;  // (M,) same corner / face of A and B, same id
+  std::vector<std::int64_t> manifolds;  // (K, 4) a, b, first row, row count
 
   void clear();
   void reserve(std::size_t rows);
-  // Keep only these rows (indices in increasing order), in their order.
+  // Close the manifold of pair (a, b) whose rows start at `first` (the rows added since);
+  // a manifold without rows is no manifold.
+  void close_manifold(std::int64_t a, std::int64_t b, std::size_t first);
+  // Keep only these rows (indices in increasing order), in their order; a manifold keeps
+  // its kept rows (none: it goes).
   void keep(const std::vector<std::size_t>& rows);
   std::size_t size() const { return body_a.size(); }
 };

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 
 namespace collres {
 namespace {
@@ -18,6 +17,8 @@ void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* 
     }
   }
 }
+
+bool persistent(int8_t kind) { return kind == static_cast<int8_t>(ContactKind::persistent); }
 
 // Normal velocity of B's point relative to A's (< 0 approaching) for twists v (N, 6).
 double normal_speed(const double* v, int64_t a, int64_t b, Vec3 ra, Vec3 rb, Vec3 n) {
@@ -39,51 +40,56 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   for (int64_t i = 0; i < n; ++i)
     inv_inertia_[i] = rotate_tensor(load4(current.orientation + 4 * i),
                                     bodies.inv_inertia_body + 9 * i);
+  StepContext ctx{previous, current, bodies, contacts, dt, warm_enabled, params,
+                  SolverBodies{n, bodies.inv_mass, inv_inertia_.data(), velocity_.data()},
+                  out, report_out};
   // reference time of each contact and body, pre-solve velocities, speculative allowance
-  reference_frame(previous, current, bodies, contacts, dt, params.restitution_threshold,
-                  report_out);
+  reference_frame(ctx);
   // prepare: rows of the contacts that can carry an impulse, combined materials
-  prepare(bodies, contacts, params);
+  prepare(ctx);
   // impacts: successive stages of the rows approaching faster than the threshold
-  SolverBodies solver{n, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
   ImpactSettings impacts{params.restitution_threshold, params.impact_stages,
                          params.impact_sweeps, params.impact_converged};
-  resolve_impacts(rows_, solver, impacts, shock_rows_, order32_, impact_work_);
+  resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
+                  impact_work_);
   // warm start from last step's impulses of the same pair and feature
-  double cold = warm(contacts, dt, warm_enabled, params.warm_start_ratio,
-                     params.match_radius);
-  warm_start(rows_, solver);
+  double cold = warm(ctx);
+  warm_start(rows_, ctx.solver);
   // iterate: sequential impulses (more sweeps while resting contacts are new, and at
   // least depth_sweeps per level of the deepest stack), then shock propagation from the
   // ground up
-  const int32_t depth = levels(n);
+  const int32_t depth = levels(ctx);
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
   iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
   StepStats stats;
-  stats.sweeps = solve_velocities(rows_, solver, iterations, params.converged, &spins_);
+  stats.sweeps = solve_velocities(rows_, manifolds_, ctx.solver, iterations, params.converged,
+                                  &spins_);
   stats.rows = static_cast<int64_t>(rows_.size());
-  propagate_shock(rows_, solver, level_, order32_, shock_rows_, params.shock_sweeps,
+  propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, params.shock_sweeps,
                   params.shock_ratio);
   // landing: the poses travel with these velocities; a speculative contact that closes
   // within the step ends it touching, and with no approach left for the next step
   travel_.assign(velocity_.begin(), velocity_.end());
-  land(solver, params);
+  land(ctx);
   // store impulses for next step's warm start, then report them
-  report(contacts, params, report_out);
+  report(ctx);
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                cached_normal_.data(), report_out.friction_impulse, contacts.point);
   last_dt_ = dt;
   last_warm_ = warm_enabled;
   // correct poses: rewind / advance, then the split-impulse push-out (no velocity)
-  advance(previous, current, dt, out);
-  push_out(bodies, params, dt, out);
+  advance(ctx);
+  push_out(ctx);
   return stats;
 }
 
-void StepSolver::reference_frame(const BodyStatesView& previous, const BodyStatesView& current,
-                                 const BodyProperties& bodies, const ContactsView& c,
-                                 double dt, double threshold, ContactsOut& report) {
+void StepSolver::reference_frame(StepContext& ctx) {
+  const BodyStatesView &previous = ctx.previous, &current = ctx.current;
+  const BodyProperties& bodies = ctx.bodies;
+  const ContactsView& c = ctx.contacts;
+  const double dt = ctx.dt, threshold = ctx.params.restitution_threshold;
+  ContactsOut& report = ctx.report;
   const int64_t n = bodies.count, m = c.count;
   now_.resize(6 * n);
   then_.resize(6 * n);
@@ -101,7 +107,7 @@ void StepSolver::reference_frame(const BodyStatesView& previous, const BodyState
   impacted_.assign(n, 0);
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
-    bool impact = c.kind[k] != kPersistent;
+    bool impact = !persistent(c.kind[k]);
     // contact points are at the time of impact (IMPACT/TUNNELLED) or the current state
     double at = impact ? c.toi[k] : 1.0;
     Vec3 point = load3(c.point + 3 * k), normal = load3(c.normal + 3 * k);
@@ -120,7 +126,7 @@ void StepSolver::reference_frame(const BodyStatesView& previous, const BodyState
     gap_[k] = gap;                    // completed below, once the body fractions are known
     allowance_[k] = v_in;             // (kept here for the next loop)
     report.toi[k] = std::clamp(toi, 0.0, 1.0);
-    report.kind[k] = closing ? static_cast<int8_t>(kNewImpact) : c.kind[k];
+    report.kind[k] = closing ? static_cast<int8_t>(ContactKind::impact) : c.kind[k];
     touched_[a] = touched_[b] = 1;
     if (impact) {
       impacted_[a] = impacted_[b] = 1;
@@ -152,8 +158,10 @@ void StepSolver::reference_frame(const BodyStatesView& previous, const BodyState
   }
 }
 
-void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
-                         const SolverParams& p) {
+void StepSolver::prepare(StepContext& ctx) {
+  const BodyProperties& bodies = ctx.bodies;
+  const ContactsView& c = ctx.contacts;
+  const SolverParams& p = ctx.params;
   const int64_t m = c.count;
   // a speculative contact cannot activate when it separates faster than any impulse of
   // this step can turn around: (1 + e) per hit, a factor 2 for chains and lever arms,
@@ -169,47 +177,48 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
   }
   const double bound = 2.0 * (1.0 + e) * fastest;
   rows_.clear();
+  manifolds_.clear();
   row_of_.assign(m, -1);
-  // rows in pair order (the rows of a manifold consecutive, solved as a block)
-  pair_order_.resize(m);
-  std::iota(pair_order_.begin(), pair_order_.end(), 0);
-  auto by_pair = [&](int64_t i, int64_t j) {
-    return c.a[i] != c.a[j] ? c.a[i] < c.a[j] : c.b[i] < c.b[j];
-  };
-  if (!std::is_sorted(pair_order_.begin(), pair_order_.end(), by_pair))
-    std::stable_sort(pair_order_.begin(), pair_order_.end(), by_pair);
-  SolverBodies solver{bodies.count, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
-  for (int64_t k : pair_order_) {
-    if (gap_[k] > 0.0 && approach_[k] + allowance_[k] > bound) continue;
-    const int64_t a = c.a[k], b = c.b[k];
-    row_of_[k] = static_cast<int32_t>(rows_.size());
-    ContactRow& row = rows_.emplace_back();
-    row.a = static_cast<int32_t>(a);
-    row.b = static_cast<int32_t>(b);
-    row.contact = static_cast<int32_t>(k);
-    row.n = load3(c.normal + 3 * k);
-    row.ra = ra_[k];
-    row.rb = rb_[k];
-    row.allowance = allowance_[k];
-    if (p.restitution_rule == CombineRule::kPerObject) {
-      row.e_a = bodies.restitution[a];
-      row.e_b = bodies.restitution[b];
-    } else {
-      row.e_a = row.e_b = combine(bodies.restitution[a], bodies.restitution[b],
-                                  p.restitution_rule);
+  // rows in the order of detection's manifolds, one constraint per manifold with rows
+  for (int64_t span = 0; span < c.manifold_count; ++span) {
+    const int64_t* manifold = c.manifolds + kManifoldFields * span;
+    const auto first_row = static_cast<int32_t>(rows_.size());
+    for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
+      if (gap_[k] > 0.0 && approach_[k] + allowance_[k] > bound) continue;
+      const int64_t a = c.a[k], b = c.b[k];
+      row_of_[k] = static_cast<int32_t>(rows_.size());
+      ContactRow& row = rows_.emplace_back();
+      row.a = static_cast<int32_t>(a);
+      row.b = static_cast<int32_t>(b);
+      row.contact = static_cast<int32_t>(k);
+      row.manifold = static_cast<int32_t>(manifolds_.size());
+      row.n = load3(c.normal + 3 * k);
+      row.ra = ra_[k];
+      row.rb = rb_[k];
+      row.allowance = allowance_[k];
+      if (p.restitution_rule == CombineRule::kPerObject) {
+        row.e_a = bodies.restitution[a];
+        row.e_b = bodies.restitution[b];
+      } else {
+        row.e_a = row.e_b = combine(bodies.restitution[a], bodies.restitution[b],
+                                    p.restitution_rule);
+      }
+      double mu_s = combine(bodies.static_friction[a], bodies.static_friction[b],
+                            p.friction_rule);
+      double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[a],
+                                           bodies.kinetic_friction[b], p.friction_rule));
+      prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu_s, mu_k);
     }
-    double mu_s = combine(bodies.static_friction[a], bodies.static_friction[b],
-                          p.friction_rule);
-    double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[a],
-                                         bodies.kinetic_friction[b], p.friction_rule));
-    prepare_row(row, solver, then_.data(), p.sticking_speed, mu_s, mu_k);
+    const auto count = static_cast<int32_t>(rows_.size()) - first_row;
+    if (count > 0)
+      manifolds_.push_back({static_cast<int32_t>(manifold[0]), static_cast<int32_t>(manifold[1]),
+                            first_row, count});
   }
-  // one SpinRow per pair whose combined rolling resistance or torsional friction is not 0
+  // one SpinRow per manifold whose combined rolling resistance or torsional friction is
+  // not 0
   spins_.clear();
-  for (size_t lo = 0; lo < rows_.size();) {
-    size_t hi = lo + 1;
-    while (hi < rows_.size() && rows_[hi].a == rows_[lo].a && rows_[hi].b == rows_[lo].b) ++hi;
-    const ContactRow& r = rows_[lo];
+  for (const Manifold& manifold : manifolds_) {
+    const ContactRow& r = rows_[manifold.first];
     const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
                                 p.friction_rule);
     const double twist = combine(bodies.torsional_friction[r.a],
@@ -222,8 +231,8 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
       SpinRow& s = spins_.emplace_back();
       s.a = r.a;
       s.b = r.b;
-      s.first = static_cast<int32_t>(lo);
-      s.count = static_cast<int32_t>(hi - lo);
+      s.first = manifold.first;
+      s.count = manifold.count;
       s.n = r.n;
       s.inv_a = inv_inertia_[r.a];
       s.inv_b = inv_inertia_[r.b];
@@ -231,26 +240,26 @@ void StepSolver::prepare(const BodyProperties& bodies, const ContactsView& c,
       s.roll = roll * lever;
       s.twist = twist * lever;
     }
-    lo = hi;
   }
 }
 
-double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double ratio,
-                        double match_radius) {
+double StepSolver::warm(StepContext& ctx) {
+  const ContactsView& c = ctx.contacts;
+  const double ratio = ctx.params.warm_start_ratio;
   const int64_t m = c.count;
   int64_t persistent = 0, cold = 0;
-  for (int64_t k = 0; k < m; ++k) persistent += c.kind[k] == kPersistent;
+  for (int64_t k = 0; k < m; ++k) persistent += collres::persistent(c.kind[k]);
   // impulses of a step of another length are a different answer: scaled by dt / last dt
   // only near 1, never from a fresh step (e.g. a nominal dt after a pause)
-  const double scale = last_dt_ > 0.0 ? dt / last_dt_ : 0.0;
-  const bool usable = enabled && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
+  const double scale = last_dt_ > 0.0 ? ctx.dt / last_dt_ : 0.0;
+  const bool usable = ctx.warm && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
   if (!usable) return persistent > 0 ? 1.0 : 0.0;
   cached_normal_.resize(m);
   cached_friction_.resize(3 * m);
   found_.resize(m);
-  cache_.lookup(m, c.a, c.b, c.feature, c.point, match_radius, cached_normal_.data(),
+  cache_.lookup(m, c.a, c.b, c.feature, c.point, ctx.params.match_radius, cached_normal_.data(),
                 cached_friction_.data(), found_.data());
-  for (int64_t k = 0; k < m; ++k) cold += c.kind[k] == kPersistent && !found_[k];
+  for (int64_t k = 0; k < m; ++k) cold += collres::persistent(c.kind[k]) && !found_[k];
   for (ContactRow& r : rows_) {
     const int64_t k = r.contact;
     Vec3 friction = load3(cached_friction_.data() + 3 * k);
@@ -267,7 +276,8 @@ double StepSolver::warm(const ContactsView& c, double dt, bool enabled, double r
   return static_cast<double>(cold) / static_cast<double>(std::max<int64_t>(1, persistent));
 }
 
-void StepSolver::land(SolverBodies& solver, const SolverParams& p) {
+void StepSolver::land(StepContext& ctx) {
+  const SolverParams& p = ctx.params;
   // the landing rows: speculative (a gap at the reference time) and holding, i.e. the
   // contact closes within the step and the solve let it approach by its gap only
   landing_.resize(rows_.size());
@@ -284,7 +294,7 @@ void StepSolver::land(SolverBodies& solver, const SolverParams& p) {
   if (!any) return;
   // every row again, the landing ones without allowance: the velocities (not the poses,
   // which travel_ holds) leave the touching contacts at rest along their normals
-  solve_velocities(rows_, solver, p.velocity_iterations, p.converged, &spins_);
+  solve_velocities(rows_, manifolds_, ctx.solver, p.velocity_iterations, p.converged, &spins_);
   for (size_t i = 0; i < rows_.size(); ++i) {
     ContactRow& r = rows_[i];
     r.landing = r.normal - landing_[i];     // reported, not warm started
@@ -292,12 +302,15 @@ void StepSolver::land(SolverBodies& solver, const SolverParams& p) {
   }
 }
 
-void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOut& out) {
+void StepSolver::report(StepContext& ctx) {
+  const ContactsView& c = ctx.contacts;
+  const SolverParams& p = ctx.params;
+  ContactsOut& out = ctx.report;
   const int64_t m = c.count;
   cached_normal_.assign(m, 0.0);      // what is stored for the warm start
   for (int64_t k = 0; k < m; ++k) {
     out.normal_impulse[k] = 0.0;
-    store3(out.friction_impulse + 3 * k, Vec3{});
+    store3(out.friction_impulse + 3 * k, Vec3::Zero());
     out.state[k] = kResting;          // no row: speculative, no impulse
   }
   for (const ContactRow& r : rows_) {
@@ -307,34 +320,28 @@ void StepSolver::report(const ContactsView& c, const SolverParams& p, ContactsOu
     store3(out.friction_impulse + 3 * k, friction_world(r));
     out.state[k] = contact_state(r, velocity_.data(), p.sticking_speed);
   }
-  // STICKING -> RESTING where a pair's friction impulses sum to nothing (a box at rest on
-  // a flat floor may carry equal and opposite friction at its corners: no net friction)
-  order_.resize(m);
-  std::iota(order_.begin(), order_.end(), 0);
-  std::stable_sort(order_.begin(), order_.end(), [&](int64_t i, int64_t j) {
-    return c.a[i] != c.a[j] ? c.a[i] < c.a[j] : c.b[i] < c.b[j];
-  });
-  for (int64_t lo = 0; lo < m;) {
-    int64_t hi = lo;
-    Vec3 friction;
+  // STICKING -> RESTING where a manifold's friction impulses sum to nothing (a box at rest
+  // on a flat floor may carry equal and opposite friction at its corners: no net friction)
+  for (int64_t span = 0; span < c.manifold_count; ++span) {
+    const int64_t lo = c.manifolds[kManifoldFields * span + 2];
+    const int64_t hi = lo + c.manifolds[kManifoldFields * span + 3];
+    Vec3 friction = Vec3::Zero();
     double normal = 0.0;
     bool sticking = false;
-    for (; hi < m && c.a[order_[hi]] == c.a[order_[lo]] && c.b[order_[hi]] == c.b[order_[lo]];
-         ++hi) {
-      const int64_t k = order_[hi];
+    for (int64_t k = lo; k < hi; ++k) {
       friction += load3(out.friction_impulse + 3 * k);
       normal += out.normal_impulse[k];
       sticking = sticking || out.state[k] == kSticking;
     }
     if (sticking && length(friction) <= p.balanced_friction * normal + 1e-15) {
-      for (int64_t j = lo; j < hi; ++j)
-        if (out.state[order_[j]] == kSticking) out.state[order_[j]] = kResting;
+      for (int64_t k = lo; k < hi; ++k)
+        if (out.state[k] == kSticking) out.state[k] = kResting;
     }
-    lo = hi;
   }
 }
 
-int32_t StepSolver::levels(int64_t n) {
+int32_t StepSolver::levels(StepContext& ctx) {
+  const int64_t n = ctx.bodies.count;
   // contact graph of the rows (CSR), then breadth first from the immovable bodies
   first_.assign(n + 1, 0);
   for (const ContactRow& r : rows_) {
@@ -370,8 +377,10 @@ int32_t StepSolver::levels(int64_t n) {
   return depth;
 }
 
-void StepSolver::advance(const BodyStatesView& previous, const BodyStatesView& current,
-                         double dt, BodyStatesOut& out) {
+void StepSolver::advance(StepContext& ctx) {
+  const BodyStatesView &previous = ctx.previous, &current = ctx.current;
+  const double dt = ctx.dt;
+  BodyStatesOut& out = ctx.out;
   const int64_t n = static_cast<int64_t>(touched_.size());
   for (int64_t i = 0; i < n; ++i) {
     if (!touched_[i]) continue;
@@ -404,8 +413,11 @@ void StepSolver::advance(const BodyStatesView& previous, const BodyStatesView& c
   }
 }
 
-void StepSolver::push_out(const BodyProperties& bodies, const SolverParams& p, double dt,
-                          BodyStatesOut& out) {
+void StepSolver::push_out(StepContext& ctx) {
+  const BodyProperties& bodies = ctx.bodies;
+  const SolverParams& p = ctx.params;
+  const double dt = ctx.dt;
+  BodyStatesOut& out = ctx.out;
   // predicted gap at the end of the step = reference gap + new normal speed times the
   // remaining time; beyond the slop a fraction of it (at most max_correction) is removed
   for (ContactRow& r : rows_) {
@@ -417,8 +429,7 @@ void StepSolver::push_out(const BodyProperties& bodies, const SolverParams& p, d
                             p.max_correction);
     r.push = depth / dt;
   }
-  SolverBodies solver{bodies.count, bodies.inv_mass, inv_inertia_.data(), velocity_.data()};
-  if (!solve_positions(rows_, solver, pseudo_.data(), p.position_iterations)) return;
+  if (!solve_positions(rows_, ctx.solver, pseudo_.data(), p.position_iterations)) return;
   for (int64_t i = 0; i < bodies.count; ++i) {
     const double* w = pseudo_.data() + 6 * i;
     if (!touched_[i] || (w[0] == 0.0 && w[1] == 0.0 && w[2] == 0.0 && w[3] == 0.0 &&

@@ -16,9 +16,9 @@
 //    allowance, m/s);
 // 2. prepare: one row per contact point that can carry an impulse this step (a
 //    speculative contact that cannot close within the step is no row), combined
-//    materials by the combine rules, rows in pair order; per pair with rolling
-//    resistance or torsional friction one SpinRow (its coefficients combined by the
-//    friction rule);
+//    materials by the combine rules, rows in the order of detection's manifolds, one
+//    Manifold constraint per manifold with rows; per manifold with rolling resistance or
+//    torsional friction one SpinRow (its coefficients combined by the friction rule);
 // 3. impacts: successive stages of the rows that approach faster than the restitution
 //    threshold, each an exact inelastic compression with friction then restitution
 //    (resolve_impacts: no stage gains energy; a chain passes an impact on);
@@ -41,9 +41,10 @@
 // 9. split-impulse position pass: penetration beyond the slop predicted at the end of the
 //    step is pushed out (poses only, no velocity: no energy gain);
 // 10. report: normal impulse (with the impact stages' and landing's), friction impulse,
-//    state per contact; a sticking pair whose friction impulses cancel is RESTING.
+//    state per contact; a sticking manifold whose friction impulses cancel is RESTING.
 // Bodies without contact keep their current state (the caller's output arrays start as
-// a copy of the current states and only touched movable bodies are written).
+// a copy of the current states and only touched movable bodies are written). Every stage
+// reads the step's inputs, settings and outputs from one StepContext.
 #pragma once
 
 #include <cstdint>
@@ -51,11 +52,9 @@
 
 #include "contact_cache.h"
 #include "contact_solver.h"
+#include "detection_types.h"
 
 namespace collres {
-
-// How detection classified a contact's pair (types.ContactKind).
-enum ContactKindCode : int8_t { kPersistent = 0, kNewImpact = 1, kTunnelled = 2 };
 
 // States of N bodies at one time: (N, 3) m, (N, 4) x y z w, (N, 3) m/s, (N, 3) rad/s.
 struct BodyStatesView {
@@ -95,8 +94,11 @@ struct ContactsView {
   const double* normal = nullptr;      // (M, 3) unit, world, from A to B
   const double* separation = nullptr;  // (M,) m, signed gap at the current state (< 0: overlap)
   const double* toi = nullptr;         // (M,) time of impact, fraction of the step in [0, 1]
-  const int8_t* kind = nullptr;        // (M,) ContactKindCode
+  const int8_t* kind = nullptr;        // (M,) ContactKind
   const int64_t* feature = nullptr;    // (M,) feature id within the pair (warm start key)
+  int64_t manifold_count = 0;          // K
+  const int64_t* manifolds = nullptr;  // (K, 4) a, b, first row, row count: detection's
+                                       // manifolds, tiling the M rows in order
 };
 
 // Per-contact results, caller order.
@@ -106,6 +108,22 @@ struct ContactsOut {
   uint8_t* state = nullptr;            // (M,) ContactStateCode
   double* toi = nullptr;               // (M,) reported time of impact in [0, 1]
   int8_t* kind = nullptr;              // (M,) reported kind (a closing persistent: IMPACT)
+};
+
+// What every stage of one step reads and writes (as Box2D v3's b2StepContext): the
+// inputs, the settings, the solver's view of the bodies (inverse masses, world inertia,
+// the working velocity) and the outputs.
+struct StepContext {
+  const BodyStatesView& previous;
+  const BodyStatesView& current;
+  const BodyProperties& bodies;
+  const ContactsView& contacts;
+  double dt;            // s, > 0
+  bool warm;            // warm start allowed (see StepSolver::step)
+  const SolverParams& params;
+  SolverBodies solver;  // velocity: the working velocity (N, 6)
+  BodyStatesOut& out;
+  ContactsOut& report;
 };
 
 struct StepStats {
@@ -125,19 +143,14 @@ class StepSolver {
   ContactCache& cache() { return cache_; }
 
  private:
-  void reference_frame(const BodyStatesView& previous, const BodyStatesView& current,
-                       const BodyProperties& bodies, const ContactsView& c, double dt,
-                       double threshold, ContactsOut& report);
-  void prepare(const BodyProperties& bodies, const ContactsView& c, const SolverParams& p);
-  double warm(const ContactsView& c, double dt, bool enabled, double ratio,
-              double match_radius);
-  int32_t levels(int64_t n);   // contact levels (level_); returns the largest
-  void advance(const BodyStatesView& previous, const BodyStatesView& current, double dt,
-               BodyStatesOut& out);
-  void push_out(const BodyProperties& bodies, const SolverParams& p, double dt,
-                BodyStatesOut& out);
-  void land(SolverBodies& solver, const SolverParams& p);
-  void report(const ContactsView& c, const SolverParams& p, ContactsOut& out);
+  void reference_frame(StepContext& ctx);
+  void prepare(StepContext& ctx);
+  double warm(StepContext& ctx);   // returns the fraction of persistent contacts cold
+  int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
+  void land(StepContext& ctx);
+  void report(StepContext& ctx);
+  void advance(StepContext& ctx);
+  void push_out(StepContext& ctx);
 
   ContactCache cache_;
   double last_dt_ = 0.0;              // s, dt of the step the cache holds
@@ -158,9 +171,9 @@ class StepSolver {
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
   std::vector<double> cached_normal_, cached_friction_, impact_work_, landing_;
   std::vector<uint8_t> found_;
-  std::vector<int64_t> order_, pair_order_;
   std::vector<ContactRow> rows_, shock_rows_;
-  std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per pair
+  std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
+  std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

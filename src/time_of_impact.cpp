@@ -11,18 +11,7 @@ Motion::Motion(const Vec3& p0, const Vec3& p1, const Quat& q0, const Quat& q1,
 Mat3 Motion::rotation_at(double s) const {
   if (s <= 0.0) return q0_.toRotationMatrix();
   if (s >= 1.0) return q1_.toRotationMatrix();
-  const double cosine = std::min(1.0, std::abs(q0_.dot(q1_)));
-  const double theta = std::acos(cosine);
-  if (theta < 1e-12) return q0_.toRotationMatrix();
-  double w0 = 1.0 - s, w1 = s;
-  if (theta >= 1e-6) {
-    w0 = std::sin((1.0 - s) * theta) / std::sin(theta);
-    w1 = std::sin(s * theta) / std::sin(theta);
-  }
-  Quat q;
-  q.coeffs() = w0 * q0_.coeffs() + w1 * q1_.coeffs();
-  q.normalize();
-  return q.toRotationMatrix();
+  return slerp(q0_, q1_, s).toRotationMatrix();
 }
 
 Vec3 Motion::position_at(double s) const { return p0_ + s * (p1_ - p0_); }

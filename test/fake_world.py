@@ -47,7 +47,7 @@ def one_contact(a: int, b: int, toi: float) -> ContactReport:
     """A report with a single IMPACT contact between bodies a and b."""
     contacts = ContactSet(np.array([a]), np.array([b]), np.array([[0.0, 0.0, 0.0]]),
                           np.array([[0.0, 0.0, 1.0]]), np.array([-0.001]), np.array([toi]),
-                          np.array([1], np.int8), np.array([0]))
+                          np.array([1], np.int8), np.array([0]), np.array([[a, b, 0, 1]]))
     return ContactReport(contacts, np.array([0.5]), np.array([[0.1, 0.0, 0.0]]),
                          np.array([1], np.uint8))
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from collres_ros.core.contact_state import ContactStates, body_normal_impulses
-from collres_ros.core.types import ContactReport, ContactSet
+from collres_ros.core.types import ContactReport, ContactSet, pair_manifolds
 
 
 def report(pairs: list[tuple[int, int, float]]) -> ContactReport:
@@ -24,7 +24,9 @@ def report(pairs: list[tuple[int, int, float]]) -> ContactReport:
     contacts = ContactSet(np.array([p[0] for p in pairs], np.int64),
                           np.array([p[1] for p in pairs], np.int64), np.zeros((m, 3)),
                           np.tile([0.0, 0.0, 1.0], (m, 1)), np.zeros(m), np.zeros(m),
-                          np.zeros(m, np.int8), np.zeros(m, np.int64))
+                          np.zeros(m, np.int8), np.zeros(m, np.int64),
+                          pair_manifolds(np.array([p[0] for p in pairs], np.int64),
+                                         np.array([p[1] for p in pairs], np.int64)))
     return ContactReport(contacts, np.array([p[2] for p in pairs], float), np.zeros((m, 3)),
                          np.full(m, 2, np.uint8))
 

@@ -147,9 +147,7 @@ def _between(report: ContactReport, bodies: np.ndarray) -> ContactReport:
     c = report.contacts
     keep = bodies[np.asarray(c.body_a, np.int64)] & bodies[np.asarray(c.body_b, np.int64)] \
         if c.count else np.zeros(0, bool)
-    return ContactReport(ContactSet(c.body_a[keep], c.body_b[keep], c.point[keep],
-                                    c.normal[keep], c.separation[keep], c.toi[keep],
-                                    c.kind[keep], c.feature[keep]),
+    return ContactReport(c.select(keep),
                          report.normal_impulse[keep], report.friction_impulse[keep],
                          report.state[keep])
 
@@ -161,9 +159,7 @@ def _joined(a: ContactReport, b: ContactReport) -> ContactReport:
     if not a.contacts.count:
         return b
     ca, cb = a.contacts, b.contacts
-    return ContactReport(ContactSet(*(np.concatenate([getattr(ca, f), getattr(cb, f)])
-                                      for f in ('body_a', 'body_b', 'point', 'normal',
-                                                'separation', 'toi', 'kind', 'feature'))),
+    return ContactReport(ContactSet.joined(ca, cb),
                          np.concatenate([a.normal_impulse, b.normal_impulse]),
                          np.concatenate([a.friction_impulse, b.friction_impulse]),
                          np.concatenate([a.state, b.state]))

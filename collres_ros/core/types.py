@@ -81,6 +81,11 @@ class ContactSet:
     ``feature`` identifies the point within its pair across steps for warm
     starting (e.g. the index in a face-on-face manifold); the pair itself is
     identified by (body_a, body_b) with body_a < body_b.
+    ``manifolds`` (K, 4) int64, one row (body_a, body_b, first, count) per manifold:
+    the rows ``first .. first + count - 1``, all of that pair, found together (1-4
+    points sharing a contact patch); the manifolds tile the M rows in order, and the
+    solver solves each as one constraint. One pair may have several manifolds (e.g.
+    pieces of compound bodies). Hand-made sets take ``pair_manifolds``.
     """
 
     body_a: np.ndarray        # (M,) int64
@@ -91,10 +96,35 @@ class ContactSet:
     toi: np.ndarray           # (M,) fraction of the step in [0, 1]
     kind: np.ndarray          # (M,) int8, ContactKind
     feature: np.ndarray       # (M,) int64
+    manifolds: np.ndarray     # (K, 4) int64: body_a, body_b, first row, row count
 
     @property
     def count(self) -> int:
         return int(self.body_a.shape[0])
+
+    def select(self, keep: np.ndarray) -> 'ContactSet':
+        """The rows where the (M,) bool mask ``keep`` is true, copied; each manifold keeps
+        its kept rows (none: it goes)."""
+        keep = np.asarray(keep, bool)
+        counts = self.manifolds[:, 3] if self.count else np.zeros(0, np.int64)
+        owner = np.repeat(np.arange(len(counts)), counts)
+        kept = np.bincount(owner[keep], minlength=len(counts)).astype(np.int64)
+        spans = self.manifolds[kept > 0].copy()
+        spans[:, 3] = kept[kept > 0]
+        spans[:, 2] = np.cumsum(spans[:, 3]) - spans[:, 3]
+        return ContactSet(self.body_a[keep], self.body_b[keep], self.point[keep],
+                          self.normal[keep], self.separation[keep], self.toi[keep],
+                          self.kind[keep], self.feature[keep], spans)
+
+    @staticmethod
+    def joined(a: 'ContactSet', b: 'ContactSet') -> 'ContactSet':
+        """The rows (and manifolds) of ``a`` then those of ``b``."""
+        shifted = b.manifolds.copy()
+        shifted[:, 2] += a.count
+        return ContactSet(*(np.concatenate([getattr(a, f), getattr(b, f)])
+                            for f in ('body_a', 'body_b', 'point', 'normal', 'separation',
+                                      'toi', 'kind', 'feature')),
+                          np.concatenate([a.manifolds, shifted]))
 
     @property
     def depth(self) -> np.ndarray:
@@ -105,7 +135,18 @@ class ContactSet:
         return ContactSet(
             np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
             np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int8),
-            np.zeros(0, np.int64))
+            np.zeros(0, np.int64), np.zeros((0, 4), np.int64))
+
+
+def pair_manifolds(body_a: np.ndarray, body_b: np.ndarray) -> np.ndarray:
+    """``ContactSet.manifolds`` of a hand-made set: each run of consecutive rows of one
+    pair is one manifold, (K, 4) int64 (body_a, body_b, first, count)."""
+    a, b = np.asarray(body_a, np.int64), np.asarray(body_b, np.int64)
+    if a.shape[0] == 0:
+        return np.zeros((0, 4), np.int64)
+    first = np.flatnonzero(np.r_[True, (a[1:] != a[:-1]) | (b[1:] != b[:-1])])
+    count = np.diff(np.r_[first, a.shape[0]])
+    return np.stack([a[first], b[first], first, count], axis=1).astype(np.int64)
 
 
 @dataclass

@@ -209,7 +209,8 @@ class World:
         m = contacts.count
         report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
                                           contacts.normal, contacts.separation, np.empty(m),
-                                          np.empty(m, np.int8), contacts.feature),
+                                          np.empty(m, np.int8), contacts.feature,
+                                          contacts.manifolds),
                                np.empty(m), np.empty((m, 3)), np.empty(m, np.uint8))
         flat = (lambda array, dtype=np.float64: np.ascontiguousarray(array, dtype))
         sweeps, rows = self._solver.step(
@@ -224,6 +225,7 @@ class World:
             point=flat(contacts.point), normal=flat(contacts.normal),
             separation=flat(contacts.separation), toi=flat(contacts.toi),
             kind=flat(contacts.kind, np.int8), feature=flat(contacts.feature, np.int64),
+            manifolds=flat(contacts.manifolds, np.int64),
             dt=float(dt), warm=warm, params=self._params, normal_impulse=report.normal_impulse,
             friction_impulse=report.friction_impulse, state=report.state,
             reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
@@ -289,7 +291,8 @@ def _finite(contacts: ContactSet) -> ContactSet:
     if ok.all():
         normal = contacts.normal / norm[:, None] if contacts.count else contacts.normal
         return ContactSet(contacts.body_a, contacts.body_b, contacts.point, normal,
-                          contacts.separation, contacts.toi, contacts.kind, contacts.feature)
-    return ContactSet(contacts.body_a[ok], contacts.body_b[ok], contacts.point[ok],
-                      contacts.normal[ok] / norm[ok, None], contacts.separation[ok],
-                      contacts.toi[ok], contacts.kind[ok], contacts.feature[ok])
+                          contacts.separation, contacts.toi, contacts.kind, contacts.feature,
+                          contacts.manifolds)
+    kept = contacts.select(ok)
+    kept.normal /= norm[ok, None]
+    return kept

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from collres_ros.core.config import SolverSettings
-from collres_ros.core.types import BodySpec, BodyStates, ContactKind, ContactSet
+from collres_ros.core.types import (BodySpec, BodyStates, ContactKind, ContactSet,
+                                    pair_manifolds)
 
 
 class FixedContacts:
@@ -30,10 +31,11 @@ def contact_set(a, b, point, normal, separation, toi=0.0, kind=ContactKind.IMPAC
     count = point.shape[0]
     normal = np.broadcast_to(normal, (count, 3)).copy()
     full = (lambda v, dtype: np.broadcast_to(np.asarray(v, dtype), (count,)).copy())
-    return ContactSet(full(a, np.int64), full(b, np.int64), point, normal,
+    body_a, body_b = full(a, np.int64), full(b, np.int64)
+    return ContactSet(body_a, body_b, point, normal,
                       full(separation, float), full(toi, float), full(int(kind), np.int8),
                       np.arange(count, dtype=np.int64) if feature is None
-                      else full(feature, np.int64))
+                      else full(feature, np.int64), pair_manifolds(body_a, body_b))
 
 
 def states(position, linear, angular=None, orientation=None) -> BodyStates:

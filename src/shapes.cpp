@@ -183,4 +183,21 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
   return shape;
 }
 
+void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,
+                 const Quat& orientation) {
+  if (shape.kind == ShapeKind::plane) {
+    throw std::invalid_argument("a plane cannot be a piece of a compound body");
+  }
+  shape.body = body;
+  shape.piece = piece;
+  shape.frame_position = position;
+  shape.rotation = orientation.normalized().toRotationMatrix();
+  shape.offset = position + shape.rotation * shape.offset;
+  const Vec3 lo = shape.geometry->aabb_local.min_, hi = shape.geometry->aabb_local.max_;
+  const Vec3 centre = shape.offset + shape.rotation * (0.5 * (lo + hi));
+  const Vec3 reach = shape.rotation.cwiseAbs() * (0.5 * (hi - lo));
+  shape.local_lo = centre - reach;
+  shape.local_hi = centre + reach;
+}
+
 }  // namespace collres

@@ -23,13 +23,21 @@ namespace collres {
 enum class ShapeKind : int { sphere = 0, box = 1, capsule = 2, cylinder = 3, cone = 4,
                              plane = 5, convex = 6 };
 
+// One collision shape: a body's only shape, or one piece of a compound body (as Box2D's and
+// Jolt's shapes: each with its body and a pose in that body's frame). A piece's frame sits
+// at `frame_position` with `rotation` in the body frame (zero and identity for a body of
+// one shape); the coal geometry is turned by `rotation` and centred at `offset`.
 struct BodyShape {
   ShapeKind kind = ShapeKind::sphere;
   std::shared_ptr<coal::CollisionGeometry> geometry;
+  int body = 0;                    // the body it belongs to
+  int piece = 0;                   // its index among that body's pieces
+  Vec3 frame_position = Vec3::Zero();  // m, the piece frame's origin in the body frame
+  Mat3 rotation = Mat3::Identity();    // piece (and geometry) axes in the body frame
   Vec3 offset = Vec3::Zero();      // m, geometry origin in the body frame
   Vec3 local_lo = Vec3::Zero();    // m, body-frame box of the shape (offset included)
   Vec3 local_hi = Vec3::Zero();
-  Vec3 half = Vec3::Zero();        // m, half extents of that box (+inf for planes)
+  Vec3 half = Vec3::Zero();        // m, half extents of the geometry's own box (+inf planes)
   double radius = 0.0;             // m, origin-centred bounding sphere (+inf for planes)
   double thickness = 0.0;          // m, smallest half extent (+inf for planes)
   Vec3 plane_normal = Vec3::UnitZ();  // planes: unit normal, body frame
@@ -69,5 +77,11 @@ std::vector<std::int64_t> extreme_vertices(const std::vector<double>& points, in
 // std::invalid_argument for any input no coal geometry can be made of (never a crash).
 BodyShape make_shape(int kind, const std::vector<double>& size,
                      const std::vector<double>& points, double radius, bool is_static);
+
+// Put a finite shape into a compound body as its piece `piece` of body `body`: its frame at
+// `position` (m) turned by the unit quaternion `orientation` in the body frame; the body-frame
+// box grows to hold the turned geometry. `radius` stays as given (about the body origin).
+void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,
+                 const Quat& orientation);
 
 }  // namespace collres

@@ -142,6 +142,14 @@ class OutputEncoder:
         self.world_frame = world_frame
         self.states = codec.StatesCodec()
         self.names = codec.NamePool(self.body_names)
+        # piece names of contacts: every body's pieces in one pool ('' for a body of one
+        # shape), body k's from piece_start[k]; None without compound bodies (all '')
+        self.piece_names: Optional[codec.NamePool] = None
+        self.piece_start = np.zeros(len(self.body_names), np.int64)
+        if bodies is not None and any(b.pieces for b in bodies):
+            names = [[p.name for p in b.pieces] or [''] for b in bodies]
+            self.piece_start = np.cumsum([0] + [len(n) for n in names[:-1]]).astype(np.int64)
+            self.piece_names = codec.NamePool([n for group in names for n in group])
         self._body_markers: Optional[Any] = None
         if bodies is not None:
             from collres_ros.ros.body_markers import BodyMarkers
@@ -197,16 +205,20 @@ class OutputEncoder:
         """contacts: every solved contact, world frame, normal from body_a to body_b."""
         r = step.report
         c = r.contacts
+        piece_a, piece_b = c.pieces()
         before = step.stamp_ns - step.toi_ns   # ns from each time of impact to the stamp
         key = (c.body_a, c.body_b, c.point, c.normal, c.depth, before, r.normal_impulse,
-               r.friction_impulse, r.state)
+               r.friction_impulse, r.state, piece_a, piece_b)
         last = self._last.get(CONTACTS)
         if last is not None and _same(last[0], key):
             return last[1].restamped(np.concatenate([[step.stamp_ns], step.toi_ns]))
+        pieces = None if self.piece_names is None else (
+            self.piece_names, self.piece_start[c.body_a] + piece_a,
+            self.piece_start[c.body_b] + piece_b)
         message = codec.contacts_message(step.stamp_ns, self.world_frame, self.names,
                                          c.body_a, c.body_b, c.point, c.normal, c.depth,
                                          step.toi_ns, r.normal_impulse, r.friction_impulse,
-                                         r.state)
+                                         r.state, pieces)
         self._last[CONTACTS] = (_copies(key), message)
         return message.data()
 

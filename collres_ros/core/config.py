@@ -500,6 +500,12 @@ SIM_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('duration', 'double', 5.0, 'Simulated time to run', 0.0, 86400.0, unit='s'),
     ParamSpec('publish_per_body', 'bool', False,
               'Also publish bodies/<name>/pose and twist (live mode)'),
+    ParamSpec('joint_motion', 'string_array', [],
+              'Scripted joints of robot_description, each "joint:amplitude:frequency[:phase]": '
+              'the joint moves as amplitude sin(2 pi frequency t + phase) (rad, or m for a '
+              'prismatic joint; Hz; rad; t from the first state) and the links follow by '
+              'forward kinematics, posed with their twists every step',
+              reason='none: the links keep the poses they start with'),
 )
 
 
@@ -511,6 +517,8 @@ class SimSettings:
     rate_hz: float = 240.0
     duration: float = 5.0
     publish_per_body: bool = False
+    # (joint, amplitude rad or m, frequency Hz, phase rad) of each scripted joint
+    joint_motion: tuple[tuple[str, float, float, float], ...] = ()
 
 
 assert [f.name for f in fields(NodeSettings)] == [p.name for p in NODE_PARAMS]

@@ -607,7 +607,9 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
                                for f in fields(SolverSettings)})
     node = NodeSettings(**{f.name: typed[f.name] for f in fields(NodeSettings)})
     sim = SimSettings(gravity=gravity, rate_hz=typed['rate_hz'],  # type: ignore[arg-type]
-                      duration=typed['duration'], publish_per_body=typed['publish_per_body'])
+                      duration=typed['duration'], publish_per_body=typed['publish_per_body'],
+                      joint_motion=robot.joint_motion(typed['joint_motion'],
+                                                      typed['robot_description']))
     typed['bodies'] = listed
     return Scene(world_frame, tuple(spec for spec, _ in built), initial, solver, node, sim,
                  typed, base_dir, links.ignored)
@@ -635,8 +637,9 @@ def scene_to_yaml(scene: Scene) -> str:
     """
     import yaml
     values = dict(scene.values)
-    if scene.values.get('robot_description'):   # links written out as bodies, pairs too
-        values.update({'robot_description': '', 'bodies': scene.names,
+    if scene.values.get('robot_description'):   # links written out as bodies, pairs too;
+        # their recorded poses move them (no script without the URDF)
+        values.update({'robot_description': '', 'joint_motion': [], 'bodies': scene.names,
                        'ignore_pairs': list(scene.values['ignore_pairs'])
                        + [f'{a}{PAIR_SEPARATOR}{b}' for a, b in scene.robot_ignored]})
     for body in scene.bodies:

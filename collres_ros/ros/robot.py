@@ -155,46 +155,87 @@ def _geometry(where: str, at: str, geometry: Any, base_dir: Optional[Path],
 
 
 Pose = tuple[np.ndarray, np.ndarray]   # position (3,) m, quaternion (4,) x, y, z, w
+IDENTITY_POSE: Pose = (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+
+
+class Kinematics:
+    """Forward kinematics of a URDF (parsed once): a child link sits at its joint's origin
+    in its parent's frame, turned about the joint axis by the joint's position (rad;
+    revolute, continuous) or moved along it (m; prismatic); other joints are fixed. Root
+    links sit at ``base``."""
+
+    def __init__(self, text: str, base: Pose = IDENTITY_POSE) -> None:
+        model = parse(text)
+        self.base = base
+        self.links = [link.name for link in model.links]
+        self.joints = {j.name: j for j in model.joints}
+        self._by_child = {j.child: j for j in model.joints}
+
+    def poses(self, positions: Optional[dict[str, float]] = None) -> dict[str, Pose]:
+        """World pose of every link with the joints at ``positions`` (missing: 0)."""
+        from collres_ros.core.rotation import multiply, to_matrix
+        positions = positions or {}
+        poses: dict[str, Pose] = {}
+
+        def pose(link: str, depth: int = 0) -> Pose:
+            if link in poses:
+                return poses[link]
+            joint = self._by_child.get(link)
+            if joint is None or depth > len(self.links):
+                found = (np.array(self.base[0], float), np.array(self.base[1], float))
+            else:
+                p, q = pose(joint.parent, depth + 1)
+                origin = joint.origin
+                xyz = np.array(origin.xyz if origin and origin.xyz else (0, 0, 0), float)
+                rpy = origin.rpy if origin and origin.rpy else (0, 0, 0)
+                p = p + to_matrix(q) @ xyz
+                q = multiply(q, np.array(quaternion_of_rpy(*rpy)))
+                axis = np.array(joint.axis if joint.axis else (1, 0, 0), float)
+                axis /= max(np.linalg.norm(axis), 1e-300)
+                value = float(positions.get(joint.name, 0.0))
+                if joint.type in ('revolute', 'continuous'):
+                    q = multiply(q, np.append(axis * np.sin(value / 2), np.cos(value / 2)))
+                elif joint.type == 'prismatic':
+                    p = p + to_matrix(q) @ (axis * value)
+                found = (p, q / np.linalg.norm(q))
+            poses[link] = found
+            return found
+
+        for link in self.links:
+            pose(link)
+        return poses
 
 
 def link_poses(text: str, positions: Optional[dict[str, float]] = None,
-               base: Pose = (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))) -> dict[str, Pose]:
-    """World pose (position m, quaternion x, y, z, w) of every link of a URDF text, by
-    forward kinematics: a child link sits at its joint's origin in its parent's frame, turned
-    about the joint axis by the joint's position (rad; revolute, continuous) or moved along
-    it (m; prismatic); other joints are fixed. Root links sit at ``base``; joints missing
-    from ``positions`` are at 0."""
-    from collres_ros.core.rotation import multiply, to_matrix
-    model = parse(text)
-    positions = positions or {}
-    by_child = {j.child: j for j in model.joints}
-    poses: dict[str, Pose] = {}
+               base: Pose = IDENTITY_POSE) -> dict[str, Pose]:
+    """World pose of every link of a URDF text with its joints at ``positions``
+    (``Kinematics``)."""
+    return Kinematics(text, base).poses(positions)
 
-    def pose(link: str, depth: int = 0) -> Pose:
-        if link in poses:
-            return poses[link]
-        joint = by_child.get(link)
-        if joint is None or depth > len(model.links):
-            found = (np.array(base[0], float), np.array(base[1], float))
-        else:
-            p, q = pose(joint.parent, depth + 1)
-            origin = joint.origin
-            xyz = np.array(origin.xyz if origin and origin.xyz else (0, 0, 0), float)
-            rpy = origin.rpy if origin and origin.rpy else (0, 0, 0)
-            p = p + to_matrix(q) @ xyz
-            q = multiply(q, np.array(quaternion_of_rpy(*rpy)))
-            axis = np.array(joint.axis if joint.axis else (1, 0, 0), float)
-            axis /= max(np.linalg.norm(axis), 1e-300)
-            value = float(positions.get(joint.name, 0.0))
-            if joint.type in ('revolute', 'continuous'):
-                turn = np.append(axis * np.sin(value / 2), np.cos(value / 2))
-                q = multiply(q, turn)
-            elif joint.type == 'prismatic':
-                p = p + to_matrix(q) @ (axis * value)
-            found = (p, q / np.linalg.norm(q))
-        poses[link] = found
-        return found
 
-    for link in model.links:
-        pose(link.name)
-    return poses
+def joint_motion(entries: list[str], text: str) -> tuple[tuple[str, float, float, float], ...]:
+    """The scripted joints of ``joint_motion`` entries "joint:amplitude:frequency[:phase]"
+    (ValueError, one line naming joint_motion, for a bad entry or an unknown joint)."""
+    if not entries:
+        return ()
+    if not text:
+        raise ValueError(f'joint_motion: scripts joints of robot_description, which is empty '
+                         f'(got {entries[0]!r})')
+    joints = Kinematics(text).joints
+    motion = []
+    for entry in entries:
+        name, *numbers = entry.split(':')
+        try:
+            values = [float(v) for v in numbers]
+        except ValueError:
+            values = []
+        if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+            raise ValueError(f'joint_motion: each entry is "joint:amplitude:frequency[:phase]", '
+                             f'finite numbers (got {entry!r})')
+        moving = ('revolute', 'continuous', 'prismatic')
+        if name not in joints or joints[name].type not in moving:
+            raise ValueError(f'joint_motion: {name!r} is not a moving joint of '
+                             f'robot_description (got {entry!r})')
+        amplitude, frequency, *phase = values
+        motion.append((name, amplitude, frequency, phase[0] if phase else 0.0))
+    return tuple(motion)

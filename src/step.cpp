@@ -217,9 +217,14 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu_s, mu_k);
     }
     const auto count = static_cast<int32_t>(rows_.size()) - first_row;
-    if (count > 0)
-      manifolds_.push_back({static_cast<int32_t>(manifold[0]), static_cast<int32_t>(manifold[1]),
-                            first_row, count});
+    if (count > 0) {
+      Manifold& block = manifolds_.emplace_back();
+      block.a = static_cast<int32_t>(manifold[0]);
+      block.b = static_cast<int32_t>(manifold[1]);
+      block.first = first_row;
+      block.count = count;
+      prepare_block(block, &rows_[first_row]);
+    }
   }
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0
@@ -243,6 +248,8 @@ void StepSolver::prepare(StepContext& ctx) {
       s.n = r.n;
       s.inv_a = inv_inertia_[r.a];
       s.inv_b = inv_inertia_[r.b];
+      s.inv_ab = s.inv_a + s.inv_b;
+      s.k_n = dot(s.n, mul(s.inv_ab, s.n));
       s.lever = lever;
       s.roll = roll * lever;
       s.twist = twist * lever;

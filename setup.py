@@ -51,6 +51,7 @@ setup(
             'collres_sim = collres_ros.entry:sim',
             'collres_replay = collres_ros.entry:replay',
             'collres_demo = collres_ros.entry:demo',
+            'collres_decompose = collres_ros.entry:decompose',
         ],
     },
 )

@@ -67,7 +67,7 @@ def measure(count: int, steps: int, settle: float, domain: int) -> dict[str, np.
     from collres_ros.msg import BodyStateArray, ContactArray
     from collres_ros.ros import messages
     bodies, state, _ = settled_pile(count, settle)
-    data = input_bytes(bodies, state, 1.0 / 120.0)
+    data = input_bytes(bodies, state)
     world = World(bodies, SolverSettings())
     msg = deserialize_message(data, BodyStateArray)
     resolver = Resolver(bodies, world=world, initial=state)

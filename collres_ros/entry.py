@@ -32,3 +32,7 @@ def replay() -> int:
 
 def demo() -> int:
     return _main('collres_ros.demo')
+
+
+def decompose() -> int:
+    return _main('collres_ros.decompose')

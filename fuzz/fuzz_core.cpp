@@ -65,7 +65,8 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
   }
   if (shapes.empty()) return 0;
   const int n = static_cast<int>(shapes.size());
-  collres::Detector detector(std::move(shapes));
+  for (int k = 0; k < n; ++k) shapes[k].body = k;   // one shape per body
+  collres::Detector detector(std::move(shapes), n);
   std::vector<double> p0(3 * n), q0(4 * n), p1(3 * n), q1(4 * n), linear(3 * n), angular(3 * n);
   for (auto* array : {&p0, &q0, &p1, &q1, &linear, &angular}) {
     for (double& v : *array) v = in.real();

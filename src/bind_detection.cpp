@@ -90,33 +90,65 @@ void bind_detection(py::module_& m) {
                                 "time of impact of a fixed list of bodies (detection.h).")
       .def(py::init([](const std::vector<int>& kinds, const std::vector<std::vector<double>>& sizes,
                        const std::vector<std::vector<double>>& points,
-                       const std::vector<double>& radius, const std::vector<bool>& fixed) {
+                       const std::vector<double>& radius, const std::vector<bool>& fixed,
+                       std::vector<int> body, std::vector<int> piece,
+                       std::vector<std::vector<double>> pose, int bodies) {
              const std::size_t n = kinds.size();
+             if (body.empty() && piece.empty() && pose.empty() && bodies < 0) {
+               // one shape per body, each on its body's frame
+               for (std::size_t k = 0; k < n; ++k) body.push_back(static_cast<int>(k));
+               piece.assign(n, 0);
+               pose.assign(n, {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0});
+               bodies = static_cast<int>(n);
+             }
              if (sizes.size() != n || points.size() != n || radius.size() != n ||
-                 fixed.size() != n) {
-               throw py::value_error("kinds, sizes, points, radius, static: one per body");
+                 fixed.size() != n || body.size() != n || piece.size() != n ||
+                 pose.size() != n) {
+               throw py::value_error("kinds, sizes, points, radius, static, body, piece, "
+                                     "pose: one per shape");
              }
              std::vector<collres::BodyShape> shapes;
              for (std::size_t k = 0; k < n; ++k) {
                shapes.push_back(collres::make_shape(kinds[k], sizes[k], points[k], radius[k],
                                                     fixed[k]));
+               if (pose[k].size() != 7) throw py::value_error("pose: x, y, z, qx, qy, qz, qw");
+               const collres::Vec3 position(pose[k][0], pose[k][1], pose[k][2]);
+               const collres::Quat turn(pose[k][6], pose[k][3], pose[k][4], pose[k][5]);
+               const bool placed = !position.isZero(0.0) || !turn.coeffs().isApprox(
+                   collres::Quat::Identity().coeffs(), 0.0);
+               if (placed || piece[k] != 0) {
+                 if (!position.allFinite() || !turn.coeffs().allFinite() || turn.norm() < 0.5) {
+                   throw py::value_error("pose: a finite position and a unit quaternion");
+                 }
+                 collres::place_piece(shapes.back(), body[k], piece[k], position, turn);
+               } else {
+                 shapes.back().body = body[k];
+               }
              }
-             return std::make_unique<collres::Detector>(std::move(shapes));
+             return std::make_unique<collres::Detector>(std::move(shapes), bodies);
            }),
            py::arg("kinds"), py::arg("sizes"), py::arg("points"), py::arg("radius"),
-           py::arg("static"),
-           "Per body: shape code (index in SHAPE_KINDS), sizes, convex vertices (flat, m, "
-           "body frame), bounding radius (m), static.")
+           py::arg("static"), py::arg("body") = std::vector<int>{},
+           py::arg("piece") = std::vector<int>{},
+           py::arg("pose") = std::vector<std::vector<double>>{}, py::arg("bodies") = -1,
+           "Per shape, in body order: shape code (index in SHAPE_KINDS), sizes, convex "
+           "vertices (flat, m, piece frame), bounding radius about the body origin (m), "
+           "static, its body, its index among that body's pieces, the piece frame's pose in "
+           "the body frame (x, y, z m, qx, qy, qz, qw); the number of bodies. Without the "
+           "last four: one shape per body.")
       .def("set_settings",
            [](collres::Detector& d, double speculative_margin, double toi_tolerance,
               int toi_max_iterations, bool ccd, double linear_slop,
-              double restitution_threshold, int max_pairs, int max_contacts) {
+              double restitution_threshold, int max_pairs, int max_contacts,
+              int max_contacts_per_pair) {
              d.set_settings({speculative_margin, toi_tolerance, toi_max_iterations, ccd,
-                             linear_slop, restitution_threshold, max_pairs, max_contacts});
+                             linear_slop, restitution_threshold, max_pairs, max_contacts,
+                             max_contacts_per_pair});
            },
            py::arg("speculative_margin"), py::arg("toi_tolerance"),
            py::arg("toi_max_iterations"), py::arg("ccd"), py::arg("linear_slop"),
-           py::arg("restitution_threshold"), py::arg("max_pairs"), py::arg("max_contacts"))
+           py::arg("restitution_threshold"), py::arg("max_pairs"), py::arg("max_contacts"),
+           py::arg("max_contacts_per_pair"))
       .def("budget",
            [](const collres::Detector& d) {
              return py::make_tuple(d.budget().pairs_dropped, d.budget().rows_dropped);
@@ -148,12 +180,13 @@ void bind_detection(py::module_& m) {
                  owned(std::move(rows.normal), {m_rows, 3}),
                  owned(std::move(rows.separation), {m_rows}), owned(std::move(rows.toi), {m_rows}),
                  owned(std::move(rows.kind), {m_rows}), owned(std::move(rows.feature), {m_rows}),
-                 owned(std::move(rows.manifolds), {k_manifolds, collres::kManifoldFields}));
+                 owned(std::move(rows.manifolds), {k_manifolds, collres::kManifoldFields}),
+                 owned(std::move(rows.piece_a), {m_rows}), owned(std::move(rows.piece_b), {m_rows}));
            },
            py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
            py::arg("angular"), py::arg("active") = py::none(),
            "Contacts of the step: (body_a, body_b, point, normal, separation, toi, kind, "
-           "feature, manifolds), the fields of ContactSet.")
+           "feature, manifolds, piece_a, piece_b), the fields of ContactSet.")
       .def("candidate_pairs",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,

@@ -3,12 +3,18 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace collres {
 
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// A feature id is the corner code of both pieces (< 729), the rank among equal codes (< the
+// points of a patch) times 729, and the piece pair times kPiecePairFeature: unique within a
+// pair of bodies, and the same as before compounds for a body of one shape (piece 0).
+constexpr std::int64_t kPiecePairFeature = 729 * 64;
+constexpr std::int64_t kMaxPieces = 1 << 20;
 
 bool finite(const double* v, int count) {
   for (int k = 0; k < count; ++k) {
@@ -32,6 +38,8 @@ void ContactRows::reserve(std::size_t rows) {
   toi.reserve(rows);
   kind.reserve(rows);
   feature.reserve(rows);
+  piece_a.reserve(rows);
+  piece_b.reserve(rows);
   manifolds.reserve(kManifoldFields * rows);
 }
 
@@ -73,6 +81,25 @@ void ContactRows::keep(const std::vector<std::size_t>& rows) {
   compact(toi, 1);
   compact(kind, 1);
   compact(feature, 1);
+  compact(piece_a, 1);
+  compact(piece_b, 1);
+}
+
+void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) const {
+  out.clear();
+  out.reserve(rows.size());
+  for (const std::size_t row : rows) {
+    out.body_a.push_back(body_a[row]);
+    out.body_b.push_back(body_b[row]);
+    out.point.insert(out.point.end(), point.begin() + 3 * row, point.begin() + 3 * row + 3);
+    out.normal.insert(out.normal.end(), normal.begin() + 3 * row, normal.begin() + 3 * row + 3);
+    out.separation.push_back(separation[row]);
+    out.toi.push_back(toi[row]);
+    out.kind.push_back(kind[row]);
+    out.feature.push_back(feature[row]);
+    out.piece_a.push_back(piece_a[row]);
+    out.piece_b.push_back(piece_b[row]);
+  }
 }
 
 void ContactRows::clear() {
@@ -84,14 +111,24 @@ void ContactRows::clear() {
   toi.clear();
   kind.clear();
   feature.clear();
+  piece_a.clear();
+  piece_b.clear();
   manifolds.clear();
 }
 
-Detector::Detector(std::vector<BodyShape> shapes)
-    : shapes_(std::move(shapes)), sweep_(kSkin) {
-  for (int k = 0; k < count(); ++k) {
+Detector::Detector(std::vector<BodyShape> shapes, int bodies)
+    : shapes_(std::move(shapes)), bodies_count_(bodies), sweep_(kSkin) {
+  int next = 0;   // the body the next shape may start
+  for (int k = 0; k < pieces(); ++k) {
+    const int body = shapes_[k].body;
+    if (body != next && body != next - 1) {
+      throw std::invalid_argument("shapes must come in body order, every body at least one");
+    }
+    compound_ = compound_ || body == next - 1;
+    next = body + 1;
     (shapes_[k].kind == ShapeKind::plane ? planes_ : finite_).push_back(k);
   }
+  if (next != bodies) throw std::invalid_argument("every body needs at least one shape");
 }
 
 void Detector::set_settings(const DetectionSettings& settings) {
@@ -107,14 +144,24 @@ void Detector::set_filter(std::vector<std::uint64_t> group, std::vector<std::uin
 // -- motion and broad phase ----------------------------------------------------------------
 
 void Detector::prepare(const StepPoses& poses) {
-  const int n = count();
+  const int n = pieces();
   bodies_.resize(n);
   for (int k = 0; k < n; ++k) {
     Body& body = bodies_[k];
-    const double* p0 = poses.p0 + 3 * k;
-    const double* p1 = poses.p1 + 3 * k;
-    const double* q0 = poses.q0 + 4 * k;
-    const double* q1 = poses.q1 + 4 * k;
+    const int owner = shapes_[k].body;
+    if (k > 0 && owner == shapes_[k - 1].body) {   // another piece: the same motion
+      body = bodies_[k - 1];
+      body.moved = (body.p1 - body.p0).norm() +
+                   (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
+      if (!std::isfinite(body.moved)) body.moved = 0.0;
+      body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
+                                     body.p1 + body.r1 * shapes_[k].offset);
+      continue;
+    }
+    const double* p0 = poses.p0 + 3 * owner;
+    const double* p1 = poses.p1 + 3 * owner;
+    const double* q0 = poses.q0 + 4 * owner;
+    const double* q1 = poses.q1 + 4 * owner;
     body.valid = finite(p0, 3) && finite(p1, 3) && finite(q0, 4) && finite(q1, 4);
     Quat a = Eigen::Map<const Quat>(q0), b = Eigen::Map<const Quat>(q1);  // x, y, z, w
     body.valid = body.valid && a.norm() > 0.5 && b.norm() > 0.5;
@@ -129,24 +176,25 @@ void Detector::prepare(const StepPoses& poses) {
     body.q0 = a;
     body.q1 = b;
     body.fixed = shapes_[k].is_static;
-    const bool frozen = poses.active != nullptr && poses.active[k] == 0;
+    const bool frozen = poses.active != nullptr && poses.active[owner] == 0;
     if (frozen) {
       body.p0 = body.p1;
       body.q0 = body.q1;
       body.fixed = true;
     }
     body.linear = body.angular = Vec3::Zero();
-    if (!frozen && poses.linear != nullptr && finite(poses.linear + 3 * k, 3) &&
-        finite(poses.angular + 3 * k, 3)) {
-      body.linear = Eigen::Map<const Vec3>(poses.linear + 3 * k);
-      body.angular = Eigen::Map<const Vec3>(poses.angular + 3 * k);
+    if (!frozen && poses.linear != nullptr && finite(poses.linear + 3 * owner, 3) &&
+        finite(poses.angular + 3 * owner, 3)) {
+      body.linear = Eigen::Map<const Vec3>(poses.linear + 3 * owner);
+      body.angular = Eigen::Map<const Vec3>(poses.angular + 3 * owner);
     }
     body.turn = angle_between(body.q0, body.q1);
     body.moved = (body.p1 - body.p0).norm() +
                  (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
     if (!std::isfinite(body.moved)) body.moved = 0.0;
     body.r1 = body.q1.toRotationMatrix();
-    body.pose1 = coal::Transform3s(body.r1, body.p1 + body.r1 * shapes_[k].offset);
+    body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
+                                   body.p1 + body.r1 * shapes_[k].offset);
   }
 }
 
@@ -184,19 +232,20 @@ void Detector::find_pairs() {
   auto skip = [this](const std::pair<int, int>& pair) {
     const Body& a = bodies_[pair.first];
     const Body& b = bodies_[pair.second];
-    return (a.fixed && b.fixed) || !a.valid || !b.valid ||
-           !filter_.collides(pair.first, pair.second);
+    const int body_a = shapes_[pair.first].body, body_b = shapes_[pair.second].body;
+    return (a.fixed && b.fixed) || !a.valid || !b.valid || body_a == body_b ||
+           !filter_.collides(body_a, body_b);
   };
   pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), skip), pairs_.end());
   // sorted by (a, b) in linear time: bucket by a, then sort each (short) bucket by b
-  bucket_start_.assign(count() + 1, 0);
+  bucket_start_.assign(pieces() + 1, 0);
   for (const auto& pair : pairs_) ++bucket_start_[pair.first + 1];
-  for (int k = 0; k < count(); ++k) bucket_start_[k + 1] += bucket_start_[k];
+  for (int k = 0; k < pieces(); ++k) bucket_start_[k + 1] += bucket_start_[k];
   bucket_fill_.assign(bucket_start_.begin(), bucket_start_.end() - 1);
   bucket_.resize(pairs_.size());
   for (const auto& pair : pairs_) bucket_[bucket_fill_[pair.first]++] = pair.second;
   pairs_.clear();
-  for (int a = 0; a < count(); ++a) {
+  for (int a = 0; a < pieces(); ++a) {
     const auto first = bucket_.begin() + bucket_start_[a];
     const auto last = bucket_.begin() + bucket_start_[a + 1];
     std::sort(first, last);
@@ -209,7 +258,10 @@ void Detector::find_pairs() {
 void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {
   prepare(poses);
   find_pairs();
-  pairs = pairs_;
+  pairs.clear();
+  for (const auto& [a, b] : pairs_) pairs.emplace_back(shapes_[a].body, shapes_[b].body);
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
 }
 
 // -- one step -------------------------------------------------------------------------------
@@ -228,10 +280,64 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
     if (!reuse(a, b, out)) narrow_phase(a, b, out);
   }
   stored_.swap(next_);
+  if (compound_) group_by_bodies(out);
   if (out.size() > static_cast<std::size_t>(std::max(settings_.max_contacts, 0))) {
     limit_rows(out);
   }
   last_rows_ = out.size();
+}
+
+// Rows grouped by pair of bodies in (a, b) order, manifold by manifold (piece pairs of one
+// pair of bodies may be apart: piece order is body order, but a's first piece meets c
+// before a's second meets b), then each pair cut to its max_contacts_per_pair deepest rows
+// (ties by position), in their order; a manifold keeps its kept rows.
+void Detector::group_by_bodies(ContactRows& out) {
+  const std::size_t spans = out.manifolds.size() / kManifoldFields;
+  const std::int64_t* m = out.manifolds.data();
+  rank_.resize(spans);
+  for (std::size_t k = 0; k < spans; ++k) rank_[k] = k;
+  std::stable_sort(rank_.begin(), rank_.end(), [m](std::size_t i, std::size_t j) {
+    const std::int64_t* x = m + kManifoldFields * i;
+    const std::int64_t* y = m + kManifoldFields * j;
+    return x[0] < y[0] || (x[0] == y[0] && x[1] < y[1]);
+  });
+  order_.clear();
+  std::vector<std::int64_t> manifolds;
+  manifolds.reserve(out.manifolds.size());
+  for (const std::size_t k : rank_) {
+    const std::int64_t* span = m + kManifoldFields * k;
+    manifolds.insert(manifolds.end(), {span[0], span[1],
+                                       static_cast<std::int64_t>(order_.size()), span[3]});
+    for (std::int64_t r = 0; r < span[3]; ++r) {
+      order_.push_back(static_cast<std::size_t>(span[2] + r));
+    }
+  }
+  out.take(order_, grouped_);
+  grouped_.manifolds.swap(manifolds);
+  std::swap(out, grouped_);
+  // the cap, per pair of bodies (rows are now grouped by pair)
+  const auto cap = static_cast<std::size_t>(std::max(settings_.max_contacts_per_pair, 1));
+  const std::size_t count = out.size();
+  const std::vector<double>& gap = out.separation;
+  std::vector<std::size_t> kept;
+  bool cut = false;
+  for (std::size_t lo = 0; lo < count;) {
+    std::size_t hi = lo + 1;
+    while (hi < count && out.body_a[hi] == out.body_a[lo] && out.body_b[hi] == out.body_b[lo]) {
+      ++hi;
+    }
+    const std::size_t first = kept.size();
+    for (std::size_t r = lo; r < hi; ++r) kept.push_back(r);
+    if (hi - lo > cap) {
+      cut = true;
+      std::stable_sort(kept.begin() + first, kept.end(),
+                       [&gap](std::size_t i, std::size_t j) { return gap[i] < gap[j]; });
+      kept.resize(first + cap);
+      std::sort(kept.begin() + first, kept.end());
+    }
+    lo = hi;
+  }
+  if (cut) out.keep(kept);
 }
 
 // m, how far apart the pair's bounding spheres are at s = 1 (negative: overlapping); for a
@@ -304,7 +410,7 @@ void Detector::limit_rows(ContactRows& out) {
 }
 
 bool Detector::reuse(int a, int b, ContactRows& out) {
-  const std::int64_t key = static_cast<std::int64_t>(a) * count() + b;
+  const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
   const StoredManifold* stored = stored_.find(key);
   if (stored == nullptr || shapes_[a].curved || shapes_[b].curved) return false;
   const Body& A = bodies_[a];
@@ -331,8 +437,10 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
     const Vec3 on_a = A.r1 * row.local_a + A.p1;
     const Vec3 on_b = B.r1 * row.local_b + B.p1;
     const Vec3 normal = A.r1 * row.normal_a;
-    out.body_a.push_back(a);
-    out.body_b.push_back(b);
+    out.body_a.push_back(shapes_[a].body);
+    out.body_b.push_back(shapes_[b].body);
+    out.piece_a.push_back(shapes_[a].piece);
+    out.piece_b.push_back(shapes_[b].piece);
     const Vec3 point = 0.5 * (on_a + on_b);
     out.point.insert(out.point.end(), point.data(), point.data() + 3);
     out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
@@ -342,7 +450,7 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
     out.feature.push_back(row.feature);
     next_.add_row(row);
   }
-  out.close_manifold(a, b, first);
+  out.close_manifold(shapes_[a].body, shapes_[b].body, first);
   return true;
 }
 
@@ -353,7 +461,7 @@ double Detector::radius_or_zero(int body) const {
 
 Motion Detector::motion(int body) const {
   const Body& b = bodies_[body];
-  return Motion(b.p0, b.p1, b.q0, b.q1, shapes_[body].offset);
+  return Motion(b.p0, b.p1, b.q0, b.q1, shapes_[body].offset, shapes_[body].rotation);
 }
 
 void Detector::narrow_phase(int a, int b, ContactRows& out) {
@@ -527,10 +635,12 @@ void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plan
     const Vec3& p_partner = side == 0 ? pa : pb;
     const Vec3 towards = side == 0 ? Vec3(-normal) : normal;       // world
     const Vec3 on_plane = side == 0 ? plane->on_a : plane->on_b;
-    lowest_points(shapes_[body], r.transpose() * towards, corners_);
+    const BodyShape& shape = shapes_[body];
+    lowest_points(shape, shape.rotation.transpose() * (r.transpose() * towards), corners_);
+    for (Vec3& corner : corners_) corner = r * (shape.rotation * corner + shape.offset) + p;
     heights_.clear();
     for (std::size_t k = 0; k < corners_.size(); ++k) {
-      const Vec3 q = r * corners_[k] + p;
+      const Vec3& q = corners_[k];   // world
       const double height = (on_plane - q).dot(towards);
       if (!(height <= reach)) continue;
       // within the patch's band about the deepest point's gap: a corner of the manifold
@@ -546,19 +656,24 @@ void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plan
     std::sort(heights_.begin(), heights_.end());
     if (heights_.size() > static_cast<std::size_t>(kMaxManifoldPoints))
       heights_.resize(kMaxManifoldPoints);
+    const BodyShape& sa = shapes_[a];
+    const BodyShape& sb = shapes_[b];
     for (const auto& [height, k] : heights_) {
-      const Vec3 q = r * corners_[k] + p;
-      const Vec3 point = q + 0.5 * height * towards;
-      out.body_a.push_back(a);
-      out.body_b.push_back(b);
+      const Vec3 point = corners_[k] + 0.5 * height * towards;
+      out.body_a.push_back(sa.body);
+      out.body_b.push_back(sb.body);
+      out.piece_a.push_back(sa.piece);
+      out.piece_b.push_back(sb.piece);
       out.point.insert(out.point.end(), point.data(), point.data() + 3);
       out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
       out.separation.push_back(height);
       out.toi.push_back(toi);
       out.kind.push_back(static_cast<std::int8_t>(kind));
-      out.feature.push_back(729 * 16 + 64 * side + k);   // beyond every patch feature
+      // beyond every patch feature of the piece pair
+      out.feature.push_back(729 * 16 + 512 * side + k % 512 + kPiecePairFeature *
+                            (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece));
     }
-    out.close_manifold(a, b, first);   // each body's corners: one manifold
+    out.close_manifold(sa.body, sb.body, first);   // each body's corners: one manifold
     first = out.size();
   }
 }
@@ -624,8 +739,8 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
   if (store) {
     const Body& A = bodies_[a];
     const Body& B = bodies_[b];
-    next_.begin(static_cast<std::int64_t>(a) * count() + b, A.r1.transpose() * (B.p1 - A.p1),
-                A.q1.conjugate() * B.q1);
+    next_.begin(static_cast<std::int64_t>(a) * pieces() + b,
+                A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1);
   }
   row_codes_.clear();
   const std::size_t first = out.size();
@@ -634,12 +749,20 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
     if (std::isfinite(cap)) separation = std::min(separation, cap);
     const Vec3 local_a = ra.transpose() * (p.on_a - pa);
     const Vec3 local_b = rb.transpose() * (p.on_b - pb);
-    const std::int64_t code = feature_code(local_a, shapes_[a].half, local_b, shapes_[b].half);
+    // the corner or face in each piece's own frame (a body's frame when it is one shape)
+    const BodyShape& sa = shapes_[a];
+    const BodyShape& sb = shapes_[b];
+    const std::int64_t code =
+        feature_code(sa.rotation.transpose() * (local_a - sa.frame_position), sa.half,
+                     sb.rotation.transpose() * (local_b - sb.frame_position), sb.half);
     const std::int64_t rank = std::count(row_codes_.begin(), row_codes_.end(), code);
     row_codes_.push_back(code);
-    const std::int64_t feature = code + 729 * rank;
-    out.body_a.push_back(a);
-    out.body_b.push_back(b);
+    const std::int64_t feature = code + 729 * rank + kPiecePairFeature *
+        (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece);
+    out.body_a.push_back(sa.body);
+    out.body_b.push_back(sb.body);
+    out.piece_a.push_back(sa.piece);
+    out.piece_b.push_back(sb.piece);
     const Vec3 point = 0.5 * (p.on_a + p.on_b);
     out.point.insert(out.point.end(), point.data(), point.data() + 3);
     out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
@@ -649,7 +772,7 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
     out.feature.push_back(feature);
     if (store) next_.add_row({local_a, local_b, ra.transpose() * normal, feature});
   }
-  out.close_manifold(a, b, first);
+  out.close_manifold(shapes_[a].body, shapes_[b].body, first);
 }
 
 }  // namespace collres

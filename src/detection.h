@@ -31,6 +31,13 @@
 //    reach over the rest of the step, each a row on that plane with its height as a
 //    positive separation, so the solver keeps them from closing by more than that.
 //
+// Compound bodies (as Box2D v3 and Jolt): the detector works on shapes, each with its body
+// and its pose in the body frame; a body of one shape has one. Every stage above runs on
+// pairs of shapes (two shapes of one body never pair; the filter is the bodies'), and each
+// row names its bodies and their pieces; the feature id carries the piece pair. Rows are
+// then grouped by pair of bodies in (a, b) order, and a pair of bodies keeps at most
+// max_contacts_per_pair rows (the deepest, in their order).
+//
 // Budget (DetectionSettings max_pairs, max_contacts; as MuJoCo's nconmax and PhysX's contact
 // buffer): a step with more pairs to query (broad-phase pairs whose bounding spheres come
 // within the margin or the relative motion; the others need no coal query) queries only
@@ -69,7 +76,9 @@ constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs
 
 class Detector {
  public:
-  explicit Detector(std::vector<BodyShape> shapes);
+  // `shapes` in body order (BodyShape::body non-decreasing, from 0 to bodies - 1, each
+  // body at least one shape; std::invalid_argument otherwise).
+  Detector(std::vector<BodyShape> shapes, int bodies);
 
   // New settings take effect at the next step; a new margin forgets the stored manifolds.
   void set_settings(const DetectionSettings& settings);
@@ -80,11 +89,12 @@ class Detector {
   void set_filter(std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
                   const std::vector<std::pair<int, int>>& ignored);
   const DetectionSettings& settings() const { return settings_; }
-  int count() const { return static_cast<int>(shapes_.size()); }
+  int count() const { return bodies_count_; }   // bodies
+  int pieces() const { return static_cast<int>(shapes_.size()); }
 
   // The contacts of the step (see the file comment); `out` is cleared first.
   void detect(const StepPoses& poses, ContactRows& out);
-  // The broad-phase pairs (a < b), sorted (for tests and tools).
+  // The broad-phase pairs of bodies (a < b), sorted (for tests and tools).
   void candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs);
   // Forget the stored manifolds (e.g. after bodies were teleported).
   void reset() { stored_.clear(); }
@@ -92,7 +102,7 @@ class Detector {
   const StepBudget& budget() const { return budget_; }
 
  private:
-  struct Body {
+  struct Body {   // one per shape: its body's motion
     Vec3 p0, p1;        // m, centre of mass at s = 0 and s = 1
     Quat q0, q1;        // unit, w >= 0
     Mat3 r1;            // body to world at s = 1
@@ -110,6 +120,7 @@ class Detector {
   double relative_motion(int a, int b) const;
   void limit_pairs();
   void limit_rows(ContactRows& out);
+  void group_by_bodies(ContactRows& out);
   bool reuse(int a, int b, ContactRows& out);
   void narrow_phase(int a, int b, ContactRows& out);
   void classify(int a, int b, double distance_now, double relative, double speed, bool near,
@@ -131,6 +142,9 @@ class Detector {
   double radius_or_zero(int body) const;
 
   std::vector<BodyShape> shapes_;
+  int bodies_count_ = 0;
+  bool compound_ = false;      // some body has several shapes
+  ContactRows grouped_;        // scratch of group_by_bodies
   std::vector<int> planes_, finite_;
   DetectionSettings settings_;
   PairFilter filter_;   // default: every pair collides

@@ -33,6 +33,8 @@ struct DetectionSettings {
   double restitution_threshold = 0.5;  // m/s: slower approaches rest, faster ones impact
   int max_pairs = 20000;               // budget: broad-phase pairs queried per step
   int max_contacts = 40000;            // budget: contact rows per step
+  int max_contacts_per_pair = 8;       // rows kept per pair of bodies (the deepest; a pair
+                                       // of compound bodies has a manifold per piece pair)
 };
 
 // What the budget of the last step dropped (zero when the step was within it).
@@ -64,6 +66,7 @@ struct ContactRows {
   std::vector<double> toi;         // (M,) fraction of the step in [0, 1]
   std::vector<std::int8_t> kind;   // (M,) ContactKind
   std::vector<std::int64_t> feature;  // (M,) same corner / face of A and B, same id
+  std::vector<std::int32_t> piece_a, piece_b;  // (M,) the piece of A and of B (0: one shape)
   std::vector<std::int64_t> manifolds;  // (K, 4) a, b, first row, row count
 
   void clear();
@@ -74,6 +77,9 @@ struct ContactRows {
   // Keep only these rows (indices in increasing order), in their order; a manifold keeps
   // its kept rows (none: it goes).
   void keep(const std::vector<std::size_t>& rows);
+  // These rows (any order, each at most once) in that order, into `out` (cleared first;
+  // its manifolds are the caller's to set).
+  void take(const std::vector<std::size_t>& rows, ContactRows& out) const;
   std::size_t size() const { return body_a.size(); }
 };
 

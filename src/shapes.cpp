@@ -128,7 +128,7 @@ void lowest_points(const BodyShape& shape, const Vec3& down, std::vector<Vec3>& 
   const double half = 0.5 * shape.axis;
   // the lowest points along `down` of the circle of radius `round` about the z axis at z
   auto rim = [&](double z) {
-    const Vec3 centre = shape.offset + Vec3(0.0, 0.0, z);
+    const Vec3 centre(0.0, 0.0, z);
     const double across = norm2(down.x(), down.y());
     if (across > 1e-9 * (1.0 + std::fabs(down.z()))) {
       out.push_back(centre + (shape.round / across) * Vec3(down.x(), down.y(), 0.0));
@@ -140,18 +140,18 @@ void lowest_points(const BodyShape& shape, const Vec3& down, std::vector<Vec3>& 
   };
   switch (shape.kind) {
     case ShapeKind::sphere:
-      out.push_back(shape.offset + shape.round * down);
+      out.push_back(shape.round * down);
       break;
     case ShapeKind::capsule:
       for (const double z : {-half, half})
-        out.push_back(shape.offset + Vec3(0.0, 0.0, z) + shape.round * down);
+        out.push_back(Vec3(0.0, 0.0, z) + shape.round * down);
       break;
     case ShapeKind::cylinder:
       rim(-half);
       rim(half);
       break;
     case ShapeKind::cone:   // coal's cone: base at -half, apex at +half (about its origin)
-      out.push_back(shape.offset + Vec3(0.0, 0.0, half));
+      out.push_back(Vec3(0.0, 0.0, half));
       rim(-half);
       break;
     default:
@@ -234,6 +234,23 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
   shape.half = 0.5 * (shape.local_hi - shape.local_lo);
   shape.thickness = shape.half.minCoeff();
   return shape;
+}
+
+void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,
+                 const Quat& orientation) {
+  if (shape.kind == ShapeKind::plane) {
+    throw std::invalid_argument("a plane cannot be a piece of a compound body");
+  }
+  shape.body = body;
+  shape.piece = piece;
+  shape.frame_position = position;
+  shape.rotation = orientation.normalized().toRotationMatrix();
+  shape.offset = position + shape.rotation * shape.offset;
+  const Vec3 lo = shape.geometry->aabb_local.min_, hi = shape.geometry->aabb_local.max_;
+  const Vec3 centre = shape.offset + shape.rotation * (0.5 * (lo + hi));
+  const Vec3 reach = shape.rotation.cwiseAbs() * (0.5 * (hi - lo));
+  shape.local_lo = centre - reach;
+  shape.local_hi = centre + reach;
 }
 
 }  // namespace collres

@@ -23,13 +23,21 @@ namespace collres {
 enum class ShapeKind : int { sphere = 0, box = 1, capsule = 2, cylinder = 3, cone = 4,
                              plane = 5, convex = 6 };
 
+// One collision shape: a body's only shape, or one piece of a compound body (as Box2D's and
+// Jolt's shapes: each with its body and a pose in that body's frame). A piece's frame sits
+// at `frame_position` with `rotation` in the body frame (zero and identity for a body of
+// one shape); the coal geometry is turned by `rotation` and centred at `offset`.
 struct BodyShape {
   ShapeKind kind = ShapeKind::sphere;
   std::shared_ptr<coal::CollisionGeometry> geometry;
+  int body = 0;                    // the body it belongs to
+  int piece = 0;                   // its index among that body's pieces
+  Vec3 frame_position = Vec3::Zero();  // m, the piece frame's origin in the body frame
+  Mat3 rotation = Mat3::Identity();    // piece (and geometry) axes in the body frame
   Vec3 offset = Vec3::Zero();      // m, geometry origin in the body frame
   Vec3 local_lo = Vec3::Zero();    // m, body-frame box of the shape (offset included)
   Vec3 local_hi = Vec3::Zero();
-  Vec3 half = Vec3::Zero();        // m, half extents of that box (+inf for planes)
+  Vec3 half = Vec3::Zero();        // m, half extents of the geometry's own box (+inf planes)
   double radius = 0.0;             // m, origin-centred bounding sphere (+inf for planes)
   double thickness = 0.0;          // m, smallest half extent (+inf for planes)
   Vec3 plane_normal = Vec3::UnitZ();  // planes: unit normal, body frame
@@ -38,16 +46,17 @@ struct BodyShape {
   bool curved = false;             // a curved surface (sphere, capsule, cylinder, cone):
                                    // its contact points slide over it as it rolls
   bool single_point = false;       // touches at one point only (sphere)
-  std::vector<Vec3> vertices;      // m, body frame: a box's corners, a convex body's points
+  std::vector<Vec3> vertices;      // m, geometry frame: a box's corners, a convex's points
   double round = 0.0;              // m: capsule, cylinder, cone radius; sphere radius
   double axis = 0.0;               // m: capsule segment, cylinder, cone length along z
 };
 
-// The points of a shape that come first along `down` (unit, body frame): a polytope's
-// vertices (all of them), a sphere's lowest point, a capsule's two cap points, a
-// cylinder's two rim points and a cone's apex and rim point, each the lowest of its cap
-// or rim along `down` (four rim points when `down` is along the axis). Body frame, m;
-// `out` is cleared first. The corners that speculative contacts of an impact watch.
+// The points of a shape that come first along `down` (unit, the coal geometry's frame):
+// a polytope's vertices (all of them), a sphere's lowest point, a capsule's two cap
+// points, a cylinder's two rim points and a cone's apex and rim point, each the lowest of
+// its cap or rim along `down` (four rim points when `down` is along the axis). In the
+// geometry's frame (body frame: rotation * point + offset), m; `out` is cleared first.
+// The corners that speculative contacts watch (detection.h).
 void lowest_points(const BodyShape& shape, const Vec3& down, std::vector<Vec3>& out);
 
 // Convex vertices must span a volume: the thickness of the first simplex qhull would build
@@ -79,5 +88,11 @@ std::vector<std::int64_t> extreme_vertices(const std::vector<double>& points, in
 // std::invalid_argument for any input no coal geometry can be made of (never a crash).
 BodyShape make_shape(int kind, const std::vector<double>& size,
                      const std::vector<double>& points, double radius, bool is_static);
+
+// Put a finite shape into a compound body as its piece `piece` of body `body`: its frame at
+// `position` (m) turned by the unit quaternion `orientation` in the body frame; the body-frame
+// box grows to hold the turned geometry. `radius` stays as given (about the body origin).
+void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,
+                 const Quat& orientation);
 
 }  // namespace collres

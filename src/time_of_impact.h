@@ -21,8 +21,10 @@ class Motion {
  public:
   Motion() = default;
   // Positions (m) and unit quaternions at s = 0 and s = 1; `offset` (m, body frame) is
-  // where the coal geometry's origin sits.
-  Motion(const Vec3& p0, const Vec3& p1, const Quat& q0, const Quat& q1, const Vec3& offset);
+  // where the coal geometry's origin sits and `turn` its axes in the body frame (a piece
+  // of a compound body).
+  Motion(const Vec3& p0, const Vec3& p1, const Quat& q0, const Quat& q1, const Vec3& offset,
+         const Mat3& turn = Mat3::Identity());
 
   Mat3 rotation_at(double s) const;    // body to world at s (slerp)
   Vec3 position_at(double s) const;    // m, body origin at s (lerp)
@@ -30,6 +32,7 @@ class Motion {
 
  private:
   Vec3 p0_ = Vec3::Zero(), p1_ = Vec3::Zero(), offset_ = Vec3::Zero();
+  Mat3 turn_ = Mat3::Identity();
   Quat q0_ = Quat::Identity(), q1_ = Quat::Identity();
 };
 

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import threading
 from collections import defaultdict
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator, Sequence
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -68,6 +69,40 @@ class Peer:
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
         self.thread.join(2.0)
+
+
+@contextmanager
+def node_and_peer(domain_id: int, scene: Path, log: Path,
+                  listen: Sequence[tuple[Any, ...]] = (),
+                  answering: Sequence[str] = ('/body_states/corrected',)
+                  ) -> Iterator[tuple[Peer, Any]]:
+    """``collres_node`` on the params file ``scene`` (its output in ``log``) and a ``Peer``
+    connected both ways: (peer, node process), stopped at exit (a node left running would
+    answer the next test's steps on this domain).
+
+    The peer listens to ``listen`` ((topic, type) or (topic, type, QoS)) and publishes
+    ``body_states``; it is up when the node subscribes to that, the node publishes every
+    topic of ``answering`` (absolute names: a loaded machine can match ``contacts`` well
+    after ``body_states/corrected``, and a step published before it would lose its
+    contacts).
+    """
+    from collres_ros.msg import BodyStateArray
+    node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
+                           env=processes.ros_env(domain_id), log=log)
+    peer = Peer(domain_id)
+    try:
+        for topic, kind, *qos in listen:
+            peer.listen(topic, kind, *qos)
+        peer.advertise('body_states', BodyStateArray)
+        up = peer.wait(lambda: peer.connected('body_states') and all(
+            any(s.get_publisher_count() for s in peer.node.subscriptions
+                if s.topic_name == topic) for topic in answering), 30.0)
+        assert up, f'node did not come up: {node.output()}'
+        yield peer, node
+    finally:
+        peer.close()
+        if node.poll() is None:
+            processes.stop(node)
 
 
 def write_scene(path: Path, extra_node: str = '', ball: str = '') -> Path:

@@ -203,12 +203,16 @@ def test_wrench_stamped_encodes_as_rclpy(stamp: int, frame: str, rows: list) -> 
 @st.composite
 def contact_arrays(draw):
     pool = draw(st.lists(NAMES, min_size=1, max_size=6))
+    pieces = draw(st.lists(NAMES, min_size=1, max_size=6))
     count = draw(st.integers(0, 12))
     index = st.integers(0, len(pool) - 1)
+    piece = st.integers(0, len(pieces) - 1)
     rows = st.lists(FLOATS, min_size=11, max_size=11)
-    return (draw(STAMPS), draw(NAMES), pool,
+    return (draw(STAMPS), draw(NAMES), pool, pieces,
             np.array(draw(st.lists(index, min_size=count, max_size=count)), np.int64),
             np.array(draw(st.lists(index, min_size=count, max_size=count)), np.int64),
+            np.array(draw(st.lists(piece, min_size=count, max_size=count)), np.int64),
+            np.array(draw(st.lists(piece, min_size=count, max_size=count)), np.int64),
             np.array(draw(st.lists(rows, min_size=count, max_size=count)), float
                      ).reshape(count, 11),
             np.array(draw(st.lists(STAMPS, min_size=count, max_size=count)), np.int64),
@@ -219,13 +223,15 @@ def contact_arrays(draw):
 @SETTINGS
 @given(contact_arrays())
 def test_contact_array_encodes_as_rclpy(case) -> None:
-    stamp, frame, pool, a, b, v, toi, state = case
+    stamp, frame, pool, pieces, a, b, pa, pb, v, toi, state = case
     ours = codec.encode_contacts(stamp, frame, codec.NamePool(pool), a, b, v[:, 0:3],
-                                 v[:, 3:6], v[:, 6], toi, v[:, 7], v[:, 8:11], state)
+                                 v[:, 3:6], v[:, 6], toi, v[:, 7], v[:, 8:11], state,
+                                 (codec.NamePool(pieces), pa, pb))
     msg = ContactArray()
     msg.header.stamp, msg.header.frame_id = stamp_of(stamp), frame
     for k in range(len(a)):
-        c = Contact(body_a=pool[a[k]], body_b=pool[b[k]], state=int(state[k]))
+        c = Contact(body_a=pool[a[k]], body_b=pool[b[k]], piece_a=pieces[pa[k]],
+                    piece_b=pieces[pb[k]], state=int(state[k]))
         c.position.x, c.position.y, c.position.z = v[k, 0:3].tolist()
         c.normal.x, c.normal.y, c.normal.z = v[k, 3:6].tolist()
         c.depth, c.normal_impulse = float(v[k, 6]), float(v[k, 7])
@@ -235,8 +241,14 @@ def test_contact_array_encodes_as_rclpy(case) -> None:
     theirs = bytes(serialize_message(msg))
     assert ours == zero_filled(theirs, 'collres_ros/msg/ContactArray')
     back = deserialize_message(ours, ContactArray)
-    assert [(c.body_a, c.body_b, c.state) for c in back.contacts] == \
-        [(c.body_a, c.body_b, c.state) for c in msg.contacts]
+    assert [(c.body_a, c.body_b, c.piece_a, c.piece_b, c.state) for c in back.contacts] == \
+        [(c.body_a, c.body_b, c.piece_a, c.piece_b, c.state) for c in msg.contacts]
+    # without pieces (no compound body) every piece name is ''
+    alone = codec.encode_contacts(stamp, frame, codec.NamePool(pool), a, b, v[:, 0:3],
+                                  v[:, 3:6], v[:, 6], toi, v[:, 7], v[:, 8:11], state)
+    for c in msg.contacts:
+        c.piece_a = c.piece_b = ''
+    assert alone == zero_filled(bytes(serialize_message(msg)), 'collres_ros/msg/ContactArray')
 
 
 @st.composite
@@ -362,3 +374,56 @@ def test_payload_padded_to_4_bytes_between_processes_is_read() -> None:
     assert deserialize_message(padded, BodyStateArray).bodies[0].sleeping
     _refused(data + bytes(pad - 1) + b'\x01', 'malformed', max_bodies=None)
     _refused(data + bytes(pad + 4), 'malformed', max_bodies=None)
+
+
+def legacy_contacts(stamp_ns: int, frame: str, rows: list[tuple]) -> bytes:
+    """A ContactArray as recorded before Contact had piece_a / piece_b, written by hand:
+    each row (body_a, body_b, 11 doubles: position, normal, depth, normal impulse,
+    friction; toi ns; state)."""
+    out = bytearray(b'\x00\x01\x00\x00')
+
+    def align(k: int) -> None:
+        out.extend(bytes(-(len(out) - 4) % k))
+
+    def string(text: str) -> None:
+        align(4)
+        raw = text.encode() + b'\x00'
+        out.extend(struct.pack('<I', len(raw)) + raw)
+    out.extend(struct.pack('<iI', stamp_ns // 10**9, stamp_ns % 10**9))
+    string(frame)
+    align(4)
+    out.extend(struct.pack('<I', len(rows)))
+    for a, b, v, toi, state in rows:
+        string(a)
+        string(b)
+        align(8)
+        out.extend(struct.pack('<7d', *v[:7]))
+        out.extend(struct.pack('<iI', toi // 10**9, toi % 10**9))
+        out.extend(struct.pack('<4d', *v[7:]))
+        out.append(state)
+    return bytes(out)
+
+
+def test_contacts_recorded_before_piece_names_read_with_empty_pieces() -> None:
+    from collres_ros.ros.bag import _before_pieces
+    rows = [('floor', 'ball', [0.1, 0.2, 0.3, 0.0, 0.0, 1.0, 1e-3, 0.5, 0.01, 0.02, 0.0],
+             7 * 10**9 + 5, 2),
+            ('ball', 'box_long_name', [1.0, 2.0, 3.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+             0, 1)]
+    old = legacy_contacts(12 * 10**9 + 34, 'world', rows)
+    msg = deserialize_message(codec.upgrade_contacts(old), ContactArray)
+    assert (msg.header.frame_id, msg.header.stamp.sec, msg.header.stamp.nanosec) == \
+        ('world', 12, 34)
+    for c, (a, b, v, toi, state) in zip(msg.contacts, rows, strict=True):
+        assert (c.body_a, c.body_b, c.piece_a, c.piece_b, c.state) == (a, b, '', '', state)
+        assert [c.position.x, c.position.y, c.position.z, c.normal.x, c.normal.y, c.normal.z,
+                c.depth, c.normal_impulse, c.friction_impulse.x, c.friction_impulse.y,
+                c.friction_impulse.z] == v
+        assert c.time_of_impact.sec * 10**9 + c.time_of_impact.nanosec == toi
+
+    class Connection:   # what rosbags hands over: the recorded definition
+        def __init__(self, text: str) -> None:
+            self.msgdef = type('Definition', (), {'data': text})()
+    assert _before_pieces(Connection('string body_a\nstring body_b\nfloat64 depth'))
+    assert not _before_pieces(Connection('string body_a\nstring piece_a\n'))
+    assert not _before_pieces(Connection(''))   # no definition recorded: read as today's

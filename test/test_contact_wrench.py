@@ -95,26 +95,19 @@ def test_wrenches_are_off_by_default(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_the_node_publishes_the_wrench_over_dds(ros_domain, tmp_path: Path) -> None:
-    from ros_harness import Peer
+    from ros_harness import node_and_peer
     from collres_ros.msg import BodyStateArray
-    from collres_ros.ros import processes
     from collres_ros.ros.messages import stamp_ns
     from test_node import T0, body, states
     path = tmp_path / 'rest.yaml'
     path.write_text(SCENE)
-    node = processes.start('collres_node', ['--ros-args', '--params-file', str(path)],
-                           env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
-    peer = Peer(ros_domain)
-    try:
-        peer.listen('body_states/corrected', BodyStateArray)
-        peer.listen('bodies/box/contact_wrench', WrenchStamped)
-        peer.advertise('body_states', BodyStateArray)
+    with node_and_peer(ros_domain, path, tmp_path / 'node.log', listen=(
+            ('body_states/corrected', BodyStateArray),
+            ('bodies/box/contact_wrench', WrenchStamped))) as (peer, node):
 
         def publishing(topic):
             return any(s.get_publisher_count() for s in peer.node.subscriptions
                        if s.topic_name == topic)
-        assert peer.wait(lambda: peer.connected('body_states')
-                         and publishing('/body_states/corrected'), 30.0), node.output()
         dt_ns = 10**9 // 100
         z, vz = 0.2, 0.0
         for k in range(20):   # the peer integrates gravity, the node holds the box up
@@ -140,7 +133,3 @@ def test_the_node_publishes_the_wrench_over_dds(ros_domain, tmp_path: Path) -> N
         print('wrench over DDS', got, 'm g', MASS * G)
         assert got[2] == pytest.approx(MASS * G, rel=0.01)
         assert np.abs(got[3:6]).max() < 1e-3 * MASS * G * 0.2
-    finally:
-        peer.close()
-        if node.poll() is None:
-            processes.stop(node)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from collres_ros.core.pipeline import Resolver
-from collres_ros.core.types import BodyInput
+from collres_ros.core.types import BodyInput, InputBatch
 from collres_ros.core.validation import check_inputs
 from collres_ros.ros import params
 from collres_ros.ros.sync import StampSync
@@ -60,6 +61,37 @@ def test_validation_accounts_for_every_input_and_passes_only_finite_unit_states(
     norms = np.linalg.norm(checked.orientation, axis=1)
     assert np.all(np.abs(norms - 1.0) < 1e-9)
     assert all(r.reason and '\n' not in r.detail for r in checked.rejected)
+
+
+@st.composite
+def accepted_input(draw, name):
+    """A valid input of ``name``: a quaternion off unit length within the tolerance."""
+    q = np.array(draw(st.tuples(near, near, near, near))) + [0.0, 0.0, 0.0, 2.0]
+    q *= (1.0 + draw(st.floats(-5e-4, 5e-4))) / np.linalg.norm(q)
+    vector = st.tuples(near, near, near)
+    return BodyInput(name, draw(vector), tuple(q.tolist()), draw(vector), draw(vector),
+                     'world', 'world')
+
+
+@FUZZ
+@given(accepted_input('ball'), accepted_input('box'), st.lists(body_input(), max_size=3))
+def test_an_accepted_input_is_checked_alike_whatever_else_the_step_holds(ball, box, others):
+    """A body's checked state does not depend on the other inputs of its step: a step of
+    accepted inputs only (checked by whole-array tests) and the same inputs beside others,
+    refused ones among them (checked one reason at a time), give the same bits for it."""
+    index_of = {n: i for i, n in enumerate(NAMES)}
+    alone = check_inputs(replace(InputBatch.of([ball, box]), frame_id='world',   # as decoded
+                                 twist_frame_id='world'), index_of, 'world')
+    mixed = check_inputs([ball, box] + others, index_of, 'world')
+    assert not alone.rejected
+    repeated = {b.name for b in others}
+    for k, body in enumerate((ball, box)):
+        if body.name in repeated:
+            continue   # repeated in the mixed step: every copy is refused there
+        j = list(mixed.index).index(index_of[body.name])
+        for a, b in ((alone.position, mixed.position), (alone.orientation, mixed.orientation),
+                     (alone.linear, mixed.linear), (alone.angular, mixed.angular)):
+            assert a[k].tobytes() == b[j].tobytes()
 
 
 @FUZZ

@@ -8,7 +8,7 @@ import signal
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from ros_harness import Peer, write_scene
+from ros_harness import Peer, node_and_peer, write_scene
 
 from collres_ros.ros import processes
 from collres_ros.ros.messages import stamp_ns, to_stamp
@@ -38,29 +38,14 @@ def states(stamp, bodies, frame='world'):
 def running(ros_domain, tmp_path):
     """(peer, node process) with the node up and connected both ways."""
     scene = write_scene(tmp_path / 'scene.yaml')
-    node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
-                           env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
-    peer = Peer(ros_domain)
-    for topic, kind in (('body_states/corrected', BodyStateArray), ('contacts', ContactArray),
-                        ('/diagnostics', DiagnosticArray),
-                        ('bodies/ball/pose/corrected', PoseStamped),
-                        ('bodies/ball/twist/corrected', TwistStamped)):
-        peer.listen(topic, kind)
-    peer.advertise('body_states', BodyStateArray)
-    # the batched outputs' publishers all matched (a loaded machine can match `contacts` well
-    # after `body_states/corrected`, and a step published before it would lose its contacts);
-    # per-body outputs are advertised with the first per-body step
-    batched = {'/body_states/corrected', '/contacts', '/diagnostics'}
-    try:
-        up = peer.wait(lambda: peer.connected('body_states') and all(
-            s.get_publisher_count() for s in peer.node.subscriptions
-            if s.topic_name in batched), 30.0)
-        assert up, f'node did not come up: {node.output()}'
-        yield peer, node
-    finally:   # a node left running would answer the next test's steps on this domain
-        peer.close()
-        if node.poll() is None:
-            processes.stop(node)
+    # every batched output's publisher matched; per-body outputs are advertised with the
+    # first per-body step
+    with node_and_peer(ros_domain, scene, tmp_path / 'node.log', listen=(
+            ('body_states/corrected', BodyStateArray), ('contacts', ContactArray),
+            ('/diagnostics', DiagnosticArray), ('bodies/ball/pose/corrected', PoseStamped),
+            ('bodies/ball/twist/corrected', TwistStamped)),
+            answering=('/body_states/corrected', '/contacts', '/diagnostics')) as up:
+        yield up
 
 
 def step(peer, stamp, bodies, frame='world', timeout=10.0):

@@ -13,7 +13,8 @@ import pytest
 from catkin_pkg.package import parse_package
 
 ROOT = Path(__file__).resolve().parents[1]
-EXECUTABLES = ('collres_node', 'collres_sim', 'collres_replay', 'collres_demo')
+EXECUTABLES = ('collres_node', 'collres_sim', 'collres_replay', 'collres_demo',
+               'collres_decompose')
 
 # Python import -> the package.xml key that provides it.
 IMPORT_TO_KEY = {
@@ -22,6 +23,7 @@ IMPORT_TO_KEY = {
     'builtin_interfaces': 'builtin_interfaces', 'rcl_interfaces': 'rclpy',
     'numpy': 'python3-numpy', 'yaml': 'python3-yaml', 'matplotlib': 'python3-matplotlib',
     'coal': 'coal', 'ament_index_python': 'rclpy', 'rosbags': 'python3-rosbags-pip',
+    'coacd': 'python3-coacd-pip', 'urdf_parser_py': 'urdfdom_py',
 }
 
 

@@ -59,6 +59,7 @@ DURATIONS = {
     'box_stack': 0.5,
     'fast_sphere_wall': 0.05,
     'pile': 0.1,
+    'arm': 0.8,
 }
 
 
@@ -102,7 +103,7 @@ def _common(run: Run) -> list[Check]:
                     f'{r.unanswered} unanswered, {r.duplicated} duplicated', 'one each',
                     r.unanswered == 0 and r.duplicated == 0 and r.steps_in == r.steps_out),
               Check('finite states', str(finite), 'True', finite)]
-    if len(r.energy) > 1:
+    if len(r.energy) > 1 and not run.sim.driven.any():   # a driven body does work
         gain = float(np.max(np.diff(r.energy)))
         scale = max(1.0, float(np.max(np.abs(r.energy))))
         checks.append(Check('no energy gain per step', f'largest gain {gain:.2e} J',
@@ -181,6 +182,15 @@ def _fast_sphere_wall(run: Run) -> list[Check]:
                   abs(vx / -100.0 - 1) <= 0.01)]
 
 
+def _arm(run: Run) -> list[Check]:
+    sim = run.sim
+    i = run.traj.names.index('box2')
+    moved = float(np.linalg.norm(run.traj.position[-1, i] - sim.initial.position[
+        sim.names.index('box2')]))
+    return [Check('the arm knocks the stack over', f'top box moved {100 * moved:.1f} cm',
+                  '> 5 cm', moved > 0.05)]
+
+
 CHECKS: dict[str, Callable[[Run], list[Check]]] = {
     'bouncing_ball': _bouncing_ball,
     'billiard_break': _billiard,
@@ -190,6 +200,7 @@ CHECKS: dict[str, Callable[[Run], list[Check]]] = {
     'box_stack': _box_stack,
     'fast_sphere_wall': _fast_sphere_wall,
     'pile': lambda run: [],
+    'arm': _arm,
 }
 
 

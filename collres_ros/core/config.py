@@ -94,6 +94,11 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               '(counted: contact_budget)', 1, 10_000_000,
               reason='bounds the solver\'s work (PhysX contact buffer); a 1000-cube pile has '
                      '16000'),
+    ParamSpec('max_contacts_per_pair', 'integer', 8,
+              'Contact rows kept per pair of bodies, the deepest (a pair of compound bodies '
+              'has up to 4 per pair of pieces)', 1, 1000,
+              reason='two flat feet of a compound keep 4 points each; more points add '
+                     'solver work, not support (Gazebo caps a pair with max_contacts)'),
     ParamSpec('sleeping', 'bool', True,
               'Islands of bodies at rest for time_to_sleep sleep: answered with their held '
               'pose and zero twist, without detection or solve, until a push, a touch, a '
@@ -133,6 +138,7 @@ class SolverSettings:
     max_dt: float = 0.5
     max_pairs: int = 20000
     max_contacts: int = 40000
+    max_contacts_per_pair: int = 8
     sleeping: bool = True
     sleep_threshold: float = 0.05
     time_to_sleep: float = 0.5
@@ -284,6 +290,11 @@ COLLISION_RULE = 'a pair collides when (group_a & mask_b) != 0 and (group_b & ma
 # window's steps are a WARN (two clocks on one topic, a source whose time keeps jumping)
 TIME_JUMP_WARN_FRACTION = 0.25
 
+# Convex decomposition (collres_decompose, body.<name>.decompose): CoACD's default concavity
+# threshold and SDFormat's default most hulls.
+DECOMPOSE_THRESHOLD = 0.05
+DECOMPOSE_MAX_HULLS = 16
+
 # Rolling resistance and torsional friction defaults (dimensionless; see BODY_PARAMS).
 ROLLING_RESISTANCE = 0.01
 TORSIONAL_FRICTION = 0.01
@@ -339,11 +350,31 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
               -VELOCITY_LIMIT, VELOCITY_LIMIT,
               unit='rad/s'),
     ParamSpec('mesh', 'string', '',
-              'convex: mesh file (OBJ/STL vertices), relative to the params file or absolute; '
-              f'a regular .obj or .stl file of at most {MESH_MAX_BYTES // 2**20} MiB'),
+              'convex: mesh file (OBJ/STL), relative to the params file or absolute; '
+              f'a regular .obj or .stl file of at most {MESH_MAX_BYTES // 2**20} MiB; the '
+              'body is the convex hull of its vertices unless decompose is true',
+              reason='a hull, as MuJoCo and Drake make of a mesh: a concave mesh needs '
+                     'decompose'),
     ParamSpec('points', 'double_array', [],
               'convex: vertices [x0, y0, z0, x1, ...] in the body frame', -SIZE_RANGE[1],
               SIZE_RANGE[1], unit='m'),
+    ParamSpec('shapes', 'string_array', [],
+              'Compound body: the names of its convex pieces (letters, digits, _), each '
+              'described by body.<name>.piece.<piece>.*; shape, size, mesh and points of the '
+              'body are then not set. Mass spreads over the pieces\' volumes; a dynamic '
+              'compound\'s pieces must have their centre of mass at the body origin',
+              reason='empty: the body is the one shape above'),
+    ParamSpec('decompose', 'bool', False,
+              'convex with a mesh: the body is the convex decomposition of the mesh (CoACD), '
+              'read from the cache next to the mesh (collres_decompose writes it; made at start '
+              'when missing, with a log line)',
+              reason='decomposition takes seconds to minutes: opt-in, cached'),
+    ParamSpec('decompose_threshold', 'double', DECOMPOSE_THRESHOLD,
+              'decompose: CoACD\'s concavity threshold (smaller: more, finer hulls)', 0.01, 1.0,
+              reason='CoACD\'s default'),
+    ParamSpec('decompose_max_hulls', 'integer', DECOMPOSE_MAX_HULLS,
+              'decompose: most convex hulls of the decomposition', 1, 256,
+              reason='SDFormat\'s default max_convex_hulls'),
     ParamSpec('collision_group', 'integer', DEFAULT_COLLISION_GROUP,
               f'Collision category bits the body is in: {COLLISION_RULE} (Box2D category '
               'bits, Gazebo collide_bitmask); 0: it collides with nothing',
@@ -353,6 +384,24 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
               f'Collision bits the body collides with ({ALL_COLLISION_BITS:#x}: all 16; '
               'see collision_group)', 0, ALL_COLLISION_BITS,
               reason='all bits: a scene that does not filter collides as before'),
+)
+
+
+# The pieces of a compound body: `body.<name>.piece.<piece>.<param>`.
+PIECE_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec('shape', 'string', 'box', 'Collision shape of the piece',
+              choices=('sphere', 'box', 'capsule', 'cylinder', 'cone', 'convex')),
+    ParamSpec('size', 'double_array', [0.1, 0.1, 0.1],
+              'As body.<name>.size (no plane)', *SIZE_RANGE, unit='m'),
+    ParamSpec('mesh', 'string', '', 'convex: mesh file, as body.<name>.mesh (its hull)'),
+    ParamSpec('points', 'double_array', [],
+              'convex: vertices [x0, y0, z0, x1, ...] in the piece frame', -SIZE_RANGE[1],
+              SIZE_RANGE[1], unit='m'),
+    ParamSpec('position', 'double_array', [0.0, 0.0, 0.0],
+              'Position of the piece\'s frame (its centre; a cone\'s centre of mass) in the '
+              'body frame', -SIZE_RANGE[1], SIZE_RANGE[1], unit='m'),
+    ParamSpec('orientation', 'double_array', [0.0, 0.0, 0.0, 1.0],
+              'Orientation of the piece\'s frame in the body frame, quaternion x, y, z, w'),
 )
 
 
@@ -451,6 +500,12 @@ SIM_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('duration', 'double', 5.0, 'Simulated time to run', 0.0, 86400.0, unit='s'),
     ParamSpec('publish_per_body', 'bool', False,
               'Also publish bodies/<name>/pose and twist (live mode)'),
+    ParamSpec('joint_motion', 'string_array', [],
+              'Scripted joints of robot_description, each "joint:amplitude:frequency[:phase]": '
+              'the joint moves as amplitude sin(2 pi frequency t + phase) (rad, or m for a '
+              'prismatic joint; Hz; rad; t from the first state) and the links follow by '
+              'forward kinematics, posed with their twists every step',
+              reason='none: the links keep the poses they start with'),
 )
 
 
@@ -462,6 +517,8 @@ class SimSettings:
     rate_hz: float = 240.0
     duration: float = 5.0
     publish_per_body: bool = False
+    # (joint, amplitude rad or m, frequency Hz, phase rad) of each scripted joint
+    joint_motion: tuple[tuple[str, float, float, float], ...] = ()
 
 
 assert [f.name for f in fields(NodeSettings)] == [p.name for p in NODE_PARAMS]
@@ -479,4 +536,19 @@ SCENE_PARAMS: tuple[ParamSpec, ...] = (
               'Pairs of bodies that never collide, each "a:b" (two different names from '
               'bodies), whatever their collision bits (as MoveIt\'s allowed collision matrix)',
               reason='none: every pair the bits allow collides'),
+    ParamSpec('robot_description', 'string', '',
+              'URDF text (as robot_state_publisher\'s parameter): every link with <collision> '
+              'elements becomes a kinematic body named after the link (sphere, box, cylinder, '
+              'mesh hull with scale; one piece per element), posed from body_states by link '
+              'name; its body.<link>.* parameters may still be set',
+              reason='empty: no robot'),
+    ParamSpec('robot_description_topic', 'bool', False,
+              'When robot_description is empty, wait at start for the URDF on the '
+              'robot_description topic (std_msgs/String, reliable, transient local, as '
+              'robot_state_publisher publishes it) and take it as robot_description',
+              reason='off: a scene without a robot starts at once'),
+    ParamSpec('robot_self_collision', 'bool', False,
+              'Links of robot_description collide with one another (links joined by a joint '
+              'never do)',
+              reason='off, as MoveIt\'s default allowed collision matrix for a posed arm'),
 )

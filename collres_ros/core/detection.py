@@ -38,9 +38,11 @@ import numpy as np
 
 from collres_ros.core import _native
 from collres_ros.core.config import SolverSettings
-from collres_ros.core.shapes import bounding_radius, collision_numbers
-from collres_ros.core.types import (SHAPE_KINDS, BodySpec, BodyStates, CollisionFilter,
-                                    ContactSet)
+from collres_ros.core.shapes import bounding_radius, collision_numbers, piece_spec
+from collres_ros.core.types import (COMPOUND, SHAPE_KINDS, BodySpec, BodyStates,
+                                    CollisionFilter, ContactSet)
+
+IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)   # a piece frame on the body frame
 
 REUSE_TRANSLATION = _native.REUSE_TRANSLATION   # m: a stored manifold is reused while its
 REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and turned less
@@ -54,12 +56,10 @@ class Detection:
                  collision_filter: CollisionFilter | None = None) -> None:
         """``collision_filter`` default: every pair collides."""
         self.specs = list(bodies)
-        numbers = [collision_numbers(spec) for spec in self.specs]
-        self._native = _native.Detector(
-            [SHAPE_KINDS.index(spec.shape) for spec in self.specs],
-            [size for size, _ in numbers], [points for _, points in numbers],
-            [bounding_radius(spec) for spec in self.specs],
-            [bool(spec.static or spec.shape == 'plane') for spec in self.specs])
+        shapes = [_shapes(index, spec) for index, spec in enumerate(self.specs)]
+        columns = list(zip(*(row for rows in shapes for row in rows)))
+        self._native = _native.Detector(*(list(column) for column in columns),
+                                        bodies=len(self.specs))
         self.settings = settings
         self.collision_filter = collision_filter or CollisionFilter.default(len(self.specs))
 
@@ -74,7 +74,8 @@ class Detection:
         self._native.set_settings(settings.speculative_margin, settings.toi_tolerance,
                                   settings.toi_max_iterations, settings.ccd,
                                   settings.linear_slop, settings.restitution_threshold,
-                                  settings.max_pairs, settings.max_contacts)
+                                  settings.max_pairs, settings.max_contacts,
+                                  settings.max_contacts_per_pair)
 
     @property
     def collision_filter(self) -> CollisionFilter:
@@ -123,3 +124,22 @@ class Detection:
         return (as_rows(previous.position), as_rows(previous.orientation),
                 as_rows(current.position), as_rows(current.orientation),
                 as_rows(current.linear), as_rows(current.angular), mask)
+
+
+def _shapes(index: int, spec: BodySpec) -> list[tuple]:
+    """The compiled detector's shapes of body ``index``: one, or one per piece of a compound
+    (kind, sizes, vertices, bounding radius about the body origin, static, body, piece,
+    piece pose in the body frame)."""
+    fixed = bool(spec.static or spec.shape == 'plane')
+    if spec.shape != COMPOUND:
+        size, points = collision_numbers(spec)
+        return [(SHAPE_KINDS.index(spec.shape), size, points, bounding_radius(spec), fixed,
+                 index, 0, IDENTITY)]
+    rows = []
+    for number, piece in enumerate(spec.pieces):
+        alone = piece_spec(spec, piece)
+        size, points = collision_numbers(alone)
+        reach = float(np.linalg.norm(piece.position)) + bounding_radius(alone)
+        rows.append((SHAPE_KINDS.index(piece.shape), size, points, reach, fixed, index, number,
+                     (*piece.position, *piece.orientation)))
+    return rows

@@ -196,18 +196,22 @@ class Resolver:
         rejected = list(checked.rejected)
         history = check_stamps(self.last_stamp[checked.index], stamp_ns,
                                int(settings.max_dt * 1e9), self.previous_step_ns)
-        for k in np.flatnonzero(history.repeated):
-            name = self.names[checked.index[k]]
-            rejected.append(Rejection(name, 'repeated_stamp',
-                                      f'{name}: already resolved at stamp {stamp_ns} ns'))
-        resets = self._resets(checked.index, history, stamp_ns)
-        use = ~history.repeated
-
-        # 2. previous and current states of all N bodies
         index, fresh = checked.index, history.fresh
         entered = [checked.position, checked.orientation, checked.linear, checked.angular]
-        if not use.all():
-            index, fresh, entered = index[use], fresh[use], [a[use] for a in entered]
+        twist_in_body = checked.twist_in_body
+        resets: list[Rejection] = []
+        if fresh.any() or history.repeated.any():   # not the stream's usual step
+            for k in np.flatnonzero(history.repeated):
+                name = self.names[checked.index[k]]
+                rejected.append(Rejection(name, 'repeated_stamp',
+                                          f'{name}: already resolved at stamp {stamp_ns} ns'))
+            resets = self._resets(checked.index, history, stamp_ns)
+            use = ~history.repeated
+            if not use.all():
+                index, fresh, entered = index[use], fresh[use], [a[use] for a in entered]
+                twist_in_body = twist_in_body[use]
+
+        # 2. previous and current states of all N bodies
         current = self.state.copy()
         for target, values in zip(_arrays(current), entered):
             target[index] = values
@@ -231,15 +235,19 @@ class Resolver:
         world_time = time.perf_counter() - world_start
         world_cpu = time.thread_time() - world_cpu
         out = result.states
-        # one guard, one report: a body the world repaired or that is still non-finite
-        bad = ~np.isfinite(np.concatenate(_arrays(out), axis=1)[index]).all(axis=1)
+        # one guard, one report: a body the world repaired or that is still non-finite (a
+        # finite sum of every number is the usual step's whole test)
         repaired = {r.body for r in result.rejected if r.reason == 'non_finite_result'}
-        if repaired:
-            bad |= np.isin(self._name_array[index], list(repaired))
-        for i in index[bad]:
-            rejected.append(Rejection(self.names[i], 'non_finite_result',
-                                      f'{self.names[i]}: the solver produced a non-finite '
-                                      'state; the input is passed through'))
+        if repaired or not np.isfinite(sum(float(a.sum()) for a in _arrays(out))):
+            bad = ~np.isfinite(np.concatenate(_arrays(out), axis=1)[index]).all(axis=1)
+            if repaired:
+                bad |= np.isin(self._name_array[index], list(repaired))
+            for i in index[bad]:
+                rejected.append(Rejection(self.names[i], 'non_finite_result',
+                                          f'{self.names[i]}: the solver produced a non-finite '
+                                          'state; the input is passed through'))
+        else:
+            bad = np.zeros(len(index), bool)
         rejected += [r for r in result.rejected if r.reason != 'non_finite_result']
 
         # 4. keep the corrected states as the history of the next step
@@ -264,12 +272,14 @@ class Resolver:
         budget = self.world.budget
         if any(budget):
             self.totals['contact_budget'] += 1   # steps over the budget
-        self.totals.update(r.reason for r in rejected + resets)
+        if rejected or resets:
+            self.totals.update(r.reason for r in rejected + resets)
         names = self._name_array[index].tolist()
         states = BodyStates(*(a[index] for a in _arrays(self.state)))   # copies
-        return ResolvedStep(stamp_ns, names, index, states, checked.twist_in_body[use],
+        return ResolvedStep(stamp_ns, names, index, states, twist_in_body,
                             self.names, report, toi_ns, rejected, resets,
-                            [self.names[i] for i in np.flatnonzero(stale)], dt,
+                            [self.names[i] for i in np.flatnonzero(stale)] if stale.any()
+                            else [], dt,
                             time.perf_counter() - start, world_time, world_cpu,
                             np.concatenate([self.state.position, self.state.orientation], 1),
                             budget, np.zeros(len(index), bool) if result.sleeping is None

@@ -7,6 +7,12 @@ centre of mass lies a quarter of the length above the base. Our cone's body
 origin is its centre of mass, so its coal geometry sits at ``shape_offset``
 (0, 0, +length/4) in the body frame: base at z = -length/4, apex at
 z = +3 length/4. Sizes are in m, masses in kg, inertia in kg m^2.
+
+A compound body (``types.COMPOUND``) is the union of its convex pieces, each a
+shape of its own placed at its pose in the body frame. Its mass is spread
+uniformly over the pieces' volumes (overlaps count twice, as in MuJoCo and
+Drake); its centre of mass is theirs, and a dynamic compound body must have it
+at the body origin (``centre_of_mass``; the params name the shift otherwise).
 """
 
 from __future__ import annotations
@@ -20,7 +26,13 @@ import coal
 import numpy as np
 
 from collres_ros.core.config import HULL_MAX_VERTICES
-from collres_ros.core.types import BodySpec
+from collres_ros.core.rotation import to_matrix
+from collres_ros.core.types import COMPOUND, BodySpec, Piece
+
+# A dynamic compound body's centre of mass may lie this fraction of its bounding radius off
+# its origin (a decomposed mesh's hulls overlap a little): the inertia is then taken about
+# the origin, as a convex mesh's is. Farther off, the body frame must be moved.
+CENTRE_TOLERANCE = 0.01
 
 
 def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
@@ -45,7 +57,12 @@ def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
         return coal.Halfspace(normal, offset)
     if shape == 'convex':
         return convex_hull(convex_points(spec))
+    if shape == COMPOUND:
+        raise ValueError(_ONE_PER_PIECE.format(spec.name))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
+
+
+_ONE_PER_PIECE = '{}: a compound body has a geometry per piece (piece_spec)'
 
 
 def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
@@ -64,6 +81,8 @@ def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
         return [*normal.tolist(), offset], []
     if shape == 'convex':
         return [], convex_points(spec).reshape(-1).tolist()
+    if shape == COMPOUND:
+        raise ValueError(_ONE_PER_PIECE.format(spec.name))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 
@@ -131,6 +150,8 @@ def mass_properties(spec: BodySpec) -> tuple[float, np.ndarray]:
     mass = float(spec.mass)
     if not mass > 0.0 or not math.isfinite(mass):
         raise ValueError(f'{spec.name}: mass must be positive and finite (got {mass})')
+    if spec.shape == COMPOUND:
+        centre_of_mass(spec, check=True)
     if spec.inertia is not None:
         inertia = np.diag(np.asarray(spec.inertia, dtype=float))
     else:
@@ -177,7 +198,81 @@ def inertia_tensor(spec: BodySpec) -> np.ndarray:
         # parallel axis: inertia about the body origin, which is the declared centre of mass
         shift = m * (centre @ centre * np.eye(3) - np.outer(centre, centre))
         return 0.5 * (about_com + about_com.T) + shift
+    if shape == COMPOUND:
+        volumes, centres, inertias = _piece_solids(spec)
+        masses = m * volumes / volumes.sum()
+        about_origin = np.zeros((3, 3))
+        for mass, centre, inertia in zip(masses, centres, inertias):
+            # each piece about its own centre, then moved to the body origin (parallel axis)
+            about_origin += mass * (inertia + centre @ centre * np.eye(3)
+                                    - np.outer(centre, centre))
+        return 0.5 * (about_origin + about_origin.T)
     raise ValueError(f'{spec.name}: no inertia for shape {shape!r}')
+
+
+def piece_spec(body: BodySpec, piece: Piece) -> BodySpec:
+    """A compound body's piece as a body of its own (body frame = the piece's shape frame),
+    named ``body/piece`` in errors."""
+    return BodySpec(name=f'{body.name}/{piece.name}', shape=piece.shape, size=piece.size,
+                    points=piece.points)
+
+
+def volume(spec: BodySpec) -> float:
+    """Volume (m^3) of a solid single shape (ValueError for planes and compounds)."""
+    size = [float(s) for s in spec.size]
+    shape = spec.shape
+    if shape == 'sphere':
+        return 4.0 / 3.0 * math.pi * size[0] ** 3
+    if shape == 'box':
+        return size[0] * size[1] * size[2]
+    if shape == 'cylinder':
+        return math.pi * size[0] ** 2 * size[1]
+    if shape == 'cone':
+        return math.pi * size[0] ** 2 * size[1] / 3.0
+    if shape == 'capsule':
+        return math.pi * size[0] ** 2 * (size[1] + 4.0 / 3.0 * size[0])
+    if shape == 'convex':
+        return float(convex_hull(convex_points(spec)).computeVolume())
+    raise ValueError(f'{spec.name}: no volume for shape {shape!r}')
+
+
+def _piece_solids(spec: BodySpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per piece of a compound: volume (P,) m^3, centre (P, 3) m in the body frame and
+    inertia per unit mass (P, 3, 3) m^2 about that centre, body axes."""
+    volumes, centres, inertias = [], [], []
+    for piece in spec.pieces:
+        alone = piece_spec(spec, piece)
+        rotation = to_matrix(np.asarray(piece.orientation, dtype=float))
+        if piece.shape == 'convex':
+            hull = convex_hull(convex_points(alone))
+            size = float(hull.computeVolume())
+            centre = np.asarray(hull.computeCOM(), dtype=float)
+            inertia = np.asarray(hull.computeMomentofInertiaRelatedToCOM()) / size
+        else:   # every other shape frame's origin is its centre of mass
+            size, centre = volume(alone), np.zeros(3)
+            inertia = inertia_tensor(alone)   # unit mass (BodySpec's default)
+        volumes.append(size)
+        centres.append(np.asarray(piece.position, dtype=float) + rotation @ centre)
+        inertias.append(rotation @ (0.5 * (inertia + inertia.T)) @ rotation.T)
+    return np.array(volumes), np.array(centres).reshape(-1, 3), np.array(inertias)
+
+
+def centre_of_mass(spec: BodySpec, check: bool = False) -> np.ndarray:
+    """Centre of mass (3,) m, body frame, of a compound body's pieces (uniform density).
+
+    ``check``: ValueError, naming the shift that would put it there, unless it lies within
+    ``CENTRE_TOLERANCE`` of the bounding radius of the body origin (the core's bodies turn
+    about their origin).
+    """
+    volumes, centres, _ = _piece_solids(spec)
+    centre = volumes @ centres / volumes.sum()
+    if check and np.linalg.norm(centre) > CENTRE_TOLERANCE * bounding_radius(spec):
+        shift = ', '.join(f'{-c:.6g}' for c in centre)
+        raise ValueError(f'{spec.name}: the pieces\' centre of mass ('
+                         f'{", ".join(f"{c:.6g}" for c in centre)}) m must be the body origin '
+                         f'(a dynamic body turns about it): add ({shift}) to every piece\'s '
+                         'position')
+    return centre
 
 
 def bounding_radius(spec: BodySpec) -> float:
@@ -198,6 +293,9 @@ def bounding_radius(spec: BodySpec) -> float:
         return math.inf
     if shape == 'convex':
         return float(np.max(np.linalg.norm(convex_points(spec), axis=1)))
+    if shape == COMPOUND:
+        return max(float(np.linalg.norm(piece.position))
+                   + bounding_radius(piece_spec(spec, piece)) for piece in spec.pieces)
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 
@@ -240,6 +338,40 @@ def mesh_points(data: bytes, suffix: str, name: str = 'mesh') -> np.ndarray:
     return hull_vertices(points)
 
 
+def mesh_triangles(data: bytes, suffix: str, name: str = 'mesh'
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The surface of an OBJ or STL file: vertices (K, 3) in the file's units and triangles
+    (T, 3) int32 indices into them (OBJ polygons fanned; STL corners merged where equal).
+    ValueError naming ``name`` when the file has no triangle or a face names no vertex."""
+    suffix = suffix.lower()
+    if suffix == '.obj':
+        vertices = _obj_vertices(data)
+        triangles = []
+        for line in _OBJ_FACE.findall(data):
+            try:
+                corners = [int(token.split(b'/')[0]) for token in line.split()]
+            except ValueError:
+                raise ValueError(f'{name}: face {line[:60].decode(errors="replace")!r} is not '
+                                 'vertex numbers') from None
+            corners = [c - 1 if c > 0 else len(vertices) + c for c in corners]
+            triangles += [(corners[0], corners[k], corners[k + 1])
+                          for k in range(1, len(corners) - 1)]
+        faces = np.array(triangles, dtype=np.int64).reshape(-1, 3)
+    elif suffix == '.stl':
+        corners = _stl_vertices(data)
+        vertices, inverse = np.unique(corners, axis=0, return_inverse=True)
+        faces = inverse.reshape(-1, 3)
+    else:
+        raise ValueError(f'{name}: unsupported mesh format (use .obj or .stl)')
+    if faces.shape[0] == 0:
+        raise ValueError(f'{name}: no triangles found')
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise ValueError(f'{name}: a face names a vertex the file does not have')
+    return np.ascontiguousarray(vertices, dtype=float), faces.astype(np.int32)
+
+
+# a face line: `f a b c ...` (OBJ), each corner `v`, `v/t`, `v//n` or `v/t/n`
+_OBJ_FACE = re.compile(rb'^[ \t]*f[ \t]+([^\r\n]+)', re.MULTILINE)
 # a vertex line: `v x y z [w]` (OBJ), `vertex x y z` (ASCII STL); numbers as float() reads them
 _OBJ_VERTEX = re.compile(rb'^[ \t]*v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)', re.MULTILINE)
 _STL_VERTEX = re.compile(rb'^[ \t]*vertex[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)', re.MULTILINE)

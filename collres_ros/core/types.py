@@ -85,7 +85,9 @@ class ContactSet:
     the rows ``first .. first + count - 1``, all of that pair, found together (1-4
     points sharing a contact patch); the manifolds tile the M rows in order, and the
     solver solves each as one constraint. One pair may have several manifolds (e.g.
-    pieces of compound bodies). Hand-made sets take ``pair_manifolds``.
+    pieces of compound bodies). Hand-made sets take ``pair_manifolds``. ``piece_a`` /
+    ``piece_b``: the index of the touching piece among each compound body's
+    ``BodySpec.pieces`` (0 for a body of one shape; None: all 0).
     """
 
     body_a: np.ndarray        # (M,) int64
@@ -97,10 +99,18 @@ class ContactSet:
     kind: np.ndarray          # (M,) int8, ContactKind
     feature: np.ndarray       # (M,) int64
     manifolds: np.ndarray     # (K, 4) int64: body_a, body_b, first row, row count
+    piece_a: np.ndarray | None = None   # (M,) int32, or None: every piece 0
+    piece_b: np.ndarray | None = None
 
     @property
     def count(self) -> int:
         return int(self.body_a.shape[0])
+
+    def pieces(self) -> tuple[np.ndarray, np.ndarray]:
+        """(piece_a, piece_b) as (M,) int32 arrays (zeros when not given)."""
+        zeros = np.zeros(self.count, np.int32)
+        return (zeros if self.piece_a is None else self.piece_a,
+                zeros if self.piece_b is None else self.piece_b)
 
     def select(self, keep: np.ndarray) -> 'ContactSet':
         """The rows where the (M,) bool mask ``keep`` is true, copied; each manifold keeps
@@ -112,19 +122,22 @@ class ContactSet:
         spans = self.manifolds[kept > 0].copy()
         spans[:, 3] = kept[kept > 0]
         spans[:, 2] = np.cumsum(spans[:, 3]) - spans[:, 3]
+        piece_a, piece_b = self.pieces()
         return ContactSet(self.body_a[keep], self.body_b[keep], self.point[keep],
                           self.normal[keep], self.separation[keep], self.toi[keep],
-                          self.kind[keep], self.feature[keep], spans)
+                          self.kind[keep], self.feature[keep], spans, piece_a[keep],
+                          piece_b[keep])
 
     @staticmethod
     def joined(a: 'ContactSet', b: 'ContactSet') -> 'ContactSet':
         """The rows (and manifolds) of ``a`` then those of ``b``."""
         shifted = b.manifolds.copy()
         shifted[:, 2] += a.count
+        pieces = [np.concatenate([x, y]) for x, y in zip(a.pieces(), b.pieces())]
         return ContactSet(*(np.concatenate([getattr(a, f), getattr(b, f)])
                             for f in ('body_a', 'body_b', 'point', 'normal', 'separation',
                                       'toi', 'kind', 'feature')),
-                          np.concatenate([a.manifolds, shifted]))
+                          np.concatenate([a.manifolds, shifted]), *pieces)
 
     @property
     def depth(self) -> np.ndarray:
@@ -186,6 +199,8 @@ class StepResult:
 
 
 SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')
+# A body of several convex pieces (``BodySpec.pieces``); not a code of the compiled core.
+COMPOUND = 'compound'
 
 
 @dataclass(frozen=True)
@@ -245,13 +260,34 @@ class CollisionFilter:
 
 
 @dataclass(frozen=True)
+class Piece:
+    """One convex piece of a compound body, placed in the body frame.
+
+    ``shape``, ``size`` and ``points`` as a ``BodySpec``'s (any shape but a
+    plane); the piece's own frame (its shape frame: origin at its centre, a
+    cone's at its centre of mass) sits at ``position`` (m) with ``orientation``
+    (unit quaternion x, y, z, w) in the body frame. ``name`` names it in
+    contacts and errors.
+    """
+
+    name: str
+    shape: str
+    size: tuple[float, ...] = ()
+    points: tuple[tuple[float, float, float], ...] = ()
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    orientation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
 class BodySpec:
     """What a body is: shape, mass properties and material (body frame = shape frame).
 
     ``size`` by shape: sphere (r,); box (x, y, z) full edges; capsule, cylinder,
     cone (r, length) along the body z axis; plane (nx, ny, nz, d): the
     half-space n.x <= d in the body frame (static only); convex: ``points``
-    (K, 3) in the body frame, ``size`` unused. ``mass`` in kg is ignored for
+    (K, 3) in the body frame, ``size`` unused; compound (``COMPOUND``): the
+    convex ``pieces``, ``size`` and ``points`` unused (uniform density over the
+    pieces' volumes). ``mass`` in kg is ignored for
     static bodies (infinite mass). ``inertia`` (ixx, iyy, izz) in kg m^2 about
     the origin in the body frame, or None to derive it from shape and mass.
     """
@@ -268,6 +304,7 @@ class BodySpec:
     points: tuple[tuple[float, float, float], ...] = ()
     rolling_resistance: float = ROLLING_RESISTANCE      # see config.BODY_PARAMS
     torsional_friction: float = TORSIONAL_FRICTION
+    pieces: tuple[Piece, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -210,7 +210,8 @@ class World:
         report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
                                           contacts.normal, contacts.separation, np.empty(m),
                                           np.empty(m, np.int8), contacts.feature,
-                                          contacts.manifolds),
+                                          contacts.manifolds, contacts.piece_a,
+                                          contacts.piece_b),
                                np.empty(m), np.empty((m, 3)), np.empty(m, np.uint8))
         flat = (lambda array, dtype=np.float64: np.ascontiguousarray(array, dtype))
         sweeps, rows = self._solver.step(
@@ -292,7 +293,7 @@ def _finite(contacts: ContactSet) -> ContactSet:
         normal = contacts.normal / norm[:, None] if contacts.count else contacts.normal
         return ContactSet(contacts.body_a, contacts.body_b, contacts.point, normal,
                           contacts.separation, contacts.toi, contacts.kind, contacts.feature,
-                          contacts.manifolds)
+                          contacts.manifolds, contacts.piece_a, contacts.piece_b)
     kept = contacts.select(ok)
     kept.normal /= norm[ok, None]
     return kept

@@ -36,6 +36,7 @@ PACKAGE = 'collres_ros'
 _PLUGINS = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 BAG_VERSION = 9  # rosbag2 metadata version written by Jazzy
 STATES_TYPE = f'{PACKAGE}/msg/BodyStateArray'
+CONTACTS_TYPE = f'{PACKAGE}/msg/ContactArray'
 
 
 class BagError(Exception):
@@ -308,28 +309,44 @@ class BagReader:
 
     def raw(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, str, int, bytes]]:
         """(topic, msgtype, log_time ns, CDR bytes) in log-time order."""
+        for _, topic, msgtype, log_time, data in self._raw(topics):
+            yield topic, msgtype, log_time, data
+
+    def _raw(self, topics: Iterable[str] | None
+             ) -> Iterator[tuple[Any, str, str, int, bytes]]:
         wanted = None if topics is None else set(topics)
         connections = [c for c in self._reader.connections
                        if wanted is None or c.topic in wanted]
         if not connections:
             return
         for connection, log_time, data in self._reader.messages(connections=connections):
-            yield connection.topic, connection.msgtype, int(log_time), bytes(data)
+            yield connection, connection.topic, connection.msgtype, int(log_time), bytes(data)
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
         """Yield decoded rclpy messages in log-time order, optionally only ``topics``.
 
         A BodyStateArray recorded before BodyState had ``sleeping`` is read with the flags
-        false (``codec.StatesCodec.upgrade``)."""
+        false (``codec.StatesCodec.upgrade``); a ContactArray recorded before Contact had
+        ``piece_a`` / ``piece_b`` (its recorded definition has none) with those names ''
+        (``codec.upgrade_contacts``)."""
         from rclpy.serialization import deserialize_message
 
-        from collres_ros.ros.codec import StatesCodec
+        from collres_ros.ros.codec import StatesCodec, upgrade_contacts
         states = StatesCodec()
-        for topic, msgtype, log_time, data in self.raw(topics):
+        for connection, topic, msgtype, log_time, data in self._raw(topics):
             if msgtype == STATES_TYPE:
                 data = states.upgrade(data)
+            elif msgtype == CONTACTS_TYPE and _before_pieces(connection):
+                data = upgrade_contacts(data)
             yield BagMessage(topic, msgtype, log_time,
                              deserialize_message(data, message_class(msgtype)))
+
+
+def _before_pieces(connection: Any) -> bool:
+    """Whether a ContactArray connection was recorded before Contact had piece names: its
+    recorded definition (when the bag has one) does not name them."""
+    definition = getattr(getattr(connection, 'msgdef', None), 'data', '') or ''
+    return bool(definition.strip()) and 'piece_a' not in definition
 
 
 def read_messages(path: str | Path, topics: Iterable[str] | None = None) -> list[BagMessage]:

@@ -26,8 +26,9 @@ from typing import Sequence
 import numpy as np
 
 from collres_ros.core.rotation import to_matrix
-from collres_ros.core.shapes import convex_hull, convex_points, plane_normal_offset, shape_offset
-from collres_ros.core.types import BodySpec
+from collres_ros.core.shapes import (convex_hull, convex_points, piece_spec, plane_normal_offset,
+                                     shape_offset)
+from collres_ros.core.types import COMPOUND, BodySpec
 from collres_ros.ros.codec import MarkerSpec
 
 SPHERE_LIST, TRIANGLE_LIST = 7, 11     # visualization_msgs/Marker constants
@@ -81,8 +82,23 @@ def _convex(spec: BodySpec) -> np.ndarray:
     return points[np.array(corners, np.int64).reshape(-1)]
 
 
+def _compound(spec: BodySpec) -> np.ndarray:
+    """Each piece's triangles (a sphere piece as a lathe of its profile) at its pose."""
+    placed = []
+    for piece in spec.pieces:
+        alone = piece_spec(spec, piece)
+        corners = triangles(alone) if piece.shape != 'sphere' else _lathe(
+            [(float(piece.size[0]) * np.sin(t), -float(piece.size[0]) * np.cos(t))
+             for t in np.linspace(0.0, np.pi, CAP_RINGS * 2 + 1)])
+        rotation = to_matrix(np.asarray(piece.orientation, float))
+        placed.append(corners @ rotation.T + np.asarray(piece.position, float))
+    return np.concatenate(placed)
+
+
 def triangles(spec: BodySpec) -> np.ndarray:
     """Triangle vertices (T * 3, 3) m, body frame, of a non-sphere body's shape."""
+    if spec.shape == COMPOUND:
+        return _compound(spec)
     size = [float(s) for s in spec.size]
     if spec.shape == 'box':
         return _box(size)

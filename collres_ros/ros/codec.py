@@ -19,6 +19,10 @@ before it reads it (a message announcing more bodies than the scene has is
 refused at once) and refuses negative stamps and ``nanosec >= 1e9``:
 ``DecodeError`` with a reason key and one line.
 
+``contacts_message`` and ``markers_message`` give the same bytes as a ``Restampable``: a
+message that equals the last one but for its stamps (the held contacts of a sleeping pile) is
+then restamped in place (one scatter) instead of encoded again.
+
 Padding bytes are written as zeros (rclpy leaves them uninitialised), so
 compare decoded values, or bytes outside the padding, never raw bytes with rclpy's.
 
@@ -527,6 +531,35 @@ def encode_tf(stamp_ns: int, frame_id: str, children: NamePool, poses: np.ndarra
     return bytes(buf)
 
 
+# --- restamping --------------------------------------------------------------------------------
+
+class Restampable:
+    """An encoded message whose stamps (``builtin_interfaces/Time``) can be rewritten in
+    place, for a message that is the same as the last one but for its stamps (the held
+    contacts of a sleeping pile): one scatter instead of encoding it again.
+
+    ``buffer``: the message bytes (uint8, writable, at least ``size`` long and a whole
+    number of 4-byte words); ``stamps``: where each stamp starts, in 4-byte words from after
+    the encapsulation header (a stamp is 4-aligned: int32 sec, uint32 nanosec).
+    """
+
+    def __init__(self, buffer: np.ndarray, size: int, stamps: np.ndarray) -> None:
+        self.buffer, self.size = buffer, size
+        self.stamps = np.asarray(stamps, np.int64)
+        self._words = buffer[4:4 + 4 * ((len(buffer) - 4) // 4)].view('<i4')
+
+    def data(self) -> bytes:
+        return self.buffer[:self.size].tobytes()
+
+    def restamped(self, stamps_ns: int | np.ndarray) -> bytes:
+        """The message with its stamps set to ``stamps_ns`` (ns: one for all, or one per
+        stamp in the order of ``stamps``; negative times clamp to 0)."""
+        ns = np.maximum(np.asarray(stamps_ns, np.int64), 0)
+        self._words[self.stamps] = ns // NS_PER_S
+        self._words[self.stamps + 1] = (ns % NS_PER_S).astype(np.uint32).view(np.int32)
+        return self.data()
+
+
 # --- ContactArray -----------------------------------------------------------------------------
 
 class NamePool:
@@ -564,29 +597,52 @@ def _gather_words(out_words: np.ndarray, dest: np.ndarray, pool: NamePool,
                                                            + within]
 
 
+NO_PIECES = NamePool([''])   # every contact between bodies of one shape: piece names ''
+
+
 def encode_contacts(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.ndarray,
                     body_b: np.ndarray, point: np.ndarray, normal: np.ndarray,
                     depth: np.ndarray, toi_ns: np.ndarray, normal_impulse: np.ndarray,
-                    friction_impulse: np.ndarray, state: np.ndarray) -> bytes:
-    """Serialised collres_ros/ContactArray of M contacts (names from ``pool`` by body index).
+                    friction_impulse: np.ndarray, state: np.ndarray,
+                    pieces: tuple[NamePool, np.ndarray, np.ndarray] | None = None) -> bytes:
+    """Serialised collres_ros/ContactArray of M contacts (names from ``pool`` by body index;
+    ``pieces``: a pool of piece names and each contact's index in it for piece_a and
+    piece_b, None: every piece name '').
 
-    Record k: body_a, body_b (strings), then on 8 bytes: position (3), normal
-    (3), depth, time_of_impact (int32 sec, uint32 nanosec), normal_impulse,
-    friction_impulse (3), then state (uint8). Records start 4-aligned; after
-    the first one, always at 4 mod 8 (97 bytes of block + 3 of padding).
+    Record k: body_a, body_b, piece_a, piece_b (strings, each 4-aligned), then on 8
+    bytes: position (3), normal (3), depth, time_of_impact (int32 sec, uint32 nanosec),
+    normal_impulse, friction_impulse (3), then state (uint8). Records start 4-aligned;
+    after the first one, always at 4 mod 8 (97 bytes of block + 3 of padding).
     """
+    return contacts_message(stamp_ns, frame_id, pool, body_a, body_b, point, normal, depth,
+                            toi_ns, normal_impulse, friction_impulse, state, pieces).data()
+
+
+def contacts_message(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.ndarray,
+                     body_b: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                     depth: np.ndarray, toi_ns: np.ndarray, normal_impulse: np.ndarray,
+                     friction_impulse: np.ndarray, state: np.ndarray,
+                     pieces: tuple[NamePool, np.ndarray, np.ndarray] | None = None
+                     ) -> 'Restampable':
+    """``encode_contacts`` as a ``Restampable``: its stamps are the header's, then each
+    contact's time_of_impact."""
     w = Writer()
     w.header(stamp_ns, frame_id)
     count = int(len(body_a))
     w.u32(count)
     if count == 0:
-        return w.bytes()
+        return Restampable(np.frombuffer(w.bytes(), np.uint8).copy(), len(w.buf),
+                           np.array([0], np.int64))
     a = np.asarray(body_a, np.int64)
     b = np.asarray(body_b, np.int64)
+    names, pa, pb = pieces if pieces is not None else (
+        NO_PIECES, np.zeros(count, np.int64), np.zeros(count, np.int64))
+    pa, pb = np.asarray(pa, np.int64), np.asarray(pb, np.int64)
     s0 = w.offset                                          # 4-aligned
     la = 4 * pool.words[a]                                 # body_a, padded to 4
     lb4 = 4 * pool.words[b]                                # body_b, padded to 4
-    strings = la + pool.length[b]                          # to the end of body_b
+    lpa4 = 4 * names.words[pa]                             # piece_a, padded to 4
+    strings = la + lb4 + lpa4 + names.length[pb]           # to the end of piece_b
     phase = np.full(count, 4, np.int64)
     phase[0] = s0 % 8
     gap = -(phase + strings) % 8
@@ -607,25 +663,52 @@ def encode_contacts(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.nda
     # records after the first one all start at 4 mod 8: when their names pad to the same
     # lengths (as in most scenes) they have one shape, written through one strided view
     rest = slice(1, count)
-    uniform = count > 2 and (record[rest] == record[1]).all() and (la[rest] == la[1]).all() \
-        and (lb4[rest] == lb4[1]).all()
+    uniform = count > 2 and all((x[rest] == x[1]).all() for x in (record, la, lb4, lpa4))
     general = np.arange(1) if uniform else np.arange(count)
-    _contacts_general(buf, pool, a[general], b[general], start[general],
-                      start[general] + la[general], block[general],
-                      {k: v[general] for k, v in columns.items()})
+    g = general
+    _contacts_general(buf, (pool, a[g], start[g]), (pool, b[g], start[g] + la[g]),
+                      (names, pa[g], start[g] + la[g] + lb4[g]),
+                      (names, pb[g], start[g] + la[g] + lb4[g] + lpa4[g]), block[g],
+                      {k: v[g] for k, v in columns.items()})
     if uniform:
-        _contacts_uniform(buf, pool, a[rest], b[rest], int(start[1]), int(record[1]),
-                          int(la[1]), int(lb4[1]), int(block[1] - start[1]),
+        _contacts_uniform(buf, ((pool, a[rest], int(la[1])), (pool, b[rest], int(lb4[1])),
+                                (names, pa[rest], int(lpa4[1])),
+                                # the longest: shorter ones write zeros into the gap
+                                (names, pb[rest], int(4 * names.words[pb[rest]].max()))),
+                          int(start[1]), int(record[1]), int(block[1] - start[1]),
                           {k: v[rest] for k, v in columns.items()})
-    return buf[:size].tobytes()
+    return Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
 
 
-def _contacts_general(buf: np.ndarray, pool: NamePool, a: np.ndarray, b: np.ndarray,
-                      start: np.ndarray, start_b: np.ndarray, block: np.ndarray,
-                      col: dict[str, np.ndarray]) -> None:
-    """Contact records anywhere: names gathered word by word, fields scattered."""
+def upgrade_contacts(data: bytes) -> bytes:
+    """A ContactArray recorded before Contact had ``piece_a`` / ``piece_b`` (bags of earlier
+    versions), in today's layout with those names '' (DecodeError when it is malformed)."""
+    r = Reader(data, 'ContactArray (before piece_a)')
+    stamp, frame = r.header()
+    count = r.u32()
+    names: dict[str, int] = {}
+    pairs, values, toi, state = [], [], [], []
+    for _ in range(count):
+        pairs.append([names.setdefault(r.string(), len(names)) for _ in range(2)])
+        head = r.f64s(7)                      # position, normal, depth
+        toi.append(r.stamp())
+        values.append(np.concatenate([head, r.f64s(4)]))   # normal impulse, friction
+        state.append(r.u8())
+    index = np.array(pairs, np.int64).reshape(count, 2)
+    v = np.array(values, float).reshape(count, 11)
+    return encode_contacts(stamp, frame, NamePool(list(names)), index[:, 0], index[:, 1],
+                           v[:, 0:3], v[:, 3:6], v[:, 6], np.array(toi, np.int64), v[:, 7],
+                           v[:, 8:11], np.array(state, np.uint8))
+
+
+def _contacts_general(buf: np.ndarray, *strings_and: Any) -> None:
+    """Contact records anywhere: names gathered word by word, fields scattered.
+    ``strings_and``: four (pool, indices, byte offsets) of the record's strings, then the
+    block offsets and the columns."""
+    *strings, block, col = strings_and
     words = buf[4:4 + 4 * ((len(buf) - 4) // 4)].view('<u4')
-    _gather_words(words, np.concatenate([start, start_b]) // 4, pool, np.concatenate([a, b]))
+    for pool, which, start in strings:
+        _gather_words(words, start // 4, pool, which)
     f8 = _doubles(buf)
     j = block // 8
     f8[j[:, None] + np.arange(7)] = np.concatenate([col['point'], col['normal'],
@@ -638,14 +721,16 @@ def _contacts_general(buf: np.ndarray, pool: NamePool, a: np.ndarray, b: np.ndar
     buf[4 + block + 96] = col['state']
 
 
-def _contacts_uniform(buf: np.ndarray, pool: NamePool, a: np.ndarray, b: np.ndarray,
-                      start: int, length: int, la: int, lb4: int, block: int,
-                      col: dict[str, np.ndarray]) -> None:
-    """Contact records of one shape (``length`` bytes, block at ``block``) from ``start``."""
-    count = len(a)
+def _contacts_uniform(buf: np.ndarray, strings: Sequence[tuple[NamePool, np.ndarray, int]],
+                      start: int, length: int, block: int, col: dict[str, np.ndarray]) -> None:
+    """Contact records of one shape (``length`` bytes, block at ``block``) from ``start``;
+    ``strings``: the record's four (pool, indices, padded length) in order."""
+    count = len(strings[0][1])
     records = buf[4 + start:4 + start + count * length].reshape(count, length)
-    records[:, 0:la] = pool.rows[a, :la]
-    records[:, la:la + lb4] = pool.rows[b, :lb4]
+    at = 0
+    for pool, which, padded in strings:
+        records[:, at:at + padded] = pool.rows[which, :padded]
+        at += padded
     fields = records[:, block:block + 96]
     fields[:, 0:56].view('<f8')[:] = np.concatenate([col['point'], col['normal'],
                                                      col['depth']], axis=1)
@@ -712,11 +797,19 @@ _MARKER_TAIL = _marker_tail()
 
 def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) -> bytes:
     """Serialised visualization_msgs/MarkerArray (Jazzy's Marker: texture, uv, mesh_file empty)."""
+    return markers_message(stamp_ns, frame_id, markers).data()
+
+
+def markers_message(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
+                    ) -> Restampable:
+    """``encode_markers`` as a ``Restampable``: its stamps are each marker's header's."""
     buf = bytearray(ENCAPSULATION)
     buf += _U32.pack(len(markers))
     header = _STAMP.pack(*stamp_parts(stamp_ns)) + string_bytes(frame_id)
+    stamps = []
     for m in markers:
         _pad(buf, 4)
+        stamps.append((len(buf) - 4) // 4)
         buf += header
         _pad(buf, 4)
         buf += string_bytes(m.ns)
@@ -737,4 +830,6 @@ def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) 
         if len(colors):
             buf += np.ascontiguousarray(colors, '<f4').tobytes()
         buf += _MARKER_TAIL
-    return bytes(buf)
+    size = len(buf)
+    buf += bytes(-(size - 4) % 4)
+    return Restampable(np.frombuffer(buf, np.uint8), size, np.array(stamps, np.int64))

@@ -19,6 +19,7 @@ TF = '/tf'                                  # out: tf2_msgs/TFMessage (where ins
 DIAGNOSTICS = '/diagnostics'                # out: DiagnosticArray (absolute: diagnostic_updater)
 CLOCK = '/clock'                            # sim out: rosgraph_msgs/Clock
 GET_CONTACTS = 'get_contacts'               # service: GetContacts, the last step's contacts
+ROBOT_DESCRIPTION = 'robot_description'     # in: std_msgs/String, the URDF (transient local)
 
 
 BODIES = 'bodies/'   # the per-body topics' prefix

@@ -139,6 +139,9 @@ class CollresNode(Node):
         super().__init__(NAME, automatically_declare_parameters_from_overrides=False, **kwargs)
         overrides = {name: params.plain_value(p.value)
                      for name, p in self._parameter_overrides.items()}
+        if overrides.get('robot_description_topic') is True \
+                and not overrides.get('robot_description'):
+            overrides['robot_description'] = self._wait_for_robot_description()
         self.scene = params.scene_from_values(overrides, base_dir)   # ValueError: one line
         self._declare_parameters()
         self._pending: Optional[params.Scene] = None
@@ -157,6 +160,28 @@ class CollresNode(Node):
             self.serving = True
 
     MANAGED = False   # ros/lifecycle.py: configure/activate through the lifecycle services
+
+    def _wait_for_robot_description(self) -> str:
+        """The URDF text of the first message on ``robot_description`` (transient local: the
+        one robot_state_publisher holds), waited for with a log line every 5 s."""
+        from std_msgs.msg import String
+        got: list[str] = []
+        subscription = self.create_subscription(String, names.ROBOT_DESCRIPTION,
+                                                lambda msg: got.append(msg.data),
+                                                qos.latched_qos())
+        topic = names.absolute(names.ROBOT_DESCRIPTION, self.get_namespace())
+        try:
+            while not got and rclpy.ok(context=self.context):
+                self.get_logger().info(f'waiting for the URDF on {topic} (transient local)')
+                deadline = time.monotonic() + 5.0
+                while not got and time.monotonic() < deadline and rclpy.ok(context=self.context):
+                    rclpy.spin_once(self, timeout_sec=0.1)
+        finally:
+            self.destroy_subscription(subscription)
+        if not got:
+            raise KeyboardInterrupt   # shut down while waiting
+        self.get_logger().info(f'robot_description: {len(got[0])} characters from {topic}')
+        return got[0]
 
     def configure_resolution(self) -> None:
         """Create the resolver, the codecs, every topic and the diagnostics timer."""
@@ -227,7 +252,7 @@ class CollresNode(Node):
         params.declare_all(self, (
             (spec.name, params.declared_value(spec, self.scene.values[spec.name]),
              params.descriptor(spec, not params.is_runtime_changeable(spec.name)))
-            for spec in params.node_specs(self.scene.names)))
+            for spec in params.node_specs(self.scene.names, self.scene.pieces)))
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         changes = {p.name: params.plain_value(p.value) for p in parameters

@@ -27,13 +27,14 @@ from typing import Any, Iterable, Mapping, Optional
 
 import numpy as np
 
+from collres_ros.core import decomposition
 from collres_ros.core.config import (
-    BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, POSITION_LIMIT, SCENE_PARAMS,
-    SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
+    BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, PIECE_PARAMS, POSITION_LIMIT,
+    SCENE_PARAMS, SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
-from collres_ros.core.shapes import hull_problem, hull_vertices, mesh_points
-from collres_ros.core.types import BodySpec, BodyStates, CollisionFilter
-from collres_ros.ros import params_yaml
+from collres_ros.core.shapes import centre_of_mass, hull_problem, hull_vertices, mesh_points
+from collres_ros.core.types import COMPOUND, BodySpec, BodyStates, CollisionFilter, Piece
+from collres_ros.ros import params_yaml, robot
 
 NODE_NAME = 'collres_node'
 SIM_NAME = 'collres_sim'
@@ -45,6 +46,8 @@ LONGEST_BODY_TOPIC = '/bodies/{}/twist/corrected'
 NAME_MAX_LENGTH = TOPIC_MAX_LENGTH - len(LONGEST_BODY_TOPIC.format(''))
 # Parameters every rclpy node has; accepted and ignored here.
 ROS_BUILTIN = ('use_sim_time', 'start_type_description_service')
+
+_SHAPES = next(spec for spec in BODY_PARAMS if spec.name == 'shapes')
 
 # Runtime-changeable parameters: solver settings, materials, collision filter, node settings.
 MATERIALS = ('restitution', 'static_friction', 'kinetic_friction', 'rolling_resistance',
@@ -74,10 +77,17 @@ class Scene:
     sim: SimSettings = SimSettings()
     values: Mapping[str, Any] = field(default_factory=dict)
     base_dir: Optional[Path] = None
+    # link pairs of robot_description that never collide (robot.Robot.ignored)
+    robot_ignored: tuple[tuple[str, str], ...] = ()
 
     @property
     def names(self) -> list[str]:
         return [b.name for b in self.bodies]
+
+    @property
+    def pieces(self) -> dict[str, list[str]]:
+        """Piece names of each compound body written as pieces (``body.<name>.shapes``)."""
+        return pieces_of(self.values, self.names)
 
     @property
     def kinematic(self) -> np.ndarray:
@@ -91,8 +101,9 @@ class Scene:
 
     @property
     def collision_filter(self) -> CollisionFilter:
-        """Which pairs may collide: the bodies' collision bits and ``ignore_pairs``."""
-        return collision_filter_of(self.values, self.names)
+        """Which pairs may collide: the bodies' collision bits, ``ignore_pairs`` and the
+        robot's link pairs."""
+        return collision_filter_of(self.values, self.names, self.robot_ignored)
 
 
 # --- the table of every parameter -------------------------------------------------------------
@@ -102,18 +113,34 @@ def body_param(name: str, spec: ParamSpec) -> ParamSpec:
     return replace(spec, name=f'body.{name}.{spec.name}')
 
 
-def node_specs(body_names: Iterable[str] = ()) -> list[ParamSpec]:
-    """Every parameter collres_node declares, full dotted names, in table order."""
+def piece_param(name: str, piece: str, spec: ParamSpec) -> ParamSpec:
+    """``spec`` renamed to ``body.<name>.piece.<piece>.<param>``."""
+    return replace(spec, name=f'body.{name}.piece.{piece}.{spec.name}')
+
+
+def pieces_of(values: Mapping[str, Any], body_names: Iterable[str]) -> dict[str, list[str]]:
+    """{body: its piece names} of the bodies whose ``shapes`` (validated values) is set."""
+    return {name: list(values.get(f'body.{name}.shapes') or []) for name in body_names
+            if values.get(f'body.{name}.shapes')}
+
+
+def node_specs(body_names: Iterable[str] = (),
+               pieces: Optional[Mapping[str, Iterable[str]]] = None) -> list[ParamSpec]:
+    """Every parameter collres_node declares, full dotted names, in table order
+    (``pieces``: {body: piece names} of the compound bodies)."""
     specs = list(SCENE_PARAMS)
     for name in body_names:
         specs += [body_param(name, s) for s in BODY_PARAMS]
+        for piece in (pieces or {}).get(name, ()):
+            specs += [piece_param(name, piece, s) for s in PIECE_PARAMS]
     specs += [replace(s, name=f'solver.{s.name}') for s in SOLVER_PARAMS]
     return specs + list(NODE_PARAMS)
 
 
-def all_specs(body_names: Iterable[str] = ()) -> list[ParamSpec]:
+def all_specs(body_names: Iterable[str] = (),
+              pieces: Optional[Mapping[str, Iterable[str]]] = None) -> list[ParamSpec]:
     """Every parameter of a scene file (node's plus sim's)."""
-    return node_specs(body_names) + list(SIM_PARAMS)
+    return node_specs(body_names, pieces) + list(SIM_PARAMS)
 
 
 def is_runtime_changeable(name: str) -> bool:
@@ -377,21 +404,23 @@ def ignored_pairs(entries: Iterable[str], names: list[str]) -> list[tuple[int, i
     return pairs
 
 
-def collision_filter_of(values: Mapping[str, Any], names: list[str]) -> CollisionFilter:
-    """The collision filter of validated values: per-body bits and ``ignore_pairs``."""
+def collision_filter_of(values: Mapping[str, Any], names: list[str],
+                        also: Iterable[tuple[str, str]] = ()) -> CollisionFilter:
+    """The collision filter of validated values: per-body bits, ``ignore_pairs`` and
+    ``also`` (pairs of body names, e.g. a robot's links)."""
     return CollisionFilter(
         tuple(values[f'body.{n}.collision_group'] for n in names),
         tuple(values[f'body.{n}.collision_mask'] for n in names),
-        tuple(ignored_pairs(values['ignore_pairs'], names)))
+        tuple(ignored_pairs(values['ignore_pairs'], names))
+        + tuple((names.index(a), names.index(b)) for a, b in also))
 
 
-def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool = True
-          ) -> tuple[BodySpec, np.ndarray]:
-    """BodySpec and the 13-vector initial state of body ``name`` from validated values."""
-    key = f'body.{name}'
+def _shape(key: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool,
+           static: bool) -> tuple[tuple[float, ...], tuple[tuple[float, float, float], ...]]:
+    """Validated size and convex vertices of the one shape under ``key`` (a body or a
+    piece: ``key.shape``, ``key.size``, ``key.mesh``, ``key.points``)."""
     shape = values[f'{key}.shape']
     size = values[f'{key}.size']
-    static = values[f'{key}.static'] or values[f'{key}.kinematic']   # kinematic: static too
     points: tuple[tuple[float, float, float], ...] = ()
     if shape == 'convex':
         points = _convex_points(key, values, base_dir, files)
@@ -412,6 +441,72 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files:
                                  and max(abs(v) for v in size[:3]) <= SIZE_RANGE[1]):
         _fail(f'{key}.size', f'plane needs |nx|, |ny|, |nz| <= {SIZE_RANGE[1]:g} and '
               f'|d| <= {POSITION_LIMIT:g} m', size)
+    return (tuple(size) if shape != 'convex' else ()), points
+
+
+def _unit_quaternion(name: str, value: list[float]) -> tuple[float, float, float, float]:
+    """A validated orientation parameter, normalised (x, y, z, w)."""
+    orientation = _vector(name, value, 4, '[x, y, z, w]')
+    norm = math.sqrt(sum(c * c for c in orientation))
+    if norm < 1e-6:
+        _fail(name, 'quaternion must be non-zero', list(orientation))
+    return tuple(c / norm for c in orientation)  # type: ignore[return-value]
+
+
+def _pieces(key: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool,
+            given: set[str]) -> tuple[Piece, ...]:
+    """The validated pieces of a compound body (``key.shapes``), from
+    ``key.piece.<piece>.*``; the body's own shape parameters must not be given."""
+    for param in ('shape', 'size', 'mesh', 'points', 'decompose'):
+        if f'{key}.{param}' in given and values[f'{key}.{param}'] is not False:
+            _fail(f'{key}.{param}', f'a compound body ({key}.shapes) takes its shape from its '
+                  'pieces: set it per piece', values[f'{key}.{param}'])
+    pieces = []
+    for name in values[f'{key}.shapes']:
+        at = f'{key}.piece.{name}'
+        size, points = _shape(at, values, base_dir, files, True)
+        pieces.append(Piece(name, values[f'{at}.shape'], size, points,
+                            _vector(f'{at}.position', values[f'{at}.position'], 3,
+                                    '[x, y, z]'),
+                            _unit_quaternion(f'{at}.orientation', values[f'{at}.orientation'])))
+    return tuple(pieces)
+
+
+def _decomposed(key: str, values: Mapping[str, Any], base_dir: Optional[Path],
+                files: bool) -> tuple[Piece, ...]:
+    """The pieces (``hull_<k>``) of a decomposed mesh body: from the cache beside the mesh,
+    or made now (``core.decomposition``)."""
+    mesh = values[f'{key}.mesh']
+    if values[f'{key}.shape'] != 'convex' or not mesh:
+        _fail(f'{key}.decompose', 'needs shape convex with a mesh', True)
+    if not files:
+        _fail(f'{key}.decompose', 'a recorded scene carries its hulls (shapes), it names no '
+              'file: a mesh path from a bag is not read', mesh)
+    path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
+    try:
+        hulls = decomposition.hulls(path, _mesh_bytes(path), values[f'{key}.decompose_threshold'],
+                                    values[f'{key}.decompose_max_hulls'])
+    except (OSError, ValueError, struct.error) as error:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror \
+            else str(error)
+        _fail(f'{key}.mesh', f'cannot decompose mesh {path} ({reason})', mesh)
+    return tuple(Piece(f'hull_{k}', 'convex', (), tuple(tuple(float(c) for c in p) for p in h))
+                 for k, h in enumerate(hulls))
+
+
+def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool = True,
+          given: frozenset[str] = frozenset()) -> tuple[BodySpec, np.ndarray]:
+    """BodySpec and the 13-vector initial state of body ``name`` from validated values
+    (``given``: the names the input set, to tell a compound's stray shape parameter)."""
+    key = f'body.{name}'
+    static = values[f'{key}.static'] or values[f'{key}.kinematic']   # kinematic: static too
+    shape, size, points, pieces = values[f'{key}.shape'], (), (), ()
+    if values[f'{key}.shapes']:
+        shape, pieces = COMPOUND, _pieces(key, values, base_dir, files, set(given))
+    elif values[f'{key}.decompose']:
+        shape, pieces = COMPOUND, _decomposed(key, values, base_dir, files)
+    else:
+        size, points = _shape(key, values, base_dir, files, static)
     inertia = values[f'{key}.inertia']
     if inertia and (len(inertia) != 3 or min(inertia) <= 0.0):
         _fail(f'{key}.inertia', 'needs [ixx, iyy, izz] > 0, or [] to derive it', inertia)
@@ -419,23 +514,24 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files:
     if mu_k > mu_s:
         _fail(f'{key}.kinetic_friction', f'must be <= static_friction {mu_s}', mu_k)
     position = _vector(f'{key}.position', values[f'{key}.position'], 3, '[x, y, z]')
-    orientation = _vector(f'{key}.orientation', values[f'{key}.orientation'], 4,
-                          '[x, y, z, w]')
-    norm = math.sqrt(sum(c * c for c in orientation))
-    if norm < 1e-6:
-        _fail(f'{key}.orientation', 'quaternion must be non-zero', list(orientation))
+    orientation = _unit_quaternion(f'{key}.orientation', values[f'{key}.orientation'])
     linear = _vector(f'{key}.linear_velocity', values[f'{key}.linear_velocity'], 3,
                      '[vx, vy, vz]')
     angular = _vector(f'{key}.angular_velocity', values[f'{key}.angular_velocity'], 3,
                       '[wx, wy, wz]')
-    spec = BodySpec(name=name, shape=shape, size=tuple(size) if shape != 'convex' else (),
-                    static=static, mass=values[f'{key}.mass'],
+    spec = BodySpec(name=name, shape=shape, size=size, static=static, mass=values[f'{key}.mass'],
                     inertia=tuple(inertia) if inertia else None,  # type: ignore[arg-type]
                     restitution=values[f'{key}.restitution'], static_friction=mu_s,
                     kinetic_friction=mu_k, points=points,
                     rolling_resistance=values[f'{key}.rolling_resistance'],
-                    torsional_friction=values[f'{key}.torsional_friction'])
-    state = np.array(position + tuple(c / norm for c in orientation) + linear + angular)
+                    torsional_friction=values[f'{key}.torsional_friction'], pieces=pieces)
+    if pieces and not static:
+        try:
+            centre_of_mass(spec, check=True)
+        except ValueError as error:
+            _fail(f'{key}.{"shapes" if values[f"{key}.shapes"] else "mesh"}',
+                  str(error).split(': ', 1)[1], values[f'{key}.shapes'] or values[f'{key}.mesh'])
+    state = np.array(position + orientation + linear + angular)
     return spec, state
 
 
@@ -448,9 +544,15 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
     values are untrusted (a bag's recorded params) and name no file to read.
     """
     raw = dict(values)
-    bodies_value = _typed(SCENE_PARAMS[1], raw.get('bodies'))
-    if not bodies_value:
-        _fail('bodies', 'at least one body name required', bodies_value)
+    listed = _typed(SCENE_PARAMS[1], raw.get('bodies'))
+    links = _robot(raw, base_dir, files)
+    if not listed and not links.links:
+        _fail('bodies', 'at least one body name required', listed)
+    for name in links.links:
+        if name in listed:
+            _fail('bodies', f'{name!r} is also a link of robot_description', listed)
+    raw = {**links.values, **raw}   # a link's body.<link>.* set by the user wins
+    bodies_value = list(listed) + list(links.links)
     for name in bodies_value:
         if not NAME_PATTERN.match(name):
             raise ValueError(f'bodies: name {_short(name)!r} must match {NAME_PATTERN.pattern} '
@@ -464,13 +566,28 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
     if duplicates:
         _fail('bodies', f'duplicate name {duplicates[0]!r}', bodies_value)
 
-    specs = {s.name: s for s in all_specs(bodies_value)}
+    pieces = {}
+    for body in bodies_value:
+        key = f'body.{body}.shapes'
+        names = _typed(body_param(body, _SHAPES), raw.get(key))
+        for piece in names:
+            if not NAME_PATTERN.match(piece) or len(piece) > NAME_MAX_LENGTH:
+                _fail(key, f'piece name {_short(piece)!r} must match {NAME_PATTERN.pattern}',
+                      names)
+        if len(set(names)) != len(names):
+            _fail(key, 'duplicate piece name', names)
+        pieces[body] = names
+    specs = {s.name: s for s in all_specs(bodies_value, pieces)}
     for name in raw:
         if name in specs or name in ROS_BUILTIN or name.startswith('qos_overrides.'):
             continue
         parts = name.split('.')
         if parts[0] == 'body' and len(parts) >= 3 and parts[1] not in bodies_value:
             _fail(name, f'body {parts[1]!r} is not in bodies', bodies_value)
+        if parts[0] == 'body' and len(parts) >= 5 and parts[2] == 'piece' \
+                and parts[3] not in pieces[parts[1]]:
+            _fail(name, f'piece {parts[3]!r} is not in body.{parts[1]}.shapes',
+                  pieces[parts[1]])
         if name == 'solver' and raw[name] is None:
             continue
         raise ValueError(f'{name}: unknown parameter')
@@ -479,7 +596,8 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
     world_frame = typed['world_frame']
     if not world_frame:
         _fail('world_frame', 'must not be empty', world_frame)
-    built = [_body(name, typed, base_dir, files) for name in bodies_value]
+    given = frozenset(name for name, value in raw.items() if value is not None)
+    built = [_body(name, typed, base_dir, files, given) for name in bodies_value]
     collision_filter_of(typed, bodies_value)   # ValueError: a bad ignore_pairs entry
     state = np.array([s for _, s in built]).reshape(len(built), 13)
     initial = BodyStates(state[:, 0:3].copy(), state[:, 3:7].copy(), state[:, 7:10].copy(),
@@ -489,9 +607,26 @@ def scene_from_values(values: Mapping[str, Any], base_dir: Optional[Path] = None
                                for f in fields(SolverSettings)})
     node = NodeSettings(**{f.name: typed[f.name] for f in fields(NodeSettings)})
     sim = SimSettings(gravity=gravity, rate_hz=typed['rate_hz'],  # type: ignore[arg-type]
-                      duration=typed['duration'], publish_per_body=typed['publish_per_body'])
+                      duration=typed['duration'], publish_per_body=typed['publish_per_body'],
+                      joint_motion=robot.joint_motion(typed['joint_motion'],
+                                                      typed['robot_description']))
+    typed['bodies'] = listed
     return Scene(world_frame, tuple(spec for spec, _ in built), initial, solver, node, sim,
-                 typed, base_dir)
+                 typed, base_dir, links.ignored)
+
+
+def _robot(raw: Mapping[str, Any], base_dir: Optional[Path], files: bool) -> robot.Robot:
+    """The link bodies of ``robot_description`` (none when it is empty)."""
+    spec = {s.name: s for s in SCENE_PARAMS}
+    text = _typed(spec['robot_description'], raw.get('robot_description'))
+    if not text:
+        return robot.Robot('', (), {}, ())
+    if not files:
+        _fail('robot_description', 'a recorded scene carries its links as bodies, it names '
+              'no file', _short(text))
+    return robot.robot_from_urdf(text, base_dir, _read_mesh,
+                                 _typed(spec['robot_self_collision'],
+                                        raw.get('robot_self_collision')))
 
 
 def scene_to_yaml(scene: Scene) -> str:
@@ -502,17 +637,36 @@ def scene_to_yaml(scene: Scene) -> str:
     """
     import yaml
     values = dict(scene.values)
+    if scene.values.get('robot_description'):   # links written out as bodies, pairs too;
+        # their recorded poses move them (no script without the URDF)
+        values.update({'robot_description': '', 'joint_motion': [], 'bodies': scene.names,
+                       'ignore_pairs': list(scene.values['ignore_pairs'])
+                       + [f'{a}{PAIR_SEPARATOR}{b}' for a, b in scene.robot_ignored]})
     for body in scene.bodies:
+        key = f'body.{body.name}'
         if body.shape == 'convex':
-            values[f'body.{body.name}.mesh'] = ''
-            values[f'body.{body.name}.points'] = [float(c) for p in body.points for c in p]
+            values[f'{key}.mesh'] = ''
+            values[f'{key}.points'] = [float(c) for p in body.points for c in p]
+        if body.shape == COMPOUND:   # pieces written out whole: decomposed hulls too
+            values = {name: value for name, value in values.items()
+                      if not name.startswith(f'{key}.piece.')
+                      and name not in {f'{key}.{p}' for p in ('shape', 'size', 'mesh', 'points',
+                                                              'decompose')}}
+            values[f'{key}.shapes'] = [piece.name for piece in body.pieces]
+            for piece in body.pieces:
+                at = f'{key}.piece.{piece.name}'
+                values.update({f'{at}.shape': piece.shape, f'{at}.size': list(piece.size),
+                               f'{at}.mesh': '',
+                               f'{at}.points': [float(c) for p in piece.points for c in p],
+                               f'{at}.position': list(piece.position),
+                               f'{at}.orientation': list(piece.orientation)})
     nested: dict[str, Any] = {}
     for name, value in values.items():
         *path, leaf = name.split('.')
         target = nested
         for part in path:
             target = target.setdefault(part, {})
-        target[leaf] = list(value) if isinstance(value, tuple) else value
+        target[leaf] = list(value) if isinstance(value, (tuple, list)) else value   # no aliases
     dumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)   # libyaml: the same text, faster
     return yaml.dump({'/**': {'ros__parameters': nested}}, Dumper=dumper, sort_keys=False,
                      default_flow_style=None, width=99)
@@ -527,7 +681,7 @@ def with_changes(scene: Scene, changes: Mapping[str, Any]) -> Scene:
     the collision filter. The bodies' shapes stay as built at start (no mesh file is
     read again), and a parameter that shapes or places a body is refused as read-only.
     """
-    specs = {spec.name: spec for spec in node_specs(scene.names)}
+    specs = {spec.name: spec for spec in node_specs(scene.names, scene.pieces)}
     values = dict(scene.values)
     for name, value in changes.items():
         if name not in specs:
@@ -646,7 +800,8 @@ def markdown_table() -> str:
     """The README's parameter table (Markdown), generated from core/config.py."""
     sections = (
         ('`/**` (shared by collres_node and collres_sim)', list(SCENE_PARAMS)
-         + [replace(s, name=f'body.<name>.{s.name}') for s in BODY_PARAMS]),
+         + [replace(s, name=f'body.<name>.{s.name}') for s in BODY_PARAMS]
+         + [replace(s, name=f'body.<name>.piece.<piece>.{s.name}') for s in PIECE_PARAMS]),
         ('`collres_node`', [replace(s, name=f'solver.{s.name}') for s in SOLVER_PARAMS]
          + list(NODE_PARAMS)),
         ('`collres_sim`', list(SIM_PARAMS)),

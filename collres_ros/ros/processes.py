@@ -24,7 +24,8 @@ from typing import Callable, Mapping, Optional, Sequence
 
 # Console script -> module with main(), used when the script is not installed.
 MODULES = {'collres_node': 'collres_ros.node', 'collres_sim': 'collres_ros.sim',
-           'collres_replay': 'collres_ros.replay', 'collres_demo': 'collres_ros.demo'}
+           'collres_replay': 'collres_ros.replay', 'collres_demo': 'collres_ros.demo',
+           'collres_decompose': 'collres_ros.decompose'}
 
 
 class Process(subprocess.Popen):

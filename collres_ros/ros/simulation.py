@@ -51,6 +51,9 @@ class SimScene:
     per_body: bool = False
     kinematic: np.ndarray | None = None   # (N,) bool: static bodies moved at their twist
     namespace: str = '/'                   # of the sim and the node ('/' or '/r1')
+    # t (s from the first state) -> {body index: (position, quaternion)} of the links that
+    # scripted joints move (SimSettings.joint_motion), or None
+    drive: Callable[[float], dict[int, tuple[np.ndarray, np.ndarray]]] | None = None
 
     @property
     def driven(self) -> np.ndarray:
@@ -92,7 +95,45 @@ def load_sim_scene(path: str | Path, duration: float | None = None,
         world_frame=scene.world_frame,
         per_body=bool(getattr(sim, 'publish_per_body', False)),
         kinematic=scene.kinematic,
-        namespace=params.fully_qualified_name(namespace, '').rstrip('/') or '/')
+        namespace=params.fully_qualified_name(namespace, '').rstrip('/') or '/',
+        drive=joint_drive(scene))
+
+
+def joint_drive(scene: Any) -> Callable[[float], dict[int, tuple[np.ndarray, np.ndarray]]] | None:
+    """The link poses of the scene's scripted joints at time t (``SimScene.drive``)."""
+    motion = scene.sim.joint_motion
+    if not motion:
+        return None
+    from collres_ros.ros.robot import Kinematics
+    kinematics = Kinematics(scene.values['robot_description'])
+    index = {name: i for i, name in enumerate(scene.names)}
+
+    def drive(t: float) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        positions = {joint: amplitude * math.sin(2.0 * math.pi * frequency * t + phase)
+                     for joint, amplitude, frequency, phase in motion}
+        return {index[link]: pose for link, pose in kinematics.poses(positions).items()
+                if link in index}
+    return drive
+
+
+def follow(states: BodyStates, poses: dict[int, tuple[np.ndarray, np.ndarray]],
+           last: BodyStates, dt: float) -> BodyStates:
+    """``states`` with the driven links at ``poses``, their twists the motion from their
+    ``last`` poses over ``dt`` s (zero when dt is 0: the first state)."""
+    from collres_ros.core.rotation import multiply
+    out = states.copy()
+    for i, (position, orientation) in poses.items():
+        if dt > 0.0:
+            out.linear[i] = (position - last.position[i]) / dt
+            turn = multiply(orientation, last.orientation[i] * [-1.0, -1.0, -1.0, 1.0])
+            turn = turn if turn[3] >= 0.0 else -turn
+            sine = float(np.linalg.norm(turn[:3]))
+            angle = 2.0 * math.atan2(sine, turn[3])
+            out.angular[i] = turn[:3] / sine * angle / dt if sine > 0.0 else 0.0
+        else:
+            out.linear[i] = out.angular[i] = 0.0
+        out.position[i], out.orientation[i] = position, orientation
+    return out
 
 
 class RealtimePace:
@@ -157,9 +198,12 @@ def run_loop(sim: SimScene, exchange: Exchange,
     states = sim.initial.copy()
     dropped = 0
     for k, stamp in enumerate(all_stamps):
+        dt = (stamp - all_stamps[k - 1]) * 1e-9 if k > 0 else 0.0
+        last = states
         if k > 0:
-            states = euler_step(states, sim.dynamic, sim.gravity,
-                                (stamp - all_stamps[k - 1]) * 1e-9, sim.driven)
+            states = euler_step(states, sim.dynamic, sim.gravity, dt, sim.driven)
+        if sim.drive is not None:   # scripted joints: their links follow, with their twists
+            states = follow(states, sim.drive((stamp - all_stamps[0]) * 1e-9), last, dt)
         answer = exchange(stamp, states)
         if answer is None:
             dropped += 1

@@ -1,0 +1,118 @@
+"""The robot scene in-process: the test arm (test/data/robots/arm.urdf, links kinematic,
+compounds of their collision elements) sweeping through compound tables dropped on a
+floor; core step time and contact rows per step for several solver.max_contacts_per_pair.
+
+The arm's shoulder and elbow follow q(t) = 0.9 sin(2 pi 0.5 t), -0.6 sin(2 pi 0.5 t) (link
+poses by forward kinematics, their twists by finite differences); the tables (a top on two
+legs, three boxes each) start in layers of four over the arm and fall, stack and get pushed. Every
+cap runs the same scene from the same start in its own child process.
+
+Usage::
+
+    .venv/bin/python bench/bench_robot.py [--tables 24] [--seconds 2] [--caps 4 8 1000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+CHILD = r'''
+import json, math, sys, tempfile, shutil, os, time
+from pathlib import Path
+import numpy as np
+root = Path(sys.argv[1])
+tables, seconds, cap = int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
+prefix = Path(tempfile.mkdtemp())
+(prefix / 'share/ament_index/resource_index/packages').mkdir(parents=True)
+(prefix / 'share/ament_index/resource_index/packages/collres_test_robot').write_text('')
+shutil.copytree(root / 'test/data/robots/meshes', prefix / 'share/collres_test_robot/meshes')
+os.environ['AMENT_PREFIX_PATH'] = str(prefix)
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.rotation import integrate, multiply
+from collres_ros.core.types import BodyStates
+from collres_ros.core.world import World
+from collres_ros.ros import params, robot
+urdf = (root / 'test/data/robots/arm.urdf').read_text()
+names = ['floor'] + [f't{k}' for k in range(tables)]
+values = {'bodies': names, 'robot_description': urdf, 'body.floor.shape': 'box',
+          'body.floor.size': [3.0, 3.0, 0.2], 'body.floor.static': True,
+          'body.floor.position': [0.0, 0.0, -0.1], 'solver.max_contacts_per_pair': cap}
+for k in range(tables):
+    t = f'body.t{k}'
+    values.update({f'{t}.shapes': ['top', 'left', 'right'], f'{t}.mass': 0.5,
+                   f'{t}.position': [-0.1 + 0.2 * (k % 2), -0.06 + 0.12 * (k % 4 // 2),
+                                     0.5 + 0.12 * (k // 4)]})
+    for piece, size, pos in (('top', [0.16, 0.06, 0.02], [0, 0, 0.025]),
+                             ('left', [0.02, 0.06, 0.08], [-0.07, 0, -0.025]),
+                             ('right', [0.02, 0.06, 0.08], [0.07, 0, -0.025])):
+        values.update({f'{t}.piece.{piece}.shape': 'box', f'{t}.piece.{piece}.size': size,
+                       f'{t}.piece.{piece}.position': pos})
+scene = params.scene_from_values(values)
+links = [n for n in scene.names if n not in names]
+index = {n: scene.index(n) for n in scene.names}
+world = World(scene.bodies, SolverSettings(max_contacts_per_pair=cap, sleeping=False),
+              collision_filter=scene.collision_filter)
+rate = 240.0; dt = 1.0 / rate; g = np.array([0, 0, -9.81])
+def arm(t):
+    s = math.sin(2 * math.pi * 0.5 * t)
+    return robot.link_poses(urdf, {'shoulder': 0.9 * s, 'elbow': -0.6 * s})
+state = scene.initial.copy()
+for n, (p, q) in arm(0.0).items():
+    if n in index: state.position[index[n]], state.orientation[index[n]] = p, q
+dynamic = world.dynamic
+times, rows = [], []
+for step in range(int(seconds * rate)):
+    t1 = (step + 1) * dt
+    cur = state.copy()
+    cur.linear[dynamic] += g * dt
+    cur.position[dynamic] += cur.linear[dynamic] * dt
+    cur.orientation[dynamic] = integrate(state.orientation[dynamic], state.angular[dynamic], dt)
+    for n, (p, q) in arm(t1).items():
+        if n not in index: continue
+        i = index[n]
+        cur.linear[i] = (p - state.position[i]) / dt
+        dq = multiply(q, state.orientation[i] * [-1, -1, -1, 1])
+        dq = dq if dq[3] >= 0 else -dq
+        angle = 2 * math.atan2(np.linalg.norm(dq[:3]), dq[3])
+        axis = dq[:3] / max(np.linalg.norm(dq[:3]), 1e-300)
+        cur.angular[i] = axis * angle / dt
+        cur.position[i], cur.orientation[i] = p, q
+    start = time.perf_counter()
+    result = world.step(state, cur, dt)
+    times.append(time.perf_counter() - start)
+    rows.append(result.report.contacts.count)
+    state = result.states
+times = np.array(times) * 1e3
+print(json.dumps({'cap': cap, 'bodies': len(scene.names), 'links': len(links),
+                  'step_ms_p50': float(np.median(times)),
+                  'step_ms_p90': float(np.percentile(times, 90)),
+                  'rows_mean': float(np.mean(rows)), 'rows_max': int(max(rows)),
+                  'lowest_table_z': float(state.position[[index[n] for n in names[1:]], 2].min()),
+                  'finite': bool(np.isfinite(state.position).all())}))
+'''
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--tables', type=int, default=24)
+    parser.add_argument('--seconds', type=float, default=2.0)
+    parser.add_argument('--caps', type=int, nargs='+', default=[4, 8, 1000])
+    args = parser.parse_args()
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    with open('/proc/loadavg') as load:
+        print(f'load: {load.read().strip()}')
+    for cap in args.caps:
+        out = subprocess.run([sys.executable, '-c', CHILD, str(root), str(args.tables),
+                              str(args.seconds), str(cap)], capture_output=True, text=True,
+                             check=True)
+        print(out.stdout.strip())
+    with open('/proc/loadavg') as load:
+        print(f'load: {load.read().strip()}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

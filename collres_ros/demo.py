@@ -218,6 +218,8 @@ def parser() -> argparse.ArgumentParser:
         prog='collres_demo',
         description='Run collres_node and collres_sim over DDS, record a bag, report and plot.')
     p.add_argument('--params', help='scene params file (default: the package collres.yaml)')
+    p.add_argument('--scene', help='a shipped scene instead: config/scenes/SCENE.yaml '
+                                   '(e.g. arm, the robot scene)')
     p.add_argument('--duration', type=cli.number(0.0, 86400.0, above=True),
                    help=f's of simulated time (default: the scene\'s, at most {DEMO_DURATION})')
     p.add_argument('--out', default='demo_out', help='output directory (default: ./demo_out)')
@@ -233,7 +235,13 @@ def parser() -> argparse.ArgumentParser:
 
 
 def _run(args: argparse.Namespace) -> int:
-    result = run_demo(Path(args.out), Path(args.params) if args.params else None,
+    if args.scene and args.params:
+        raise cli.CliError('--scene and --params: give one')
+    params = Path(args.params) if args.params else None
+    if args.scene:
+        from collres_ros.ros.resources import config_path
+        params = config_path(f'scenes/{args.scene}.yaml')   # FileNotFoundError: one line
+    result = run_demo(Path(args.out), params,
                       args.duration, args.domain_id, args.storage,
                       timeout=args.timeout, per_body=args.per_body)
     for line in summary_lines(result):

@@ -139,6 +139,9 @@ class BounceCheck:
         return [m / e - 1.0 for m, e in zip(self.measured, self.expected)]
 
 
+TOUCHES_SHOWN = 8   # pairs of what touched what a report lists, most points first
+
+
 @dataclass
 class RunReport:
     """Measured facts of one run (see the module docstring)."""
@@ -157,6 +160,8 @@ class RunReport:
     ball_height: np.ndarray = field(default_factory=lambda: np.zeros(0))  # m, above touch-down
     speed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (T, N) m/s reported
     speed_names: list[str] = field(default_factory=list)                 # (N) dynamic bodies
+    # what touched what: contact points that carried impulse, by "a[/piece] - b[/piece]"
+    touches: dict[str, int] = field(default_factory=dict)
 
     @property
     def dropped(self) -> int:
@@ -183,6 +188,12 @@ class RunReport:
         out.append(f'momentum drift orthogonal to gravity: {self.momentum_drift:.2e} N s')
         for name, drift in self.resting_drift.items():
             out.append(f'resting {name}: moved {1000 * drift:.3f} mm')
+        if any('/' in pair for pair in self.touches):   # a scene of compounds or robots
+            out.append('what touched what (contact points with impulse):')
+            ranked = sorted(self.touches.items(), key=lambda item: (-item[1], item[0]))
+            out += [f'  {pair}: {count}' for pair, count in ranked[:TOUCHES_SHOWN]]
+            if len(ranked) > TOUCHES_SHOWN:
+                out.append(f'  ... and {len(ranked) - TOUCHES_SHOWN} more pairs')
         return out
 
 
@@ -230,6 +241,10 @@ def analyse(messages: Sequence[Any], specs: Sequence[BodySpec], gravity: Sequenc
         for c in msg.contacts:
             name = state_name(c.state)
             report.contacts[name] = report.contacts.get(name, 0) + 1
+            if c.normal_impulse > 0.0:
+                pair = (f'{c.body_a}{"/" + c.piece_a if c.piece_a else ""} - '
+                        f'{c.body_b}{"/" + c.piece_b if c.piece_b else ""}')
+                report.touches[pair] = report.touches.get(pair, 0) + 1
             if c.state == 1:
                 first_impact.setdefault(c.body_a, c)
                 first_impact.setdefault(c.body_b, c)

@@ -72,6 +72,8 @@ double solve_normal(ContactRow& r, double* v) {
 double solve_spin(SpinRow& s, const std::vector<ContactRow>& rows, double* v) {
   double normal = 0.0;
   for (int i = 0; i < s.count; ++i) normal += rows[s.first + i].normal;
+  if (normal == 0.0 && s.torque.x() == 0.0 && s.torque.y() == 0.0 && s.torque.z() == 0.0)
+    return 0.0;   // no load, nothing held: both limits are 0 and nothing changes
   double* wa = v + 6 * s.a + 3;
   double* wb = v + 6 * s.b + 3;
   const Vec3 w = load3(wb) - load3(wa);
@@ -82,13 +84,12 @@ double solve_spin(SpinRow& s, const std::vector<ContactRow>& rows, double* v) {
   const Vec3 old_roll = s.torque - old_twist * s.n;
   Vec3 roll = old_roll;
   const double speed2 = dot(rolling, rolling);
-  const double k_roll = dot(rolling, mul(s.inv_a, rolling)) + dot(rolling, mul(s.inv_b, rolling));
+  const double k_roll = dot(rolling, mul(s.inv_ab, rolling));
   if (speed2 > 0.0 && k_roll > kTiny * speed2) roll = old_roll - (speed2 / k_roll) * rolling;
   const double roll_size = length(roll), roll_limit = s.roll * normal;
   if (roll_size > roll_limit) roll = (roll_limit / roll_size) * roll;
   // spin about the normal, within twist * N
-  const double k_n = dot(s.n, mul(s.inv_a, s.n)) + dot(s.n, mul(s.inv_b, s.n));
-  double twist = k_n > kTiny ? old_twist - spin / k_n : old_twist;
+  double twist = s.k_n > kTiny ? old_twist - spin / s.k_n : old_twist;
   twist = std::clamp(twist, -s.twist * normal, s.twist * normal);
   const Vec3 change = (roll - old_roll) + (twist - old_twist) * s.n;
   s.torque = roll + twist * s.n;
@@ -110,68 +111,42 @@ double solve_row(ContactRow& r, double* v) {
 // solver does for two points. Gauss-Seidel converges slowly on a nearly singular
 // manifold (close points, small lever arms) and leaves it spinning. Returns the largest
 // impulse change, or -1 when no active set fits (the caller falls back to rows).
-double solve_block(ContactRow* r, int k, double* v) {
-  double a[4][4], q[4], x[4];
-  for (int i = 0; i < k; ++i) {
-    for (int j = 0; j < k; ++j) {
-      a[i][j] = (r[i].ma + r[i].mb) * dot(r[i].n, r[j].n) + dot(r[i].ang_a[0], r[j].dw_a[0]) +
-                dot(r[i].ang_b[0], r[j].dw_b[0]);
+// The active sets of a block of k rows (bit i: row i active) in the order solve_block
+// tries them: largest first, then by decreasing bits; sets[k][0 .. (1 << k) - 1].
+struct ActiveSets {
+  int sets[5][16];
+  ActiveSets() {
+    for (int k = 0; k <= 4; ++k) {
+      int next = 0;
+      for (int size = k; size >= 0; --size)
+        for (int set = (1 << k) - 1; set >= 0; --set) {
+          int bits = 0;
+          for (int b = 0; b < k; ++b) bits += (set >> b) & 1;
+          if (bits == size) sets[k][next++] = set;
+        }
     }
   }
+};
+const ActiveSets kActiveSets;
+
+double solve_block(ContactRow* r, const Manifold& block, double* v) {
+  const int k = block.count;
+  const double (&a)[4][4] = block.delassus;
+  double q[4], x[4];
   for (int i = 0; i < k; ++i) {
     double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
     q[i] = b;
-    for (int j = 0; j < k; ++j) q[i] -= a[i][j] * r[j].normal;
+    for (int j = 0; j < k; ++j) q[i] -= block.plain[i][j] * r[j].normal;
   }
-  // ill-conditioned blocks (coincident points, four points of a face: rank 3) have many
-  // impulse sets that give the same velocities; a diagonal a fraction kRegular heavier
-  // (on the total impulses, not their change) picks the one of least norm: coincident
-  // points share equally, a symmetric hit gets symmetric impulses, no pivot is near zero
-  for (int i = 0; i < k; ++i) a[i][i] *= 1.0 + kRegular;
-  const int full = (1 << k) - 1;
-  for (int size = k; size >= 0; --size) {
-    for (int set = full; set >= 0; --set) {
-      if (__builtin_popcount(static_cast<unsigned>(set)) != size) continue;
-      // solve A_SS x_S = -q_S (Gaussian elimination, partial pivoting)
-      int idx[4], m = 0;
-      for (int i = 0; i < k; ++i)
-        if (set & (1 << i)) idx[m++] = i;
-      double s[4][5];
-      for (int i = 0; i < m; ++i) {
-        for (int j = 0; j < m; ++j) s[i][j] = a[idx[i]][idx[j]];
-        s[i][m] = -q[idx[i]];
-      }
-      bool singular = false;
-      for (int c = 0; c < m && !singular; ++c) {
-        int pivot = c;
-        for (int i = c + 1; i < m; ++i)
-          if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
-        if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(a[idx[c]][idx[c]]) + 1e-300) {
-          singular = true;
-          break;
-        }
-        if (pivot != c)
-          for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
-        for (int i = 0; i < m; ++i) {
-          if (i == c) continue;
-          double f = s[i][c] / s[c][c];
-          for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
-        }
-      }
-      if (singular) continue;
-      for (int i = 0; i < k; ++i) x[i] = 0.0;
-      bool ok = true;
-      for (int i = 0; i < m && ok; ++i) {
-        x[idx[i]] = s[i][m] / s[i][i];
-        ok = x[idx[i]] >= -1e-12 * (1.0 + std::fabs(x[idx[i]]));
-      }
-      for (int i = 0; i < k && ok; ++i) {
-        if (set & (1 << i)) continue;
-        double w = q[i];
-        for (int j = 0; j < k; ++j) w += a[i][j] * x[j];
-        ok = w >= -1e-12 * (1.0 + std::fabs(q[i]));
-      }
-      if (!ok) continue;
+  // every row active: the regularised matrix's inverse (prepare_block), when it has one
+  if (block.invertible) {
+    bool ok = true;
+    for (int i = 0; i < k; ++i) {
+      x[i] = 0.0;
+      for (int j = 0; j < k; ++j) x[i] -= block.inverse[i][j] * q[j];
+      ok = ok && x[i] >= -1e-12 * (1.0 + std::fabs(x[i]));
+    }
+    if (ok) {
       double change = 0.0;
       for (int i = 0; i < k; ++i) {
         double d = std::max(x[i], 0.0) - r[i].normal;
@@ -182,10 +157,103 @@ double solve_block(ContactRow* r, int k, double* v) {
       return change;
     }
   }
+  for (int order = block.invertible ? 1 : 0; order < (1 << k); ++order) {
+    const int set = kActiveSets.sets[k][order];
+    // solve A_SS x_S = -q_S (Gaussian elimination, partial pivoting)
+    int idx[4], m = 0;
+    for (int i = 0; i < k; ++i)
+      if (set & (1 << i)) idx[m++] = i;
+    double s[4][5];
+    for (int i = 0; i < m; ++i) {
+      for (int j = 0; j < m; ++j) s[i][j] = a[idx[i]][idx[j]];
+      s[i][m] = -q[idx[i]];
+    }
+    bool singular = false;
+    for (int c = 0; c < m && !singular; ++c) {
+      int pivot = c;
+      for (int i = c + 1; i < m; ++i)
+        if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+      if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(a[idx[c]][idx[c]]) + 1e-300) {
+        singular = true;
+        break;
+      }
+      if (pivot != c)
+        for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
+      for (int i = 0; i < m; ++i) {
+        if (i == c) continue;
+        double f = s[i][c] / s[c][c];
+        for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+      }
+    }
+    if (singular) continue;
+    for (int i = 0; i < k; ++i) x[i] = 0.0;
+    bool ok = true;
+    for (int i = 0; i < m && ok; ++i) {
+      x[idx[i]] = s[i][m] / s[i][i];
+      ok = x[idx[i]] >= -1e-12 * (1.0 + std::fabs(x[idx[i]]));
+    }
+    for (int i = 0; i < k && ok; ++i) {
+      if (set & (1 << i)) continue;
+      double w = q[i];
+      for (int j = 0; j < k; ++j) w += a[i][j] * x[j];
+      ok = w >= -1e-12 * (1.0 + std::fabs(q[i]));
+    }
+    if (!ok) continue;
+    double change = 0.0;
+    for (int i = 0; i < k; ++i) {
+      double d = std::max(x[i], 0.0) - r[i].normal;
+      r[i].normal += d;
+      if (d != 0.0) apply(r[i], v, 0, r[i].n, d);
+      change = std::max(change, std::fabs(d));
+    }
+    return change;
+  }
   return -1.0;
 }
 
 }  // namespace
+
+void prepare_block(Manifold& block, const ContactRow* r) {
+  const int k = block.count;
+  for (int i = 0; i < k && k <= 4; ++i) {
+    for (int j = 0; j < k; ++j) {
+      block.plain[i][j] = (r[i].ma + r[i].mb) * dot(r[i].n, r[j].n) +
+                          dot(r[i].ang_a[0], r[j].dw_a[0]) + dot(r[i].ang_b[0], r[j].dw_b[0]);
+      block.delassus[i][j] = block.plain[i][j];
+    }
+    // ill-conditioned blocks (coincident points, four points of a face: rank 3) have many
+    // impulse sets that give the same velocities; a diagonal a fraction kRegular heavier
+    // (on the total impulses, not their change) picks the one of least norm: coincident
+    // points share equally, a symmetric hit gets symmetric impulses, no pivot is near zero
+    block.delassus[i][i] *= 1.0 + kRegular;
+  }
+  // its inverse (Gauss-Jordan, partial pivoting; a pivot below 1e-9 of its diagonal: none)
+  double s[4][8];
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < 2 * k; ++j)
+      s[i][j] = j < k ? block.delassus[i][j] : (j - k == i ? 1.0 : 0.0);
+  block.invertible = k >= 2 && k <= 4;
+  for (int c = 0; c < k && block.invertible; ++c) {
+    int pivot = c;
+    for (int i = c + 1; i < k; ++i)
+      if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(block.delassus[c][c]) + 1e-300) {
+      block.invertible = false;
+      break;
+    }
+    if (pivot != c)
+      for (int j = 0; j < 2 * k; ++j) std::swap(s[c][j], s[pivot][j]);
+    const double scale = 1.0 / s[c][c];
+    for (int j = 0; j < 2 * k; ++j) s[c][j] *= scale;
+    for (int i = 0; i < k; ++i) {
+      if (i == c) continue;
+      const double f = s[i][c];
+      for (int j = 0; j < 2 * k; ++j) s[i][j] -= f * s[c][j];
+    }
+  }
+  for (int i = 0; i < k && block.invertible; ++i)
+    for (int j = 0; j < k; ++j) block.inverse[i][j] = s[i][k + j];
+}
 
 double combine(double a, double b, CombineRule rule) {
   switch (rule) {
@@ -257,7 +325,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
       const size_t lo = static_cast<size_t>(manifold.first);
       const size_t hi = lo + static_cast<size_t>(manifold.count);
       const int k = manifold.count;
-      double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], k, v) : -1.0;
+      double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, v) : -1.0;
       if (step >= 0.0) {
         for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], v));
       } else {
@@ -379,11 +447,16 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
       c.normal = c.tangent[0] = c.tangent[1] = 0.0;
       c.allowance = 0.0;          // a speculative row that closes bounces off its approach
       row_velocity(c, v, &work[7 * j]);
-      if (j == 0 || c.manifold != rows[members[j - 1]].manifold)
-        blocks.push_back({c.a, c.b, static_cast<int32_t>(j), 0});
+      if (j == 0 || c.manifold != rows[members[j - 1]].manifold) {
+        blocks.emplace_back();
+        blocks.back().a = c.a;
+        blocks.back().b = c.b;
+        blocks.back().first = static_cast<int32_t>(j);
+      }
       ++blocks.back().count;
       scratch.push_back(c);
     }
+    for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
     // exact inelastic compression with friction; the energy it took (J). Coulomb
     // friction on coupled points can return energy (a slip turned around); such a stage
     // is compressed again without friction, which never gains (a projection)

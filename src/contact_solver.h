@@ -111,7 +111,17 @@ struct ContactRow {
 struct Manifold {
   int32_t a = 0, b = 0;          // body indices
   int32_t first = 0, count = 0;  // its rows
+  // 2 to 4 rows (prepare_block, once per step): the normal rows' Delassus matrix
+  // J_i M^-1 J_j^T (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block
+  // solve's regularisation), and the inverse of the latter (the all-active answer)
+  double plain[4][4] = {};
+  double delassus[4][4] = {};
+  double inverse[4][4] = {};   // kg: delassus^-1, when `invertible`
+  bool invertible = false;
 };
+
+// The Delassus matrices of a manifold of 2 to 4 prepared rows (`rows`: its first row).
+void prepare_block(Manifold& block, const ContactRow* rows);
 
 // Rolling resistance and torsional friction of one manifold (its rows):
 // an angular impulse (N m s) on B, opposite on A, against the bodies' relative angular
@@ -126,6 +136,8 @@ struct SpinRow {
   int32_t first = 0, count = 0;    // the manifold's rows
   Vec3 n = Vec3::Zero();           // unit, world, A to B (the first row's normal)
   Mat3 inv_a = Mat3::Zero(), inv_b = Mat3::Zero();  // I_A^-1, I_B^-1, world, 1/(kg m^2)
+  Mat3 inv_ab = Mat3::Zero();      // I_A^-1 + I_B^-1
+  double k_n = 0.0;                // 1/(kg m^2): n (I_A^-1 + I_B^-1) n
   double lever = 0.0;              // m, > 0
   double roll = 0.0, twist = 0.0;  // m: coefficient times lever
   Vec3 torque = Vec3::Zero();      // N m s, accumulated angular impulse on B (-on A)

@@ -487,6 +487,8 @@ void Detector::narrow_phase(int a, int b, ContactRows& out) {
                             speed > settings_.restitution_threshold;
   if (near && distance + relative <= margin && !may_have_hit) {
     // within the margin at the previous state for sure: a persistent contact
+    const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
+    if (-distance > deep && deep_persistent(a, b, deep, margin + relative, out)) return;
     points_.clear();
     if (shapes_[a].single_point || shapes_[b].single_point) {
       points_.push_back(witness);
@@ -494,6 +496,9 @@ void Detector::narrow_phase(int a, int b, ContactRows& out) {
       query_.manifold(*shapes_[a].geometry, A.pose1, *shapes_[b].geometry, B.pose1, points_);
     }
     emit(a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
+    const Vec3 unit = normal.normalized();
+    speculate(a, b, unit, deepest(unit), true, 0.0, ContactKind::persistent, margin + relative,
+              A.r1, A.p1, B.r1, B.p1, out);
     return;
   }
   if (near || (settings_.ccd && relative > distance)) {
@@ -514,6 +519,12 @@ void Detector::classify(int a, int b, double distance_now, double relative, doub
         time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, true, out)) {
       return;
     }
+    // near at both ends but apart, moved farther than both gaps: it may have passed
+    // through (a thin body at a low rate)
+    if (settings_.ccd && distance_now >= 0.0 && before > 0.0 &&
+        relative > before + distance_now && tunnelled(a, b, ma, mb, relative, out)) {
+      return;
+    }
     if (near) current_manifold(a, b, out);  // in contact at both ends
     return;
   }
@@ -521,20 +532,23 @@ void Detector::classify(int a, int b, double distance_now, double relative, doub
     time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, false, out);
     return;
   }
-  if (settings_.ccd) {
-    const double tolerance = std::max(
-        1e-9, std::min(settings_.toi_tolerance * relative, 0.5 * settings_.linear_slop));
-    PointPair scratch;
-    auto gap = [&](double s) { return query_.distance(ga, ma.at(s), gb, mb.at(s), scratch); };
-    auto overlaps = [&](double s) { return query_.overlaps(ga, ma.at(s), gb, mb.at(s)); };
-    const auto bracket = advance(gap, overlaps, relative, tolerance,
-                                 4 * settings_.toi_max_iterations);
-    if (bracket && time_of_impact(a, b, ma, mb, bracket->first, bracket->second,
-                                  ContactKind::tunnelled, kInf, false, out)) {
-      return;
-    }
-  }
+  if (settings_.ccd && tunnelled(a, b, ma, mb, relative, out)) return;
   if (near) current_manifold(a, b, out);  // approaching, not touching yet: speculative
+}
+
+bool Detector::tunnelled(int a, int b, const Motion& ma, const Motion& mb, double relative,
+                         ContactRows& out) {
+  const coal::CollisionGeometry& ga = *shapes_[a].geometry;
+  const coal::CollisionGeometry& gb = *shapes_[b].geometry;
+  const double tolerance = std::max(
+      1e-9, std::min(settings_.toi_tolerance * relative, 0.5 * settings_.linear_slop));
+  PointPair scratch;
+  auto gap = [&](double s) { return query_.distance(ga, ma.at(s), gb, mb.at(s), scratch); };
+  auto overlaps = [&](double s) { return query_.overlaps(ga, ma.at(s), gb, mb.at(s)); };
+  const auto bracket = advance(gap, overlaps, relative, tolerance,
+                               4 * settings_.toi_max_iterations);
+  return bracket && time_of_impact(a, b, ma, mb, bracket->first, bracket->second,
+                                   ContactKind::tunnelled, kInf, false, out);
 }
 
 bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, double s0,
@@ -587,7 +601,81 @@ bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, 
     if (!(approach < -settings_.restitution_threshold)) return false;
   }
   emit(a, b, used, s1, kind, cap, ra, pa, rb, pb, out);
+  // after the impact a corner may turn faster than anything moved before it (a fall
+  // turned into a spin about the corner that hit): three times the motion of the rest
+  const double reach = settings_.speculative_margin + 3.0 * (1.0 - s1) * relative_motion(a, b);
+  const Vec3 unit = used.normalized();
+  speculate(a, b, unit, deepest(unit), true, s1, kind, reach, ra, pa, rb, pb, out);
   return true;
+}
+
+const PointPair* Detector::deepest(const Vec3& normal) const {
+  const PointPair* pair = points_.empty() ? nullptr : &points_[0];
+  for (const PointPair& p : points_)
+    if ((p.on_b - p.on_a).dot(normal) < (pair->on_b - pair->on_a).dot(normal)) pair = &p;
+  return pair;
+}
+
+void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plane,
+                         bool skip_known, double toi, ContactKind kind, double reach,
+                         const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
+                         ContactRows& out) {
+  if (plane == nullptr) return;
+  const double gap = (plane->on_b - plane->on_a).dot(normal);   // m, the deepest point's
+  std::size_t first = out.size();
+  for (int side = 0; side < 2; ++side) {
+    // B's corners approach A along -n, A's approach B along +n; only a movable body's (a
+    // sphere's one lowest point is its contact already), only towards a flat-faced
+    // partner (a curved one falls away from its tangent plane)
+    const int body = side == 0 ? b : a, partner = side == 0 ? a : b;
+    if (bodies_[body].fixed || shapes_[body].single_point || shapes_[partner].curved) continue;
+    const Mat3& r = side == 0 ? rb : ra;
+    const Vec3& p = side == 0 ? pb : pa;
+    const Mat3& r_partner = side == 0 ? ra : rb;
+    const Vec3& p_partner = side == 0 ? pa : pb;
+    const Vec3 towards = side == 0 ? Vec3(-normal) : normal;       // world
+    const Vec3 on_plane = side == 0 ? plane->on_a : plane->on_b;
+    const BodyShape& shape = shapes_[body];
+    lowest_points(shape, shape.rotation.transpose() * (r.transpose() * towards), corners_);
+    for (Vec3& corner : corners_) corner = r * (shape.rotation * corner + shape.offset) + p;
+    heights_.clear();
+    for (std::size_t k = 0; k < corners_.size(); ++k) {
+      const Vec3& q = corners_[k];   // world
+      const double height = (on_plane - q).dot(towards);
+      if (!(height <= reach)) continue;
+      // within the patch's band about the deepest point's gap: a corner of the manifold
+      // already, or one beside the partner's face (the patch holds the face's points)
+      const bool known = skip_known && std::fabs(height - gap) < kPatchTolerance;
+      // on the partner: its projection within the partner's box (grown by the margin)
+      const Vec3 local = r_partner.transpose() * (q + height * towards - p_partner);
+      const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
+      const bool over = (local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
+                        (local.array() <= (shapes_[partner].local_hi + grow).array()).all();
+      if (!known && over) heights_.emplace_back(height, static_cast<int>(k));
+    }
+    std::sort(heights_.begin(), heights_.end());
+    if (heights_.size() > static_cast<std::size_t>(kMaxManifoldPoints))
+      heights_.resize(kMaxManifoldPoints);
+    const BodyShape& sa = shapes_[a];
+    const BodyShape& sb = shapes_[b];
+    for (const auto& [height, k] : heights_) {
+      const Vec3 point = corners_[k] + 0.5 * height * towards;
+      out.body_a.push_back(sa.body);
+      out.body_b.push_back(sb.body);
+      out.piece_a.push_back(sa.piece);
+      out.piece_b.push_back(sb.piece);
+      out.point.insert(out.point.end(), point.data(), point.data() + 3);
+      out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
+      out.separation.push_back(height);
+      out.toi.push_back(toi);
+      out.kind.push_back(static_cast<std::int8_t>(kind));
+      // beyond every patch feature of the piece pair
+      out.feature.push_back(729 * 16 + 512 * side + k % 512 + kPiecePairFeature *
+                            (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece));
+    }
+    out.close_manifold(sa.body, sb.body, first);   // each body's corners: one manifold
+    first = out.size();
+  }
 }
 
 void Detector::current_manifold(int a, int b, ContactRows& out) {
@@ -602,6 +690,9 @@ void Detector::current_manifold(int a, int b, ContactRows& out) {
                       witness)) {
     return;
   }
+  const double reach = settings_.speculative_margin + relative_motion(a, b);
+  const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
+  if (-distance > deep && deep_persistent(a, b, deep, reach, out)) return;
   points_.clear();
   if (shapes_[a].single_point || shapes_[b].single_point) {
     points_.push_back(witness);
@@ -609,6 +700,34 @@ void Detector::current_manifold(int a, int b, ContactRows& out) {
     query_.manifold(ga, A.pose1, gb, B.pose1, points_);
   }
   emit(a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
+  const Vec3 unit = normal.normalized();
+  speculate(a, b, unit, deepest(unit), true, 0.0, ContactKind::persistent, reach, A.r1, A.p1,
+            B.r1, B.p1, out);
+}
+
+bool Detector::deep_persistent(int a, int b, double deep, double reach, ContactRows& out) {
+  const Motion ma = motion(a), mb = motion(b);
+  double distance = 0.0;
+  Vec3 normal;
+  PointPair witness;
+  if (!previous_query_.contact(*shapes_[a].geometry, ma.at(0.0), *shapes_[b].geometry,
+                               mb.at(0.0), settings_.speculative_margin, distance, normal,
+                               witness) ||
+      -distance > deep) {
+    return false;   // the previous state is no shallow touch: EPA's answer now stands
+  }
+  // the previous state's normal and touching points, carried along with each body
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  const Mat3 turn_a = A.r1 * ma.rotation_at(0.0).transpose();
+  const Mat3 turn_b = B.r1 * mb.rotation_at(0.0).transpose();
+  const Vec3 unit = (turn_a * normal).normalized();
+  const PointPair plane{turn_a * (witness.on_a - ma.position_at(0.0)) + A.p1,
+                        turn_b * (witness.on_b - mb.position_at(0.0)) + B.p1};
+  const std::size_t first = out.size();
+  speculate(a, b, unit, &plane, false, 0.0, ContactKind::persistent, reach, A.r1, A.p1, B.r1,
+            B.p1, out);
+  return out.size() > first;
 }
 
 void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind kind,

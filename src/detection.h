@@ -23,6 +23,13 @@
 //    same bisection.
 // 5. Manifolds: coal contact patches where faces touch, at most four points, each with a
 //    feature id (the same every step for the same corner, edge or face of both bodies).
+// 6. Speculative corners of an impact (speculate): the impact stops the corner that hits,
+//    and the rest of the step may turn the body's other corners into a flat-faced partner
+//    (a cube falling on one corner at 30 Hz). With the impact manifold comes a second
+//    manifold of the same pair, at the time of impact: up to four corners of each movable
+//    body (shapes.h lowest_points) above the partner's contact plane by less than their
+//    reach over the rest of the step, each a row on that plane with its height as a
+//    positive separation, so the solver keeps them from closing by more than that.
 //
 // Compound bodies (as Box2D v3 and Jolt): the detector works on shapes, each with its body
 // and its pose in the body frame; a body of one shape has one. Every stage above runs on
@@ -42,7 +49,9 @@
 // Rows (ContactRows): PERSISTENT rows are at the current state (toi 0, separation > 0 for
 // a speculative gap, < 0 for a penetration). IMPACT rows have point and normal at the
 // time of impact and separation min(separation there, signed distance now) < 0;
-// TUNNELLED rows have point, normal and separation (about 0) at the time of impact.
+// TUNNELLED rows have point, normal and separation (about 0) at the time of impact. The
+// speculative corners of an impact are rows of its kind and time of impact with a positive
+// separation: the gap at the time of impact.
 #pragma once
 
 #include <cstdint>
@@ -118,7 +127,14 @@ class Detector {
                 ContactRows& out);
   bool time_of_impact(int a, int b, const Motion& ma, const Motion& mb, double s0, double s1,
                       ContactKind kind, double cap, bool only_if_fast, ContactRows& out);
+  bool tunnelled(int a, int b, const Motion& ma, const Motion& mb, double relative,
+                 ContactRows& out);
   void current_manifold(int a, int b, ContactRows& out);
+  const PointPair* deepest(const Vec3& normal) const;   // of points_, or null
+  void speculate(int a, int b, const Vec3& normal, const PointPair* plane, bool skip_known,
+                 double toi, ContactKind kind, double reach, const Mat3& ra, const Vec3& pa,
+                 const Mat3& rb, const Vec3& pb, ContactRows& out);
+  bool deep_persistent(int a, int b, double deep, double reach, ContactRows& out);
   void emit(int a, int b, const Vec3& normal, double toi, ContactKind kind, double cap,
             const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
             ContactRows& out);
@@ -138,8 +154,11 @@ class Detector {
   std::vector<std::pair<int, int>> pairs_;
   std::vector<int> bucket_, bucket_start_, bucket_fill_;
   std::vector<PointPair> points_;
+  std::vector<Vec3> corners_;                        // speculate: candidate corners
+  std::vector<std::pair<double, int>> heights_;      // speculate: (height, corner) kept
   std::vector<std::int64_t> row_codes_;
   PairQuery query_;
+  PairQuery previous_query_;   // deep_persistent: the previous state (query_ keeps its own)
   std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
   ManifoldStore stored_, next_;
   StepBudget budget_;

@@ -119,6 +119,46 @@ std::vector<std::int64_t> extreme_vertices(const std::vector<double>& points, in
   return chosen;
 }
 
+void lowest_points(const BodyShape& shape, const Vec3& down, std::vector<Vec3>& out) {
+  out.clear();
+  if (!shape.vertices.empty()) {
+    out = shape.vertices;
+    return;
+  }
+  const double half = 0.5 * shape.axis;
+  // the lowest points along `down` of the circle of radius `round` about the z axis at z
+  auto rim = [&](double z) {
+    const Vec3 centre(0.0, 0.0, z);
+    const double across = norm2(down.x(), down.y());
+    if (across > 1e-9 * (1.0 + std::fabs(down.z()))) {
+      out.push_back(centre + (shape.round / across) * Vec3(down.x(), down.y(), 0.0));
+      return;
+    }
+    for (const Vec3& u : {Vec3(1.0, 0.0, 0.0), Vec3(-1.0, 0.0, 0.0), Vec3(0.0, 1.0, 0.0),
+                          Vec3(0.0, -1.0, 0.0)})
+      out.push_back(centre + shape.round * u);
+  };
+  switch (shape.kind) {
+    case ShapeKind::sphere:
+      out.push_back(shape.round * down);
+      break;
+    case ShapeKind::capsule:
+      for (const double z : {-half, half})
+        out.push_back(Vec3(0.0, 0.0, z) + shape.round * down);
+      break;
+    case ShapeKind::cylinder:
+      rim(-half);
+      rim(half);
+      break;
+    case ShapeKind::cone:   // coal's cone: base at -half, apex at +half (about its origin)
+      out.push_back(Vec3(0.0, 0.0, half));
+      rim(-half);
+      break;
+    default:
+      break;
+  }
+}
+
 BodyShape make_shape(int kind, const std::vector<double>& size,
                      const std::vector<double>& points, double radius, bool is_static) {
   BodyShape shape;
@@ -131,26 +171,37 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
       need(1);
       shape.geometry = std::make_shared<coal::Sphere>(size[0]);
       shape.curved = shape.single_point = true;
+      shape.round = size[0];
       break;
     case ShapeKind::box:
       need(3);
       shape.geometry = std::make_shared<coal::Box>(size[0], size[1], size[2]);
+      for (int corner = 0; corner < 8; ++corner)
+        shape.vertices.push_back(0.5 * Vec3(corner & 1 ? size[0] : -size[0],
+                                            corner & 2 ? size[1] : -size[1],
+                                            corner & 4 ? size[2] : -size[2]));
       break;
     case ShapeKind::capsule:
       need(2);
       shape.geometry = std::make_shared<coal::Capsule>(size[0], size[1]);
       shape.curved = true;
+      shape.round = size[0];
+      shape.axis = size[1];
       break;
     case ShapeKind::cylinder:
       need(2);
       shape.geometry = std::make_shared<coal::Cylinder>(size[0], size[1]);
       shape.curved = true;
+      shape.round = size[0];
+      shape.axis = size[1];
       break;
     case ShapeKind::cone:
       need(2);
       shape.geometry = std::make_shared<coal::Cone>(size[0], size[1]);
       shape.offset = Vec3(0.0, 0.0, 0.25 * size[1]);
       shape.curved = true;
+      shape.round = size[0];
+      shape.axis = size[1];
       break;
     case ShapeKind::plane: {
       if (size.size() < 4) throw std::invalid_argument("shape size has too few values");
@@ -171,6 +222,8 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
     }
     case ShapeKind::convex:
       shape.geometry = convex_hull(points);
+      for (std::size_t k = 0; k + 2 < points.size(); k += 3)
+        shape.vertices.emplace_back(points[k], points[k + 1], points[k + 2]);
       break;
     default:
       throw std::invalid_argument("unknown shape code");

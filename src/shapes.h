@@ -46,7 +46,18 @@ struct BodyShape {
   bool curved = false;             // a curved surface (sphere, capsule, cylinder, cone):
                                    // its contact points slide over it as it rolls
   bool single_point = false;       // touches at one point only (sphere)
+  std::vector<Vec3> vertices;      // m, geometry frame: a box's corners, a convex's points
+  double round = 0.0;              // m: capsule, cylinder, cone radius; sphere radius
+  double axis = 0.0;               // m: capsule segment, cylinder, cone length along z
 };
+
+// The points of a shape that come first along `down` (unit, the coal geometry's frame):
+// a polytope's vertices (all of them), a sphere's lowest point, a capsule's two cap
+// points, a cylinder's two rim points and a cone's apex and rim point, each the lowest of
+// its cap or rim along `down` (four rim points when `down` is along the axis). In the
+// geometry's frame (body frame: rotation * point + offset), m; `out` is cleared first.
+// The corners that speculative contacts watch (detection.h).
+void lowest_points(const BodyShape& shape, const Vec3& down, std::vector<Vec3>& out);
 
 // Convex vertices must span a volume: the thickness of the first simplex qhull would build
 // (its height over the plane of three extreme points) above this fraction of the points'

@@ -52,6 +52,10 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                          params.impact_sweeps, params.impact_converged};
   resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
                   impact_work_);
+  // from here on an impacted body's velocity is the one its pose travels with over the
+  // rest of the step (its velocity at the time of impact plus half the external change
+  // over the rest, advance): the resting solve keeps that travel out of the partners
+  to_travel(ctx);
   // warm start from last step's impulses of the same pair and feature
   double cold = warm(ctx);
   warm_start(rows_, ctx.solver);
@@ -152,7 +156,10 @@ void StepSolver::reference_frame(StepContext& ctx) {
     double later = std::max(fraction_[c.a[k]], fraction_[c.b[k]]);
     double remaining = std::max((1.0 - later) * dt, 1e-9 * dt);
     double v_in = allowance_[k];
-    gap_[k] = impact_[k] ? 0.0 : gap_[k] + v_in * later * dt;
+    // an impact's own rows touch at its time of impact; its speculative corners (detected
+    // impact rows with a positive separation) are that far from touching then
+    gap_[k] = impact_[k] ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
+                         : gap_[k] + v_in * later * dt;
     remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
     allowance_[k] = std::max(gap_[k], 0.0) / remaining;
   }
@@ -210,9 +217,14 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu_s, mu_k);
     }
     const auto count = static_cast<int32_t>(rows_.size()) - first_row;
-    if (count > 0)
-      manifolds_.push_back({static_cast<int32_t>(manifold[0]), static_cast<int32_t>(manifold[1]),
-                            first_row, count});
+    if (count > 0) {
+      Manifold& block = manifolds_.emplace_back();
+      block.a = static_cast<int32_t>(manifold[0]);
+      block.b = static_cast<int32_t>(manifold[1]);
+      block.first = first_row;
+      block.count = count;
+      prepare_block(block, &rows_[first_row]);
+    }
   }
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0
@@ -236,6 +248,8 @@ void StepSolver::prepare(StepContext& ctx) {
       s.n = r.n;
       s.inv_a = inv_inertia_[r.a];
       s.inv_b = inv_inertia_[r.b];
+      s.inv_ab = s.inv_a + s.inv_b;
+      s.k_n = dot(s.n, mul(s.inv_ab, s.n));
       s.lever = lever;
       s.roll = roll * lever;
       s.twist = twist * lever;
@@ -274,6 +288,16 @@ double StepSolver::warm(StepContext& ctx) {
     r.tangent[1] = ty;
   }
   return static_cast<double>(cold) / static_cast<double>(std::max<int64_t>(1, persistent));
+}
+
+void StepSolver::to_travel(StepContext& ctx) {
+  const int64_t n = ctx.bodies.count;
+  for (int64_t i = 0; i < n; ++i) {
+    if (!impacted_[i]) continue;
+    const double half_rest = 0.5 * (1.0 - fraction_[i]);
+    for (int d = 0; d < 6; ++d)
+      velocity_[6 * i + d] += half_rest * (now_[6 * i + d] - then_[6 * i + d]);
+  }
 }
 
 void StepSolver::land(StepContext& ctx) {
@@ -396,13 +420,15 @@ void StepSolver::advance(StepContext& ctx) {
       store4(out.orientation + 4 * i, integrate(q0, load3(u + 3), dt));
       continue;
     }
-    // impact: rewind to the time of impact, advance for the rest of the step
+    // impact: rewind to the time of impact, advance for the rest of the step with the
+    // travel velocity (u, v: velocity at the time of impact + (1 - f) / 2 external)
     const double f = fraction_[i], tau = (1.0 - f) * dt;
     double end[6], mean[6];
     for (int d = 0; d < 6; ++d) {
       double external = now_[6 * i + d] - then_[6 * i + d];
-      end[d] = v[d] + (0.5 - f) * external;        // mid-step twist, as the input's
-      mean[d] = u[d] + 0.5 * (1.0 - f) * external;   // the travel of the poses
+      end[d] = v[d] - 0.5 * f * external;   // mid-step twist, as the input's: at the time
+                                            // of impact v - (1 - f) / 2 ext, + (1/2 - f) ext
+      mean[d] = u[d];                       // the travel of the poses
     }
     store3(out.linear + 3 * i, load3(end));
     store3(out.angular + 3 * i, load3(end + 3));

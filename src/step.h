@@ -13,7 +13,8 @@
 //    rewound to its earliest time of impact f and solved with the velocity it had then;
 //    a body in persistent contact only is solved with its current velocity; a
 //    persistent contact may approach by its gap at the reference time (speculative
-//    allowance, m/s);
+//    allowance, m/s), and so may an impact's speculative corner (a detected impact row
+//    with a positive separation: its gap at the time of impact) over the rest of the step;
 // 2. prepare: one row per contact point that can carry an impulse this step (a
 //    speculative contact that cannot close within the step is no row), combined
 //    materials by the combine rules, rows in the order of detection's manifolds, one
@@ -21,7 +22,11 @@
 //    torsional friction one SpinRow (its coefficients combined by the friction rule);
 // 3. impacts: successive stages of the rows that approach faster than the restitution
 //    threshold, each an exact inelastic compression with friction then restitution
-//    (resolve_impacts: no stage gains energy; a chain passes an impact on);
+//    (resolve_impacts: no stage gains energy; a chain passes an impact on); then an
+//    impacted body's velocity becomes the one its pose travels with over the rest of the
+//    step (+ (1 - f) / 2 of the step's external change), so the resting solve keeps that
+//    travel, gravity included, out of its partners (an impact's speculative corners, rows
+//    with a gap at the time of impact, among them);
 // 4. warm start from last step's impulses of the same pair and feature (ContactCache),
 //    scaled by dt / last dt, only while that ratio lies in [1 / r, r] (r =
 //    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
@@ -36,8 +41,9 @@
 //    touching and with no approach left to bounce on next step (land);
 // 7. store impulses for the next step (without the impact stages' and landing's part);
 // 8. advance: impacted bodies from their time of impact with the travel velocity for the
-//    rest of the step, (1 - f) dt; persistent-only bodies from the previous pose for dt;
-//    the state's twist is the landed velocity;
+//    rest of the step, (1 - f) dt, their twist the mid-step one (travel - f / 2 external);
+//    persistent-only bodies from the previous pose for dt; the state's twist is the
+//    landed velocity;
 // 9. split-impulse position pass: penetration beyond the slop predicted at the end of the
 //    step is pushed out (poses only, no velocity: no energy gain);
 // 10. report: normal impulse (with the impact stages' and landing's), friction impulse,
@@ -147,6 +153,7 @@ class StepSolver {
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx);   // returns the fraction of persistent contacts cold
   int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
+  void to_travel(StepContext& ctx);  // impacted bodies: + (1 - f) / 2 external change
   void land(StepContext& ctx);
   void report(StepContext& ctx);
   void advance(StepContext& ctx);

@@ -105,12 +105,19 @@ double solve_row(ContactRow& r, double* v) {
   return std::max(d_n, solve_friction(r, v));
 }
 
-// The normal rows of one manifold (2..4 points of a pair) solved together, exactly: the
-// small LCP  w = A x + q >= 0, x >= 0, x.w = 0  (A the rows' Delassus matrix, x the new
-// accumulated impulses) by trying the active sets, largest first, as Box2D's block
-// solver does for two points. Gauss-Seidel converges slowly on a nearly singular
-// manifold (close points, small lever arms) and leaves it spinning. Returns the largest
-// impulse change, or -1 when no active set fits (the caller falls back to rows).
+// Sets a block's k accumulated normal impulses to max(x, 0) and applies the changes;
+// returns the largest change (N s).
+double take_block(ContactRow* r, int k, const double* x, double* v) {
+  double change = 0.0;
+  for (int i = 0; i < k; ++i) {
+    double d = std::max(x[i], 0.0) - r[i].normal;
+    r[i].normal += d;
+    if (d != 0.0) apply(r[i], v, 0, r[i].n, d);
+    change = std::max(change, std::fabs(d));
+  }
+  return change;
+}
+
 // The active sets of a block of k rows (bit i: row i active) in the order solve_block
 // tries them: largest first, then by decreasing bits; sets[k][0 .. (1 << k) - 1].
 struct ActiveSets {
@@ -129,6 +136,12 @@ struct ActiveSets {
 };
 const ActiveSets kActiveSets;
 
+// The normal rows of one manifold (2..4 points of a pair) solved together, exactly: the
+// small LCP  w = A x + q >= 0, x >= 0, x.w = 0  (A the rows' Delassus matrix, x the new
+// accumulated impulses) by trying the active sets, largest first, as Box2D's block
+// solver does for two points. Gauss-Seidel converges slowly on a nearly singular
+// manifold (close points, small lever arms) and leaves it spinning. Returns the largest
+// impulse change, or -1 when no active set fits (the caller falls back to rows).
 double solve_block(ContactRow* r, const Manifold& block, double* v) {
   const int k = block.count;
   const double (&a)[4][4] = block.delassus;
@@ -146,16 +159,7 @@ double solve_block(ContactRow* r, const Manifold& block, double* v) {
       for (int j = 0; j < k; ++j) x[i] -= block.inverse[i][j] * q[j];
       ok = ok && x[i] >= -1e-12 * (1.0 + std::fabs(x[i]));
     }
-    if (ok) {
-      double change = 0.0;
-      for (int i = 0; i < k; ++i) {
-        double d = std::max(x[i], 0.0) - r[i].normal;
-        r[i].normal += d;
-        if (d != 0.0) apply(r[i], v, 0, r[i].n, d);
-        change = std::max(change, std::fabs(d));
-      }
-      return change;
-    }
+    if (ok) return take_block(r, k, x, v);
   }
   for (int order = block.invertible ? 1 : 0; order < (1 << k); ++order) {
     const int set = kActiveSets.sets[k][order];
@@ -199,14 +203,7 @@ double solve_block(ContactRow* r, const Manifold& block, double* v) {
       ok = w >= -1e-12 * (1.0 + std::fabs(q[i]));
     }
     if (!ok) continue;
-    double change = 0.0;
-    for (int i = 0; i < k; ++i) {
-      double d = std::max(x[i], 0.0) - r[i].normal;
-      r[i].normal += d;
-      if (d != 0.0) apply(r[i], v, 0, r[i].n, d);
-      change = std::max(change, std::fabs(d));
-    }
-    return change;
+    return take_block(r, k, x, v);
   }
   return -1.0;
 }

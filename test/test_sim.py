@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import re
+import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -110,45 +113,60 @@ def test_pile_scene_is_what_its_generator_writes(tmp_path: Path) -> None:
     assert (tmp_path / 'pile.yaml').read_text() == (SCENES / 'pile.yaml').read_text()
 
 
-@pytest.mark.slow
-def test_live_sim_counts_unanswered_steps_as_dropped(tmp_path: Path) -> None:
-    """A responder that ignores every 5th state: the sim waits its deadline, drops, goes on."""
+def against_a_fake_node(tmp_path: Path, sim_args: list[str], respond: Any, raw: bool = False,
+                        depth: int = 10, between: Any = None) -> tuple[int, str]:
+    """``collres_sim`` on the bouncing ball (``sim_args`` added) over DDS against a fake
+    collres_node in this process: each ``body_states`` message goes to ``respond(message,
+    answer)`` (``answer``: the fake's ``body_states/corrected`` publisher; ``raw``: the
+    message as bytes), ``between(answer)`` runs after each spin. (exit code, sim's log)."""
     pytest.importorskip('rclpy')
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-    from collres_ros.ros import processes
     from collres_ros.msg import BodyStateArray
+    from collres_ros.ros import processes
     from conftest import next_domain_id
     domain = next_domain_id()
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=domain)
-    received: list[int] = []
     try:
         node = rclpy.create_node('fake_collres_node', context=context)
-        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
         answer = node.create_publisher(BodyStateArray, 'body_states/corrected', qos)
-
-        def respond(msg: BodyStateArray) -> None:
-            received.append(msg.header.stamp.nanosec)
-            if len(received) % 5 != 0:
-                answer.publish(msg)
-
-        node.create_subscription(BodyStateArray, 'body_states', respond, qos)
+        node.create_subscription(BodyStateArray, 'body_states',
+                                 lambda message: respond(message, answer), qos, raw=raw)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         sim = processes.start('collres_sim', ['--params', str(SCENES / 'bouncing_ball.yaml'),
-                                              '--duration', '0.1', '--step-timeout', '0.2'],
+                                              *sim_args],
                               env=processes.ros_env(domain), log=tmp_path / 'sim.log')
-        deadline = 60.0
-        assert processes.wait_for(lambda: executor.spin_once(timeout_sec=0.01) or
-                                  sim.poll() is not None, deadline), 'sim did not finish'
+
+        def serve() -> bool:
+            executor.spin_once(timeout_sec=0.002)
+            if between is not None:
+                between(answer)
+            return sim.poll() is not None
+        assert processes.wait_for(serve, 60.0), 'sim did not finish'
         code = sim.wait()
     finally:
         rclpy.try_shutdown(context=context)
     log = sim.output()
-    print(log[-300:])
+    print(log[-600:])
+    return code, log
+
+
+@pytest.mark.slow
+def test_live_sim_counts_unanswered_steps_as_dropped(tmp_path: Path) -> None:
+    """A responder that ignores every 5th state: the sim waits its deadline, drops, goes on."""
+    received: list[int] = []
+
+    def respond(msg: Any, answer: Any) -> None:
+        received.append(msg.header.stamp.nanosec)
+        if len(received) % 5 != 0:
+            answer.publish(msg)
+    code, log = against_a_fake_node(tmp_path, ['--duration', '0.1', '--step-timeout', '0.2'],
+                                    respond)
     assert code == 0
     assert len(received) == 25            # 0.1 s at 240 Hz: 25 states, each published once
     assert 'done: 25 steps, 5 dropped' in log
@@ -170,37 +188,9 @@ def test_realtime_pace_warns_behind_the_clock_and_with_the_rate_reached() -> Non
 @pytest.mark.slow
 def test_live_realtime_sim_warns_with_the_rate_it_reached(tmp_path: Path) -> None:
     """50 kHz cannot be kept (a step waits for an answer over DDS): the sim says so."""
-    pytest.importorskip('rclpy')
-    import re
-
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-    from collres_ros.msg import BodyStateArray
-    from collres_ros.ros import processes
-    from conftest import next_domain_id
-    domain = next_domain_id()
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=domain)
-    try:
-        node = rclpy.create_node('fake_collres_node', context=context)
-        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        answer = node.create_publisher(BodyStateArray, 'body_states/corrected', qos)
-        node.create_subscription(BodyStateArray, 'body_states', answer.publish, qos, raw=True)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        sim = processes.start('collres_sim', ['--params', str(SCENES / 'bouncing_ball.yaml'),
-                                              '--rate', '50000', '--duration', '0.004',
-                                              '--realtime'],
-                              env=processes.ros_env(domain), log=tmp_path / 'sim.log')
-        assert processes.wait_for(lambda: executor.spin_once(timeout_sec=0.01) or
-                                  sim.poll() is not None, 60.0), 'sim did not finish'
-        code = sim.wait()
-    finally:
-        rclpy.try_shutdown(context=context)
-    log = sim.output()
-    print(log[-400:])
+    code, log = against_a_fake_node(
+        tmp_path, ['--rate', '50000', '--duration', '0.004', '--realtime'],
+        lambda data, answer: answer.publish(data), raw=True)
     assert code == 0 and 'done: 201 steps' in log
     found = re.search(r'realtime: reached (\d+) steps/s of the 50000 Hz asked', log)
     assert found, log
@@ -212,47 +202,16 @@ def test_live_realtime_sim_keeps_its_rate_and_counts_the_late_answers(tmp_path: 
     """A node whose answers come 3 steps late: the realtime sim does not wait for them (it
     would step at a third of the rate): each step goes on with the sim's own state, and the
     sim says how many answers came after the next step was due."""
-    pytest.importorskip('rclpy')
-    import re
-    import time
-
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-    from collres_ros.msg import BodyStateArray
-    from collres_ros.ros import processes
-    from conftest import next_domain_id
-    domain = next_domain_id()
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=domain)
     held: list[tuple[float, bytes]] = []
     delay = 0.03   # s: 3 steps at 100 Hz
-    try:
-        node = rclpy.create_node('slow_collres_node', context=context)
-        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        answer = node.create_publisher(BodyStateArray, 'body_states/corrected', qos)
-        node.create_subscription(BodyStateArray, 'body_states',
-                                 lambda data: held.append((time.monotonic(), data)), qos,
-                                 raw=True)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        sim = processes.start('collres_sim', ['--params', str(SCENES / 'bouncing_ball.yaml'),
-                                              '--rate', '100', '--duration', '0.2',
-                                              '--realtime'],
-                              env=processes.ros_env(domain), log=tmp_path / 'sim.log')
 
-        def serve() -> bool:
-            executor.spin_once(timeout_sec=0.002)
-            while held and time.monotonic() - held[0][0] >= delay:
-                answer.publish(held.pop(0)[1])
-            return sim.poll() is not None
-        assert processes.wait_for(serve, 60.0), 'sim did not finish'
-        code = sim.wait()
-    finally:
-        rclpy.try_shutdown(context=context)
-    log = sim.output()
-    print(log[-600:])
+    def release(answer: Any) -> None:
+        while held and time.monotonic() - held[0][0] >= delay:
+            answer.publish(held.pop(0)[1])
+    code, log = against_a_fake_node(
+        tmp_path, ['--rate', '100', '--duration', '0.2', '--realtime'],
+        lambda data, answer: held.append((time.monotonic(), data)), raw=True, depth=100,
+        between=release)
     # every answer is late, but the first step's may arrive while its delivery is confirmed
     found = re.search(r'done: 21 steps, (\d+) dropped', log)
     assert code == 0 and found and int(found.group(1)) >= 20, log

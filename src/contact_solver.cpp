@@ -528,6 +528,12 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
       kept.impact_tangent[1] += c.tangent[1];
       kept.bounce = kept.bounce || c.normal > 0.0;
     }
+    // a stage that ended without impulse (its sweeps cycled through zero: a manifold's
+    // friction lifting its own normal rows) left the velocities as they were: the next
+    // one would do the same
+    bool carried = false;
+    for (const ContactRow& c : scratch) carried = carried || c.normal > 0.0;
+    if (!carried) return stage + 1;
   }
   return stage;
 }

@@ -1,8 +1,8 @@
 """body_markers read back from a recorded bag by an independent reader (mcap + mcap_ros2).
 
-An offline run (as ``collres_sim --offline``) of spheres of two sizes, boxes,
-a capsule and a static floor: every body_markers message must show every
-body at that step's corrected pose (the static floor at its params pose),
+An offline run (as ``collres_sim --offline``) of spheres of two sizes, boxes, a
+capsule, a static floor and a static triangle-mesh bin: every body_markers message must
+show every body at that step's corrected pose (the static floor at its params pose),
 with its size: a SPHERE_LIST per (diameter, static) group with the spheres'
 centres, TRIANGLE_LISTs whose vertices, taken back to each body's frame,
 span exactly the body's extents. Messages come at most every
@@ -26,10 +26,11 @@ from collres_ros.ros.body_markers import (  # noqa: E402
 
 SPHERE_LIST, TRIANGLE_LIST = 7, 11
 RATE, PERIOD = 240.0, 0.05
+BIN = Path(__file__).resolve().parent / 'data' / 'meshes' / 'bin.obj'
 SCENE = f'''/**:
   ros__parameters:
     world_frame: world
-    bodies: [floor, s1, s2, s3, b1, b2, cap]
+    bodies: [floor, s1, s2, s3, b1, b2, cap, bin]
     body:
       floor: {{shape: box, size: [4.0, 4.0, 0.2], static: true, position: [0.0, 0.0, -0.1]}}
       s1: {{shape: sphere, size: [0.1], position: [0.0, 0.0, 0.3],
@@ -41,6 +42,7 @@ SCENE = f'''/**:
       b2: {{shape: box, size: [0.1, 0.1, 0.1], position: [0.8, 0.8, 0.05]}}
       cap: {{shape: capsule, size: [0.05, 0.3], position: [-0.8, 0.5, 0.3],
              orientation: [0.7071068, 0.0, 0.0, 0.7071068]}}
+      bin: {{shape: triangle_mesh, mesh: {BIN}, static: true, position: [1.5, -1.5, 0.0]}}
 collres_node:
   ros__parameters:
     body_markers_period: {PERIOD}

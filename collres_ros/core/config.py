@@ -307,8 +307,14 @@ TORSIONAL_REASON = ('a ball of r 0.05 m spinning on the spot at 5 rad/s stops wi
 
 # Per-body parameters: `body.<name>.<param>` in the shared `/**` section.
 BODY_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('shape', 'string', 'sphere', 'Collision shape',
-              choices=('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')),
+    ParamSpec('shape', 'string', 'sphere',
+              'Collision shape; triangle_mesh: a static body that is the surface of its mesh '
+              '(one-sided triangles, their front counter-clockwise), for scenery that must stay '
+              'concave (a bin, a shelf)',
+              choices=('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex',
+                       'triangle_mesh'),
+              reason='a ball; a mesh is a convex hull unless decomposed or a static '
+                     'triangle_mesh'),
     ParamSpec('size', 'double_array', [0.1],
               'sphere [r]; box [x, y, z] full edges; capsule, cylinder, cone [r, length] along z; '
               'plane [nx, ny, nz, d] (|d| up to the position limit)', *SIZE_RANGE, unit='m',
@@ -352,11 +358,13 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('mesh', 'string', '',
               'convex: mesh file (OBJ/STL), relative to the params file or absolute; '
               f'a regular .obj or .stl file of at most {MESH_MAX_BYTES // 2**20} MiB; the '
-              'body is the convex hull of its vertices unless decompose is true',
+              'body is the convex hull of its vertices unless decompose is true; '
+              'triangle_mesh: its triangles (those with an area)',
               reason='a hull, as MuJoCo and Drake make of a mesh: a concave mesh needs '
                      'decompose'),
     ParamSpec('points', 'double_array', [],
-              'convex: vertices [x0, y0, z0, x1, ...] in the body frame', -SIZE_RANGE[1],
+              'convex: vertices [x0, y0, z0, x1, ...] in the body frame; triangle_mesh '
+              'without a mesh: nine values (three corners) a triangle', -SIZE_RANGE[1],
               SIZE_RANGE[1], unit='m'),
     ParamSpec('shapes', 'string_array', [],
               'Compound body: the names of its convex pieces (letters, digits, _), each '

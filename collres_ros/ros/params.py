@@ -32,8 +32,10 @@ from collres_ros.core.config import (
     BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, PIECE_PARAMS, POSITION_LIMIT,
     SCENE_PARAMS, SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
-from collres_ros.core.shapes import centre_of_mass, hull_problem, hull_vertices, mesh_points
-from collres_ros.core.types import COMPOUND, BodySpec, BodyStates, CollisionFilter, Piece
+from collres_ros.core.shapes import (centre_of_mass, hull_problem, hull_vertices, mesh_points,
+                                     mesh_surface, triangle_corners)
+from collres_ros.core.types import (COMPOUND, TRIANGLE_MESH, BodySpec, BodyStates,
+                                    CollisionFilter, Piece)
 from collres_ros.ros import params_yaml, robot
 
 NODE_NAME = 'collres_node'
@@ -494,6 +496,40 @@ def _decomposed(key: str, values: Mapping[str, Any], base_dir: Optional[Path],
                  for k, h in enumerate(hulls))
 
 
+def _triangle_mesh(key: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool,
+                   static: bool) -> tuple[tuple[float, float, float], ...]:
+    """The corners (three a triangle) of a triangle-mesh body: its mesh file's triangles, or
+    ``key.points`` (nine values a triangle, as a recorded scene carries them); static only."""
+    if not static:
+        _fail(f'{key}.static', 'a triangle_mesh must be static (scenery: a surface has no '
+              'mass)', static)
+    mesh, flat = values[f'{key}.mesh'], values[f'{key}.points']
+    if mesh and not files:
+        _fail(f'{key}.mesh', 'a recorded scene carries its triangles (points), it names no '
+              'file: a mesh path from a bag is not read', mesh)
+    if mesh:
+        path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
+        try:
+            corners = mesh_surface(_mesh_bytes(path), path.suffix, str(path)).reshape(-1, 3)
+        except (OSError, ValueError, struct.error) as error:
+            reason = error.strerror if isinstance(error, OSError) and error.strerror \
+                else str(error)
+            _fail(f'{key}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+        if np.abs(corners).max() > SIZE_RANGE[1]:
+            _fail(f'{key}.mesh', f'vertices of {path} must be within {SIZE_RANGE[1]:g} m '
+                  'of the body origin', mesh)
+    else:
+        if not flat or len(flat) % 9:
+            _fail(f'{key}.points', 'a triangle_mesh needs a mesh, or points: nine values (three '
+                  'corners) a triangle', flat)
+        corners = np.array(flat, float).reshape(-1, 3)
+        try:
+            triangle_corners(BodySpec(key, TRIANGLE_MESH, static=True, points=corners))
+        except ValueError as error:
+            _fail(f'{key}.points', str(error).split(': ', 1)[1], flat)
+    return tuple(tuple(float(c) for c in p) for p in corners)
+
+
 def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool = True,
           given: frozenset[str] = frozenset()) -> tuple[BodySpec, np.ndarray]:
     """BodySpec and the 13-vector initial state of body ``name`` from validated values
@@ -505,6 +541,8 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files:
         shape, pieces = COMPOUND, _pieces(key, values, base_dir, files, set(given))
     elif values[f'{key}.decompose']:
         shape, pieces = COMPOUND, _decomposed(key, values, base_dir, files)
+    elif shape == TRIANGLE_MESH:
+        points = _triangle_mesh(key, values, base_dir, files, static)
     else:
         size, points = _shape(key, values, base_dir, files, static)
     inertia = values[f'{key}.inertia']
@@ -644,7 +682,7 @@ def scene_to_yaml(scene: Scene) -> str:
                        + [f'{a}{PAIR_SEPARATOR}{b}' for a, b in scene.robot_ignored]})
     for body in scene.bodies:
         key = f'body.{body.name}'
-        if body.shape == 'convex':
+        if body.shape in ('convex', TRIANGLE_MESH):
             values[f'{key}.mesh'] = ''
             values[f'{key}.points'] = [float(c) for p in body.points for c in p]
         if body.shape == COMPOUND:   # pieces written out whole: decomposed hulls too

@@ -1,9 +1,10 @@
 """robot_description over DDS: collres_node started with the test arm's URDF poses its links
-from body_states by link name; a crate resting on the arm's base plate gets contacts that
-name the link and its piece, carrying the crate's weight."""
+from body_states by link name, or from /tf and /tf_static; a crate resting on the arm's base
+plate gets contacts that name the link and its piece, carrying the crate's weight."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,7 @@ G, DT_S = 9.81, 0.01
 # stamps of our own (not test_node's T0): a node of another suite that shares a domain on
 # this host answers only the stamps it is sent, never ours
 T_ROBOT = 4_321 * 10**9
+T_TF = 5_321 * 10**9
 
 
 @pytest.mark.slow
@@ -102,3 +104,68 @@ def test_the_demo_runs_the_arm_scene_and_says_what_touched_what(tmp_path, capsys
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ['error: --scene and --params: give one',
                    'error: config file scenes/nope.yaml not found']
+
+
+@pytest.mark.slow
+def test_links_posed_from_tf_static_and_tf(ros_domain, tmp_path) -> None:
+    """/tf_static puts the robot's root link 1 m along x in the world and /tf its upper arm
+    in the root link (turned 90 deg about z, 0.3 m up): the answer holds both at their
+    chained poses, and a crate dropped on the plate there rests on it (where the params put
+    the plate, at the origin, nothing holds it)."""
+    import math
+
+    import yaml
+    from geometry_msgs.msg import TransformStamped
+    from ros_harness import node_and_peer
+    from test_node import body, step
+    from tf2_msgs.msg import TFMessage
+
+    from collres_ros.msg import BodyStateArray, ContactArray
+    from collres_ros.ros import qos
+
+    urdf = (DATA / 'arm.urdf').read_text().replace(
+        'package://collres_test_robot', f'file://{DATA}')
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
+        'bodies': ['crate'], 'robot_description': urdf,
+        'body': {'crate': {'shape': 'box', 'size': [0.03, 0.03, 0.03], 'mass': 0.5}}}}}))
+    half = math.sqrt(0.5)
+
+    def transform(parent, child, xyz, q=(0.0, 0.0, 0.0, 1.0)) -> TFMessage:
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id = parent, child
+        t.header.stamp.sec = T_TF // 10**9
+        t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = xyz
+        r = t.transform.rotation
+        r.x, r.y, r.z, r.w = q
+        return TFMessage(transforms=[t])
+
+    with node_and_peer(ros_domain, scene, tmp_path / 'node.log', listen=(
+            ('body_states/corrected', BodyStateArray), ('contacts', ContactArray)),
+            answering=('/body_states/corrected', '/contacts')) as (peer, node):
+        static = peer.node.create_publisher(TFMessage, '/tf_static', qos.tf_static_qos())
+        moving = peer.node.create_publisher(TFMessage, '/tf', qos.state_qos(100))
+        static.publish(transform('world', 'base_link', (1.0, 0.0, 0.0)))
+        held = body('crate', 0.5, x=1.13)   # above it all until both links are posed
+        stamp, posed = T_TF, {}
+        deadline = time.monotonic() + 10.0
+        while set(posed) != {'base_link', 'upper_arm'} and time.monotonic() < deadline:
+            moving.publish(transform('base_link', 'upper_arm', (0.0, 0.0, 0.3),
+                                     (0.0, 0.0, half, half)))
+            out = step(peer, stamp, [held])
+            posed = {b.name: b.pose for b in out.bodies if b.name != 'crate'}
+            stamp += 10**7
+        assert set(posed) == {'base_link', 'upper_arm'}
+        base, arm = posed['base_link'], posed['upper_arm']
+        assert (base.position.x, base.position.y, base.position.z) == pytest.approx((1, 0, 0))
+        assert (arm.position.x, arm.position.y, arm.position.z) == pytest.approx((1, 0, 0.3))
+        assert (arm.orientation.z, arm.orientation.w) == pytest.approx((half, half))
+        z, vz = 0.01 + 0.015, 0.0
+        for k in range(20):
+            vz -= G * DT_S
+            crate = body('crate', z + vz * DT_S, vz, x=1.13)
+            out = step(peer, stamp + k * 10**7, [crate])
+            crate = [b for b in out.bodies if b.name == 'crate'][0]
+            z, vz = crate.pose.position.z, crate.twist.linear.z
+        assert z == pytest.approx(0.025, abs=1e-3)           # held by the plate at x = 1
+        assert 'input refused' not in node.output()

@@ -457,9 +457,9 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
               0.0, 60.0, unit='s',
               reason='20 Hz looks smooth; the triangles of 1000 boxes are 1.3 MB a message'),
     ParamSpec('publish_tf', 'bool', False,
-              'Publish /tf world_frame -> <body> for every body every step (needs tf2_msgs, '
-              'on a ROS install; without it a warning at start and no /tf)',
-              reason='N transforms per step, and tf2_msgs is not on PyPI: opt-in'),
+              'Publish /tf world_frame -> <body> for every body every step (tf2_msgs: a '
+              'ROS install\'s, or the one make setup generates where it is missing)',
+              reason='N transforms per step: opt-in'),
     ParamSpec('contact_state', 'bool', False,
               'Publish bodies/<name>/in_contact (std_msgs/Bool, reliable, transient local, on '
               'change) for every body: true from the step whose normal impulses on the body '
@@ -547,8 +547,9 @@ SCENE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('robot_description', 'string', '',
               'URDF text (as robot_state_publisher\'s parameter): every link with <collision> '
               'elements becomes a kinematic body named after the link (sphere, box, cylinder, '
-              'mesh hull with scale; one piece per element), posed from body_states by link '
-              'name; its body.<link>.* parameters may still be set',
+              'mesh hull with scale; one piece per element), posed from /tf and /tf_static '
+              '(child frame = link name) or from body_states by link name; its '
+              'body.<link>.* parameters may still be set',
               reason='empty: no robot'),
     ParamSpec('robot_description_topic', 'bool', False,
               'When robot_description is empty, wait at start for the URDF on the '

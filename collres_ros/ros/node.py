@@ -65,6 +65,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
@@ -89,6 +90,7 @@ from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array,
 from collres_ros.ros.health import Health
 from collres_ros.ros.losses import LossCounter
 from collres_ros.ros.stamps import seconds_ns
+from collres_ros.ros.tf_links import TfLinks, with_links
 from collres_ros.ros.sync import StampSync, names_text
 
 NAME = 'collres_node'
@@ -212,6 +214,7 @@ class CollresNode(Node):
         self._inputs = [self.create_subscription(
             BodyStateArray, names.STATES, self._on_states, self._qos(), raw=True,
             qos_overriding_options=qos.OVERRIDES)]
+        self.tf_links = self._subscribe_tf()
         self._timer = self._diagnostics_timer()
         self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
@@ -227,6 +230,34 @@ class CollresNode(Node):
         self.get_logger().info(
             f'resolving {len(body_names)} bodies ({names_text(body_names)}) in frame '
             f'{self.scene.world_frame!r}')
+
+    def _subscribe_tf(self) -> Optional[TfLinks]:
+        """With robot_description: /tf and /tf_static pose the static bodies named as their
+        child frames, the links (tf_links.py); None without a robot or without tf2_msgs."""
+        kind = CLASSES.get(messages.TYPES[names.TF])
+        if not self.scene.values.get('robot_description') or kind is None:
+            return None
+
+        def pose(name: str) -> np.ndarray:   # a root of a chain: as the resolver holds it
+            state, k = self.resolver.state, self.resolver.index_of[name]
+            return np.concatenate([state.position[k], state.orientation[k]])
+
+        links = TfLinks([b.name for b in self.scene.bodies if b.static], self.scene.names,
+                        self.scene.world_frame, pose)
+        for topic, profile in ((names.TF, qos.state_qos(100)),
+                               (names.TF_STATIC, qos.tf_static_qos())):
+            self._inputs.append(self.create_subscription(
+                kind, topic, partial(self._on_tf, topic), profile, raw=True))
+        return links
+
+    def _on_tf(self, topic: str, data: bytes) -> None:
+        with self._lock:
+            if not self.serving:
+                return
+            try:
+                self.tf_links.take(codec.decode_tf(data))
+            except codec.DecodeError as refusal:
+                self._refuse(refusal, topic)
 
     def release_resolution(self) -> None:
         """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
@@ -359,6 +390,8 @@ class CollresNode(Node):
 
     def _step(self, stamp: int, batch: InputBatch, per_body: bool, start: float) -> None:
         """Resolve, encode and publish one step; ``start``: when its callback began."""
+        if self.tf_links is not None:   # the links /tf poses, unless the batch holds them
+            batch = with_links(batch, self.tf_links.inputs())
         decoded = time.perf_counter()
         step = self.resolver.resolve(stamp, batch)
         resolved = time.perf_counter()

@@ -169,3 +169,48 @@ def test_links_posed_from_tf_static_and_tf(ros_domain, tmp_path) -> None:
             z, vz = crate.pose.position.z, crate.twist.linear.z
         assert z == pytest.approx(0.025, abs=1e-3)           # held by the plate at x = 1
         assert 'input refused' not in node.output()
+
+
+@pytest.mark.slow
+def test_sim_and_replay_take_the_urdf_from_the_topic(ros_domain, tmp_path, capsys) -> None:
+    """robot_description_topic: collres_sim and collres_replay wait for the URDF on
+    robot_description as the node does, up to --wait, then stop with one line; with it
+    published (latched, as robot_state_publisher), the sim records the links as bodies and
+    the replay of that bag with the same params resolves."""
+    import yaml
+    from ros_harness import Peer
+    from std_msgs.msg import String
+
+    from collres_ros import replay, sim
+    from collres_ros.ros import params, qos
+    from collres_ros.ros.bag import PARAMS_KEY, BagReader
+
+    urdf = (DATA / 'arm.urdf').read_text().replace(
+        'package://collres_test_robot', f'file://{DATA}')
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text(yaml.safe_dump({
+        '/**': {'ros__parameters': {
+            'bodies': ['crate'], 'robot_description_topic': True,
+            'body': {'crate': {'shape': 'box', 'size': [0.03, 0.03, 0.03], 'mass': 0.5,
+                               'position': [0.13, 0.0, 0.03]}}}},
+        'collres_sim': {'ros__parameters': {'duration': 0.05, 'rate_hz': 100.0}}}))
+    run = ['--params', str(scene), '--offline', '--record']
+    missing = 'robot_description_topic: no URDF on /robot_description within 0.5 s'
+    assert sim.main([*run, str(tmp_path / 'none'), '--wait', '0.5']) == 1
+    assert f'error: {missing}' in capsys.readouterr().err
+    describer = Peer(ros_domain, 'collres_test_describer')
+    try:
+        publisher = describer.node.create_publisher(String, 'robot_description',
+                                                    qos.latched_qos())
+        publisher.publish(String(data=urdf))
+        assert sim.main([*run, str(tmp_path / 'bag'), '--wait', '10']) == 0
+        with BagReader(tmp_path / 'bag') as reader:
+            recorded = params.load_recorded_scene(reader.custom_data[PARAMS_KEY], 'bag')
+        assert {'crate', 'base_link', 'upper_arm'} <= set(recorded.names)
+        assert replay.main([str(tmp_path / 'bag'), str(tmp_path / 'out'), '--params',
+                            str(scene), '--wait', '10', '--quiet']) == 0
+    finally:
+        describer.close()
+    assert replay.main([str(tmp_path / 'bag'), str(tmp_path / 'out2'), '--params', str(scene),
+                        '--wait', '0.5', '--quiet']) == 1
+    assert f'error: {missing}' in capsys.readouterr().err

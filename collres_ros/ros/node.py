@@ -83,7 +83,7 @@ from visualization_msgs.msg import MarkerArray
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
-from collres_ros.ros import cli, codec, messages, names, params, qos
+from collres_ros.ros import cli, codec, description, messages, names, params, qos
 from collres_ros.ros.contact_sensing import ContactSensing
 from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array, sleep_values,
                                          status_name)
@@ -166,24 +166,7 @@ class CollresNode(Node):
     def _wait_for_robot_description(self) -> str:
         """The URDF text of the first message on ``robot_description`` (transient local: the
         one robot_state_publisher holds), waited for with a log line every 5 s."""
-        from std_msgs.msg import String
-        got: list[str] = []
-        subscription = self.create_subscription(String, names.ROBOT_DESCRIPTION,
-                                                lambda msg: got.append(msg.data),
-                                                qos.latched_qos())
-        topic = names.absolute(names.ROBOT_DESCRIPTION, self.get_namespace())
-        try:
-            while not got and rclpy.ok(context=self.context):
-                self.get_logger().info(f'waiting for the URDF on {topic} (transient local)')
-                deadline = time.monotonic() + 5.0
-                while not got and time.monotonic() < deadline and rclpy.ok(context=self.context):
-                    rclpy.spin_once(self, timeout_sec=0.1)
-        finally:
-            self.destroy_subscription(subscription)
-        if not got:
-            raise KeyboardInterrupt   # shut down while waiting
-        self.get_logger().info(f'robot_description: {len(got[0])} characters from {topic}')
-        return got[0]
+        return description.wait_for(self, None, self.get_logger().info)
 
     def configure_resolution(self) -> None:
         """Create the resolver, the codecs, every topic and the diagnostics timer."""

@@ -677,7 +677,8 @@ def scene_to_yaml(scene: Scene) -> str:
     values = dict(scene.values)
     if scene.values.get('robot_description'):   # links written out as bodies, pairs too;
         # their recorded poses move them (no script without the URDF)
-        values.update({'robot_description': '', 'joint_motion': [], 'bodies': scene.names,
+        values.update({'robot_description': '', 'robot_description_topic': False,
+                       'joint_motion': [], 'bodies': scene.names,
                        'ignore_pairs': list(scene.values['ignore_pairs'])
                        + [f'{a}{PAIR_SEPARATOR}{b}' for a, b in scene.robot_ignored]})
     for body in scene.bodies:

@@ -5,13 +5,12 @@ plate gets contacts that name the link and its piece, carrying the crate's weigh
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import pytest
+from test_robot import MESHES, arm_urdf
 
 pytest.importorskip('rclpy')
 
-DATA = Path(__file__).resolve().parent / 'data' / 'robots'
 G, DT_S = 9.81, 0.01
 # stamps of our own (not test_node's T0): a node of another suite that shares a domain on
 # this host answers only the stamps it is sent, never ours
@@ -34,8 +33,7 @@ def test_links_posed_by_name_and_contacts_name_their_pieces(ros_domain, tmp_path
     from collres_ros.ros import qos
     from collres_ros.ros.robot import link_poses
 
-    urdf = (DATA / 'arm.urdf').read_text().replace(
-        'package://collres_test_robot', f'file://{DATA}')
+    urdf = arm_urdf(f'file://{MESHES}')
     scene = tmp_path / 'scene.yaml'
     robot = {'robot_description': urdf} if source == 'parameter' else \
         {'robot_description_topic': True}
@@ -91,12 +89,16 @@ def test_the_demo_runs_the_arm_scene_and_says_what_touched_what(tmp_path, capsys
     from conftest import next_domain_id
 
     from collres_ros.demo import main
-    main(['--scene', 'arm', '--duration', '0.8', '--out', str(tmp_path),
-          '--domain-id', str(next_domain_id())])   # exit 0 needs every step recorded too
+    code = main(['--scene', 'arm', '--duration', '0.8', '--out', str(tmp_path),
+                 '--domain-id', str(next_domain_id())])
     out = capsys.readouterr().out
     print(out)
+    assert code == 0   # both processes exit 0, every step answered and recorded
     assert 'collres_node exit 0, collres_sim exit 0' in out
     assert 'dropped 0' in out and 'what touched what' in out
+    # the stack starts at rest and is meant to be pushed: the report says so
+    assert 'box at rest at the start, box2: moved' in out
+    assert '(driven bodies may push it)' in out and 'nothing should move it' not in out
     listed = out.split('what touched what')[1]
     assert any(f'{link}/' in listed for link in ('upper_arm', 'forearm', 'hand'))
     assert main(['--scene', 'arm', '--params', 'x.yaml', '--out', str(tmp_path)]) == 1
@@ -123,8 +125,7 @@ def test_links_posed_from_tf_static_and_tf(ros_domain, tmp_path) -> None:
     from collres_ros.msg import BodyStateArray, ContactArray
     from collres_ros.ros import qos
 
-    urdf = (DATA / 'arm.urdf').read_text().replace(
-        'package://collres_test_robot', f'file://{DATA}')
+    urdf = arm_urdf(f'file://{MESHES}')
     scene = tmp_path / 'scene.yaml'
     scene.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
         'bodies': ['crate'], 'robot_description': urdf,
@@ -185,8 +186,7 @@ def test_sim_and_replay_take_the_urdf_from_the_topic(ros_domain, tmp_path, capsy
     from collres_ros.ros import params, qos
     from collres_ros.ros.bag import PARAMS_KEY, BagReader
 
-    urdf = (DATA / 'arm.urdf').read_text().replace(
-        'package://collres_test_robot', f'file://{DATA}')
+    urdf = arm_urdf(f'file://{MESHES}')
     scene = tmp_path / 'scene.yaml'
     scene.write_text(yaml.safe_dump({
         '/**': {'ros__parameters': {

@@ -1,12 +1,13 @@
 """The robot scene in-process: the arm of config/scenes/arm.yaml (links kinematic, compounds
-of their collision elements) sweeping through compound tables dropped on a floor, or with
-``--bin`` into the triangle-mesh bin test/data/meshes/bin.obj (40 one-sided triangles, 0.4 m
-square, 0.2 m tall) around the arm; core step time and contact rows per step for several
-solver.max_contacts_per_pair.
+of their collision elements) sweeping through compound tables dropped on a floor, with
+``--bin`` into the triangle-mesh bin test/data/meshes/bin.obj (40 one-sided triangles,
+0.4 m square, 0.2 m tall) on that floor around the arm; core step time and contact rows
+per step for several solver.max_contacts_per_pair.
 
 The arm's shoulder and elbow follow q(t) = 0.9 sin(2 pi 0.5 t), -0.6 sin(2 pi 0.5 t) (link
 poses by forward kinematics, their twists by finite differences); the tables (a top on two
-legs, three boxes each) start in layers of four over the arm and fall, stack and get pushed. Every
+legs, three boxes each) start in layers of four over the arm and fall, stack and get pushed
+(``in_bin``: how many end inside the bin's walls; ``lowest_table_z``: none sank). Every
 cap runs the same scene from the same start in its own child process.
 
 Usage::
@@ -36,12 +37,12 @@ from collres_ros.ros import params, robot
 scenes = root / 'config/scenes'
 urdf = yaml.safe_load((scenes / 'arm.yaml').read_text())['/**']['ros__parameters'][
     'robot_description']
-names = ['floor'] + [f't{k}' for k in range(tables)]
-floor = ({'body.floor.shape': 'triangle_mesh',
-          'body.floor.mesh': str(root / 'test/data/meshes/bin.obj')}
-         if in_bin else {'body.floor.shape': 'box', 'body.floor.size': [3.0, 3.0, 0.2],
-                         'body.floor.position': [0.0, 0.0, -0.1]})
-values = {'bodies': names, 'robot_description': urdf, 'body.floor.static': True, **floor,
+names = ['floor'] + ['bin'] * in_bin + [f't{k}' for k in range(tables)]
+values = {'bodies': names, 'robot_description': urdf, 'body.floor.static': True,
+          'body.floor.shape': 'box', 'body.floor.size': [3.0, 3.0, 0.2],
+          'body.floor.position': [0.0, 0.0, -0.1], 'body.bin.static': True,
+          'body.bin.shape': 'triangle_mesh',
+          'body.bin.mesh': str(root / 'test/data/meshes/bin.obj'),
           'solver.max_contacts_per_pair': cap}
 for k in range(tables):
     t = f'body.t{k}'
@@ -53,6 +54,9 @@ for k in range(tables):
                              ('right', [0.02, 0.06, 0.08], [0.07, 0, -0.025])):
         values.update({f'{t}.piece.{piece}.shape': 'box', f'{t}.piece.{piece}.size': size,
                        f'{t}.piece.{piece}.position': pos})
+if not in_bin:
+    values = {k: v for k, v in values.items() if not k.startswith('body.bin.')}
+tables_ = [n for n in names if n.startswith('t')]
 scene = params.scene_from_values(values, scenes)   # the finger mesh beside the scene
 links = [n for n in scene.names if n not in names]
 index = {n: scene.index(n) for n in scene.names}
@@ -93,7 +97,9 @@ print(json.dumps({'cap': cap, 'bin': in_bin, 'bodies': len(scene.names), 'links'
                   'step_ms_p50': float(np.median(times)),
                   'step_ms_p90': float(np.percentile(times, 90)),
                   'rows_mean': float(np.mean(rows)), 'rows_max': int(max(rows)),
-                  'lowest_table_z': float(state.position[[index[n] for n in names[1:]], 2].min()),
+                  'lowest_table_z': float(state.position[[index[n] for n in tables_], 2].min()),
+                  'in_bin': int((np.abs(state.position[[index[n] for n in tables_], :2]) < 0.2)
+                                .all(axis=1).sum()),
                   'finite': bool(np.isfinite(state.position).all())}))
 '''
 

@@ -23,7 +23,7 @@ import stat
 import struct
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Optional
+from typing import Any, Callable, Iterable, Mapping, Optional
 
 import numpy as np
 
@@ -357,20 +357,28 @@ def _read_mesh(path: Path) -> np.ndarray:
     return mesh_points(_mesh_bytes(path), path.suffix)
 
 
+def _mesh_file(key: str, mesh: str, base_dir: Optional[Path], files: bool, carried: str,
+               read: Callable[[Path], np.ndarray]) -> tuple[Path, np.ndarray]:
+    """(path, ``read(path)``) of the mesh file ``key.mesh`` names (relative to ``base_dir``);
+    one line naming ``key.mesh`` when it cannot be read, or in a recorded scene (``files``
+    false), which carries its ``carried`` (points) and names no file."""
+    if not files:
+        _fail(f'{key}.mesh', f'a recorded scene carries its {carried} (points), it names no '
+              'file: a mesh path from a bag is not read', mesh)
+    path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
+    try:
+        return path, read(path)
+    except (OSError, ValueError, struct.error) as error:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror \
+            else str(error)
+        _fail(f'{key}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+
+
 def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path],
                    files: bool = True) -> tuple[tuple[float, float, float], ...]:
     mesh, flat = values[f'{name}.mesh'], values[f'{name}.points']
-    if mesh and not files:
-        _fail(f'{name}.mesh', 'a recorded scene carries its vertices (points), it names no '
-              'file: a mesh path from a bag is not read', mesh)
     if mesh:
-        path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
-        try:
-            points = _read_mesh(path)
-        except (OSError, ValueError, struct.error) as error:
-            reason = error.strerror if isinstance(error, OSError) and error.strerror \
-                else str(error)
-            _fail(f'{name}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+        path, points = _mesh_file(name, mesh, base_dir, files, 'vertices', _read_mesh)
         if not np.isfinite(points).all():
             row = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
             _fail(f'{name}.mesh', f'vertex {row} of {path} is not finite '
@@ -504,17 +512,9 @@ def _triangle_mesh(key: str, values: Mapping[str, Any], base_dir: Optional[Path]
         _fail(f'{key}.static', 'a triangle_mesh must be static (scenery: a surface has no '
               'mass)', static)
     mesh, flat = values[f'{key}.mesh'], values[f'{key}.points']
-    if mesh and not files:
-        _fail(f'{key}.mesh', 'a recorded scene carries its triangles (points), it names no '
-              'file: a mesh path from a bag is not read', mesh)
     if mesh:
-        path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
-        try:
-            corners = mesh_surface(_mesh_bytes(path), path.suffix, str(path)).reshape(-1, 3)
-        except (OSError, ValueError, struct.error) as error:
-            reason = error.strerror if isinstance(error, OSError) and error.strerror \
-                else str(error)
-            _fail(f'{key}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+        path, corners = _mesh_file(key, mesh, base_dir, files, 'triangles', lambda path: (
+            mesh_surface(_mesh_bytes(path), path.suffix, str(path)).reshape(-1, 3)))
         if np.abs(corners).max() > SIZE_RANGE[1]:
             _fail(f'{key}.mesh', f'vertices of {path} must be within {SIZE_RANGE[1]:g} m '
                   'of the body origin', mesh)

@@ -63,6 +63,7 @@ import gc
 import threading
 import time
 from collections import Counter
+from functools import partial
 from pathlib import Path
 from typing import Any, Optional, Sequence
 

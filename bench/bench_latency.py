@@ -38,8 +38,8 @@ adds beyond it is ours.
 Latency is publish to reception of the step's ``body_states/corrected``
 (CLOCK_MONOTONIC, shared by the processes); ``send`` is the publisher's own part of it, the
 time its ``publish`` calls took to hand the step over (in ``per_body`` mode the 2 x bodies
-messages one after another, in Python). Dropped = paced steps without an answer. The
-node's callback split comes from its ``/diagnostics`` values:
+messages one after another, in Python). Dropped = paced steps without an answer. The node's
+callback split comes from its ``/diagnostics`` values:
 ``time.decode_ms``, ``time.resolve_ms`` (Resolver.resolve), ``time.world_ms``
 (World.step alone), ``time.encode_ms``, ``time.publish_ms`` and
 ``callback_time_mean_ms``; an older node reports only the callback and

@@ -38,15 +38,22 @@ import numpy as np
 
 from collres_ros.core import _native
 from collres_ros.core.config import SolverSettings
-from collres_ros.core.shapes import bounding_radius, collision_numbers, piece_spec
-from collres_ros.core.types import (COMPOUND, SHAPE_KINDS, BodySpec, BodyStates,
-                                    CollisionFilter, ContactSet)
+from collres_ros.core.shapes import (bounding_radius, collision_numbers, piece_spec,
+                                     triangle_corners)
+from collres_ros.core.types import (COMPOUND, SHAPE_KINDS, TRIANGLE_MESH, BodySpec,
+                                    BodyStates, CollisionFilter, ContactSet)
 
 IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)   # a piece frame on the body frame
 
 REUSE_TRANSLATION = _native.REUSE_TRANSLATION   # m: a stored manifold is reused while its
 REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and turned less
 #                                                 than this (rad) relative to each other
+
+
+# What detection reads, named as in SolverSettings and in the compiled DetectionSettings.
+DETECTION_FIELDS = ('speculative_margin', 'toi_tolerance', 'toi_max_iterations', 'ccd',
+                    'linear_slop', 'restitution_threshold', 'max_pairs', 'max_contacts',
+                    'max_contacts_per_pair')
 
 
 class Detection:
@@ -71,11 +78,7 @@ class Detection:
     def settings(self, settings: SolverSettings) -> None:
         """New settings take effect at the next step (a new margin forgets the manifolds)."""
         self._settings = settings
-        self._native.set_settings(settings.speculative_margin, settings.toi_tolerance,
-                                  settings.toi_max_iterations, settings.ccd,
-                                  settings.linear_slop, settings.restitution_threshold,
-                                  settings.max_pairs, settings.max_contacts,
-                                  settings.max_contacts_per_pair)
+        self._native.settings = detection_settings(settings)
 
     @property
     def collision_filter(self) -> CollisionFilter:
@@ -126,11 +129,26 @@ class Detection:
                 as_rows(current.linear), as_rows(current.angular), mask)
 
 
+def detection_settings(settings: SolverSettings) -> _native.DetectionSettings:
+    """The compiled detector's settings from the solver settings: each of its fields by name
+    (SolverSettings has a field of every name)."""
+    native = _native.DetectionSettings()
+    for name in DETECTION_FIELDS:
+        setattr(native, name, getattr(settings, name))
+    return native
+
+
 def _shapes(index: int, spec: BodySpec) -> list[tuple]:
     """The compiled detector's shapes of body ``index``: one, or one per piece of a compound
-    (kind, sizes, vertices, bounding radius about the body origin, static, body, piece,
-    piece pose in the body frame)."""
+    or per triangle of a triangle mesh (kind, sizes, vertices, bounding radius about the
+    body origin, static, body, piece, piece pose in the body frame)."""
     fixed = bool(spec.static or spec.shape == 'plane')
+    if spec.shape == TRIANGLE_MESH:
+        corners = triangle_corners(spec)
+        reach = np.linalg.norm(corners, axis=2).max(axis=1)
+        kind = SHAPE_KINDS.index('triangle')
+        return [(kind, [], triangle.reshape(-1).tolist(), float(r), fixed, index, number,
+                 IDENTITY) for number, (triangle, r) in enumerate(zip(corners, reach))]
     if spec.shape != COMPOUND:
         size, points = collision_numbers(spec)
         return [(SHAPE_KINDS.index(spec.shape), size, points, bounding_radius(spec), fixed,

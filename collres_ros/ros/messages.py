@@ -25,6 +25,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from collres_ros.core.pipeline import ResolvedStep
 from collres_ros.core.rotation import to_matrix
+from collres_ros.core.shapes import piece_names
 from collres_ros.core.types import BodyInput, BodySpec, BodyStates, InputBatch
 from collres_ros.core.wrench import contact_wrenches
 from collres_ros.msg import BodyStateArray
@@ -147,11 +148,12 @@ class OutputEncoder:
         self.states = codec.StatesCodec()
         self.names = codec.NamePool(self.body_names)
         # piece names of contacts: every body's pieces in one pool ('' for a body of one
-        # shape), body k's from piece_start[k]; None without compound bodies (all '')
+        # shape; a triangle mesh's triangle_<k>), body k's from piece_start[k]; None
+        # without compound bodies or triangle meshes (all '')
         self.piece_names: Optional[codec.NamePool] = None
         self.piece_start = np.zeros(len(self.body_names), np.int64)
-        if bodies is not None and any(b.pieces for b in bodies):
-            names = [[p.name for p in b.pieces] or [''] for b in bodies]
+        names = [piece_names(b) for b in bodies] if bodies is not None else []
+        if any(n != [''] for n in names):
             self.piece_start = np.cumsum([0] + [len(n) for n in names[:-1]]).astype(np.int64)
             self.piece_names = codec.NamePool([n for group in names for n in group])
         self._body_markers: Optional[Any] = None

@@ -63,9 +63,11 @@ import gc
 import threading
 import time
 from collections import Counter
+from functools import partial
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
@@ -80,7 +82,7 @@ from visualization_msgs.msg import MarkerArray
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
-from collres_ros.ros import cli, codec, messages, names, params, qos
+from collres_ros.ros import cli, codec, description, messages, names, params, qos
 from collres_ros.ros.contact_sensing import ContactSensing
 from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array, sleep_values,
                                          status_name)
@@ -88,6 +90,7 @@ from collres_ros.ros.health import Health
 from collres_ros.ros.inputs import InputServer, PerBodyInputs, ServedElsewhere
 from collres_ros.ros.losses import LossCounter
 from collres_ros.ros.stamps import seconds_ns
+from collres_ros.ros.tf_links import TfLinks, with_links
 from collres_ros.ros.sync import StampSync, names_text
 
 NAME = 'collres_node'
@@ -161,24 +164,7 @@ class CollresNode(Node):
     def _wait_for_robot_description(self) -> str:
         """The URDF text of the first message on ``robot_description`` (transient local: the
         one robot_state_publisher holds), waited for with a log line every 5 s."""
-        from std_msgs.msg import String
-        got: list[str] = []
-        subscription = self.create_subscription(String, names.ROBOT_DESCRIPTION,
-                                                lambda msg: got.append(msg.data),
-                                                qos.latched_qos())
-        topic = names.absolute(names.ROBOT_DESCRIPTION, self.get_namespace())
-        try:
-            while not got and rclpy.ok(context=self.context):
-                self.get_logger().info(f'waiting for the URDF on {topic} (transient local)')
-                deadline = time.monotonic() + 5.0
-                while not got and time.monotonic() < deadline and rclpy.ok(context=self.context):
-                    rclpy.spin_once(self, timeout_sec=0.1)
-        finally:
-            self.destroy_subscription(subscription)
-        if not got:
-            raise KeyboardInterrupt   # shut down while waiting
-        self.get_logger().info(f'robot_description: {len(got[0])} characters from {topic}')
-        return got[0]
+        return description.wait_for(self, None, self.get_logger().info)
 
     def configure_resolution(self, serve: bool = False) -> None:
         """Create the resolver, the codecs, every topic and the diagnostics timer; then
@@ -213,6 +199,7 @@ class CollresNode(Node):
             qos_overriding_options=qos.OVERRIDES, callback_group=ServedElsewhere())]
         self.states_input = InputServer(self, 'collres_states',
                                         lambda: [(self._inputs[0], self._on_states)])
+        self.tf_links = self._subscribe_tf()
         self._timer = self._diagnostics_timer()
         self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
@@ -239,6 +226,34 @@ class CollresNode(Node):
     def input_failure(self) -> Optional[BaseException]:
         """What ended an input thread (``inputs.py``), None while they serve."""
         return self.states_input.failure or self.per_body_inputs.failure
+
+    def _subscribe_tf(self) -> Optional[TfLinks]:
+        """With robot_description: /tf and /tf_static pose the static bodies named as their
+        child frames, the links (tf_links.py); None without a robot or without tf2_msgs."""
+        kind = CLASSES.get(messages.TYPES[names.TF])
+        if not self.scene.values.get('robot_description') or kind is None:
+            return None
+
+        def pose(name: str) -> np.ndarray:   # a root of a chain: as the resolver holds it
+            state, k = self.resolver.state, self.resolver.index_of[name]
+            return np.concatenate([state.position[k], state.orientation[k]])
+
+        links = TfLinks([b.name for b in self.scene.bodies if b.static], self.scene.names,
+                        self.scene.world_frame, pose)
+        for topic, profile in ((names.TF, qos.state_qos(100)),
+                               (names.TF_STATIC, qos.tf_static_qos())):
+            self._inputs.append(self.create_subscription(
+                kind, topic, partial(self._on_tf, topic), profile, raw=True))
+        return links
+
+    def _on_tf(self, topic: str, data: bytes) -> None:
+        with self._lock:
+            if not self.serving:
+                return
+            try:
+                self.tf_links.take(codec.decode_tf(data))
+            except codec.DecodeError as refusal:
+                self._refuse(refusal, topic)
 
     def release_resolution(self) -> None:
         """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
@@ -372,6 +387,8 @@ class CollresNode(Node):
 
     def _step(self, stamp: int, batch: InputBatch, per_body: bool, start: float) -> None:
         """Resolve, encode and publish one step; ``start``: when its callback began."""
+        if self.tf_links is not None:   # the links /tf poses, unless the batch holds them
+            batch = with_links(batch, self.tf_links.inputs())
         decoded = time.perf_counter()
         step = self.resolver.resolve(stamp, batch)
         resolved = time.perf_counter()

@@ -24,7 +24,7 @@ import stat
 import struct
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Optional
+from typing import Any, Callable, Iterable, Mapping, Optional
 
 import numpy as np
 
@@ -33,8 +33,10 @@ from collres_ros.core.config import (
     BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, PIECE_PARAMS, POSITION_LIMIT,
     SCENE_PARAMS, SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
-from collres_ros.core.shapes import centre_of_mass, hull_problem, hull_vertices, mesh_points
-from collres_ros.core.types import COMPOUND, BodySpec, BodyStates, CollisionFilter, Piece
+from collres_ros.core.shapes import (centre_of_mass, hull_problem, hull_vertices, mesh_points,
+                                     mesh_surface, triangle_corners)
+from collres_ros.core.types import (COMPOUND, TRIANGLE_MESH, BodySpec, BodyStates,
+                                    CollisionFilter, Piece)
 from collres_ros.ros import params_yaml, robot
 
 NODE_NAME = 'collres_node'
@@ -367,20 +369,28 @@ def _read_mesh(path: Path) -> np.ndarray:
     return mesh_points(_mesh_bytes(path), path.suffix)
 
 
+def _mesh_file(key: str, mesh: str, base_dir: Optional[Path], files: bool, carried: str,
+               read: Callable[[Path], np.ndarray]) -> tuple[Path, np.ndarray]:
+    """(path, ``read(path)``) of the mesh file ``key.mesh`` names (relative to ``base_dir``);
+    one line naming ``key.mesh`` when it cannot be read, or in a recorded scene (``files``
+    false), which carries its ``carried`` (points) and names no file."""
+    if not files:
+        _fail(f'{key}.mesh', f'a recorded scene carries its {carried} (points), it names no '
+              'file: a mesh path from a bag is not read', mesh)
+    path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
+    try:
+        return path, read(path)
+    except (OSError, ValueError, struct.error) as error:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror \
+            else str(error)
+        _fail(f'{key}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+
+
 def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path],
                    files: bool = True) -> tuple[tuple[float, float, float], ...]:
     mesh, flat = values[f'{name}.mesh'], values[f'{name}.points']
-    if mesh and not files:
-        _fail(f'{name}.mesh', 'a recorded scene carries its vertices (points), it names no '
-              'file: a mesh path from a bag is not read', mesh)
     if mesh:
-        path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
-        try:
-            points = _read_mesh(path)
-        except (OSError, ValueError, struct.error) as error:
-            reason = error.strerror if isinstance(error, OSError) and error.strerror \
-                else str(error)
-            _fail(f'{name}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+        path, points = _mesh_file(name, mesh, base_dir, files, 'vertices', _read_mesh)
         if not np.isfinite(points).all():
             row = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
             _fail(f'{name}.mesh', f'vertex {row} of {path} is not finite '
@@ -506,6 +516,32 @@ def _decomposed(key: str, values: Mapping[str, Any], base_dir: Optional[Path],
                  for k, h in enumerate(hulls))
 
 
+def _triangle_mesh(key: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool,
+                   static: bool) -> tuple[tuple[float, float, float], ...]:
+    """The corners (three a triangle) of a triangle-mesh body: its mesh file's triangles, or
+    ``key.points`` (nine values a triangle, as a recorded scene carries them); static only."""
+    if not static:
+        _fail(f'{key}.static', 'a triangle_mesh must be static (scenery: a surface has no '
+              'mass)', static)
+    mesh, flat = values[f'{key}.mesh'], values[f'{key}.points']
+    if mesh:
+        path, corners = _mesh_file(key, mesh, base_dir, files, 'triangles', lambda path: (
+            mesh_surface(_mesh_bytes(path), path.suffix, str(path)).reshape(-1, 3)))
+        if np.abs(corners).max() > SIZE_RANGE[1]:
+            _fail(f'{key}.mesh', f'vertices of {path} must be within {SIZE_RANGE[1]:g} m '
+                  'of the body origin', mesh)
+    else:
+        if not flat or len(flat) % 9:
+            _fail(f'{key}.points', 'a triangle_mesh needs a mesh, or points: nine values (three '
+                  'corners) a triangle', flat)
+        corners = np.array(flat, float).reshape(-1, 3)
+        try:
+            triangle_corners(BodySpec(key, TRIANGLE_MESH, static=True, points=corners))
+        except ValueError as error:
+            _fail(f'{key}.points', str(error).split(': ', 1)[1], flat)
+    return tuple(tuple(float(c) for c in p) for p in corners)
+
+
 def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool = True,
           given: frozenset[str] = frozenset()) -> tuple[BodySpec, np.ndarray]:
     """BodySpec and the 13-vector initial state of body ``name`` from validated values
@@ -517,6 +553,8 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files:
         shape, pieces = COMPOUND, _pieces(key, values, base_dir, files, set(given))
     elif values[f'{key}.decompose']:
         shape, pieces = COMPOUND, _decomposed(key, values, base_dir, files)
+    elif shape == TRIANGLE_MESH:
+        points = _triangle_mesh(key, values, base_dir, files, static)
     else:
         size, points = _shape(key, values, base_dir, files, static)
     inertia = values[f'{key}.inertia']
@@ -651,12 +689,13 @@ def scene_to_yaml(scene: Scene) -> str:
     values = dict(scene.values)
     if scene.values.get('robot_description'):   # links written out as bodies, pairs too;
         # their recorded poses move them (no script without the URDF)
-        values.update({'robot_description': '', 'joint_motion': [], 'bodies': scene.names,
+        values.update({'robot_description': '', 'robot_description_topic': False,
+                       'joint_motion': [], 'bodies': scene.names,
                        'ignore_pairs': list(scene.values['ignore_pairs'])
                        + [f'{a}{PAIR_SEPARATOR}{b}' for a, b in scene.robot_ignored]})
     for body in scene.bodies:
         key = f'body.{body.name}'
-        if body.shape == 'convex':
+        if body.shape in ('convex', TRIANGLE_MESH):
             values[f'{key}.mesh'] = ''
             values[f'{key}.points'] = [float(c) for p in body.points for c in p]
         if body.shape == COMPOUND:   # pieces written out whole: decomposed hulls too

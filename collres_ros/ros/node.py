@@ -215,7 +215,9 @@ class CollresNode(Node):
         self.configured = True
         # what the start built (rclpy, numpy, the scene, the resolver, the codecs' layouts) is
         # out of the collector's passes from now on: a full collection walked it all, 37 ms at
-        # 100 bodies, every few thousand steps, stalling the step it fell in
+        # 100 bodies, every few thousand steps, stalling the step it fell in (the start's
+        # garbage is collected first: nothing frozen is ever freed)
+        gc.collect()
         gc.freeze()
         if self.scene.node.publish_tf and messages.TYPES[names.TF] not in CLASSES:
             self.get_logger().warning('publish_tf: tf2_msgs is not installed here: no /tf')
@@ -257,6 +259,7 @@ class CollresNode(Node):
 
     def release_resolution(self) -> None:
         """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
+        gc.unfreeze()   # what goes can be collected (a managed node configures again)
         self.states_input.close()
         self.per_body_inputs.close()
         self.contact_sensing.close()

@@ -127,8 +127,9 @@ class InputServer:
         self.closing = True
         self._wake.trigger()
         if self.thread.is_alive():
-            self.thread.join(2.0)
-        self._wake.destroy()
+            self.thread.join(5.0)
+        if not self.thread.is_alive():   # else the thread may still wait on it
+            self._wake.destroy()
 
 
 class PerBodyInputs:
@@ -165,8 +166,7 @@ class PerBodyInputs:
             self.node.destroy_node()
             raise
         self.server = InputServer(owner, 'collres_per_body', self._subscribe)
-        self.ready = self.server.ready   # every subscription exists
-        self.server.start()
+        self.ready = self.server.ready   # every subscription exists (after ``server.start``)
 
     @property
     def failure(self) -> Optional[BaseException]:

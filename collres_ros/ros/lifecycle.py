@@ -18,6 +18,7 @@ than ``solver.max_dt`` after its predecessor is a fresh start.
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
@@ -37,6 +38,7 @@ class ManagedCollresNode(CollresNode, LifecycleNode):
         return super().on_configure(state)
 
     def on_activate(self, state: LifecycleState) -> Any:
+        self.serving_since_ns = time.time_ns()   # what arrived while inactive is not served
         self.serving = True
         return super().on_activate(state)
 

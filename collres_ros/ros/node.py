@@ -156,6 +156,7 @@ class CollresNode(Node):
         self._suppressed: dict[str, int] = {}
         self.configured = False   # resolver, topics and timer exist (always, unless managed)
         self.serving = False      # inputs are resolved and answered (managed: while active)
+        self.serving_since_ns = 0   # system time (ns) serving began (managed: activation)
         if not self.MANAGED:
             self.configure_resolution(serve=True)
 
@@ -209,21 +210,27 @@ class CollresNode(Node):
         self._last_part_step = time.monotonic()
         self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)
         self.serving = serve
-        # last: their threads start taking inputs
         self.per_body_inputs = PerBodyInputs(self, body_names)
-        self.states_input.start()
+        if self.MANAGED:   # configured by a transition: the executor spins already
+            self.start_inputs()
         self.configured = True
         # what the start built (rclpy, numpy, the scene, the resolver, the codecs' layouts) is
         # out of the collector's passes from now on: a full collection walked it all, 37 ms at
-        # 100 bodies, every few thousand steps, stalling the step it fell in (the start's
-        # garbage is collected first: nothing frozen is ever freed)
-        gc.collect()
+        # 100 bodies, every few thousand steps, stalling the step it fell in
         gc.freeze()
         if self.scene.node.publish_tf and messages.TYPES[names.TF] not in CLASSES:
             self.get_logger().warning('publish_tf: tf2_msgs is not installed here: no /tf')
         self.get_logger().info(
             f'resolving {len(body_names)} bodies ({names_text(body_names)}) in frame '
             f'{self.scene.world_frame!r}')
+
+    def start_inputs(self) -> None:
+        """Start the input threads (``inputs.py``). An unmanaged node's main calls it once
+        its executor exists, inside the shutdown handling that closes them: a thread left
+        running in rcl while the process exits (a signal during the start) aborts it."""
+        for server in (self.per_body_inputs.server, self.states_input):
+            if server.thread.ident is None and not server.closing:   # never started
+                server.start()
 
     def input_failure(self) -> Optional[BaseException]:
         """What ended an input thread (``inputs.py``), None while they serve."""
@@ -259,7 +266,6 @@ class CollresNode(Node):
 
     def release_resolution(self) -> None:
         """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
-        gc.unfreeze()   # what goes can be collected (a managed node configures again)
         self.states_input.close()
         self.per_body_inputs.close()
         self.contact_sensing.close()
@@ -335,7 +341,7 @@ class CollresNode(Node):
             self._take_states(data, info)
 
     def _take_states(self, data: bytes, info: Any) -> None:
-        if not self.serving:
+        if not self.serves(info):
             return
         start = time.perf_counter()
         self.losses.count(names.STATES, info, self._inputs[0].get_publisher_count())
@@ -347,13 +353,20 @@ class CollresNode(Node):
         batch = InputBatch(decoded.names, decoded.values, decoded.frame_id, decoded.frame_id)
         self._step(decoded.stamp_ns, batch, False, start)
 
+    def serves(self, info: Any) -> bool:
+        """Whether an input is served: while serving, and received after serving began (a
+        managed node's input threads may take a message that arrived while it was inactive
+        after its activation; the rmw's reception time says when it arrived)."""
+        received = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
+        return self.serving and not (0 < received < self.serving_since_ns)
+
     def on_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
         """A per-body pose or twist (bytes), from the per-body inputs' thread."""
         with self._lock:
             self._take_part(name, kind, data, info)
 
     def _take_part(self, name: str, kind: str, data: bytes, info: Any) -> None:
-        if not self.serving:
+        if not self.serves(info):
             return
         start = time.perf_counter()
         self.losses.count(f'{name}/{kind}', info)
@@ -611,6 +624,8 @@ def _spin(argv: Sequence[str]) -> int:
     try:
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        if node.configured:   # a managed node starts them when a transition configures it
+            node.start_inputs()
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -89,6 +89,22 @@ void bind_detection(py::module_& m) {
   m.def("hull_problem", &collres::hull_problem, py::arg("points"),
         "Why no convex hull can be built of these vertices (flat x, y, z, m), or '' when one "
         "can (shapes.h: too few, not finite, coincident, collinear or flat points).");
+  py::class_<collres::DetectionSettings>(
+      m, "DetectionSettings",
+      "What detection reads, each field named as in collres_ros.core.config.SolverSettings "
+      "(see there for units and ranges); handed over by name (detection.py).")
+      .def(py::init<>())
+      .def_readwrite("speculative_margin", &collres::DetectionSettings::speculative_margin)
+      .def_readwrite("toi_tolerance", &collres::DetectionSettings::toi_tolerance)
+      .def_readwrite("toi_max_iterations", &collres::DetectionSettings::toi_max_iterations)
+      .def_readwrite("ccd", &collres::DetectionSettings::ccd)
+      .def_readwrite("linear_slop", &collres::DetectionSettings::linear_slop)
+      .def_readwrite("restitution_threshold",
+                     &collres::DetectionSettings::restitution_threshold)
+      .def_readwrite("max_pairs", &collres::DetectionSettings::max_pairs)
+      .def_readwrite("max_contacts", &collres::DetectionSettings::max_contacts)
+      .def_readwrite("max_contacts_per_pair",
+                     &collres::DetectionSettings::max_contacts_per_pair);
   py::class_<collres::Detector>(m, "Detector", "Broad phase, narrow phase, manifolds and "
                                 "time of impact of a fixed list of bodies (detection.h).")
       .def(py::init([](const std::vector<int>& kinds, const std::vector<std::vector<double>>& sizes,
@@ -139,19 +155,12 @@ void bind_detection(py::module_& m) {
            "static, its body, its index among that body's pieces, the piece frame's pose in "
            "the body frame (x, y, z m, qx, qy, qz, qw); the number of bodies. Without the "
            "last four: one shape per body.")
-      .def("set_settings",
-           [](collres::Detector& d, double speculative_margin, double toi_tolerance,
-              int toi_max_iterations, bool ccd, double linear_slop,
-              double restitution_threshold, int max_pairs, int max_contacts,
-              int max_contacts_per_pair) {
-             d.set_settings({speculative_margin, toi_tolerance, toi_max_iterations, ccd,
-                             linear_slop, restitution_threshold, max_pairs, max_contacts,
-                             max_contacts_per_pair});
-           },
-           py::arg("speculative_margin"), py::arg("toi_tolerance"),
-           py::arg("toi_max_iterations"), py::arg("ccd"), py::arg("linear_slop"),
-           py::arg("restitution_threshold"), py::arg("max_pairs"), py::arg("max_contacts"),
-           py::arg("max_contacts_per_pair"))
+      .def_property(
+          "settings",
+          [](const collres::Detector& d) { return collres::DetectionSettings(d.settings()); },
+          &collres::Detector::set_settings,
+          "The DetectionSettings (a copy; assign a whole one: it takes effect at the next "
+          "step, a new margin forgets the manifolds).")
       .def("budget",
            [](const collres::Detector& d) {
              return py::make_tuple(d.budget().pairs_dropped, d.budget().rows_dropped);

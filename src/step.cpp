@@ -58,6 +58,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   to_travel(ctx);
   // warm start from last step's impulses of the same pair and feature
   double cold = warm(ctx);
+  start_.assign(velocity_.begin(), velocity_.end());
   warm_start(rows_, ctx.solver);
   // iterate: sequential impulses (more sweeps while resting contacts are new, and at
   // least depth_sweeps per level of the deepest stack), then shock propagation from the
@@ -69,6 +70,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   StepStats stats;
   stats.sweeps = solve_velocities(rows_, manifolds_, ctx.solver, iterations, params.converged,
                                   &spins_);
+  stats.sweeps += hold_energy(ctx, iterations);
   stats.rows = static_cast<int64_t>(rows_.size());
   propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, params.shock_sweeps,
                   params.shock_ratio);
@@ -298,6 +300,70 @@ void StepSolver::to_travel(StepContext& ctx) {
     for (int d = 0; d < 6; ++d)
       velocity_[6 * i + d] += half_rest * (now_[6 * i + d] - then_[6 * i + d]);
   }
+}
+
+int StepSolver::hold_energy(StepContext& ctx, int iterations) {
+  const int64_t n = ctx.bodies.count;
+  const double* inv_mass = ctx.bodies.inv_mass;
+  // islands: bodies joined by rows between two movable bodies (union-find, by index)
+  island_.resize(n);
+  for (int64_t i = 0; i < n; ++i) island_[i] = static_cast<int32_t>(i);
+  auto root = [&](int32_t i) {
+    while (island_[i] != i) i = island_[i] = island_[island_[i]];
+    return i;
+  };
+  for (const ContactRow& r : rows_) {
+    if (r.ma == 0.0 || r.mb == 0.0) continue;
+    const int32_t x = root(r.a), y = root(r.b);
+    if (x != y) island_[std::max(x, y)] = std::min(x, y);
+  }
+  // kinetic energy change of each island (J) and the scale it is judged against; an
+  // island pushed by a moving immovable body (driven, kinematic) may gain: not judged
+  gain_.assign(2 * n, 0.0);
+  auto moving = [&](int32_t i) {
+    const double* v = start_.data() + 6 * i;
+    return v[0] != 0.0 || v[1] != 0.0 || v[2] != 0.0 || v[3] != 0.0 || v[4] != 0.0 ||
+           v[5] != 0.0;
+  };
+  for (const ContactRow& r : rows_) {
+    if (r.ma == 0.0 && moving(r.a)) gain_[2 * root(r.b) + 1] = -1.0;
+    if (r.mb == 0.0 && moving(r.b)) gain_[2 * root(r.a) + 1] = -1.0;
+  }
+  for (int64_t i = 0; i < n; ++i) {
+    if (!touched_[i] || inv_mass[i] == 0.0) continue;
+    const double* v0 = start_.data() + 6 * i;
+    const double* v1 = velocity_.data() + 6 * i;
+    const Vec3 l0 = load3(v0), l1 = load3(v1), w0 = load3(v0 + 3), w1 = load3(v1 + 3);
+    const Mat3 inertia = inv_inertia_[i].inverse();
+    const double before = (dot(l0, l0) / inv_mass[i] + dot(w0, mul(inertia, w0))) * 0.5;
+    const double after = (dot(l1, l1) / inv_mass[i] + dot(w1, mul(inertia, w1))) * 0.5;
+    const int32_t x = root(static_cast<int32_t>(i));
+    gain_[2 * x] += after - before;
+    if (gain_[2 * x + 1] >= 0.0) gain_[2 * x + 1] += before;
+  }
+  auto gained = [&](int32_t body) {
+    const int32_t x = root(body);
+    return gain_[2 * x + 1] >= 0.0 && gain_[2 * x] > 1e-10 * gain_[2 * x + 1] + 1e-300;
+  };
+  retry_.clear();
+  for (const Manifold& m : manifolds_)
+    if (gained(inv_mass[m.a] > 0.0 ? m.a : m.b)) retry_.push_back(m);
+  if (retry_.empty()) return 0;
+  // those islands again from their pre-solve velocities, without friction
+  for (int64_t i = 0; i < n; ++i)
+    if (touched_[i] && inv_mass[i] > 0.0 && gained(static_cast<int32_t>(i)))
+      std::copy(start_.begin() + 6 * i, start_.begin() + 6 * i + 6, velocity_.begin() + 6 * i);
+  for (const Manifold& m : retry_)
+    for (int32_t i = m.first; i < m.first + m.count; ++i) {
+      ContactRow& r = rows_[i];
+      r.mu = r.normal = r.tangent[0] = r.tangent[1] = 0.0;
+    }
+  for (SpinRow& s : spins_)
+    if (gained(inv_mass[s.a] > 0.0 ? s.a : s.b)) {
+      s.roll = s.twist = 0.0;
+      s.torque = Vec3::Zero();
+    }
+  return solve_velocities(rows_, retry_, ctx.solver, iterations, ctx.params.converged);
 }
 
 void StepSolver::land(StepContext& ctx) {

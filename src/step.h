@@ -33,8 +33,13 @@
 //    every row starts cold, so no timing of the inputs can launch a resting body;
 // 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
 //    a block (more sweeps while the resting contacts are new, and at least depth_sweeps
-//    per level of the deepest stack: a load passes down one level per sweep), then
-//    shock propagation from the ground up (a heavy body on a light one);
+//    per level of the deepest stack: a load passes down one level per sweep); an island
+//    (bodies joined by rows through movable bodies) whose kinetic energy the sweeps
+//    raised above what it had before the warm start is solved again from its pre-solve
+//    velocities without friction (coupled Coulomb friction can have no answer the sweeps
+//    converge to: they cycle, and may stop where energy was gained; the frictionless
+//    solve is a projection, which never gains) (hold_energy); then shock propagation
+//    from the ground up (a heavy body on a light one);
 // 6. landing: the poses travel with the velocities solved so far; a speculative contact
 //    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
 //    is solved again with no allowance, for the velocities only, so it ends the step
@@ -154,6 +159,7 @@ class StepSolver {
   double warm(StepContext& ctx);   // returns the fraction of persistent contacts cold
   int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
   void to_travel(StepContext& ctx);  // impacted bodies: + (1 - f) / 2 external change
+  int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
   void land(StepContext& ctx);
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
@@ -168,6 +174,10 @@ class StepSolver {
   std::vector<double> now_;          // (N, 6) current twist (held, non-finite: 0)
   std::vector<double> then_;         // (N, 6) previous twist (held, non-finite: 0)
   std::vector<double> pseudo_;       // (N, 6) split-impulse pseudo velocity
+  std::vector<double> start_;        // (N, 6) velocity before the warm start
+  std::vector<int32_t> island_;      // (N,) union-find parent (hold_energy)
+  std::vector<double> gain_;         // (N, 2) J, per island root: the energy change, the
+                                     // energy before (-1: driven, not judged)
   std::vector<double> fraction_;     // (N,) reference fraction of the step
   std::vector<uint8_t> touched_, impacted_;
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
@@ -180,6 +190,7 @@ class StepSolver {
   std::vector<uint8_t> found_;
   std::vector<ContactRow> rows_, shock_rows_;
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
+  std::vector<Manifold> retry_;      // manifolds of the islands solved again (hold_energy)
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };

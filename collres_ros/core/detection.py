@@ -50,6 +50,12 @@ REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and 
 #                                                 than this (rad) relative to each other
 
 
+# What detection reads, named as in SolverSettings and in the compiled DetectionSettings.
+DETECTION_FIELDS = ('speculative_margin', 'toi_tolerance', 'toi_max_iterations', 'ccd',
+                    'linear_slop', 'restitution_threshold', 'max_pairs', 'max_contacts',
+                    'max_contacts_per_pair')
+
+
 class Detection:
     """The compiled detector of a fixed list of bodies, and the settings it reads."""
 
@@ -72,11 +78,7 @@ class Detection:
     def settings(self, settings: SolverSettings) -> None:
         """New settings take effect at the next step (a new margin forgets the manifolds)."""
         self._settings = settings
-        self._native.set_settings(settings.speculative_margin, settings.toi_tolerance,
-                                  settings.toi_max_iterations, settings.ccd,
-                                  settings.linear_slop, settings.restitution_threshold,
-                                  settings.max_pairs, settings.max_contacts,
-                                  settings.max_contacts_per_pair)
+        self._native.settings = detection_settings(settings)
 
     @property
     def collision_filter(self) -> CollisionFilter:
@@ -125,6 +127,15 @@ class Detection:
         return (as_rows(previous.position), as_rows(previous.orientation),
                 as_rows(current.position), as_rows(current.orientation),
                 as_rows(current.linear), as_rows(current.angular), mask)
+
+
+def detection_settings(settings: SolverSettings) -> _native.DetectionSettings:
+    """The compiled detector's settings from the solver settings: each of its fields by name
+    (SolverSettings has a field of every name)."""
+    native = _native.DetectionSettings()
+    for name in DETECTION_FIELDS:
+        setattr(native, name, getattr(settings, name))
+    return native
 
 
 def _shapes(index: int, spec: BodySpec) -> list[tuple]:

@@ -16,6 +16,7 @@ import rclpy's types when called; importing this module imports no ROS.
 from __future__ import annotations
 
 import array
+import functools
 import math
 import os
 import re
@@ -110,14 +111,22 @@ class Scene:
 
 # --- the table of every parameter -------------------------------------------------------------
 
+def _renamed(spec: ParamSpec, name: str) -> ParamSpec:
+    """``spec`` under another name (``dataclasses.replace`` re-runs ``__init__``: 13 us a
+    call, 0.6 s of a 1000-body start, where 47,000 specs are renamed)."""
+    renamed = object.__new__(ParamSpec)
+    renamed.__dict__.update(spec.__dict__, name=name)
+    return renamed
+
+
 def body_param(name: str, spec: ParamSpec) -> ParamSpec:
     """``spec`` renamed to ``body.<name>.<param>``."""
-    return replace(spec, name=f'body.{name}.{spec.name}')
+    return _renamed(spec, f'body.{name}.{spec.name}')
 
 
 def piece_param(name: str, piece: str, spec: ParamSpec) -> ParamSpec:
     """``spec`` renamed to ``body.<name>.piece.<piece>.<param>``."""
-    return replace(spec, name=f'body.{name}.piece.{piece}.{spec.name}')
+    return _renamed(spec, f'body.{name}.piece.{piece}.{spec.name}')
 
 
 def pieces_of(values: Mapping[str, Any], body_names: Iterable[str]) -> dict[str, list[str]]:
@@ -139,6 +148,9 @@ def node_specs(body_names: Iterable[str] = (),
     return specs + list(NODE_PARAMS)
 
 
+_NODE_PARAM_NAMES = frozenset(s.name for s in NODE_PARAMS)
+
+
 def all_specs(body_names: Iterable[str] = (),
               pieces: Optional[Mapping[str, Iterable[str]]] = None) -> list[ParamSpec]:
     """Every parameter of a scene file (node's plus sim's)."""
@@ -147,7 +159,7 @@ def all_specs(body_names: Iterable[str] = (),
 
 def is_runtime_changeable(name: str) -> bool:
     """Whether a running node accepts a change of this parameter (others are read-only)."""
-    if name.startswith('solver.') or name in {s.name for s in NODE_PARAMS}:
+    if name.startswith('solver.') or name in _NODE_PARAM_NAMES:
         return name != 'queue_depth'
     if name == 'ignore_pairs':
         return True
@@ -762,26 +774,38 @@ def _default_text(spec: ParamSpec) -> str:
 
 def descriptor(spec: ParamSpec, read_only: bool) -> Any:
     """The ROS ParameterDescriptor of a ParamSpec (ranges from its minimum/maximum)."""
-    from rcl_interfaces.msg import (
-        FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType)
+    from rcl_interfaces.msg import ParameterDescriptor
+    kind, text, ranges = _described(spec.type, spec.description, spec.unit, spec.minimum,
+                                    spec.maximum)
+    d = ParameterDescriptor(name=spec.name, type=kind, description=text, read_only=read_only,
+                            additional_constraints='one of: ' + range_text(spec)
+                            if spec.choices else '')
+    if ranges:
+        setattr(d, *ranges)
+    return d
+
+
+@functools.lru_cache(maxsize=512)
+def _described(kind: str, description: str, unit: str, minimum: Optional[float],
+               maximum: Optional[float]) -> tuple[int, str, Optional[tuple[str, list[Any]]]]:
+    """A descriptor's type, text and (range field, range) of a ParamSpec's fields: once per
+    kind of parameter, not once per body (23,000 descriptors at 1000 bodies)."""
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterType
     types = {'double': ParameterType.PARAMETER_DOUBLE,
              'integer': ParameterType.PARAMETER_INTEGER,
              'bool': ParameterType.PARAMETER_BOOL, 'string': ParameterType.PARAMETER_STRING,
              'double_array': ParameterType.PARAMETER_DOUBLE_ARRAY,
              'string_array': ParameterType.PARAMETER_STRING_ARRAY}
-    text = spec.description + (f' [{spec.unit}]' if spec.unit else '')
-    d = ParameterDescriptor(name=spec.name, type=types[spec.type], description=text,
-                            read_only=read_only)
-    if spec.choices:
-        d.additional_constraints = 'one of: ' + range_text(spec)
-    if spec.minimum is not None and spec.maximum is not None:
-        if spec.type == 'double':
-            d.floating_point_range = [FloatingPointRange(
-                from_value=float(spec.minimum), to_value=float(spec.maximum), step=0.0)]
-        elif spec.type == 'integer':
-            d.integer_range = [IntegerRange(from_value=int(spec.minimum),
-                                            to_value=int(spec.maximum), step=0)]
-    return d
+    text = description + (f' [{unit}]' if unit else '')
+    ranges = None
+    if minimum is not None and maximum is not None:
+        if kind == 'double':
+            ranges = ('floating_point_range', [FloatingPointRange(
+                from_value=float(minimum), to_value=float(maximum), step=0.0)])
+        elif kind == 'integer':
+            ranges = ('integer_range', [IntegerRange(from_value=int(minimum),
+                                                     to_value=int(maximum), step=0)])
+    return types[kind], text, ranges
 
 
 def declared_value(spec: ParamSpec, value: Any) -> Any:

@@ -197,3 +197,29 @@ def test_non_finite_or_zero_poses_give_no_contacts_and_no_nan() -> None:
         assert list(zip(contacts.body_a, contacts.body_b)) == [(0, 1)], broken
         for field in ('point', 'normal', 'separation', 'toi'):
             assert np.all(np.isfinite(getattr(contacts, field))), (broken, field)
+
+
+def test_every_detection_setting_reaches_the_compiled_detector_by_name():
+    """Detection's settings are handed to C++ field by field, by name, never by position:
+    each compiled field takes the SolverSettings value of its name (distinct values, so a
+    swapped pair shows), and the compiled defaults agree with SolverSettings' (no second
+    truth)."""
+    import dataclasses
+
+    from collres_ros.core import _native
+    from collres_ros.core.detection import Detection, DETECTION_FIELDS
+    compiled = _native.DetectionSettings()
+    names = sorted(n for n in dir(compiled) if not n.startswith('_'))
+    assert names == sorted(DETECTION_FIELDS)
+    defaults = SolverSettings()
+    for name in DETECTION_FIELDS:
+        assert getattr(compiled, name) == getattr(defaults, name), name
+    changed = dataclasses.replace(
+        defaults, speculative_margin=0.031, toi_tolerance=3.2e-5, toi_max_iterations=33,
+        ccd=False, linear_slop=3.4e-4, restitution_threshold=0.35, max_pairs=3600,
+        max_contacts=3700, max_contacts_per_pair=5)
+    detection = Detection([BodySpec('a', 'sphere', (0.1,)), BodySpec('b', 'box', (1, 1, 1))],
+                          changed)
+    handed = detection._native.settings
+    for name in DETECTION_FIELDS:
+        assert getattr(handed, name) == getattr(changed, name), name

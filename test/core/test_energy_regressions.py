@@ -1,0 +1,110 @@
+"""Regression cases of the no-energy-gain law found by ``bench/random_energy.py``.
+
+Each case is one ``World.step`` on hand-made contacts with the current state equal to the
+previous one (every change comes from the contact impulses), e <= 1: the kinetic energy
+after the step may not exceed the one before.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from collres_ros.core.config import SolverSettings
+from collres_ros.core.rotation import to_matrix
+from collres_ros.core.types import BodySpec, ContactKind
+from collres_ros.core.world import World
+
+from contacts import contact_set, FixedContacts, states  # noqa: I100
+
+
+def kinetic(world: World, s) -> float:
+    """Kinetic energy (J) of the dynamic bodies."""
+    energy = 0.0
+    for i in np.flatnonzero(world.dynamic):
+        rot = to_matrix(s.orientation[i])
+        inertia = rot @ np.linalg.inv(world.inv_inertia_body[i]) @ rot.T
+        energy += 0.5 / world.inv_mass[i] * s.linear[i] @ s.linear[i] \
+            + 0.5 * s.angular[i] @ inertia @ s.angular[i]
+    return float(energy)
+
+
+def test_cycling_friction_of_a_cluster_gains_no_energy():
+    """random_energy seed 0, case 10852: five bodies, four manifolds of three points (two of
+    them coincident points), all impacts at toi 0, restitution threshold 0. The friction of
+    the manifold between the small heavy sphere b3 and b4 lifts its own normal rows, which
+    then let go of the friction: the sweeps cycle with period two and ended (+9.5e-5 of the
+    energy) on an iterate that is no answer. Its island is solved again without friction."""
+    def sphere(name, r, m, e, mu_s, mu_k):
+        return BodySpec(name, 'sphere', (r,), mass=m, restitution=e, static_friction=mu_s,
+                        kinetic_friction=mu_k)
+    bodies = [
+        sphere('b0', 0.9732790882948238, 29.7743652238217, 0.5445649050976303,
+               1.321463226630416, 0.633253882699448),
+        sphere('b1', 0.10376215957545046, 43.36032834516945, 0.45574399366409957,
+               0.34822857897215026, 0.6518892898899009),
+        BodySpec('b2', 'box', (0.40559409061464674, 0.4638155956613395, 0.46262038819569035),
+                 mass=71.23708935762588, restitution=0.7527797723975319,
+                 static_friction=0.8495286482749457, kinetic_friction=1.4772331596863328),
+        sphere('b3', 0.06008290998979785, 70.96813417774504, 0.9937289378237063,
+               0.5052365952154427, 0.8419216734469946),
+        sphere('b4', 0.9420905048078894, 76.61115541520145, 0.2538649604239842,
+               1.3765184088513507, 1.1694969584322126),
+    ]
+    before = states(
+        [[-0.3903177885975611, -0.3264867260318816, -0.43538511326324364],
+         [0.23305450096576807, 0.4627546842698641, -0.5370623930080671],
+         [-0.07420966810126658, 0.42234899199501896, 0.227621516033068],
+         [0.07586392081652668, -0.3494372797525354, 0.3945270806856948],
+         [-0.3215774478150145, -0.12197460029708429, 0.35420961878181517]],
+        [[1.628620108222309, -2.738101692446999, 0.88311966832301],
+         [4.539605558732104, -3.080202455242814, -1.677777246755665],
+         [-2.369189140469836, -3.2291139067086725, 4.282360766279666],
+         [4.696189769033623, 4.899575524513237, 2.7410540908045036],
+         [-2.632620904645284, -0.3244007337754784, 1.5316537776386987]],
+        [[-2.3086815566719254, -0.25069745406078425, 3.519668314686543],
+         [-1.2573648794088976, 4.269209120577141, 0.6732982805267547],
+         [4.70067811340035, 2.303142093622675, 2.070091417531832],
+         [4.749425394126337, 0.06894872275419672, 1.7676104014303782],
+         [3.707898406155202, 2.583386412731982, -1.909499146195964]],
+        [[0.2839176593965225, -0.6875864331215571, 0.6671158153077882, 0.039650329585007325],
+         [-0.44596727947981474, 0.3836362767058557, 0.8066521804641426, 0.056996952384188726],
+         [0.6271116627669991, 0.41678474967888657, 0.6420928624724465, 0.14400760680831137],
+         [0.0074081076823996105, -0.9048564792022692, -0.3720948315052534, 0.206701011979421],
+         [-0.27971764457202575, -0.5032114143212532, -0.7749057305598579,
+          0.2608781718683551]])
+    point = [[-0.15245662615775762, -0.3446489505393719, -0.00845689782157811],
+             [-0.22593012361390005, -0.24165487584495043, -0.19285452267571332],
+             [-0.07394539880200798, -0.454704841365252, 0.1885839992369154],
+             [-0.34499228528384857, -0.17142768361765162, 0.04248221046755496],
+             [-0.34499234780697313, -0.17142763513376802, 0.042482161596944325],
+             [-0.34499239138422727, -0.1714276285748411, 0.04248214259369798],
+             [-0.052859433299398795, -0.07937536309213722, 0.4049517842584682],
+             [-0.052859433299398795, -0.07937536309213722, 0.4049517842584682],
+             [-0.052859433299398795, -0.07937536309213722, 0.4049517842584682],
+             [-0.018628829113785883, -0.18711126275876855, 0.06951319473294043],
+             [-0.07769729367058312, -0.21465102922025034, 0.24228190615657333],
+             [-0.11726490803569066, -0.23309882310196278, 0.35801279232839284]]
+    normals = [[-0.5444604133818602, 0.48787160748608666, 0.682307960432088],
+               [-0.3654357968032228, -0.03155419568298508, 0.9303015700027565],
+               [-0.3805411749971158, 0.8742336062073071, -0.3015029285257142],
+               [-0.35567141374266553, 0.8645946573592623, -0.35492805455769944]]
+    separation = [1.9231665368090942e-03, 8.4469429005769921e-05, 4.4084514463484407e-04,
+                  1.7921161385178221e-04, 7.3622328374996606e-04, 3.1452223823929659e-04,
+                  1.2710889258275315e-03, 1.4776381696862189e-03, -1.2459121652387535e-03,
+                  -6.0206142163182416e-06, 3.3114042637567842e-04, -3.5775736224367928e-04]
+    contacts = contact_set([0, 0, 0, 0, 0, 0, 2, 2, 2, 3, 3, 3],
+                           [3, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, 4], point,
+                           np.repeat(normals, 3, axis=0), separation, kind=ContactKind.IMPACT)
+    config = SolverSettings(restitution_rule='max', friction_rule='max',
+                            restitution_threshold=0.0)
+    for iterations in (9, 10, 11, 50):   # the cycle's both ends
+        settings = dataclasses.replace(config, velocity_iterations=iterations)
+        world = World(bodies, settings, FixedContacts(contacts, settings))
+        result = world.step(before, before.copy(), 0.01)
+        solved = result.states.copy()
+        solved.position, solved.orientation = before.position, before.orientation
+        assert np.isfinite(solved.linear).all() and np.isfinite(solved.angular).all()
+        k0, k1 = kinetic(world, before), kinetic(world, solved)
+        assert k1 <= k0 * (1 + 1e-9), (iterations, (k1 - k0) / k0)

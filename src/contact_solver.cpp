@@ -168,11 +168,18 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
   const int k = block.count;
   const double (&a)[4][4] = block.delassus;
   double q[4], x[4];
+  bool idle = true;
   for (int i = 0; i < k; ++i) {
     double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
     q[i] = b;
     for (int j = 0; j < k; ++j) q[i] -= block.plain[i][j] * r[j].normal;
+    idle = idle && r[i].normal == 0.0 && q[i] >= 0.0;
   }
+  // no impulse and no row approaching beyond its allowance: x = 0 is the answer (the only
+  // one: A is positive definite), and nothing changes; the active-set search would try
+  // every set before the empty one (a speculative manifold that did not activate: most
+  // blocks of a settled pile at 30 Hz)
+  if (idle) return 0.0;
   // every row active: the regularised matrix's inverse (prepare_block), when it has one
   if (block.invertible) {
     bool ok = true;

@@ -9,7 +9,8 @@ VPY := $(VENV)/bin/python
 PIP := $(VPY) -m pip --disable-pip-version-check -q
 MSG_STAMP := collres_ros/msg/.build-stamp
 INTERFACE_INPUTS := CMakeLists.txt package.xml cmake/build_interfaces.py $(wildcard cmake/*.cmake) \
-	$(wildcard msg/*.msg) $(wildcard srv/*.srv) $(wildcard src/*.h) $(wildcard src/*.cpp)
+	$(wildcard msg/*.msg) $(wildcard srv/*.srv) $(wildcard src/*.h) $(wildcard src/*.cpp) \
+	$(wildcard cmake/tf2_msgs/*.*) $(wildcard cmake/tf2_msgs/msg/*.msg)
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
 .PHONY: demo test setup test-setup bench goldens sanitize clean
@@ -68,5 +69,5 @@ sanitize: setup
 		build/sanitize/collres_fuzz_core $(or $(FUZZ_FILES),$(FUZZ_CASES) $(FUZZ_SEED))
 
 clean:
-	rm -rf build collres_ros/msg collres_ros/srv collres_ros/_lib collres_ros/*.so collres_ros/core/_native*.so \
+	rm -rf build collres_ros/msg collres_ros/srv collres_ros/_lib collres_ros/_interfaces collres_ros/*.so collres_ros/core/_native*.so \
 		demo_out bench_out/step.json

@@ -42,7 +42,8 @@ setup(
     python_requires='>=3.11',
     packages=find_packages(include=['collres_ros', 'collres_ros.*']),
     package_data={'collres_ros': ['*.so', '_lib/*.so', 'msg/*.msg', 'srv/*.srv',
-                                  'core/_native*.so']},
+                                  'core/_native*.so', '_interfaces/tf2_msgs/*.py',
+                                  '_interfaces/tf2_msgs/*.so', '_interfaces/tf2_msgs/msg/*']},
     install_requires=['numpy', 'coal', 'PyYAML', 'rosbags', 'matplotlib'],
     cmdclass={'build_py': BuildWithInterfaces},
     entry_points={

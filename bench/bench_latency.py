@@ -36,8 +36,10 @@ subscribe ``body_states`` as bytes, publish them back on
 adds beyond it is ours.
 
 Latency is publish to reception of the step's ``body_states/corrected``
-(CLOCK_MONOTONIC, shared by the processes). Dropped = paced steps without an
-answer. The node's callback split comes from its ``/diagnostics`` values:
+(CLOCK_MONOTONIC, shared by the processes); ``send`` is the publisher's own part of it, the
+time its ``publish`` calls took to hand the step over (in ``per_body`` mode the 2 x bodies
+messages one after another, in Python). Dropped = paced steps without an answer. The node's
+callback split comes from its ``/diagnostics`` values:
 ``time.decode_ms``, ``time.resolve_ms`` (Resolver.resolve), ``time.world_ms``
 (World.step alone), ``time.encode_ms``, ``time.publish_ms`` and
 ``callback_time_mean_ms``; an older node reports only the callback and
@@ -280,6 +282,7 @@ def publisher(args: argparse.Namespace) -> int:
         spin_until(lambda: False, 0.5)   # drain
         # paced: one step every 1/rate s for --duration s
         sent_at: dict[int, int] = {}
+        sending: list[int] = []   # ns the publisher took to hand each step over (publish)
         begin = time.monotonic_ns()
         count = int(round(args.duration * args.rate))
         for k in range(count):
@@ -293,8 +296,10 @@ def publisher(args: argparse.Namespace) -> int:
             data = inputs.next(stamp)
             sent_at[stamp] = time.monotonic_ns()
             pub.publish(data)
+            sending.append(time.monotonic_ns() - sent_at[stamp])
         spin_until(lambda: all(s in answered for s in sent_at), 5.0)
         result['sent'] = {str(s): t for s, t in sent_at.items()}
+        result['send_ms'] = [float(np.percentile(sending, q)) / 1e6 for q in (50, 99)]
         result['publish_late_ms'] = (time.monotonic_ns() - begin) / 1e6 - args.duration * 1e3
     finally:
         Path(args.out).write_text(json.dumps(result))
@@ -474,6 +479,7 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
             'answered': len(latencies), 'dropped': len(sent) - len(latencies),
             'p50': float(np.percentile(warm, 50)) if warm else float('nan'),
             'p99': float(np.percentile(warm, 99)) if warm else float('nan'),
+            'send_ms': result.get('send_ms', [float('nan')] * 2),
             'contacts_msgs': listener.counts['contacts'],
             'markers_msgs': listener.counts['contact_markers'],
             'timings': timings, 'lock_timings': lock_timings}
@@ -561,10 +567,11 @@ def main(argv: list[str] | None = None) -> int:
         return echo(args)
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
     print('| bodies | server | mode | sleeping (asleep) | start s | lock-step Hz | '
-          'lock-step p50 ms | paced Hz | sent | dropped | p50 ms | p99 ms | callback ms | '
+          'lock-step p50 ms | paced Hz | sent | send p50 / p99 ms | dropped | p50 ms | p99 ms | '
+          'callback ms | '
           'decode | resolve | World.step wall / CPU (in-process wall / CPU) | answer ms | '
           'encode | publish | overhead ms |')
-    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
+    print('|---' * 21 + '|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         for count, rate in zip(args.sizes, rates):
@@ -579,7 +586,9 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(r)
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
-          'latency: publish to body_states/corrected received; start: process start to its '
+          'latency: publish to body_states/corrected received (it includes send: the '
+          "publisher's own time to hand a step over, 2 x bodies messages in per_body mode); "
+          'start: process start to its '
           'topics connected; callback split: the node\'s /diagnostics means over the paced '
           'run; World.step (in-process wall / CPU): the same scene, inputs, stamps and dt '
           'stepped by a Resolver in this process (median, thread CPU time beside); '
@@ -597,7 +606,8 @@ def _print_row(r: dict[str, Any]) -> None:
     print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["sleeping"]} ({r["asleep"]}) | '
           f'{r["startup_s"]:.2f} | '
           f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
-          f'{r["sent"]} | {r["dropped"]} | {r["p50"]:.2f} | {r["p99"]:.2f} | '
+          f'{r["sent"]} | {r["send_ms"][0]:.2f} / {r["send_ms"][1]:.2f} | {r["dropped"]} | '
+          f'{r["p50"]:.2f} | {r["p99"]:.2f} | '
           f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '
           f'{_f(t, "time.resolve_ms")} | {_f(t, "time.world_ms")} / '
           f'{_f(t, "time.world_cpu_ms")} '

@@ -1,15 +1,18 @@
-"""The robot scene in-process: the test arm (test/data/robots/arm.urdf, links kinematic,
-compounds of their collision elements) sweeping through compound tables dropped on a
-floor; core step time and contact rows per step for several solver.max_contacts_per_pair.
+"""The robot scene in-process: the arm of config/scenes/arm.yaml (links kinematic, compounds
+of their collision elements) sweeping through compound tables dropped on a floor, with
+``--bin`` into the triangle-mesh bin test/data/meshes/bin.obj (40 one-sided triangles,
+0.4 m square, 0.2 m tall) on that floor around the arm; core step time and contact rows
+per step for several solver.max_contacts_per_pair.
 
 The arm's shoulder and elbow follow q(t) = 0.9 sin(2 pi 0.5 t), -0.6 sin(2 pi 0.5 t) (link
 poses by forward kinematics, their twists by finite differences); the tables (a top on two
-legs, three boxes each) start in layers of four over the arm and fall, stack and get pushed. Every
+legs, three boxes each) start in layers of four over the arm and fall, stack and get pushed
+(``in_bin``: how many end inside the bin's walls; ``lowest_table_z``: none sank). Every
 cap runs the same scene from the same start in its own child process.
 
 Usage::
 
-    .venv/bin/python bench/bench_robot.py [--tables 24] [--seconds 2] [--caps 4 8 1000]
+    .venv/bin/python bench/bench_robot.py [--tables 24] [--seconds 2] [--caps 4 8 1000] [--bin]
 """
 
 from __future__ import annotations
@@ -19,26 +22,28 @@ import subprocess
 import sys
 
 CHILD = r'''
-import json, math, sys, tempfile, shutil, os, time
+import json, math, sys, time
 from pathlib import Path
 import numpy as np
 root = Path(sys.argv[1])
 tables, seconds, cap = int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
-prefix = Path(tempfile.mkdtemp())
-(prefix / 'share/ament_index/resource_index/packages').mkdir(parents=True)
-(prefix / 'share/ament_index/resource_index/packages/collres_test_robot').write_text('')
-shutil.copytree(root / 'test/data/robots/meshes', prefix / 'share/collres_test_robot/meshes')
-os.environ['AMENT_PREFIX_PATH'] = str(prefix)
+in_bin = sys.argv[5] == 'bin'
+import yaml
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.rotation import integrate, multiply
 from collres_ros.core.types import BodyStates
 from collres_ros.core.world import World
 from collres_ros.ros import params, robot
-urdf = (root / 'test/data/robots/arm.urdf').read_text()
-names = ['floor'] + [f't{k}' for k in range(tables)]
-values = {'bodies': names, 'robot_description': urdf, 'body.floor.shape': 'box',
-          'body.floor.size': [3.0, 3.0, 0.2], 'body.floor.static': True,
-          'body.floor.position': [0.0, 0.0, -0.1], 'solver.max_contacts_per_pair': cap}
+scenes = root / 'config/scenes'
+urdf = yaml.safe_load((scenes / 'arm.yaml').read_text())['/**']['ros__parameters'][
+    'robot_description']
+names = ['floor'] + ['bin'] * in_bin + [f't{k}' for k in range(tables)]
+values = {'bodies': names, 'robot_description': urdf, 'body.floor.static': True,
+          'body.floor.shape': 'box', 'body.floor.size': [3.0, 3.0, 0.2],
+          'body.floor.position': [0.0, 0.0, -0.1], 'body.bin.static': True,
+          'body.bin.shape': 'triangle_mesh',
+          'body.bin.mesh': str(root / 'test/data/meshes/bin.obj'),
+          'solver.max_contacts_per_pair': cap}
 for k in range(tables):
     t = f'body.t{k}'
     values.update({f'{t}.shapes': ['top', 'left', 'right'], f'{t}.mass': 0.5,
@@ -49,7 +54,10 @@ for k in range(tables):
                              ('right', [0.02, 0.06, 0.08], [0.07, 0, -0.025])):
         values.update({f'{t}.piece.{piece}.shape': 'box', f'{t}.piece.{piece}.size': size,
                        f'{t}.piece.{piece}.position': pos})
-scene = params.scene_from_values(values)
+if not in_bin:
+    values = {k: v for k, v in values.items() if not k.startswith('body.bin.')}
+tables_ = [n for n in names if n.startswith('t')]
+scene = params.scene_from_values(values, scenes)   # the finger mesh beside the scene
 links = [n for n in scene.names if n not in names]
 index = {n: scene.index(n) for n in scene.names}
 world = World(scene.bodies, SolverSettings(max_contacts_per_pair=cap, sleeping=False),
@@ -85,11 +93,13 @@ for step in range(int(seconds * rate)):
     rows.append(result.report.contacts.count)
     state = result.states
 times = np.array(times) * 1e3
-print(json.dumps({'cap': cap, 'bodies': len(scene.names), 'links': len(links),
+print(json.dumps({'cap': cap, 'bin': in_bin, 'bodies': len(scene.names), 'links': len(links),
                   'step_ms_p50': float(np.median(times)),
                   'step_ms_p90': float(np.percentile(times, 90)),
                   'rows_mean': float(np.mean(rows)), 'rows_max': int(max(rows)),
-                  'lowest_table_z': float(state.position[[index[n] for n in names[1:]], 2].min()),
+                  'lowest_table_z': float(state.position[[index[n] for n in tables_], 2].min()),
+                  'in_bin': int((np.abs(state.position[[index[n] for n in tables_], :2]) < 0.2)
+                                .all(axis=1).sum()),
                   'finite': bool(np.isfinite(state.position).all())}))
 '''
 
@@ -99,6 +109,8 @@ def main() -> int:
     parser.add_argument('--tables', type=int, default=24)
     parser.add_argument('--seconds', type=float, default=2.0)
     parser.add_argument('--caps', type=int, nargs='+', default=[4, 8, 1000])
+    parser.add_argument('--bin', action='store_true',
+                        help='the triangle-mesh bin around the arm instead of a box floor')
     args = parser.parse_args()
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
@@ -106,7 +118,8 @@ def main() -> int:
         print(f'load: {load.read().strip()}')
     for cap in args.caps:
         out = subprocess.run([sys.executable, '-c', CHILD, str(root), str(args.tables),
-                              str(args.seconds), str(cap)], capture_output=True, text=True,
+                              str(args.seconds), str(cap), 'bin' if args.bin else 'floor'],
+                             capture_output=True, text=True,
                              check=True)
         print(out.stdout.strip())
     with open('/proc/loadavg') as load:

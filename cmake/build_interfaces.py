@@ -10,7 +10,11 @@ running interpreter's environment, into a scratch prefix, then copies:
 * ``collres_ros/collres_ros_s__rosidl_typesupport_*.so`` (extension modules),
 * ``collres_ros/_lib/libcollres_ros__rosidl_*.so`` (preloaded by collres_ros/__init__.py,
   because rmw dlopen()s typesupport libraries by bare name),
-* ``collres_ros/core/_native*.so`` (the compiled contact core, sources in src/).
+* ``collres_ros/core/_native*.so`` (the compiled contact core, sources in src/),
+* where the environment has no ``tf2_msgs`` (the PyPI ROS wheels lack it):
+  ``cmake/tf2_msgs`` (its TFMessage, generated the same way) as
+  ``collres_ros/_interfaces/tf2_msgs/`` (appended to the import path by
+  collres_ros/__init__.py) with its libraries in ``collres_ros/_lib/``.
 
 Usage: build_interfaces.py DEST_PACKAGE_DIR [--build-dir DIR]
 """
@@ -18,6 +22,7 @@ Usage: build_interfaces.py DEST_PACKAGE_DIR [--build-dir DIR]
 import argparse
 import glob
 import hashlib
+import importlib.util
 import os
 import shutil
 import subprocess
@@ -25,9 +30,11 @@ import sys
 import sysconfig
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-INPUTS = ['CMakeLists.txt', 'package.xml'] + sorted(
-    os.path.relpath(p, ROOT) for pattern in ('cmake/*.cmake', 'msg/*.msg', 'src/*.h', 'src/*.cpp')
+INPUTS = ['CMakeLists.txt', 'package.xml', 'cmake/build_interfaces.py'] + sorted(
+    os.path.relpath(p, ROOT) for pattern in ('cmake/*.cmake', 'msg/*.msg', 'src/*.h', 'src/*.cpp',
+                                             'cmake/tf2_msgs/*.*', 'cmake/tf2_msgs/msg/*.msg')
     for p in glob.glob(os.path.join(ROOT, pattern)))
+TF2_MSGS = os.path.join(ROOT, 'cmake', 'tf2_msgs')   # TFMessage, where tf2_msgs is missing
 JOBS = os.environ.get('CMAKE_BUILD_PARALLEL_LEVEL', '2')   # the compiled core needs ~0.6 GB a job
 
 
@@ -44,7 +51,13 @@ def build(dest: str, build_dir: str) -> None:
     stamp = os.path.join(dest, 'msg', '.build-stamp')
     fingerprint = _fingerprint()
     native = glob.glob(os.path.join(dest, 'core', '_native*.so'))
-    if native and os.path.exists(stamp) and open(stamp).read() == fingerprint:
+    # tf2_msgs is not on PyPI (a directory named tf2_msgs without __init__.py, as
+    # cmake/tf2_msgs beside this script, is a namespace package: no tf2_msgs installed)
+    installed = importlib.util.find_spec('tf2_msgs')
+    generate_tf = installed is None or installed.origin is None
+    generated_tf = os.path.isdir(os.path.join(dest, '_interfaces', 'tf2_msgs'))
+    if native and os.path.exists(stamp) and open(stamp).read() == fingerprint \
+            and generated_tf == generate_tf:
         print('interfaces up to date')
         return
     prefix = sys.prefix
@@ -56,16 +69,20 @@ def build(dest: str, build_dir: str) -> None:
     site = os.path.join('lib', pyver, 'site-packages')
     generator = ['-G', 'Ninja'] if shutil.which('ninja') else []
     shutil.rmtree(install, ignore_errors=True)
-    run = [
-        ['cmake', '-S', ROOT, '-B', os.path.join(build_dir, 'cmake'), *generator,
-         f'-DPython3_EXECUTABLE={sys.executable}',
-         f'-DPython3_INCLUDE_DIR={sysconfig.get_paths()["include"]}',
-         f'-DCMAKE_INSTALL_PREFIX={install}', f'-DPYTHON_INSTALL_DIR={site}',
-         '-DBUILD_TESTING=OFF', '-DCOLLRES_SKIP_PYTHON_INSTALL=ON',
-         '-DCMAKE_BUILD_TYPE=Release'],
-        ['cmake', '--build', os.path.join(build_dir, 'cmake'), '--parallel', JOBS],
-        ['cmake', '--install', os.path.join(build_dir, 'cmake')],
-    ]
+    projects = [(ROOT, os.path.join(build_dir, 'cmake'), ['-DCOLLRES_SKIP_PYTHON_INSTALL=ON'])]
+    if generate_tf:
+        projects.append((TF2_MSGS, os.path.join(build_dir, 'tf2_msgs'), []))
+    run = []
+    for source, binary, extra in projects:
+        run += [
+            ['cmake', '-S', source, '-B', binary, *generator,
+             f'-DPython3_EXECUTABLE={sys.executable}',
+             f'-DPython3_INCLUDE_DIR={sysconfig.get_paths()["include"]}',
+             f'-DCMAKE_INSTALL_PREFIX={install}', f'-DPYTHON_INSTALL_DIR={site}',
+             '-DBUILD_TESTING=OFF', '-DCMAKE_BUILD_TYPE=Release', *extra],
+            ['cmake', '--build', binary, '--parallel', JOBS],
+            ['cmake', '--install', binary],
+        ]
     for cmd in run:
         result = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                 text=True)
@@ -84,6 +101,14 @@ def build(dest: str, build_dir: str) -> None:
     os.makedirs(lib_dir)
     for lib in glob.glob(os.path.join(install, 'lib', 'libcollres_ros__*.so')):
         shutil.copy2(lib, lib_dir)
+    interfaces = os.path.join(dest, '_interfaces')
+    shutil.rmtree(interfaces, ignore_errors=True)
+    if generate_tf:
+        shutil.copytree(os.path.join(install, site, 'tf2_msgs'),
+                        os.path.join(interfaces, 'tf2_msgs'),
+                        ignore=shutil.ignore_patterns('*.c', '__pycache__'))
+        for lib in glob.glob(os.path.join(install, 'lib', 'libtf2_msgs__*.so')):
+            shutil.copy2(lib, lib_dir)
     for old in glob.glob(os.path.join(dest, 'core', '_native*.so')):
         os.remove(old)
     for ext in glob.glob(os.path.join(generated, 'core', '_native*.so')):

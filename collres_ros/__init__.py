@@ -7,6 +7,7 @@ the simulator, the replay tool and the demo are thin adapters around it.
 import ctypes
 import glob
 import os
+import sys
 
 __version__ = '0.1.0'  # as package.xml and setup.py (a test keeps them equal)
 
@@ -33,4 +34,15 @@ def _preload_interface_libraries() -> None:
         pending = failed
 
 
+def _generated_interfaces() -> None:
+    """Put the interfaces the build generated where the environment lacks them on the
+    import path, after everything installed: ``tf2_msgs`` (TFMessage) is not on PyPI, so
+    a pip/venv install builds it into ``collres_ros/_interfaces`` (its libraries in
+    ``_lib``); a ROS install has none there and uses the system's."""
+    folder = os.path.join(os.path.dirname(__file__), '_interfaces')
+    if os.path.isdir(folder) and folder not in sys.path:
+        sys.path.append(folder)
+
+
 _preload_interface_libraries()
+_generated_interfaces()

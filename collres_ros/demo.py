@@ -193,7 +193,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
     solver = getattr(sim_scene.scene, 'solver', None)
     rule = getattr(solver, 'restitution_rule', 'max')
     report = analyse(messages, sim_scene.scene.bodies, sim_scene.gravity, rule,
-                     initial=sim_scene.scene.initial)
+                     initial=sim_scene.scene.initial,
+                     driven=sim_scene.drive is not None or bool(sim_scene.kinematic.any()))
     picture = plot(report, out_dir / 'demo.png')
     return DemoResult(report, bag, picture, node_exit, sim_exit, time.monotonic() - start,
                       domain_id, expected_steps, logs)

@@ -52,6 +52,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--topics', help='write only these output topics, comma separated '
                                     '(relative names, e.g. body_states/corrected,contacts; '
                                     'default: every output topic)')
+    p.add_argument('--wait', type=cli.number(0.0, 3600.0), default=20.0,
+                   help='with robot_description_topic in --params: s to wait for the URDF on '
+                        'robot_description (as collres_node takes it)')
     p.add_argument('--quiet', action='store_true',
                    help='no progress line (it is drawn on a terminal only anyway)')
     return p
@@ -62,11 +65,19 @@ def _run(args: argparse.Namespace) -> int:
     from collres_ros.ros.offline import replay
     topics = None if args.topics is None else \
         tuple(t.strip() for t in args.topics.split(',') if t.strip())
+    overrides = {}
+    if args.params:   # robot_description_topic: the URDF from the topic, as the node takes it
+        from collres_ros.ros import description, params
+        values = params.load_scene(args.params, args.namespace).values
+        if values['robot_description_topic'] and not values['robot_description']:
+            overrides['robot_description'] = description.fetch(
+                'collres_replay', ['--ros-args', '-r', f'__ns:={args.namespace}'], args.wait)
     try:
         summary = replay(Path(args.in_bag), Path(args.out_bag),
                          Path(args.params) if args.params else None,
                          args.storage, args.namespace,
-                         None if args.quiet else _progress_printer(), topics)
+                         None if args.quiet else _progress_printer(), topics,
+                         overrides=overrides)
     except BagError as failure:
         return cli.error(failure)
     try:

@@ -235,7 +235,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--step-timeout', type=cli.number(0.0, 3600.0, above=True), default=1.0,
                    help='live: s to wait for each corrected state before dropping the step')
     p.add_argument('--wait', type=cli.number(0.0, 3600.0), default=20.0,
-                   help='live: s to wait for collres_node to appear')
+                   help='live: s to wait for collres_node to appear; with '
+                        'robot_description_topic, s to wait for the URDF on '
+                        'robot_description (offline too)')
     p.add_argument('--subscribers', type=cli.number(0, 1000, integer=True), default=1,
                    help='live: wait for this many subscribers of body_states (e.g. 2 with a '
                         'recorder) before the first step')
@@ -253,9 +255,15 @@ def _run(args: argparse.Namespace, ros_args: list[str]) -> int:
         path = config_path()
     if not Path(path).is_file():
         raise cli.CliError(f'params file not found: {path}')
-    sim = load_sim_scene(path, args.duration, args.rate,
-                         cli.namespace_from_ros_args(ros_args, 'collres_sim'),
-                         cli.param_overrides(ros_args, 'collres_sim'))
+    namespace = cli.namespace_from_ros_args(ros_args, 'collres_sim')
+    overrides = cli.param_overrides(ros_args, 'collres_sim')
+    sim = load_sim_scene(path, args.duration, args.rate, namespace, overrides)
+    values = sim.scene.values
+    if values['robot_description_topic'] and not values['robot_description']:
+        from collres_ros.ros import description   # the URDF from the topic, as the node
+        urdf = description.fetch('collres_sim', ros_args, args.wait)
+        sim = load_sim_scene(path, args.duration, args.rate, namespace,
+                             {**overrides, 'robot_description': urdf})
     if sim.duration < 0 or sim.rate_hz <= 0:
         raise cli.CliError('duration must be >= 0 and rate > 0')
     if not args.offline:

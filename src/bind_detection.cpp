@@ -83,6 +83,9 @@ void bind_detection(py::module_& m) {
         py::arg("points"), py::arg("count"),
         "Indices of at most `count` vertices of (K, 3) points extreme along `count` evenly "
         "spread directions (shapes.h: a hull simplified to a vertex budget).");
+  m.def("triangle_problem", &collres::triangle_problem, py::arg("corners"),
+        "Why these three corners (flat x, y, z, m) make no triangle, or '' when they do "
+        "(shapes.h: not finite, beyond 1e9 m, no area).");
   m.def("hull_problem", &collres::hull_problem, py::arg("points"),
         "Why no convex hull can be built of these vertices (flat x, y, z, m), or '' when one "
         "can (shapes.h: too few, not finite, coincident, collinear or flat points).");
@@ -148,7 +151,7 @@ void bind_detection(py::module_& m) {
            py::arg("piece") = std::vector<int>{},
            py::arg("pose") = std::vector<std::vector<double>>{}, py::arg("bodies") = -1,
            "Per shape, in body order: shape code (index in SHAPE_KINDS), sizes, convex "
-           "vertices (flat, m, piece frame), bounding radius about the body origin (m), "
+           "vertices or a triangle's corners (flat, m, piece frame), bounding radius about the body origin (m), "
            "static, its body, its index among that body's pieces, the piece frame's pose in "
            "the body frame (x, y, z m, qx, qy, qz, qw); the number of bodies. Without the "
            "last four: one shape per body.")

@@ -119,6 +119,7 @@ void ContactRows::clear() {
 Detector::Detector(std::vector<BodyShape> shapes, int bodies)
     : shapes_(std::move(shapes)), bodies_count_(bodies), sweep_(kSkin) {
   int next = 0;   // the body the next shape may start
+  mesh_.assign(std::max(bodies, 0), false);
   for (int k = 0; k < pieces(); ++k) {
     const int body = shapes_[k].body;
     if (body != next && body != next - 1) {
@@ -126,9 +127,11 @@ Detector::Detector(std::vector<BodyShape> shapes, int bodies)
     }
     compound_ = compound_ || body == next - 1;
     next = body + 1;
+    if (shapes_[k].kind == ShapeKind::triangle && body >= 0 && body < bodies) mesh_[body] = true;
     (shapes_[k].kind == ShapeKind::plane ? planes_ : finite_).push_back(k);
   }
   if (next != bodies) throw std::invalid_argument("every body needs at least one shape");
+  mark_active_edges(shapes_);
 }
 
 void Detector::set_settings(const DetectionSettings& settings) {
@@ -315,6 +318,7 @@ void Detector::group_by_bodies(ContactRows& out) {
   out.take(order_, grouped_);
   grouped_.manifolds.swap(manifolds);
   std::swap(out, grouped_);
+  merge_mesh_faces(out);
   // the cap, per pair of bodies (rows are now grouped by pair)
   const auto cap = static_cast<std::size_t>(std::max(settings_.max_contacts_per_pair, 1));
   const std::size_t count = out.size();
@@ -338,6 +342,57 @@ void Detector::group_by_bodies(ContactRows& out) {
     lo = hi;
   }
   if (cut) out.keep(kept);
+}
+
+void Detector::merge_mesh_faces(ContactRows& out) {
+  constexpr double kSameNormal = 1.0 - 1e-9;   // cosine: one face's normal
+  if (std::find(mesh_.begin(), mesh_.end(), true) == mesh_.end()) return;
+  const std::size_t spans = out.manifolds.size() / kManifoldFields;
+  const std::int64_t* m = out.manifolds.data();
+  std::vector<std::int64_t> manifolds;
+  std::vector<char> taken(spans, 0);
+  order_.clear();
+  bool merged = false;
+  for (std::size_t k = 0; k < spans; ++k) {
+    if (taken[k]) continue;
+    const std::int64_t* span = m + kManifoldFields * k;
+    const auto first = static_cast<std::size_t>(span[2]);
+    const Vec3 normal(out.normal[3 * first], out.normal[3 * first + 1],
+                      out.normal[3 * first + 2]);
+    merge_rows_.clear();
+    // with a mesh, the later manifolds of this pair with this normal (a pair's manifolds
+    // are adjacent)
+    const bool mesh = mesh_[span[0]] || mesh_[span[1]];
+    for (std::size_t j = k; j < spans; ++j) {
+      const std::int64_t* other = m + kManifoldFields * j;
+      if (other[0] != span[0] || other[1] != span[1] || (j > k && !mesh)) break;
+      const auto row = static_cast<std::size_t>(other[2]);
+      const Vec3 n(out.normal[3 * row], out.normal[3 * row + 1], out.normal[3 * row + 2]);
+      if (taken[j] || !(n.dot(normal) > kSameNormal)) continue;
+      taken[j] = 1;
+      for (std::int64_t r = 0; r < other[3]; ++r) merge_rows_.push_back(row + r);
+    }
+    const std::size_t start = order_.size();
+    const bool several = merge_rows_.size() > static_cast<std::size_t>(span[3]);
+    if (several && merge_rows_.size() > static_cast<std::size_t>(kMaxManifoldPoints)) {
+      merge_points_.clear();
+      for (const std::size_t r : merge_rows_) {
+        merge_points_.emplace_back(out.point[3 * r], out.point[3 * r + 1], out.point[3 * r + 2]);
+      }
+      reduce_manifold(merge_points_, normal, merge_keep_);
+      for (const int i : merge_keep_) order_.push_back(merge_rows_[i]);
+      merged = true;
+    } else {
+      order_.insert(order_.end(), merge_rows_.begin(), merge_rows_.end());
+      merged = merged || several;
+    }
+    manifolds.insert(manifolds.end(), {span[0], span[1], static_cast<std::int64_t>(start),
+                                       static_cast<std::int64_t>(order_.size() - start)});
+  }
+  if (!merged) return;
+  out.take(order_, grouped_);
+  grouped_.manifolds.swap(manifolds);
+  std::swap(out, grouped_);
 }
 
 // m, how far apart the pair's bounding spheres are at s = 1 (negative: overlapping); for a

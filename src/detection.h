@@ -38,6 +38,12 @@
 // then grouped by pair of bodies in (a, b) order, and a pair of bodies keeps at most
 // max_contacts_per_pair rows (the deepest, in their order).
 //
+// Triangle meshes (static scenery, shapes.h): each triangle is a piece. Before the cap, the
+// manifolds of a pair with a mesh that share one normal (the triangles of one flat part of
+// the mesh under one face of the other body) become one manifold of at most four rows,
+// those that span the most area (reduce_manifold), as one face would give (Jolt reduces
+// mesh contacts alike): a box on a floor of many triangles rests on its four corners.
+//
 // Budget (DetectionSettings max_pairs, max_contacts; as MuJoCo's nconmax and PhysX's contact
 // buffer): a step with more pairs to query (broad-phase pairs whose bounding spheres come
 // within the margin or the relative motion; the others need no coal query) queries only
@@ -121,6 +127,7 @@ class Detector {
   void limit_pairs();
   void limit_rows(ContactRows& out);
   void group_by_bodies(ContactRows& out);
+  void merge_mesh_faces(ContactRows& out);
   bool reuse(int a, int b, ContactRows& out);
   void narrow_phase(int a, int b, ContactRows& out);
   void classify(int a, int b, double distance_now, double relative, double speed, bool near,
@@ -144,6 +151,10 @@ class Detector {
   std::vector<BodyShape> shapes_;
   int bodies_count_ = 0;
   bool compound_ = false;      // some body has several shapes
+  std::vector<bool> mesh_;     // per body: a triangle mesh
+  std::vector<Vec3> merge_points_;        // merge_mesh_faces: a normal's points
+  std::vector<std::size_t> merge_rows_;   // merge_mesh_faces: their rows
+  std::vector<int> merge_keep_;           // merge_mesh_faces: the kept ones
   ContactRows grouped_;        // scratch of group_by_bodies
   std::vector<int> planes_, finite_;
   DetectionSettings settings_;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <coal/narrowphase/support_functions.h>
+
 namespace collres {
 
 namespace {
@@ -50,10 +52,37 @@ bool surface_along(const coal::CollisionGeometry& g, const coal::Transform3s& tf
   return false;
 }
 
+constexpr double kBeside = 1e-6;   // |cosine| of a normal that lies in the face's plane
+constexpr double kOnEdge = 1e-5;   // barycentric weight below which a point is on the
+                                   // opposite edge (GJK's witness is good to about 1e-6 m)
+
+// Where a triangle's point `p` (world) lies: near an active edge, on inactive edges only,
+// or inside it (manifold.h).
+enum class Where { active_edge, inactive_edge, inside };
+Where where_on(const MeshTriangle& t, const coal::Transform3s& tf, const Vec3& p) {
+  const Vec3 q = tf.getRotation().transpose() * (p - to_vec(tf.getTranslation()));
+  const Vec3 a = t.a, b = t.b, c = t.c;
+  const Vec3 n = (b - a).cross(c - a);
+  const double area = n.squaredNorm();
+  // barycentric weights of a, b, c: each is 0 on the opposite edge (b-c, c-a, a-b)
+  const double wa = (c - b).cross(q - b).dot(n) / area;
+  const double wb = (a - c).cross(q - c).dot(n) / area;
+  const double wc = 1.0 - wa - wb;
+  const bool on[3] = {wc < kOnEdge, wa < kOnEdge, wb < kOnEdge};   // a-b, b-c, c-a
+  Where where = Where::inside;
+  for (int edge = 0; edge < 3; ++edge) {
+    if (on[edge] && t.active[edge]) return Where::active_edge;
+    if (on[edge]) where = Where::inactive_edge;
+  }
+  return where;
+}
+
 }  // namespace
 
 PairQuery::PairQuery() {
   request_.num_max_contacts = 1;
+  range_request_.num_max_contacts = 1;
+  range_request_.security_margin = kAnyRange;
   patch_request_.setPatchTolerance(kPatchTolerance);
 }
 
@@ -97,11 +126,61 @@ bool PairQuery::contact(const coal::CollisionGeometry& ga, const coal::Transform
       return false;
     }
   }
+  if (!onto_face(ga, ta, gb, coal::Transform3s(tb.getRotation(), tb.getTranslation() + shift))) {
+    result_.clear();
+    return false;
+  }
   const coal::Contact& c = result_.getContact(0);
   normal = to_vec(c.normal);
   distance = c.penetration_depth - shift.dot(normal);   // the step along the normal undone
   witness = {to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1]) - shift};
   loaded_shift_ = shift;
+  return true;
+}
+
+bool PairQuery::onto_face(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                          const coal::CollisionGeometry& gb, const coal::Transform3s& tb) {
+  const bool on_a = ga.getNodeType() == coal::GEOM_TRIANGLE;
+  if (!on_a && gb.getNodeType() != coal::GEOM_TRIANGLE) return true;
+  const auto& triangle = static_cast<const MeshTriangle&>(on_a ? ga : gb);
+  const coal::Transform3s& pose = on_a ? ta : tb;
+  coal::Contact c = result_.getContact(0);
+  const Vec3 front = (pose.getRotation() *
+                      (triangle.b - triangle.a).cross(triangle.c - triangle.a)).normalized();
+  const Vec3 out = on_a ? front : Vec3(-front);   // A -> B: the other shape to the front
+  const double along = to_vec(c.normal).dot(out);
+  if (along < -kBeside) {
+    // behind the triangle: only an overlap is turned (a shape apart behind it is no
+    // contact of its front), as deep as the shape's deepest point behind the plane
+    if (!(c.penetration_depth < 0.0)) return true;
+    const coal::CollisionGeometry& other = on_a ? gb : ga;
+    const coal::Transform3s& other_pose = on_a ? tb : ta;
+    int hint = 0;
+    const Vec3 deepest = other_pose.transform(
+        coal::details::getSupport<coal::details::WithSweptSphere>(
+            static_cast<const coal::ShapeBase*>(&other),
+            other_pose.getRotation().transpose() * (-front), hint));
+    const double depth = front.dot(deepest - pose.transform(triangle.a));   // m, < 0
+    const Vec3 on_plane = deepest - depth * front;
+    c.penetration_depth = depth;
+    c.nearest_points[0] = on_a ? on_plane : deepest;
+    c.nearest_points[1] = on_a ? deepest : on_plane;
+    c.pos = 0.5 * (on_plane + deepest);
+  } else {
+    switch (where_on(triangle, pose, to_vec(c.nearest_points[on_a ? 0 : 1]))) {
+      case Where::active_edge:
+        return true;   // the edge's (or corner's) own normal
+      case Where::inactive_edge:
+        // along another normal: the shadow of the neighbour's contact, which has it
+        if (along < 1.0 - kBeside) return false;
+        break;
+      case Where::inside:
+        break;
+    }
+  }
+  c.normal = out;
+  result_.clear();
+  result_.addContact(c);
   return true;
 }
 
@@ -118,6 +197,14 @@ bool PairQuery::overlaps(const coal::CollisionGeometry& ga, const coal::Transfor
 double PairQuery::distance(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                            const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                            PointPair& closest) {
+  if (ga.getNodeType() == coal::GEOM_TRIANGLE || gb.getNodeType() == coal::GEOM_TRIANGLE) {
+    range_result_.clear();
+    if (coal::collide(&ga, ta, &gb, tb, range_request_, range_result_) == 0) return 0.0;
+    const coal::Contact& c = range_result_.getContact(0);
+    closest = {to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1])};
+    // a failed query (depth -DBL_MAX) counts as touching: advancement stops there
+    return std::isfinite(c.penetration_depth) ? std::max(0.0, c.penetration_depth) : 0.0;
+  }
   distance_result_.clear();
   const double gap = coal::distance(&ga, ta, &gb, tb, distance_request_, distance_result_);
   closest = {to_vec(distance_result_.nearest_points[0]),

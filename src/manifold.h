@@ -6,6 +6,19 @@
 // to the second, and a witness point on each (world, m). A manifold is the list of
 // point pairs (on A, on B) that share one normal; each point pair gets a `feature` id,
 // the same every step for the same corner, edge or face of both bodies.
+//
+// Triangles (shapes.h MeshTriangle, the pieces of a triangle-mesh body) give their face's
+// normal, as far as the triangle's witness point says:
+// - inside the triangle: the face's front normal exactly (the depth as found);
+// - on an active edge (the mesh's boundary, a convex crease): the normal GJK/EPA found,
+//   so a shape rolls over the edge;
+// - on inactive edges only (between coplanar triangles, in a concave crease): the face's
+//   normal when it is that already, else no contact: it is the shadow of the contact the
+//   neighbour across the edge gives (a box resting on a floor of many triangles does not
+//   catch on the edges between them);
+// - a shape overlapping the triangle from behind (a normal to its back) is turned to the
+//   front, as deep as its deepest point behind the plane (it is pushed out to the front);
+//   apart behind it, the contact stays as found.
 #pragma once
 
 #include <algorithm>
@@ -18,6 +31,7 @@
 #include <coal/distance.h>
 
 #include "detection_types.h"
+#include "shapes.h"
 
 namespace collres {
 
@@ -46,7 +60,9 @@ class PairQuery {
   // True when the shapes interpenetrate (distance < 0); a failed coal query counts as apart.
   bool overlaps(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                 const coal::CollisionGeometry& gb, const coal::Transform3s& tb);
-  // Distance >= 0 (m, 0 when they overlap) and the closest points (GJK).
+  // Distance >= 0 (m, 0 when they overlap) and the closest points (GJK; coal's distance()
+  // has no triangle, so a pair with one takes them from a collision query at any range,
+  // which leaves the loaded contact alone too).
   double distance(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                   const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                   PointPair& closest);
@@ -61,11 +77,17 @@ class PairQuery {
 
  private:
   bool loaded_is_valid() const;  // the loaded contact's depth is a number coal computed
+  // The loaded contact of a triangle as the file comment says; false when it is none.
+  // `tb` is B's pose of the loaded query.
+  bool onto_face(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                const coal::CollisionGeometry& gb, const coal::Transform3s& tb);
 
   coal::CollisionRequest request_;
   coal::CollisionResult result_;
   coal::DistanceRequest distance_request_;
   coal::DistanceResult distance_result_;
+  coal::CollisionRequest range_request_;   // distance() of a pair with a triangle
+  coal::CollisionResult range_result_;
   coal::ContactPatchRequest patch_request_;
   coal::ContactPatchResult patch_result_;
   std::vector<Vec3> polygon_;

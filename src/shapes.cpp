@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 
@@ -78,6 +79,23 @@ std::string hull_problem(const std::vector<double>& points) {
   }
   if (!(depth > kHullFlatness * extent)) {
     return "points lie in one plane (flatter than 1e-6 of their extent: no volume)";
+  }
+  return "";
+}
+
+std::string triangle_problem(const std::vector<double>& corners) {
+  if (corners.size() != 9) return "a triangle needs 3 corners (9 values)";
+  for (const double c : corners) {
+    if (!(std::abs(c) <= kHullCoordinateLimit)) {
+      return "corner coordinates must be finite and within 1e9 m";
+    }
+  }
+  const Vec3 a(corners[0], corners[1], corners[2]), b(corners[3], corners[4], corners[5]),
+      c(corners[6], corners[7], corners[8]);
+  const double longest = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(),
+                                   (a - c).squaredNorm()});
+  if (!((b - a).cross(c - a).norm() > kHullFlatness * longest)) {
+    return "corners on one line or one spot (no area)";
   }
   return "";
 }
@@ -220,6 +238,21 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
       shape.thickness = kInf;
       return shape;
     }
+    case ShapeKind::triangle: {
+      const std::string problem = triangle_problem(points);
+      if (!problem.empty()) throw std::invalid_argument("triangle: " + problem);
+      if (!is_static) throw std::invalid_argument("triangle: only a static body has them");
+      for (std::size_t k = 0; k < 9; k += 3)
+        shape.vertices.emplace_back(points[k], points[k + 1], points[k + 2]);
+      shape.geometry = std::make_shared<MeshTriangle>(shape.vertices[0], shape.vertices[1],
+                                                      shape.vertices[2]);
+      shape.geometry->computeLocalAABB();
+      shape.local_lo = shape.geometry->aabb_local.min_;
+      shape.local_hi = shape.geometry->aabb_local.max_;
+      shape.half = 0.5 * (shape.local_hi - shape.local_lo);
+      shape.thickness = kInf;
+      return shape;
+    }
     case ShapeKind::convex:
       shape.geometry = convex_hull(points);
       for (std::size_t k = 0; k + 2 < points.size(); k += 3)
@@ -234,6 +267,41 @@ BodyShape make_shape(int kind, const std::vector<double>& size,
   shape.half = 0.5 * (shape.local_hi - shape.local_lo);
   shape.thickness = shape.half.minCoeff();
   return shape;
+}
+
+void mark_active_edges(std::vector<BodyShape>& shapes) {
+  using Corner = std::array<double, 3>;
+  // an edge by its two corners (in increasing order) -> (shape, edge) of its triangles
+  std::map<std::pair<Corner, Corner>, std::vector<std::pair<std::size_t, int>>> edges;
+  auto flush = [&shapes, &edges]() {
+    for (const auto& [key, sides] : edges) {
+      if (sides.size() != 2) continue;   // a boundary, or more than two triangles: active
+      for (int k = 0; k < 2; ++k) {
+        const auto [index, edge] = sides[k];
+        const auto [other, other_edge] = sides[1 - k];
+        const std::vector<Vec3>& mine = shapes[index].vertices;
+        const Vec3& far = shapes[other].vertices[(other_edge + 2) % 3];
+        const Vec3 normal = (mine[1] - mine[0]).cross(mine[2] - mine[0]).normalized();
+        const Vec3 to_far = far - mine[edge];
+        const bool convex = normal.dot(to_far) < -kCreaseSine * to_far.norm();
+        auto* triangle = static_cast<MeshTriangle*>(shapes[index].geometry.get());
+        triangle->active[edge] = convex;
+      }
+    }
+    edges.clear();
+  };
+  for (std::size_t k = 0; k < shapes.size(); ++k) {
+    if (k > 0 && shapes[k].body != shapes[k - 1].body) flush();
+    if (shapes[k].kind != ShapeKind::triangle) continue;
+    const std::vector<Vec3>& v = shapes[k].vertices;
+    for (int edge = 0; edge < 3; ++edge) {
+      Corner p{v[edge].x(), v[edge].y(), v[edge].z()};
+      Corner q{v[(edge + 1) % 3].x(), v[(edge + 1) % 3].y(), v[(edge + 1) % 3].z()};
+      if (q < p) std::swap(p, q);
+      edges[{p, q}].emplace_back(k, edge);
+    }
+  }
+  flush();
 }
 
 void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,

@@ -55,6 +55,7 @@ def test_resting_box_stays_within_1_mm(demo) -> None:
     for name, moved in drift.items():
         print(f'{name}: {1000 * moved:.4f} mm')
         assert moved < 1e-3
+    assert any(line.endswith('(nothing should move it)') for line in demo.report.lines())
     assert demo.report.contacts.get('RESTING', 0) + demo.report.contacts.get('STICKING', 0) > 0
 
 

@@ -11,6 +11,8 @@ that never saw a step before.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from collres_ros.core.pipeline import Resolver
@@ -76,3 +78,26 @@ def test_restamped_outputs_are_the_fresh_encoding(monkeypatch) -> None:
     assert sum(reused.values()) > 150
     assert all(asleep[k] for k, again in reused.items() if again)
     assert not any(reused[k] for k in (160, push, push + 1))   # a new span; woken
+
+
+def test_a_zero_that_changes_sign_is_encoded_again() -> None:
+    """-0.0 equals 0.0 as a value but not as bytes: a step whose contacts differ from the last
+    only by the sign of a zero gets the bytes of a fresh encoding, not the last message
+    restamped (which would send the old sign)."""
+    bodies, state = stack()
+    resolver = Resolver(bodies, initial=state)
+    names = [b.name for b in bodies]
+    values = messages.state_values(state)[1:]
+    period = int(1e9 / RATE)
+    step = resolver.resolve(5 * 10**9, InputBatch(names[1:], values, 'world', 'world'))
+    assert step.report.contacts.count
+    encoder = messages.OutputEncoder(names, 'world')
+    for k, zero in enumerate((0.0, -0.0)):
+        now = copy.deepcopy(step)
+        now.stamp_ns += k * period
+        now.toi_ns += k * period
+        now.report.friction_impulse[0, 0] = zero
+        now.report.contacts.point[0, 0] = zero
+        fresh = messages.OutputEncoder(names, 'world')
+        assert encoder.contacts(now) == fresh.contacts(now), zero
+        assert encoder.markers(now, 0.5) == fresh.markers(now, 0.5), zero

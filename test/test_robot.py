@@ -17,8 +17,21 @@ from collres_ros.core.types import COMPOUND
 from collres_ros.ros import params
 from collres_ros.ros.robot import quaternion_of_rpy
 
-DATA = Path(__file__).resolve().parent / 'data' / 'robots'
-URDF = (DATA / 'arm.urdf').read_text()
+SCENES = Path(__file__).resolve().parents[1] / 'config' / 'scenes'
+MESHES = SCENES / 'meshes'   # the arm's finger mesh
+
+
+def arm_urdf(meshes: str = 'package://collres_test_robot/meshes') -> str:
+    """The test arm: the URDF of the shipped arm scene (config/scenes/arm.yaml; several
+    collision elements per link, one mesh scaled, one link without collisions), its finger
+    mesh found under ``meshes`` (a package:// or file:// folder)."""
+    import yaml
+    scene = yaml.safe_load((SCENES / 'arm.yaml').read_text())
+    return scene['/**']['ros__parameters']['robot_description'].replace(
+        'filename="meshes/', f'filename="{meshes}/')
+
+
+URDF = arm_urdf()
 LINKS = ['base_link', 'upper_arm', 'forearm', 'hand']
 
 
@@ -28,8 +41,7 @@ def package(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     index = tmp_path / 'prefix' / 'share' / 'ament_index' / 'resource_index' / 'packages'
     index.mkdir(parents=True)
     (index / 'collres_test_robot').write_text('')
-    shutil.copytree(DATA / 'meshes', tmp_path / 'prefix' / 'share' / 'collres_test_robot'
-                    / 'meshes')
+    shutil.copytree(MESHES, tmp_path / 'prefix' / 'share' / 'collres_test_robot' / 'meshes')
     monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path / 'prefix'))
     return tmp_path / 'prefix' / 'share' / 'collres_test_robot'
 
@@ -57,7 +69,7 @@ def test_every_link_with_collisions_is_a_kinematic_compound(package) -> None:
     np.testing.assert_allclose(to_matrix(np.array(tube.orientation)) @ [0, 0, 1], [1, 0, 0],
                                atol=1e-15)
     finger = links['hand'].pieces[1]    # the mesh's hull, scaled by (0.5, 1, 1)
-    expected = load_mesh_points(str(DATA / 'meshes' / 'finger.stl')) * [0.5, 1.0, 1.0]
+    expected = load_mesh_points(str(MESHES / 'finger.stl')) * [0.5, 1.0, 1.0]
     assert finger.shape == 'convex'
     assert sorted(finger.points) == sorted(tuple(p) for p in expected.tolist())
 

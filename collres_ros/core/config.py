@@ -307,8 +307,14 @@ TORSIONAL_REASON = ('a ball of r 0.05 m spinning on the spot at 5 rad/s stops wi
 
 # Per-body parameters: `body.<name>.<param>` in the shared `/**` section.
 BODY_PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec('shape', 'string', 'sphere', 'Collision shape',
-              choices=('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')),
+    ParamSpec('shape', 'string', 'sphere',
+              'Collision shape; triangle_mesh: a static body that is the surface of its mesh '
+              '(one-sided triangles, their front counter-clockwise), for scenery that must stay '
+              'concave (a bin, a shelf)',
+              choices=('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex',
+                       'triangle_mesh'),
+              reason='a ball; a mesh is a convex hull unless decomposed or a static '
+                     'triangle_mesh'),
     ParamSpec('size', 'double_array', [0.1],
               'sphere [r]; box [x, y, z] full edges; capsule, cylinder, cone [r, length] along z; '
               'plane [nx, ny, nz, d] (|d| up to the position limit)', *SIZE_RANGE, unit='m',
@@ -352,11 +358,13 @@ BODY_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('mesh', 'string', '',
               'convex: mesh file (OBJ/STL), relative to the params file or absolute; '
               f'a regular .obj or .stl file of at most {MESH_MAX_BYTES // 2**20} MiB; the '
-              'body is the convex hull of its vertices unless decompose is true',
+              'body is the convex hull of its vertices unless decompose is true; '
+              'triangle_mesh: its triangles (those with an area)',
               reason='a hull, as MuJoCo and Drake make of a mesh: a concave mesh needs '
                      'decompose'),
     ParamSpec('points', 'double_array', [],
-              'convex: vertices [x0, y0, z0, x1, ...] in the body frame', -SIZE_RANGE[1],
+              'convex: vertices [x0, y0, z0, x1, ...] in the body frame; triangle_mesh '
+              'without a mesh: nine values (three corners) a triangle', -SIZE_RANGE[1],
               SIZE_RANGE[1], unit='m'),
     ParamSpec('shapes', 'string_array', [],
               'Compound body: the names of its convex pieces (letters, digits, _), each '
@@ -449,9 +457,9 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
               0.0, 60.0, unit='s',
               reason='20 Hz looks smooth; the triangles of 1000 boxes are 1.3 MB a message'),
     ParamSpec('publish_tf', 'bool', False,
-              'Publish /tf world_frame -> <body> for every body every step (needs tf2_msgs, '
-              'on a ROS install; without it a warning at start and no /tf)',
-              reason='N transforms per step, and tf2_msgs is not on PyPI: opt-in'),
+              'Publish /tf world_frame -> <body> for every body every step (tf2_msgs: a '
+              'ROS install\'s, or the one make setup generates where it is missing)',
+              reason='N transforms per step: opt-in'),
     ParamSpec('contact_state', 'bool', False,
               'Publish bodies/<name>/in_contact (std_msgs/Bool, reliable, transient local, on '
               'change) for every body: true from the step whose normal impulses on the body '
@@ -539,8 +547,9 @@ SCENE_PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec('robot_description', 'string', '',
               'URDF text (as robot_state_publisher\'s parameter): every link with <collision> '
               'elements becomes a kinematic body named after the link (sphere, box, cylinder, '
-              'mesh hull with scale; one piece per element), posed from body_states by link '
-              'name; its body.<link>.* parameters may still be set',
+              'mesh hull with scale; one piece per element), posed from /tf and /tf_static '
+              '(child frame = link name) or from body_states by link name; its '
+              'body.<link>.* parameters may still be set',
               reason='empty: no robot'),
     ParamSpec('robot_description_topic', 'bool', False,
               'When robot_description is empty, wait at start for the URDF on the '

@@ -38,9 +38,10 @@ import numpy as np
 
 from collres_ros.core import _native
 from collres_ros.core.config import SolverSettings
-from collres_ros.core.shapes import bounding_radius, collision_numbers, piece_spec
-from collres_ros.core.types import (COMPOUND, SHAPE_KINDS, BodySpec, BodyStates,
-                                    CollisionFilter, ContactSet)
+from collres_ros.core.shapes import (bounding_radius, collision_numbers, piece_spec,
+                                     triangle_corners)
+from collres_ros.core.types import (COMPOUND, SHAPE_KINDS, TRIANGLE_MESH, BodySpec,
+                                    BodyStates, CollisionFilter, ContactSet)
 
 IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)   # a piece frame on the body frame
 
@@ -139,9 +140,15 @@ def detection_settings(settings: SolverSettings) -> _native.DetectionSettings:
 
 def _shapes(index: int, spec: BodySpec) -> list[tuple]:
     """The compiled detector's shapes of body ``index``: one, or one per piece of a compound
-    (kind, sizes, vertices, bounding radius about the body origin, static, body, piece,
-    piece pose in the body frame)."""
+    or per triangle of a triangle mesh (kind, sizes, vertices, bounding radius about the
+    body origin, static, body, piece, piece pose in the body frame)."""
     fixed = bool(spec.static or spec.shape == 'plane')
+    if spec.shape == TRIANGLE_MESH:
+        corners = triangle_corners(spec)
+        reach = np.linalg.norm(corners, axis=2).max(axis=1)
+        kind = SHAPE_KINDS.index('triangle')
+        return [(kind, [], triangle.reshape(-1).tolist(), float(r), fixed, index, number,
+                 IDENTITY) for number, (triangle, r) in enumerate(zip(corners, reach))]
     if spec.shape != COMPOUND:
         size, points = collision_numbers(spec)
         return [(SHAPE_KINDS.index(spec.shape), size, points, bounding_radius(spec), fixed,

@@ -13,6 +13,9 @@ shape of its own placed at its pose in the body frame. Its mass is spread
 uniformly over the pieces' volumes (overlaps count twice, as in MuJoCo and
 Drake); its centre of mass is theirs, and a dynamic compound body must have it
 at the body origin (``centre_of_mass``; the params name the shift otherwise).
+
+A triangle mesh (``types.TRIANGLE_MESH``) is static scenery that stays concave:
+its triangles, each a one-sided piece of the compiled core, in the body frame.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import numpy as np
 
 from collres_ros.core.config import HULL_MAX_VERTICES
 from collres_ros.core.rotation import to_matrix
-from collres_ros.core.types import COMPOUND, BodySpec, Piece
+from collres_ros.core.types import COMPOUND, TRIANGLE_MESH, BodySpec, Piece
 
 # A dynamic compound body's centre of mass may lie this fraction of its bounding radius off
 # its origin (a decomposed mesh's hulls overlap a little): the inertia is then taken about
@@ -57,12 +60,12 @@ def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
         return coal.Halfspace(normal, offset)
     if shape == 'convex':
         return convex_hull(convex_points(spec))
-    if shape == COMPOUND:
+    if shape in (COMPOUND, TRIANGLE_MESH):
         raise ValueError(_ONE_PER_PIECE.format(spec.name))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
 
-_ONE_PER_PIECE = '{}: a compound body has a geometry per piece (piece_spec)'
+_ONE_PER_PIECE = '{}: a compound body or a triangle mesh has a geometry per piece'
 
 
 def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
@@ -81,7 +84,7 @@ def collision_numbers(spec: BodySpec) -> tuple[list[float], list[float]]:
         return [*normal.tolist(), offset], []
     if shape == 'convex':
         return [], convex_points(spec).reshape(-1).tolist()
-    if shape == COMPOUND:
+    if shape in (COMPOUND, TRIANGLE_MESH):
         raise ValueError(_ONE_PER_PIECE.format(spec.name))
     raise ValueError(f'{spec.name}: unknown shape {shape!r}')
 
@@ -112,6 +115,46 @@ def convex_points(spec: BodySpec) -> np.ndarray:
     if problem:
         raise ValueError(f'{spec.name}: convex {problem}')
     return points
+
+
+def triangle_corners(spec: BodySpec) -> np.ndarray:
+    """Corners (T, 3, 3) m, body frame, of a triangle mesh's triangles (front: a, b, c
+    counter-clockwise): ValueError naming the first triangle that has no area, is not
+    finite or lies beyond 1e9 m (the compiled core's ``triangle_problem``)."""
+    from collres_ros.core import _native
+    corners = np.asarray(spec.points, dtype=float).reshape(-1, 3)
+    if len(corners) == 0 or len(corners) % 3:
+        raise ValueError(f'{spec.name}: a triangle mesh needs three corners per triangle '
+                         f'(got {len(corners)} points)')
+    corners = corners.reshape(-1, 3, 3)
+    for index, triangle in enumerate(corners):
+        problem = _native.triangle_problem(triangle.reshape(-1).tolist())
+        if problem:
+            raise ValueError(f'{spec.name}: triangle {index}: {problem}')
+    return corners
+
+
+def mesh_surface(data: bytes, suffix: str, name: str = 'mesh') -> np.ndarray:
+    """Corners (T, 3, 3), in the file's units, of the triangles of an OBJ or STL file that
+    have an area (a sliver or a repeated corner touches nothing and is left out): a
+    triangle mesh's surface. ValueError naming ``name`` when no such triangle remains."""
+    from collres_ros.core import _native
+    vertices, faces = mesh_triangles(data, suffix, name)
+    corners = vertices[faces]
+    if not np.isfinite(corners).all():
+        raise ValueError(f'{name}: a vertex is not finite')
+    kept = [not _native.triangle_problem(t.reshape(-1).tolist()) for t in corners]
+    if not any(kept):
+        raise ValueError(f'{name}: no triangle has an area')
+    return corners[np.array(kept)]
+
+
+def piece_names(spec: BodySpec) -> list[str]:
+    """The names of a body's pieces by index, as contacts name them: a compound's pieces,
+    a triangle mesh's ``triangle_<k>``, [''] for a body of one shape."""
+    if spec.shape == TRIANGLE_MESH:
+        return [f'triangle_{k}' for k in range(len(spec.points) // 3)]
+    return [piece.name for piece in spec.pieces] or ['']
 
 
 def hull_problem(points: np.ndarray) -> str:
@@ -145,6 +188,8 @@ def mass_properties(spec: BodySpec) -> tuple[float, np.ndarray]:
     density; ``spec.inertia`` (principal moments) overrides the shape's. A
     zero principal moment gives a zero inverse on that axis (no division by 0).
     """
+    if spec.shape == TRIANGLE_MESH and not spec.static:
+        raise ValueError(f'{spec.name}: a triangle mesh must be static (it has no volume)')
     if spec.static or spec.shape == 'plane':
         return 0.0, np.zeros((3, 3))
     mass = float(spec.mass)
@@ -293,6 +338,8 @@ def bounding_radius(spec: BodySpec) -> float:
         return math.inf
     if shape == 'convex':
         return float(np.max(np.linalg.norm(convex_points(spec), axis=1)))
+    if shape == TRIANGLE_MESH:
+        return float(np.max(np.linalg.norm(np.asarray(spec.points, float), axis=1)))
     if shape == COMPOUND:
         return max(float(np.linalg.norm(piece.position))
                    + bounding_radius(piece_spec(spec, piece)) for piece in spec.pieces)

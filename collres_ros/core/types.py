@@ -198,9 +198,12 @@ class StepResult:
     sleeping: np.ndarray | None = None
 
 
-SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex')
+SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex', 'triangle')
 # A body of several convex pieces (``BodySpec.pieces``); not a code of the compiled core.
 COMPOUND = 'compound'
+# A static body that is the surface of a triangle mesh (``BodySpec.points``: three corners a
+# triangle); each triangle is a 'triangle' of the compiled core, one-sided (src/shapes.h).
+TRIANGLE_MESH = 'triangle_mesh'
 
 
 @dataclass(frozen=True)
@@ -287,7 +290,9 @@ class BodySpec:
     half-space n.x <= d in the body frame (static only); convex: ``points``
     (K, 3) in the body frame, ``size`` unused; compound (``COMPOUND``): the
     convex ``pieces``, ``size`` and ``points`` unused (uniform density over the
-    pieces' volumes). ``mass`` in kg is ignored for
+    pieces' volumes); triangle mesh (``TRIANGLE_MESH``, static only): ``points``
+    (3 T, 3) the corners of its T triangles, three by three, counter-clockwise seen
+    from the front (the side bodies touch: a bin's inside). ``mass`` in kg is ignored for
     static bodies (infinite mass). ``inertia`` (ixx, iyy, izz) in kg m^2 about
     the origin in the body frame, or None to derive it from shape and mass.
     """

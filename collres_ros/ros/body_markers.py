@@ -28,7 +28,7 @@ import numpy as np
 from collres_ros.core.rotation import to_matrix
 from collres_ros.core.shapes import (convex_hull, convex_points, piece_spec, plane_normal_offset,
                                      shape_offset)
-from collres_ros.core.types import COMPOUND, BodySpec
+from collres_ros.core.types import COMPOUND, TRIANGLE_MESH, BodySpec
 from collres_ros.ros.codec import MarkerSpec
 
 SPHERE_LIST, TRIANGLE_LIST = 7, 11     # visualization_msgs/Marker constants
@@ -99,6 +99,8 @@ def triangles(spec: BodySpec) -> np.ndarray:
     """Triangle vertices (T * 3, 3) m, body frame, of a non-sphere body's shape."""
     if spec.shape == COMPOUND:
         return _compound(spec)
+    if spec.shape == TRIANGLE_MESH:
+        return np.asarray(spec.points, float).reshape(-1, 3)
     size = [float(s) for s in spec.size]
     if spec.shape == 'box':
         return _box(size)

@@ -10,8 +10,9 @@ processes: rmw_fastrtps delivers a payload whose size is not a multiple of 4 (a
 BodyStateArray ends with a bool) padded with zeros to 4, without saying so in the
 encapsulation options; decoding accepts those up to 3 zero bytes.
 
-Decode: ``BodyStateArray`` (``StatesCodec``), ``PoseStamped`` and
-``TwistStamped`` (``decode_pose``, ``decode_twist``). Encode: ``BodyStateArray``,
+Decode: ``BodyStateArray`` (``StatesCodec``), ``PoseStamped``,
+``TwistStamped`` and ``tf2_msgs/TFMessage`` (``decode_pose``, ``decode_twist``,
+``decode_tf``). Encode: ``BodyStateArray``,
 ``PoseStamped``, ``TwistStamped``, ``WrenchStamped``, ``ContactArray``,
 ``MarkerArray`` and ``tf2_msgs/TFMessage`` (``encode_*``; the last needs no
 tf2_msgs installed). Every decode checks the size of what it is about to read
@@ -529,6 +530,38 @@ def encode_tf(stamp_ns: int, frame_id: str, children: NamePool, poses: np.ndarra
         _pad(buf, 8)
         buf += poses[k].tobytes()
     return bytes(buf)
+
+
+@dataclass(frozen=True)
+class Transform:
+    """One decoded geometry_msgs/TransformStamped of a TFMessage: ``child`` in ``parent``
+    at ``stamp_ns``, ``values`` translation (m) then rotation x, y, z, w."""
+
+    stamp_ns: int
+    parent: str
+    child: str
+    values: tuple[float, ...]
+
+
+_TRANSFORM_BYTES = 4 + 8 + 4 + 4 + 56   # the least a TransformStamped takes (empty names)
+
+
+def decode_tf(data: bytes) -> list[Transform]:
+    """The transforms of serialised tf2_msgs/TFMessage bytes (/tf, /tf_static); DecodeError
+    when refused (malformed, truncated, trailing bytes)."""
+    reader = Reader(data, 'TFMessage')
+    count = reader.u32()
+    if count * _TRANSFORM_BYTES > len(data):
+        raise reader.fail(f'{count} transforms cannot fit')
+    out = []
+    for _ in range(count):
+        stamp, parent = reader.header()
+        child = reader.string()
+        values = reader.f64s(7)
+        out.append(Transform(stamp, parent, child, tuple(float(v) for v in values)))
+    if not padded_to(data, reader.pos):
+        raise reader.fail('trailing bytes')
+    return out
 
 
 # --- restamping --------------------------------------------------------------------------------

@@ -25,6 +25,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from collres_ros.core.pipeline import ResolvedStep
 from collres_ros.core.rotation import to_matrix
+from collres_ros.core.shapes import piece_names
 from collres_ros.core.types import BodyInput, BodySpec, BodyStates, InputBatch
 from collres_ros.core.wrench import contact_wrenches
 from collres_ros.msg import BodyStateArray
@@ -128,6 +129,10 @@ POSE_TYPE, TWIST_TYPE = 'geometry_msgs/msg/PoseStamped', 'geometry_msgs/msg/Twis
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 
 
+# what a message was built from: dtypes and shapes, and the bytes of its arrays
+Fingerprint = tuple[tuple[tuple[str, tuple[int, ...]], ...], bytes]
+
+
 class OutputEncoder:
     """Every output of a step as (topic, wire type, CDR bytes), topics relative to the node.
 
@@ -143,11 +148,12 @@ class OutputEncoder:
         self.states = codec.StatesCodec()
         self.names = codec.NamePool(self.body_names)
         # piece names of contacts: every body's pieces in one pool ('' for a body of one
-        # shape), body k's from piece_start[k]; None without compound bodies (all '')
+        # shape; a triangle mesh's triangle_<k>), body k's from piece_start[k]; None
+        # without compound bodies or triangle meshes (all '')
         self.piece_names: Optional[codec.NamePool] = None
         self.piece_start = np.zeros(len(self.body_names), np.int64)
-        if bodies is not None and any(b.pieces for b in bodies):
-            names = [[p.name for p in b.pieces] or [''] for b in bodies]
+        names = [piece_names(b) for b in bodies] if bodies is not None else []
+        if any(n != [''] for n in names):
             self.piece_start = np.cumsum([0] + [len(n) for n in names[:-1]]).astype(np.int64)
             self.piece_names = codec.NamePool([n for group in names for n in group])
         self._body_markers: Optional[Any] = None
@@ -157,7 +163,7 @@ class OutputEncoder:
         self._last_body_markers: Optional[int] = None   # stamp (ns) of the last ones
         # topic -> (what its last message was built from, the message): a step whose
         # arrays are all equal to those (a sleeping pile's held contacts) only restamps it
-        self._last: dict[str, tuple[tuple[np.ndarray, ...], codec.Restampable]] = {}
+        self._last: dict[str, tuple[Fingerprint, codec.Restampable]] = {}
 
     def body_markers(self, step: ResolvedStep, period: float, lifetime: float
                      ) -> Optional[bytes]:
@@ -209,8 +215,9 @@ class OutputEncoder:
         before = step.stamp_ns - step.toi_ns   # ns from each time of impact to the stamp
         key = (c.body_a, c.body_b, c.point, c.normal, c.depth, before, r.normal_impulse,
                r.friction_impulse, r.state, piece_a, piece_b)
+        built_from = _fingerprint(key)
         last = self._last.get(CONTACTS)
-        if last is not None and _same(last[0], key):
+        if last is not None and last[0] == built_from:
             return last[1].restamped(np.concatenate([[step.stamp_ns], step.toi_ns]))
         pieces = None if self.piece_names is None else (
             self.piece_names, self.piece_start[c.body_a] + piece_a,
@@ -219,7 +226,7 @@ class OutputEncoder:
                                          c.body_a, c.body_b, c.point, c.normal, c.depth,
                                          step.toi_ns, r.normal_impulse, r.friction_impulse,
                                          r.state, pieces)
-        self._last[CONTACTS] = (_copies(key), message)
+        self._last[CONTACTS] = (built_from, message)
         return message.data()
 
     def wrenches(self, step: ResolvedStep) -> list[tuple[str, str, bytes]]:
@@ -235,12 +242,13 @@ class OutputEncoder:
         r = step.report
         key = (r.contacts.point, r.contacts.normal, r.normal_impulse, r.state,
                np.array([lifetime]))
+        built_from = _fingerprint(key)
         last = self._last.get(MARKERS)
-        if last is not None and _same(last[0], key):
+        if last is not None and last[0] == built_from:
             return last[1].restamped(step.stamp_ns)
         message = codec.markers_message(step.stamp_ns, self.world_frame,
                                         contact_marker_specs(step, lifetime))
-        self._last[MARKERS] = (_copies(key), message)
+        self._last[MARKERS] = (built_from, message)
         return message.data()
 
     def encode(self, step: ResolvedStep, per_body: bool = False, marker_lifetime: float = 0.5,
@@ -275,14 +283,12 @@ class OutputEncoder:
         return out
 
 
-def _copies(arrays: Sequence[Any]) -> tuple[np.ndarray, ...]:
-    """Copies of the arrays a message was built from (whoever owns them may change them)."""
-    return tuple(np.array(a) for a in arrays)
-
-
-def _same(kept: Sequence[np.ndarray], now: Sequence[Any]) -> bool:
-    """The arrays ``now`` equal, shape and values, to the ``kept`` copies."""
-    return all(np.shape(x) == np.shape(y) and np.array_equal(x, y) for x, y in zip(kept, now))
+def _fingerprint(arrays: Sequence[Any]) -> Fingerprint:
+    """What a message was built from, as one value: each array's dtype and shape, and all
+    their bytes (two equal fingerprints encode to the same bytes; a comparison of values
+    would take -0.0 for 0.0, whose bytes differ, and cost a Python call per array)."""
+    views = [np.asarray(a) for a in arrays]
+    return (tuple((a.dtype.str, a.shape) for a in views), b''.join(a.tobytes() for a in views))
 
 
 _ENCODERS: dict[tuple[tuple[str, ...], str], OutputEncoder] = {}

@@ -23,10 +23,12 @@ per-body steps), ``contacts``, ``contact_markers`` and ``body_markers`` (built
 only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
 ``contact_wrench``), ``bodies/<name>/in_contact`` (with ``contact_state``), ``/tf``
 (with ``publish_tf``, where tf2_msgs is installed), ``/diagnostics``; the service
-``get_contacts`` answers the last step's contacts (``ros/contact_sensing.py``). The
-per-body subscriptions belong to a second node, ``<name>_per_body``, served by a thread of
-its own (``PerBodyInputs``: one wait set over all of them, every waiting message taken per
-wake-up): the ``body_states`` path costs the same whatever the number of bodies' topics.
+``get_contacts`` answers the last step's contacts (``ros/contact_sensing.py``). The inputs
+are served by threads of their own, not by the executor (``ros/inputs.py``): ``body_states``
+by one, the per-body subscriptions (a second node, ``<name>_per_body``) by another, each
+taking every waiting message per wake-up; the ``body_states`` path costs the same whatever
+the number of bodies' topics. The executor serves parameters, services and the
+diagnostics timer.
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
 ``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
@@ -57,24 +59,22 @@ other bodies are still served. Time comes from the message stamps only, so
 
 from __future__ import annotations
 
+import gc
 import threading
 import time
-import traceback
 from collections import Counter
 from functools import partial
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import InvalidTopicNameException
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException, ShutdownException, SingleThreadedExecutor
-from rclpy.guard_condition import GuardCondition
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from visualization_msgs.msg import MarkerArray
@@ -82,13 +82,15 @@ from visualization_msgs.msg import MarkerArray
 from collres_ros.core.pipeline import ResolvedStep, Resolver
 from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
-from collres_ros.ros import cli, codec, messages, names, params, qos
+from collres_ros.ros import cli, codec, description, messages, names, params, qos
 from collres_ros.ros.contact_sensing import ContactSensing
 from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array, sleep_values,
                                          status_name)
 from collres_ros.ros.health import Health
+from collres_ros.ros.inputs import InputServer, PerBodyInputs, ServedElsewhere
 from collres_ros.ros.losses import LossCounter
 from collres_ros.ros.stamps import seconds_ns
+from collres_ros.ros.tf_links import TfLinks, with_links
 from collres_ros.ros.sync import StampSync, names_text
 
 NAME = 'collres_node'
@@ -110,7 +112,6 @@ except ImportError:
 TIMED = ('decode', 'resolve', 'world', 'world_cpu', 'encode', 'publish')
 LOG_PERIOD = 1.0   # s, at most one warning per reason per period
 UNPAIRED_AFTER = 1.0   # s of per-body inputs without a per-body step before /diagnostics warns
-WAIT_TIMEOUT_NS = 100_000_000   # the per-body thread checks the context this often when idle
 
 
 def contact_state(settings: Any) -> tuple[bool, float, int]:
@@ -156,35 +157,18 @@ class CollresNode(Node):
         self.configured = False   # resolver, topics and timer exist (always, unless managed)
         self.serving = False      # inputs are resolved and answered (managed: while active)
         if not self.MANAGED:
-            self.configure_resolution()
-            self.serving = True
+            self.configure_resolution(serve=True)
 
     MANAGED = False   # ros/lifecycle.py: configure/activate through the lifecycle services
 
     def _wait_for_robot_description(self) -> str:
         """The URDF text of the first message on ``robot_description`` (transient local: the
         one robot_state_publisher holds), waited for with a log line every 5 s."""
-        from std_msgs.msg import String
-        got: list[str] = []
-        subscription = self.create_subscription(String, names.ROBOT_DESCRIPTION,
-                                                lambda msg: got.append(msg.data),
-                                                qos.latched_qos())
-        topic = names.absolute(names.ROBOT_DESCRIPTION, self.get_namespace())
-        try:
-            while not got and rclpy.ok(context=self.context):
-                self.get_logger().info(f'waiting for the URDF on {topic} (transient local)')
-                deadline = time.monotonic() + 5.0
-                while not got and time.monotonic() < deadline and rclpy.ok(context=self.context):
-                    rclpy.spin_once(self, timeout_sec=0.1)
-        finally:
-            self.destroy_subscription(subscription)
-        if not got:
-            raise KeyboardInterrupt   # shut down while waiting
-        self.get_logger().info(f'robot_description: {len(got[0])} characters from {topic}')
-        return got[0]
+        return description.wait_for(self, None, self.get_logger().info)
 
-    def configure_resolution(self) -> None:
-        """Create the resolver, the codecs, every topic and the diagnostics timer."""
+    def configure_resolution(self, serve: bool = False) -> None:
+        """Create the resolver, the codecs, every topic and the diagnostics timer; then
+        start serving inputs when ``serve`` (a managed node: when activated)."""
         self.resolver = Resolver.for_scene(self.scene)
         body_names = self.scene.names
         # the edge: CDR bytes in and out, decoded into and encoded from the core's arrays
@@ -209,9 +193,13 @@ class CollresNode(Node):
             DiagnosticArray, names.DIAGNOSTICS, qos.state_qos(qos.DIAGNOSTICS_DEPTH),
             qos_overriding_options=qos.OVERRIDES)
         self.losses = LossCounter()   # inputs lost before they were taken (sequence gaps)
+        # body_states: the node's own subscription, served by a thread of its own (inputs.py)
         self._inputs = [self.create_subscription(
-            BodyStateArray, names.STATES, self._on_states, self._qos(), raw=True,
-            qos_overriding_options=qos.OVERRIDES)]
+            BodyStateArray, names.STATES, self._on_states, self.state_qos(), raw=True,
+            qos_overriding_options=qos.OVERRIDES, callback_group=ServedElsewhere())]
+        self.states_input = InputServer(self, 'collres_states',
+                                        lambda: [(self._inputs[0], self._on_states)])
+        self.tf_links = self._subscribe_tf()
         self._timer = self._diagnostics_timer()
         self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
@@ -220,16 +208,56 @@ class CollresNode(Node):
         self._parts_since_step = 0       # per-body inputs since the last per-body step
         self._last_part_step = time.monotonic()
         self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)
-        self.per_body_inputs = PerBodyInputs(self, body_names)   # last: its thread starts
+        self.serving = serve
+        # last: their threads start taking inputs
+        self.per_body_inputs = PerBodyInputs(self, body_names)
+        self.states_input.start()
         self.configured = True
+        # what the start built (rclpy, numpy, the scene, the resolver, the codecs' layouts) is
+        # out of the collector's passes from now on: a full collection walked it all, 37 ms at
+        # 100 bodies, every few thousand steps, stalling the step it fell in
+        gc.freeze()
         if self.scene.node.publish_tf and messages.TYPES[names.TF] not in CLASSES:
             self.get_logger().warning('publish_tf: tf2_msgs is not installed here: no /tf')
         self.get_logger().info(
             f'resolving {len(body_names)} bodies ({names_text(body_names)}) in frame '
             f'{self.scene.world_frame!r}')
 
+    def input_failure(self) -> Optional[BaseException]:
+        """What ended an input thread (``inputs.py``), None while they serve."""
+        return self.states_input.failure or self.per_body_inputs.failure
+
+    def _subscribe_tf(self) -> Optional[TfLinks]:
+        """With robot_description: /tf and /tf_static pose the static bodies named as their
+        child frames, the links (tf_links.py); None without a robot or without tf2_msgs."""
+        kind = CLASSES.get(messages.TYPES[names.TF])
+        if not self.scene.values.get('robot_description') or kind is None:
+            return None
+
+        def pose(name: str) -> np.ndarray:   # a root of a chain: as the resolver holds it
+            state, k = self.resolver.state, self.resolver.index_of[name]
+            return np.concatenate([state.position[k], state.orientation[k]])
+
+        links = TfLinks([b.name for b in self.scene.bodies if b.static], self.scene.names,
+                        self.scene.world_frame, pose)
+        for topic, profile in ((names.TF, qos.state_qos(100)),
+                               (names.TF_STATIC, qos.tf_static_qos())):
+            self._inputs.append(self.create_subscription(
+                kind, topic, partial(self._on_tf, topic), profile, raw=True))
+        return links
+
+    def _on_tf(self, topic: str, data: bytes) -> None:
+        with self._lock:
+            if not self.serving:
+                return
+            try:
+                self.tf_links.take(codec.decode_tf(data))
+            except codec.DecodeError as refusal:
+                self._refuse(refusal, topic)
+
     def release_resolution(self) -> None:
         """Undo ``configure_resolution``: every topic, the timer and the resolver go."""
+        self.states_input.close()
         self.per_body_inputs.close()
         self.contact_sensing.close()
         self.serving = self.configured = False
@@ -359,6 +387,8 @@ class CollresNode(Node):
 
     def _step(self, stamp: int, batch: InputBatch, per_body: bool, start: float) -> None:
         """Resolve, encode and publish one step; ``start``: when its callback began."""
+        if self.tf_links is not None:   # the links /tf poses, unless the batch holds them
+            batch = with_links(batch, self.tf_links.inputs())
         decoded = time.perf_counter()
         step = self.resolver.resolve(stamp, batch)
         resolved = time.perf_counter()
@@ -418,16 +448,16 @@ class CollresNode(Node):
         if publisher is None:
             if topic.startswith(names.BODIES):   # per body: see PerBodyInputs
                 profile = qos.overridden(self, self.resolve_topic_name(topic), 'publisher',
-                                         self._qos())
+                                         self.state_qos())
                 publisher = self.create_publisher(kind, topic, profile, event_callbacks=(
                     PublisherEventCallbacks(use_default_callbacks=False)))
             else:
-                publisher = self.create_publisher(kind, topic, self._qos(),
+                publisher = self.create_publisher(kind, topic, self.state_qos(),
                                                   qos_overriding_options=qos.OVERRIDES)
             self._publishers_by_topic[topic] = publisher
         return publisher
 
-    def _qos(self) -> Any:
+    def state_qos(self) -> Any:
         """A new profile of the state topics (rclpy writes an entity's overrides into it)."""
         return qos.state_qos(self.scene.node.queue_depth)
 
@@ -535,108 +565,6 @@ class CollresNode(Node):
                        f'and never confirmed: {", ".join(f"{k} {v}" for k, v in refused.items())}')
 
 
-class PerBodyInputs:
-    """The ``bodies/<name>/pose`` and ``twist`` subscriptions: a node of their own
-    (``<node>_per_body``, same namespace) served by a thread of its own.
-
-    Why: rclpy's executor rebuilds its wait set at every wake-up, in Python, over every
-    entity of its nodes, and checks each QoS event handler against a list of them (quadratic
-    in their number). With two subscriptions per body on the node itself, a 1000-body scene
-    spent 190-320 ms per wake-up before a ``body_states`` message was taken. Here the
-    batched path's executor holds a handful of entities whatever the body count. And the
-    thread is no executor either: an executor takes one message per wake-up and pays that
-    rebuild for each, so 100 bodies' 200 messages of one step took 40 ms (lock-step, 24 Hz)
-    and a 30 Hz stream dropped half its steps. The thread waits on every subscription at once
-    (one rcl wait set, refilled in C per wake-up), then takes every message that is there,
-    subscription by subscription, and hands each to ``CollresNode.on_part``. The
-    subscriptions have no default QoS-event handlers (rclpy's incompatible-QoS warning),
-    which would make the executor's check quadratic again. QoS overrides are read as for
-    every topic (``qos_overrides./bodies/<name>/pose.subscription.depth``) and declared on
-    the node where set (``qos.overridden``).
-    """
-
-    def __init__(self, owner: 'CollresNode', body_names: Sequence[str]) -> None:
-        self.owner = owner
-        self.failure: Optional[BaseException] = None
-        self.ready = threading.Event()   # every subscription exists
-        self._closing = False
-        self.node = Node(f'{owner.get_name()}_per_body', namespace=owner.get_namespace(),
-                         context=owner.context, start_parameter_services=False,
-                         automatically_declare_parameters_from_overrides=False)
-        self._wanted = []   # (message type, topic, callback, QoS profile)
-        try:
-            for name in body_names:
-                for kind, message, topic in (('pose', PoseStamped, names.pose_topic(name)),
-                                             ('twist', TwistStamped, names.twist_topic(name))):
-                    profile = qos.overridden(owner, self.node.resolve_topic_name(topic),
-                                             'subscription', owner._qos())
-                    self._wanted.append((message, topic, partial(owner.on_part, name, kind),
-                                         profile))
-        except InvalidTopicNameException as error:   # a long name in a long namespace
-            self.node.destroy_node()
-            raise ValueError(f'bodies: a topic name is invalid in namespace '
-                             f'{owner.get_namespace()!r} '
-                             f'({str(error).splitlines()[0][:120]})') from None
-        except BaseException:
-            self.node.destroy_node()
-            raise
-        self._wake = GuardCondition(None, None, context=owner.context)   # close() wakes us
-        self.thread = threading.Thread(target=self._run, name='collres_per_body', daemon=True)
-        self.thread.start()
-
-    def _run(self) -> None:
-        """Create the subscriptions (here, so that the node serves body_states meanwhile:
-        2000 of them take a second or more), then serve them until closed."""
-        try:
-            subscriptions = []
-            for message, topic, callback, profile in self._wanted:
-                if self._closing:
-                    return
-                subscriptions.append((self.node.create_subscription(
-                    message, topic, callback, profile, raw=True,
-                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)),
-                    callback))
-            self.ready.set()
-            self.owner.get_logger().info(f'per-body inputs: {len(self._wanted)} topics '
-                                         'subscribed')
-            self._serve(subscriptions)
-        except (ShutdownException, ExternalShutdownException):
-            pass
-        except BaseException as failure:   # as a failure in the main thread: the node ends
-            if self._closing or not self.owner.context.ok():
-                return
-            self.failure = failure
-            self.owner.get_logger().error('per-body inputs: ' + traceback.format_exc())
-            self.owner.context.try_shutdown()
-
-    def _serve(self, subscriptions: list[tuple[Any, Any]]) -> None:
-        """Wait on every subscription at once, take every message that is there, repeat."""
-        context = self.owner.context
-        by_handle = {sub.handle.pointer: (sub, callback) for sub, callback in subscriptions}
-        wait_set = _rclpy.WaitSet(len(subscriptions), 1, 0, 0, 0, 0, context.handle)
-        while not self._closing and context.ok():
-            wait_set.clear_entities()
-            for sub, _ in subscriptions:
-                wait_set.add_subscription(sub.handle)
-            wait_set.add_guard_condition(self._wake.handle)
-            wait_set.wait(WAIT_TIMEOUT_NS)
-            for pointer in wait_set.get_ready_entities('subscription'):
-                sub, callback = by_handle[pointer]
-                while not self._closing:
-                    taken = sub.handle.take_message(sub.msg_type, True)
-                    if taken is None:
-                        break
-                    callback(*taken)
-
-    def close(self) -> None:
-        """Stop the thread, then free the subscriptions and the node."""
-        self._closing = True
-        self._wake.trigger()
-        self.thread.join(2.0)
-        self.node.destroy_node()
-        self._wake.destroy()
-
-
 def _check_files(argv: Sequence[str]) -> None:
     """Readable params files (rcl's own errors are cryptic): ValueError/OSError, one line."""
     for name in cli.params_files(argv):
@@ -687,7 +615,7 @@ def _spin(argv: Sequence[str]) -> int:
         if rclpy.ok():   # a real failure; otherwise a signal shut us down while starting
             raise
     finally:
-        failure = node.per_body_inputs.failure if node.configured else None
+        failure = node.input_failure() if node.configured else None
         node.destroy_node()
     if failure is not None:
         raise failure

@@ -19,7 +19,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from collres_ros.ros.cli import CliError
 from collres_ros.ros.diagnostics import OfflineDiagnostics
@@ -255,7 +255,8 @@ class PerBodyGrouper:
 
 def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None = None,
            namespace: str = '/', progress: Callable[[int, int], None] | None = None,
-           topics: Sequence[str] | None = None, compress: bool = False) -> ReplaySummary:
+           topics: Sequence[str] | None = None, compress: bool = False,
+           overrides: Mapping[str, Any] | None = None) -> ReplaySummary:
     """Replay ``in_bag`` into a new ``out_bag``; ReplayError/BagError/ValueError on bad input.
 
     ``params``: the scene's params file; None: the params recorded in the bag
@@ -263,7 +264,8 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
     and collres_demo).
 
     ``topics``: write only these output topics (relative names; default all).
-    ``compress``: zstd mcap chunks (see ``BagWriter``).
+    ``compress``: zstd mcap chunks (see ``BagWriter``). ``overrides``: values that win over
+    the params file's (collres_replay: the URDF a robot_description_topic scene waited for).
     """
     from collres_ros.ros import messages, qos
     from collres_ros.ros.bag import STORAGES, BagReader, BagWriter, describe
@@ -276,7 +278,7 @@ def replay(in_bag: Path, out_bag: Path, params: Path | None, storage: str | None
     summary = ReplaySummary()
     start = time.perf_counter()
     with BagReader(in_bag) as reader:
-        scene = _scene(params, reader, namespace)
+        scene = _scene(params, reader, namespace, overrides)
         unknown = [t for t in topics or () if t not in output_topics(scene.names)]
         if unknown:
             raise ReplayError(f'--topics: not an output topic: '
@@ -381,12 +383,14 @@ def _check_resolved(summary: ReplaySummary, path: Path) -> None:
                           'is --params the scene of this bag?')
 
 
-def _scene(params: Path | None, reader: Any, namespace: str) -> Any:
-    """The scene of ``params``, or else the params recorded in the bag's custom_data."""
+def _scene(params: Path | None, reader: Any, namespace: str,
+           overrides: Mapping[str, Any] | None = None) -> Any:
+    """The scene of ``params`` (with ``overrides``), or else the params recorded in the bag's
+    custom_data."""
     from collres_ros.ros import params as params_module
     from collres_ros.ros.bag import PARAMS_KEY
     if params is not None:
-        return params_module.load_scene(params, namespace)
+        return params_module.load_scene(params, namespace, overrides)
     text = reader.custom_data.get(PARAMS_KEY)
     if text is None or text == '':
         raise ReplayError(f'{reader.path} carries no params (custom_data {PARAMS_KEY}): '

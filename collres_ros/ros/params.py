@@ -16,6 +16,7 @@ import rclpy's types when called; importing this module imports no ROS.
 from __future__ import annotations
 
 import array
+import functools
 import math
 import os
 import re
@@ -23,7 +24,7 @@ import stat
 import struct
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Optional
+from typing import Any, Callable, Iterable, Mapping, Optional
 
 import numpy as np
 
@@ -32,8 +33,10 @@ from collres_ros.core.config import (
     BODY_PARAMS, MESH_MAX_BYTES, MESH_SUFFIXES, NODE_PARAMS, PIECE_PARAMS, POSITION_LIMIT,
     SCENE_PARAMS, SIM_PARAMS, SIZE_RANGE, SOLVER_PARAMS, NodeSettings, ParamSpec, SimSettings,
     SolverSettings, check_value, range_text)
-from collres_ros.core.shapes import centre_of_mass, hull_problem, hull_vertices, mesh_points
-from collres_ros.core.types import COMPOUND, BodySpec, BodyStates, CollisionFilter, Piece
+from collres_ros.core.shapes import (centre_of_mass, hull_problem, hull_vertices, mesh_points,
+                                     mesh_surface, triangle_corners)
+from collres_ros.core.types import (COMPOUND, TRIANGLE_MESH, BodySpec, BodyStates,
+                                    CollisionFilter, Piece)
 from collres_ros.ros import params_yaml, robot
 
 NODE_NAME = 'collres_node'
@@ -108,14 +111,22 @@ class Scene:
 
 # --- the table of every parameter -------------------------------------------------------------
 
+def _renamed(spec: ParamSpec, name: str) -> ParamSpec:
+    """``spec`` under another name (``dataclasses.replace`` re-runs ``__init__``: 13 us a
+    call, 0.6 s of a 1000-body start, where 47,000 specs are renamed)."""
+    renamed = object.__new__(ParamSpec)
+    renamed.__dict__.update(spec.__dict__, name=name)
+    return renamed
+
+
 def body_param(name: str, spec: ParamSpec) -> ParamSpec:
     """``spec`` renamed to ``body.<name>.<param>``."""
-    return replace(spec, name=f'body.{name}.{spec.name}')
+    return _renamed(spec, f'body.{name}.{spec.name}')
 
 
 def piece_param(name: str, piece: str, spec: ParamSpec) -> ParamSpec:
     """``spec`` renamed to ``body.<name>.piece.<piece>.<param>``."""
-    return replace(spec, name=f'body.{name}.piece.{piece}.{spec.name}')
+    return _renamed(spec, f'body.{name}.piece.{piece}.{spec.name}')
 
 
 def pieces_of(values: Mapping[str, Any], body_names: Iterable[str]) -> dict[str, list[str]]:
@@ -137,6 +148,9 @@ def node_specs(body_names: Iterable[str] = (),
     return specs + list(NODE_PARAMS)
 
 
+_NODE_PARAM_NAMES = frozenset(s.name for s in NODE_PARAMS)
+
+
 def all_specs(body_names: Iterable[str] = (),
               pieces: Optional[Mapping[str, Iterable[str]]] = None) -> list[ParamSpec]:
     """Every parameter of a scene file (node's plus sim's)."""
@@ -145,7 +159,7 @@ def all_specs(body_names: Iterable[str] = (),
 
 def is_runtime_changeable(name: str) -> bool:
     """Whether a running node accepts a change of this parameter (others are read-only)."""
-    if name.startswith('solver.') or name in {s.name for s in NODE_PARAMS}:
+    if name.startswith('solver.') or name in _NODE_PARAM_NAMES:
         return name != 'queue_depth'
     if name == 'ignore_pairs':
         return True
@@ -355,20 +369,28 @@ def _read_mesh(path: Path) -> np.ndarray:
     return mesh_points(_mesh_bytes(path), path.suffix)
 
 
+def _mesh_file(key: str, mesh: str, base_dir: Optional[Path], files: bool, carried: str,
+               read: Callable[[Path], np.ndarray]) -> tuple[Path, np.ndarray]:
+    """(path, ``read(path)``) of the mesh file ``key.mesh`` names (relative to ``base_dir``);
+    one line naming ``key.mesh`` when it cannot be read, or in a recorded scene (``files``
+    false), which carries its ``carried`` (points) and names no file."""
+    if not files:
+        _fail(f'{key}.mesh', f'a recorded scene carries its {carried} (points), it names no '
+              'file: a mesh path from a bag is not read', mesh)
+    path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
+    try:
+        return path, read(path)
+    except (OSError, ValueError, struct.error) as error:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror \
+            else str(error)
+        _fail(f'{key}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+
+
 def _convex_points(name: str, values: Mapping[str, Any], base_dir: Optional[Path],
                    files: bool = True) -> tuple[tuple[float, float, float], ...]:
     mesh, flat = values[f'{name}.mesh'], values[f'{name}.points']
-    if mesh and not files:
-        _fail(f'{name}.mesh', 'a recorded scene carries its vertices (points), it names no '
-              'file: a mesh path from a bag is not read', mesh)
     if mesh:
-        path = Path(mesh) if Path(mesh).is_absolute() else (base_dir or Path.cwd()) / mesh
-        try:
-            points = _read_mesh(path)
-        except (OSError, ValueError, struct.error) as error:
-            reason = error.strerror if isinstance(error, OSError) and error.strerror \
-                else str(error)
-            _fail(f'{name}.mesh', f'cannot read mesh {path} ({reason})', mesh)
+        path, points = _mesh_file(name, mesh, base_dir, files, 'vertices', _read_mesh)
         if not np.isfinite(points).all():
             row = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
             _fail(f'{name}.mesh', f'vertex {row} of {path} is not finite '
@@ -494,6 +516,32 @@ def _decomposed(key: str, values: Mapping[str, Any], base_dir: Optional[Path],
                  for k, h in enumerate(hulls))
 
 
+def _triangle_mesh(key: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool,
+                   static: bool) -> tuple[tuple[float, float, float], ...]:
+    """The corners (three a triangle) of a triangle-mesh body: its mesh file's triangles, or
+    ``key.points`` (nine values a triangle, as a recorded scene carries them); static only."""
+    if not static:
+        _fail(f'{key}.static', 'a triangle_mesh must be static (scenery: a surface has no '
+              'mass)', static)
+    mesh, flat = values[f'{key}.mesh'], values[f'{key}.points']
+    if mesh:
+        path, corners = _mesh_file(key, mesh, base_dir, files, 'triangles', lambda path: (
+            mesh_surface(_mesh_bytes(path), path.suffix, str(path)).reshape(-1, 3)))
+        if np.abs(corners).max() > SIZE_RANGE[1]:
+            _fail(f'{key}.mesh', f'vertices of {path} must be within {SIZE_RANGE[1]:g} m '
+                  'of the body origin', mesh)
+    else:
+        if not flat or len(flat) % 9:
+            _fail(f'{key}.points', 'a triangle_mesh needs a mesh, or points: nine values (three '
+                  'corners) a triangle', flat)
+        corners = np.array(flat, float).reshape(-1, 3)
+        try:
+            triangle_corners(BodySpec(key, TRIANGLE_MESH, static=True, points=corners))
+        except ValueError as error:
+            _fail(f'{key}.points', str(error).split(': ', 1)[1], flat)
+    return tuple(tuple(float(c) for c in p) for p in corners)
+
+
 def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files: bool = True,
           given: frozenset[str] = frozenset()) -> tuple[BodySpec, np.ndarray]:
     """BodySpec and the 13-vector initial state of body ``name`` from validated values
@@ -505,6 +553,8 @@ def _body(name: str, values: Mapping[str, Any], base_dir: Optional[Path], files:
         shape, pieces = COMPOUND, _pieces(key, values, base_dir, files, set(given))
     elif values[f'{key}.decompose']:
         shape, pieces = COMPOUND, _decomposed(key, values, base_dir, files)
+    elif shape == TRIANGLE_MESH:
+        points = _triangle_mesh(key, values, base_dir, files, static)
     else:
         size, points = _shape(key, values, base_dir, files, static)
     inertia = values[f'{key}.inertia']
@@ -639,12 +689,13 @@ def scene_to_yaml(scene: Scene) -> str:
     values = dict(scene.values)
     if scene.values.get('robot_description'):   # links written out as bodies, pairs too;
         # their recorded poses move them (no script without the URDF)
-        values.update({'robot_description': '', 'joint_motion': [], 'bodies': scene.names,
+        values.update({'robot_description': '', 'robot_description_topic': False,
+                       'joint_motion': [], 'bodies': scene.names,
                        'ignore_pairs': list(scene.values['ignore_pairs'])
                        + [f'{a}{PAIR_SEPARATOR}{b}' for a, b in scene.robot_ignored]})
     for body in scene.bodies:
         key = f'body.{body.name}'
-        if body.shape == 'convex':
+        if body.shape in ('convex', TRIANGLE_MESH):
             values[f'{key}.mesh'] = ''
             values[f'{key}.points'] = [float(c) for p in body.points for c in p]
         if body.shape == COMPOUND:   # pieces written out whole: decomposed hulls too
@@ -723,26 +774,38 @@ def _default_text(spec: ParamSpec) -> str:
 
 def descriptor(spec: ParamSpec, read_only: bool) -> Any:
     """The ROS ParameterDescriptor of a ParamSpec (ranges from its minimum/maximum)."""
-    from rcl_interfaces.msg import (
-        FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType)
+    from rcl_interfaces.msg import ParameterDescriptor
+    kind, text, ranges = _described(spec.type, spec.description, spec.unit, spec.minimum,
+                                    spec.maximum)
+    d = ParameterDescriptor(name=spec.name, type=kind, description=text, read_only=read_only,
+                            additional_constraints='one of: ' + range_text(spec)
+                            if spec.choices else '')
+    if ranges:
+        setattr(d, *ranges)
+    return d
+
+
+@functools.lru_cache(maxsize=512)
+def _described(kind: str, description: str, unit: str, minimum: Optional[float],
+               maximum: Optional[float]) -> tuple[int, str, Optional[tuple[str, list[Any]]]]:
+    """A descriptor's type, text and (range field, range) of a ParamSpec's fields: once per
+    kind of parameter, not once per body (23,000 descriptors at 1000 bodies)."""
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterType
     types = {'double': ParameterType.PARAMETER_DOUBLE,
              'integer': ParameterType.PARAMETER_INTEGER,
              'bool': ParameterType.PARAMETER_BOOL, 'string': ParameterType.PARAMETER_STRING,
              'double_array': ParameterType.PARAMETER_DOUBLE_ARRAY,
              'string_array': ParameterType.PARAMETER_STRING_ARRAY}
-    text = spec.description + (f' [{spec.unit}]' if spec.unit else '')
-    d = ParameterDescriptor(name=spec.name, type=types[spec.type], description=text,
-                            read_only=read_only)
-    if spec.choices:
-        d.additional_constraints = 'one of: ' + range_text(spec)
-    if spec.minimum is not None and spec.maximum is not None:
-        if spec.type == 'double':
-            d.floating_point_range = [FloatingPointRange(
-                from_value=float(spec.minimum), to_value=float(spec.maximum), step=0.0)]
-        elif spec.type == 'integer':
-            d.integer_range = [IntegerRange(from_value=int(spec.minimum),
-                                            to_value=int(spec.maximum), step=0)]
-    return d
+    text = description + (f' [{unit}]' if unit else '')
+    ranges = None
+    if minimum is not None and maximum is not None:
+        if kind == 'double':
+            ranges = ('floating_point_range', [FloatingPointRange(
+                from_value=float(minimum), to_value=float(maximum), step=0.0)])
+        elif kind == 'integer':
+            ranges = ('integer_range', [IntegerRange(from_value=int(minimum),
+                                                     to_value=int(maximum), step=0)])
+    return types[kind], text, ranges
 
 
 def declared_value(spec: ParamSpec, value: Any) -> Any:

@@ -62,6 +62,15 @@ def latched_qos() -> QoSProfile:
                       liveliness=LivelinessPolicy.AUTOMATIC)
 
 
+def tf_static_qos() -> QoSProfile:
+    """Reliable, transient local, keep last 100: /tf_static as tf2_ros's listener takes it
+    (each static broadcaster latches its transforms)."""
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                      history=HistoryPolicy.KEEP_LAST, depth=100,
+                      liveliness=LivelinessPolicy.AUTOMATIC)
+
+
 def offered(topic: str, queue_depth: int) -> QoSProfile:
     """The profile collres_node (or, for its inputs, collres_sim) offers on ``topic``.
 

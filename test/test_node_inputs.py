@@ -1,0 +1,84 @@
+"""The node in this process: its inputs are taken by threads of its own, not by the executor,
+and what its start built is out of the garbage collector's passes (``ros/inputs.py``)."""
+
+from __future__ import annotations
+
+import gc
+
+import pytest
+import rclpy
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from ros_harness import Peer, write_scene
+
+from collres_ros.msg import BodyState, BodyStateArray
+from collres_ros.ros.messages import stamp_ns, to_stamp
+from collres_ros.ros.node import CollresNode
+
+pytestmark = pytest.mark.slow
+T0 = 2_000 * 10**9
+DT = 10**9 // 100
+
+
+@pytest.fixture
+def node(ros_domain, tmp_path):
+    """A CollresNode on the floor + ball + box scene whose executor never spins."""
+    scene = write_scene(tmp_path / 'scene.yaml')
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=ros_domain,
+               args=['collres_node', '--ros-args', '--params-file', str(scene)])
+    created = CollresNode(tmp_path, context=context)
+    try:
+        yield created
+    finally:
+        created.destroy_node()
+        rclpy.try_shutdown(context=context)
+        gc.unfreeze()
+
+
+def at_rest(stamp):
+    msg = BodyStateArray(bodies=[BodyState(name='ball'), BodyState(name='box')])
+    msg.header.frame_id, msg.header.stamp = 'world', to_stamp(stamp)
+    msg.bodies[0].pose.position.z, msg.bodies[1].pose.position.x = 1.0, 1.0
+    msg.bodies[1].pose.position.z = 0.1
+    for b in msg.bodies:
+        b.pose.orientation.w = 1.0
+    return msg
+
+
+def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
+    """No executor spins this node (as when it is busy with a parameter change or a
+    service): every body_states step and every per-body step is still answered."""
+    peer = Peer(ros_domain)
+    try:
+        peer.listen('body_states/corrected', BodyStateArray)
+        peer.listen('bodies/ball/pose/corrected', PoseStamped)
+        peer.advertise('body_states', BodyStateArray)
+        for name in ('ball', 'box'):
+            peer.advertise(f'bodies/{name}/pose', PoseStamped)
+            peer.advertise(f'bodies/{name}/twist', TwistStamped)
+        assert peer.wait(lambda: all(peer.connected(t) for t in peer.publishers), 30.0)
+        stamps = [T0 + k * DT for k in range(5)]
+        for stamp in stamps:
+            peer.publish('body_states', at_rest(stamp))
+        assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
+                                  peer.messages('body_states/corrected')} >= set(stamps), 20.0)
+        per_body = T0 + 10 * DT
+        for body in at_rest(per_body).bodies:
+            pose, twist = PoseStamped(pose=body.pose), TwistStamped(twist=body.twist)
+            for message in (pose, twist):
+                message.header.frame_id, message.header.stamp = 'world', to_stamp(per_body)
+            peer.publish(f'bodies/{body.name}/pose', pose)
+            peer.publish(f'bodies/{body.name}/twist', twist)
+        assert peer.wait(lambda: any(stamp_ns(m.header.stamp) == per_body for m in
+                                     peer.messages('bodies/ball/pose/corrected')), 20.0)
+    finally:
+        peer.close()
+
+
+def test_what_the_start_built_is_out_of_the_collectors_passes(node):
+    """A full collection walks only what the steps left: the node, its resolver and its
+    codecs are frozen (gc.freeze) once it is configured."""
+    tracked = gc.get_objects()   # generations 0 to 2: the frozen objects are not in them
+    for kept in (node, node.resolver, node.states_codec, node.encoder, node.scene):
+        assert not any(o is kept for o in tracked), type(kept).__name__
+    assert gc.get_freeze_count() > 0

@@ -7,7 +7,8 @@
 // integers (fuzz_one); `collres_fuzz_core CASES SEED` runs CASES generated cases from the
 // fixed SEED, weighted towards the sets qhull cannot build (flat, coplanar, collinear,
 // duplicate and 3-point vertex sets, at many scales and offsets); `collres_fuzz_core FILE...`
-// runs the given byte files (a regression corpus). Exit 0 when every case held.
+// runs the given byte files (a regression corpus); FUZZ_KEEP=FILE writes each generated case
+// there before it runs (the one a crash stops at stays). Exit 0 when every case held.
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -50,22 +51,36 @@ int fuzz_one(const std::uint8_t* data, std::size_t size) {
   Bytes in(data, size);
   const int bodies = 1 + in.byte() % 6;
   std::vector<collres::BodyShape> shapes;
+  std::vector<bool> mesh;
   for (int b = 0; b < bodies && !in.done(); ++b) {
-    const int kind = static_cast<int>(in.byte() % 9) - 1;   // -1 and 7: unknown codes
+    const int kind = static_cast<int>(in.byte() % 10) - 1;   // -1 and 8: unknown codes
     std::vector<double> size_values(in.byte() % 6);
     for (double& v : size_values) v = in.real();
     std::vector<double> points(in.byte() % 64);
     for (double& v : points) v = in.real();
     const double radius = in.real();
     const bool fixed = in.byte() & 1;
+    const bool joins = in.byte() & 1;   // a triangle after a triangle: one mesh with it
     try {
       shapes.push_back(collres::make_shape(kind, size_values, points, radius, fixed));
+      mesh.push_back(joins);
     } catch (const std::invalid_argument&) {
     }
   }
   if (shapes.empty()) return 0;
-  const int n = static_cast<int>(shapes.size());
-  for (int k = 0; k < n; ++k) shapes[k].body = k;   // one shape per body
+  // one shape per body, but a triangle may join the triangles before it (one mesh: its
+  // shared edges go inactive)
+  int n = 0;
+  for (std::size_t k = 0; k < shapes.size(); ++k) {
+    const bool joins = k > 0 && mesh[k] && shapes[k].kind == collres::ShapeKind::triangle &&
+                       shapes[k - 1].kind == collres::ShapeKind::triangle;
+    if (joins) {
+      shapes[k].body = shapes[k - 1].body;
+      shapes[k].piece = shapes[k - 1].piece + 1;
+    } else {
+      shapes[k].body = n++;
+    }
+  }
   collres::Detector detector(std::move(shapes), n);
   std::vector<double> p0(3 * n), q0(4 * n), p1(3 * n), q1(4 * n), linear(3 * n), angular(3 * n);
   for (auto* array : {&p0, &q0, &p1, &q1, &linear, &angular}) {
@@ -113,14 +128,14 @@ std::vector<std::uint8_t> generate(std::mt19937_64& rng) {
   const int bodies = 1 + pick(6);
   w.byte(bodies - 1);
   for (int b = 0; b < bodies; ++b) {
-    const int kind = pick(3) ? 6 : pick(9) - 1;
+    const int kind = pick(3) ? 6 : pick(10) - 1;   // 7: a triangle (static), often
     w.byte(kind + 1);
     const int sizes = pick(6);
     w.byte(sizes);
     for (int k = 0; k < sizes; ++k) w.real(pick(3) ? 0.05 + unit(rng) : hostile());
     // a vertex set: a random flat polygon lifted by an apex 10^-12 .. 10^0 of its extent,
     // or collinear, or all one point, or too few, rotated, scaled and offset
-    const int count = 3 + pick(18);
+    const int count = kind == 7 && pick(2) ? 3 : 3 + pick(18);
     const int family = pick(5);
     const double lift = std::pow(10.0, -12.0 * unit(rng));
     const double scale = std::pow(10.0, 8.0 * unit(rng) - 5.0);
@@ -138,6 +153,7 @@ std::vector<std::uint8_t> generate(std::mt19937_64& rng) {
     }
     w.real(pick(4) ? 2.0 * scale + std::abs(offset) * 2.0 : hostile());
     w.byte(pick(2));
+    w.byte(pick(2));   // a triangle joins the one before
   }
   for (int k = 0; k < 20 * bodies; ++k) {
     w.real(pick(30) ? 0.2 * (unit(rng) - 0.5) + (k % 7 == 3 ? 0.7 : 0.0) : hostile());
@@ -152,8 +168,13 @@ int main(int argc, char** argv) {
     const long cases = std::atol(argv[1]);
     const unsigned long seed = argc >= 3 ? std::strtoul(argv[2], nullptr, 10) : 1;
     std::mt19937_64 rng(seed);
-    for (long k = 0; k < cases; ++k) {
+    const char* keep = std::getenv("FUZZ_KEEP");   // each case written there first: the
+    for (long k = 0; k < cases; ++k) {              // one that kills the process stays
       const std::vector<std::uint8_t> bytes = generate(rng);
+      if (keep != nullptr) {
+        std::ofstream(keep, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                                    static_cast<std::streamsize>(bytes.size()));
+      }
       fuzz_one(bytes.data(), bytes.size());
     }
     std::printf("collres_fuzz_core: %ld generated cases (seed %lu) held\n", cases, seed);

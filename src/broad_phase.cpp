@@ -14,6 +14,46 @@ Aabb world_box(const Mat3& rotation, const Vec3& position, const Vec3& local_lo,
   return {centre - half, centre + half};
 }
 
+BoxTree::BoxTree(std::vector<Aabb> boxes) : boxes_(std::move(boxes)) {
+  order_.resize(boxes_.size());
+  for (std::size_t k = 0; k < order_.size(); ++k) order_[k] = static_cast<int>(k);
+  if (!boxes_.empty()) {
+    nodes_.reserve(2 * boxes_.size());
+    nodes_.emplace_back();
+    build(0, 0, static_cast<int>(boxes_.size()));
+  }
+}
+
+void BoxTree::build(int at, int first, int count) {
+  Aabb bound = boxes_[order_[first]];
+  for (int k = first + 1; k < first + count; ++k) {
+    bound.lo = bound.lo.cwiseMin(boxes_[order_[k]].lo);
+    bound.hi = bound.hi.cwiseMax(boxes_[order_[k]].hi);
+  }
+  nodes_[at].box = bound;
+  if (count <= 4) {
+    nodes_[at].first = first;
+    nodes_[at].count = count;
+    return;
+  }
+  int axis = 0;
+  (bound.hi - bound.lo).maxCoeff(&axis);
+  const int half = count / 2;   // the boxes of the smaller centres go left (ties by index)
+  std::nth_element(order_.begin() + first, order_.begin() + first + half,
+                   order_.begin() + first + count, [this, axis](int a, int b) {
+                     const double ca = boxes_[a].lo[axis] + boxes_[a].hi[axis];
+                     const double cb = boxes_[b].lo[axis] + boxes_[b].hi[axis];
+                     return ca < cb || (ca == cb && a < b);
+                   });
+  const int children = static_cast<int>(nodes_.size());
+  nodes_.emplace_back();
+  nodes_.emplace_back();
+  nodes_[at].first = children;
+  nodes_[at].count = 0;
+  build(children, first, half);
+  build(children + 1, first + half, count - half);
+}
+
 void overlapping_pairs(const std::vector<Aabb>& boxes,
                        std::vector<std::pair<int, int>>& pairs) {
   const int count = static_cast<int>(boxes.size());

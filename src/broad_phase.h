@@ -45,6 +45,55 @@ class CoherentPairs {
   std::vector<std::pair<int, int>> fat_pairs_;
 };
 
+// A fixed set of boxes (a triangle mesh's triangles, in its body frame) in a tree of
+// median splits along the longest axis (leaves of at most four boxes), built once: the
+// boxes that overlap or touch a query box in O(log K + hits). A mesh's triangles stay out
+// of the sort and sweep (a dense static set of K boxes, grown by its skin, overlaps itself
+// O(K^2) times); each finite box asks the tree instead, as half-spaces are tested apart.
+class BoxTree {
+ public:
+  explicit BoxTree(std::vector<Aabb> boxes);
+  // Calls `visit(k)` for each box k (index into the constructor's boxes) overlapping `box`.
+  template <class Visit>
+  void query(const Aabb& box, Visit&& visit) const {
+    if (nodes_.empty()) return;
+    stack_.assign(1, 0);
+    while (!stack_.empty()) {
+      const Node& node = nodes_[stack_.back()];
+      stack_.pop_back();
+      if ((node.box.lo.array() > box.hi.array()).any() ||
+          (node.box.hi.array() < box.lo.array()).any()) {
+        continue;
+      }
+      if (node.count > 0) {
+        for (int k = node.first; k < node.first + node.count; ++k) {
+          const Aabb& leaf = boxes_[order_[k]];
+          if ((leaf.lo.array() <= box.hi.array()).all() &&
+              (leaf.hi.array() >= box.lo.array()).all()) {
+            visit(order_[k]);
+          }
+        }
+      } else {
+        stack_.push_back(node.first);
+        stack_.push_back(node.first + 1);
+      }
+    }
+  }
+
+ private:
+  struct Node {
+    Aabb box;
+    int first = 0;   // leaf: first index into order_; inner: its first child (two in a row)
+    int count = 0;   // leaf: its boxes; inner: 0
+  };
+  void build(int at, int first, int count);   // node `at` over order_[first, +count)
+
+  std::vector<Aabb> boxes_;
+  std::vector<int> order_;
+  std::vector<Node> nodes_;
+  mutable std::vector<int> stack_;
+};
+
 // True when the box reaches the half-space n.x <= offset grown by `pad` (m), n unit.
 bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad);
 

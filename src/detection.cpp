@@ -127,11 +127,25 @@ Detector::Detector(std::vector<BodyShape> shapes, int bodies)
     }
     compound_ = compound_ || body == next - 1;
     next = body + 1;
-    if (shapes_[k].kind == ShapeKind::triangle && body >= 0 && body < bodies) mesh_[body] = true;
+    if (shapes_[k].kind == ShapeKind::triangle) {
+      if (body >= 0 && body < bodies) mesh_[body] = true;
+      if (meshes_.empty() || shapes_[meshes_.back().first].body != body) {
+        meshes_.push_back({k, 0, BoxTree({})});
+      }
+      ++meshes_.back().count;
+      continue;
+    }
     (shapes_[k].kind == ShapeKind::plane ? planes_ : finite_).push_back(k);
   }
   if (next != bodies) throw std::invalid_argument("every body needs at least one shape");
   mark_active_edges(shapes_);
+  for (Mesh& mesh : meshes_) {
+    std::vector<Aabb> boxes;
+    for (int k = mesh.first; k < mesh.first + mesh.count; ++k) {
+      boxes.push_back({shapes_[k].local_lo, shapes_[k].local_hi});
+    }
+    mesh.tree = BoxTree(std::move(boxes));
+  }
 }
 
 void Detector::set_settings(const DetectionSettings& settings) {
@@ -230,6 +244,30 @@ void Detector::find_pairs() {
           box_reaches_plane(boxes_[i], normal1, offset1, pad)) {
         pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
       }
+    }
+  }
+  for (const Mesh& mesh : meshes_) {   // its triangles near each finite box, in its frame
+    const Body& body = bodies_[mesh.first];   // the mesh body's motion
+    const Mat3 r0 = body.q0.toRotationMatrix();
+    const bool moved = body.p0 != body.p1 || body.q0.coeffs() != body.q1.coeffs();
+    auto local = [](const Aabb& box, const Mat3& r, const Vec3& p) {
+      const Vec3 centre = r.transpose() * (0.5 * (box.lo + box.hi) - p);
+      const Vec3 half = r.transpose().cwiseAbs() * (0.5 * (box.hi - box.lo));
+      return Aabb{centre - half, centre + half};
+    };
+    for (std::size_t i = 0; i < finite_.size(); ++i) {
+      const int k = finite_[i];
+      if (body.fixed && bodies_[k].fixed) continue;   // two fixed bodies never pair
+      Aabb near = local(boxes_[i], body.r1, body.p1);
+      if (moved) {
+        const Aabb before = local(boxes_[i], r0, body.p0);
+        near = {near.lo.cwiseMin(before.lo), near.hi.cwiseMax(before.hi)};
+      }
+      near = {near.lo - Vec3::Constant(pad), near.hi + Vec3::Constant(pad)};
+      mesh.tree.query(near, [&](int t) {
+        const int shape = mesh.first + t;
+        pairs_.emplace_back(std::min(shape, k), std::max(shape, k));
+      });
     }
   }
   auto skip = [this](const std::pair<int, int>& pair) {

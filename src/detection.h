@@ -5,7 +5,8 @@
 //    frozen (inactive) body is held at its current pose; `moved` bounds how far any of
 //    its points travels.
 // 2. Broad phase (broad_phase.h): swept boxes padded by half the speculative margin give
-//    the candidate pairs; half-spaces are tested against every finite box. Pairs of two
+//    the candidate pairs; half-spaces are tested against every finite box, and each
+//    triangle mesh's tree of triangles is asked for those near every finite box. Pairs of two
 //    fixed bodies (static or frozen), pairs with a non-finite pose and pairs the collision
 //    filter drops (PairFilter: groups, masks, ignored pairs) are skipped, so they never
 //    reach the narrow phase, the stored manifolds or the contact rows; a pair is (a, b)
@@ -152,6 +153,11 @@ class Detector {
   int bodies_count_ = 0;
   bool compound_ = false;      // some body has several shapes
   std::vector<bool> mesh_;     // per body: a triangle mesh
+  struct Mesh {                // a triangle mesh's shapes [first, first + count), one body
+    int first = 0, count = 0;
+    BoxTree tree;              // their body-frame boxes
+  };
+  std::vector<Mesh> meshes_;   // out of the sort and sweep (broad_phase.h BoxTree)
   std::vector<Vec3> merge_points_;        // merge_mesh_faces: a normal's points
   std::vector<std::size_t> merge_rows_;   // merge_mesh_faces: their rows
   std::vector<int> merge_keep_;           // merge_mesh_faces: the kept ones

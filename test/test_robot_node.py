@@ -150,10 +150,12 @@ def test_links_posed_from_tf_static_and_tf(ros_domain, tmp_path) -> None:
         held = body('crate', 0.5, x=1.13)   # above it all until both links are posed
         stamp, posed = T_TF, {}
 
-        def chained() -> bool:   # /tf travels beside body_states: no order between them
+        def chained() -> bool:   # /tf travels beside body_states: no order between them,
+            # and before /tf the upper arm is at its URDF pose (0, 0, 0.3), turned 0 deg
             return (set(posed) == {'base_link', 'upper_arm'}
                     and posed['base_link'].position.x == pytest.approx(1.0)
-                    and posed['upper_arm'].position.z == pytest.approx(0.3))
+                    and posed['upper_arm'].position.x == pytest.approx(1.0)
+                    and posed['upper_arm'].orientation.z == pytest.approx(half))
 
         deadline = time.monotonic() + 10.0
         while not chained() and time.monotonic() < deadline:

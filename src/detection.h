@@ -21,7 +21,11 @@
 //    overlapping now, also from within the margin when the pair closes faster than the
 //    restitution threshold: bisection for the time of impact (time_of_impact.h);
 //    TUNNELLED when apart at both ends but conservative advancement finds a hit, then the
-//    same bisection.
+//    same bisection. A pair touching at the previous state (within the slop) is never an
+//    impact or a tunnelling: it is in contact from the start; one that the step carried
+//    past each other (a step of several periods after dropped inputs, which its source
+//    integrated under gravity through the floor) keeps the contact of the previous state,
+//    carried along with each body (deep_persistent).
 // 5. Manifolds: coal contact patches where faces touch, at most four points, each with a
 //    feature id (the same every step for the same corner, edge or face of both bodies).
 // 6. Speculative corners of an impact (speculate): the impact stops the corner that hits,
@@ -146,6 +150,10 @@ class Detector {
   void emit(int a, int b, const Vec3& normal, double toi, ContactKind kind, double cap,
             const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
             ContactRows& out);
+  // The feature id of a row whose points are local_a, local_b in the two pieces' body
+  // frames: both corner codes, their rank among the rows since row_codes_ was cleared,
+  // the piece pair (emit's, so a corner keeps its id from step to step)
+  std::int64_t feature_of(int a, int b, const Vec3& local_a, const Vec3& local_b);
   Motion motion(int body) const;
   double radius_or_zero(int body) const;
 

@@ -305,6 +305,80 @@ void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
 }
 
+void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) {
+  prepare(poses);
+  fraction.assign(count(), 1.0);
+  const double slop = settings_.linear_slop;
+  std::vector<int> fixed;
+  for (int j = 0; j < pieces(); ++j) {
+    if (bodies_[j].fixed && bodies_[j].valid && shapes_[j].kind != ShapeKind::triangle) {
+      fixed.push_back(j);
+    }
+  }
+  if (fixed.empty()) return;
+  PointPair witness;
+  Vec3 normal;
+  for (int k = 0; k < pieces(); ++k) {
+    const Body& body = bodies_[k];
+    const BodyShape& shape = shapes_[k];
+    if (body.fixed || !body.valid || !(body.moved > slop) || shape.kind == ShapeKind::plane) {
+      continue;
+    }
+    const Aabb b0 = world_box(body.q0.toRotationMatrix(), body.p0, shape.local_lo,
+                              shape.local_hi);
+    const Aabb b1 = world_box(body.r1, body.p1, shape.local_lo, shape.local_hi);
+    const double bulge = shape.radius * (1.0 - std::cos(0.5 * std::min(body.turn, M_PI)));
+    const Vec3 grow = Vec3::Constant(bulge + slop);
+    const Aabb swept{b0.lo.cwiseMin(b1.lo) - grow, b0.hi.cwiseMax(b1.hi) + grow};
+    const Motion mk = motion(k);
+    for (const int j : fixed) {
+      if (shapes_[j].body == shape.body || !filter_.collides(shape.body, shapes_[j].body)) {
+        continue;
+      }
+      const BodyShape& other = shapes_[j];
+      const bool plane = other.kind == ShapeKind::plane;
+      if (plane) {
+        const Vec3 n = bodies_[j].r1 * other.plane_normal;
+        if (!box_reaches_plane(swept, n, other.plane_offset + n.dot(bodies_[j].p1), 0.0)) {
+          continue;
+        }
+      } else {
+        const Aabb box = world_box(bodies_[j].r1, bodies_[j].p1, other.local_lo,
+                                   other.local_hi);
+        if ((swept.lo.array() > box.hi.array()).any() ||
+            (swept.hi.array() < box.lo.array()).any()) {
+          continue;
+        }
+      }
+      // the pair in (a, b) order, as detection queries it
+      const int a = std::min(k, j), b = std::max(k, j);
+      const Motion ma = a == k ? mk : motion(j), mb = b == k ? mk : motion(j);
+      auto depth = [&](double s) {
+        return query_.signed_distance(*shapes_[a].geometry, ma.at(s), *shapes_[b].geometry,
+                                      mb.at(s), normal, witness);
+      };
+      // held back where the motion takes it deeper than it was (or touching) by more than
+      // the slop: a step's answer that deep is no contact the next step can push out
+      const double allowed = std::min(depth(0.0), 0.0) - slop;
+      const int samples = plane ? 1 : std::clamp(
+          static_cast<int>(std::ceil(body.moved / std::max(other.thickness, slop))), 1, 64);
+      double ok = 0.0, bad = -1.0;
+      for (int i = 1; i <= samples && bad < 0.0; ++i) {
+        const double s = static_cast<double>(i) / samples;
+        if (depth(s) < allowed) {
+          bad = s;
+        } else {
+          ok = s;
+        }
+      }
+      if (bad < 0.0) continue;
+      std::tie(ok, bad) = bisect([&](double s) { return depth(s) < allowed; }, ok, bad,
+                                 settings_.toi_tolerance, settings_.toi_max_iterations);
+      fraction[shape.body] = std::min(fraction[shape.body], ok);
+    }
+  }
+}
+
 // -- one step -------------------------------------------------------------------------------
 
 void Detector::detect(const StepPoses& poses, ContactRows& out) {

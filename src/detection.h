@@ -105,6 +105,18 @@ class Detector {
 
   // The contacts of the step (see the file comment); `out` is cleared first.
   void detect(const StepPoses& poses, ContactRows& out);
+  // After the solve (as Box2D v3's continuous step, against fixed shapes): `poses` from
+  // each body's previous pose (s = 0) to its answer (s = 1). A body that turns or moves
+  // far in a step takes its points along arcs that the solver's straight-line rows do not
+  // follow, and its corners without rows are not held at all (a thin plate tumbling at
+  // 0.8 rad a step into a floor): for every movable body that moved more than the slop,
+  // against every fixed shape its swept box reaches, the motion is sampled finely enough
+  // that it cannot pass the shape between samples (the shape's smallest half extent per
+  // sample; one at the end for a half-space), and the first sample where the pair is
+  // deeper than it was at s = 0 (or touching) by more than the slop is bisected for the
+  // boundary; `fraction` (N,) gets, per body, the latest s before it (1: the answer
+  // stands). Triangle meshes are left out.
+  void hold_back(const StepPoses& poses, std::vector<double>& fraction);
   // The broad-phase pairs of bodies (a < b), sorted (for tests and tools).
   void candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs);
   // Forget the stored manifolds (e.g. after bodies were teleported).

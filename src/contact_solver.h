@@ -51,7 +51,7 @@ struct SolverParams {
   int impact_stages = 64;               // most impact stages per step (resolve_impacts)
   int impact_sweeps = 100;              // most sweeps per impact stage
   double impact_converged = 1e-10;      // relative impulse change that ends an impact stage
-  int position_iterations = 4;          // split-impulse sweeps
+  int position_iterations = 1;          // split-impulse sweeps
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double shock_ratio = 4.0;             // ... only under a body this many times heavier
   double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack

@@ -76,6 +76,45 @@ def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
         peer.close()
 
 
+def test_tf_is_taken_while_the_executor_never_spins(ros_domain, tmp_path):
+    """/tf and /tf_static are served by the input thread, as body_states is: with no executor
+    spinning, a /tf_static transform still poses the robot's root link."""
+    import yaml
+    from geometry_msgs.msg import TransformStamped
+    from test_robot import MESHES, arm_urdf
+    from tf2_msgs.msg import TFMessage
+
+    from collres_ros.ros import qos
+    scene = tmp_path / 'robot.yaml'
+    scene.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
+        'bodies': ['crate'], 'robot_description': arm_urdf(f'file://{MESHES}'),
+        'body': {'crate': {'shape': 'box', 'size': [0.03, 0.03, 0.03], 'mass': 0.5}}}}}))
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=ros_domain,
+               args=['collres_node', '--ros-args', '--params-file', str(scene)])
+    created = CollresNode(tmp_path, context=context)
+    created.start_inputs()
+    peer = Peer(ros_domain)
+    try:
+        static = peer.node.create_publisher(TFMessage, '/tf_static', qos.tf_static_qos())
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id = 'world', 'base_link'
+        t.header.stamp.sec = 5_000
+        t.transform.translation.x, t.transform.rotation.w = 1.0, 1.0
+        static.publish(TFMessage(transforms=[t]))
+
+        def posed() -> bool:
+            with created._lock:
+                found = created.tf_links.world_pose('base_link')
+            return found is not None and found[0][0] == pytest.approx(1.0)
+        assert peer.wait(posed, 20.0)
+    finally:
+        peer.close()
+        created.destroy_node()
+        rclpy.try_shutdown(context=context)
+        gc.unfreeze()
+
+
 def test_what_the_start_built_is_out_of_the_collectors_passes(node):
     """A full collection walks only what the steps left: the node, its resolver and its
     codecs are frozen (gc.freeze) once it is configured."""
@@ -83,3 +122,18 @@ def test_what_the_start_built_is_out_of_the_collectors_passes(node):
     for kept in (node, node.resolver, node.states_codec, node.encoder, node.scene):
         assert not any(o is kept for o in tracked), type(kept).__name__
     assert gc.get_freeze_count() > 0
+
+
+def test_what_a_cleanup_releases_is_freed(node):
+    """A managed node's cleanup (release_resolution) unfreezes what its configure froze: an
+    object it drops is freed by the collector even in a reference cycle (a frozen cycle is
+    never collected: refcounts alone free the resolver today, a cycle in it would keep it
+    for good), and a configure after it freezes the new objects."""
+    import weakref
+    dropped = weakref.ref(node.resolver)
+    node.resolver.world.owner = node.resolver   # a cycle: resolver -> world -> resolver
+    node.release_resolution()
+    gc.collect()
+    assert dropped() is None
+    node.configure_resolution()
+    assert gc.get_freeze_count() > 0 and node.resolver is not None

@@ -14,9 +14,10 @@ refilled in C per wake-up, the GIL released while it waits), then takes every me
 is there, subscription by subscription, and hands each to its callback as
 ``(serialised bytes, message info)``. Two of them serve the node:
 
-* ``body_states``: the subscription belongs to the node itself (its name, namespace, remaps
-  and QoS overrides as for any topic) in a ``ServedElsewhere`` callback group, which the
-  executor neither waits on nor runs; the server takes it.
+* ``body_states`` (and ``/tf``, ``/tf_static`` with a robot): the subscriptions belong to the
+  node itself (its name, namespace, remaps and QoS overrides as for any topic) in a
+  ``ServedElsewhere`` callback group, which the executor neither waits on nor runs; the
+  server takes them.
 * ``PerBodyInputs``: ``bodies/<name>/pose`` and ``twist`` of every body, on a node of their
   own (``<node>_per_body``, same namespace), created by the server's thread (2000 of them
   take a second or more; ``body_states`` is served meanwhile). The batched path's wait set

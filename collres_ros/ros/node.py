@@ -25,10 +25,10 @@ only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
 (with ``publish_tf``, where tf2_msgs is installed), ``/diagnostics``; the service
 ``get_contacts`` answers the last step's contacts (``ros/contact_sensing.py``). The inputs
 are served by threads of their own, not by the executor (``ros/inputs.py``): ``body_states``
-by one, the per-body subscriptions (a second node, ``<name>_per_body``) by another, each
-taking every waiting message per wake-up; the ``body_states`` path costs the same whatever
-the number of bodies' topics. The executor serves parameters, services and the
-diagnostics timer.
+and ``/tf``, ``/tf_static`` by one, the per-body subscriptions (a second node,
+``<name>_per_body``) by another, each taking every waiting message per wake-up; the
+``body_states`` path costs the same whatever the number of bodies' topics. The executor
+serves parameters, services and the diagnostics timer.
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
 ``ros/codec.py`` decodes them with numpy straight into the core's arrays (no
@@ -194,13 +194,14 @@ class CollresNode(Node):
             DiagnosticArray, names.DIAGNOSTICS, qos.state_qos(qos.DIAGNOSTICS_DEPTH),
             qos_overriding_options=qos.OVERRIDES)
         self.losses = LossCounter()   # inputs lost before they were taken (sequence gaps)
-        # body_states: the node's own subscription, served by a thread of its own (inputs.py)
+        # body_states (and /tf, /tf_static with a robot): the node's own subscriptions,
+        # served by a thread of its own (inputs.py), not by the executor
         self._inputs = [self.create_subscription(
             BodyStateArray, names.STATES, self._on_states, self.state_qos(), raw=True,
             qos_overriding_options=qos.OVERRIDES, callback_group=ServedElsewhere())]
-        self.states_input = InputServer(self, 'collres_states',
-                                        lambda: [(self._inputs[0], self._on_states)])
+        self._served_inputs: list[tuple[Any, Any]] = [(self._inputs[0], self._on_states)]
         self.tf_links = self._subscribe_tf()
+        self.states_input = InputServer(self, 'collres_states', lambda: self._served_inputs)
         self._timer = self._diagnostics_timer()
         self._window = self._new_window(time.monotonic())
         self.last_step: Optional[ResolvedStep] = None
@@ -251,14 +252,16 @@ class CollresNode(Node):
                         self.scene.world_frame, pose)
         for topic, profile in ((names.TF, qos.state_qos(100)),
                                (names.TF_STATIC, qos.tf_static_qos())):
+            callback = partial(self._on_tf, topic)
             self._inputs.append(self.create_subscription(
-                kind, topic, partial(self._on_tf, topic), profile, raw=True))
+                kind, topic, callback, profile, raw=True, callback_group=ServedElsewhere()))
+            self._served_inputs.append((self._inputs[-1], callback))
         return links
 
-    def _on_tf(self, topic: str, data: bytes) -> None:
+    def _on_tf(self, topic: str, data: bytes, info: Any = None) -> None:
+        """A /tf or /tf_static message (taken while configured, active or not: the links'
+        poses are what the robot is, and /tf_static is sent once)."""
         with self._lock:
-            if not self.serving:
-                return
             try:
                 self.tf_links.take(codec.decode_tf(data))
             except codec.DecodeError as refusal:
@@ -275,8 +278,12 @@ class CollresNode(Node):
             self.destroy_subscription(subscription)
         for publisher in [*self._publishers_by_topic.values(), self._diagnostics]:
             self.destroy_publisher(publisher)
-        self._inputs, self._publishers_by_topic = [], {}
-        del self.resolver, self.sync, self.encoder, self.states_codec
+        self._inputs, self._publishers_by_topic, self._served_inputs = [], {}, []
+        del self.resolver, self.sync, self.encoder, self.states_codec, self.tf_links
+        self.last_step = None
+        # what configure froze goes back to the collector, so that what is dropped here can
+        # be freed (a managed node configured again freezes its new objects)
+        gc.unfreeze()
 
     def destroy_node(self) -> None:
         if self.configured:   # the per-body inputs' thread stops first

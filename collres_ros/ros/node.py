@@ -84,7 +84,7 @@ from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.core.types import InputBatch
 from collres_ros.ros import cli, codec, description, messages, names, params, qos
 from collres_ros.ros.contact_sensing import ContactSensing
-from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array, sleep_values,
+from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_bytes, sleep_values,
                                          status_name)
 from collres_ros.ros.health import Health
 from collres_ros.ros.inputs import InputServer, PerBodyInputs, ServedElsewhere
@@ -557,9 +557,14 @@ class CollresNode(Node):
                 **{key: 0.0 for key in TIMED}}
 
     def _publish_diagnostics(self) -> None:
+        """The report: its figures taken under the lock, its message built and published
+        after it (an input waiting for the lock meanwhile waited 0.8 ms, up to 4 ms under
+        load, with the message built from rclpy objects inside it)."""
         with self._lock:
-            if self.serving:
-                self._diagnostics.publish(diagnostics_array(self.snapshot()))
+            if not self.serving:
+                return
+            snapshot = self.snapshot()
+        self._diagnostics.publish(diagnostics_bytes(snapshot))
 
     def _unpaired(self, now: float) -> str:
         """Why per-body inputs give no step, once they have not for UNPAIRED_AFTER s."""

@@ -137,3 +137,34 @@ def test_what_a_cleanup_releases_is_freed(node):
     assert dropped() is None
     node.configure_resolution()
     assert gc.get_freeze_count() > 0 and node.resolver is not None
+
+
+def test_steps_answered_while_a_newer_input_waits_skip_their_other_outputs(node, ros_domain):
+    """Behind (a newer body_states input waits when a step is answered), the node answers
+    every input but skips the outputs that are not the answer (contacts here), counting
+    those steps in /diagnostics (``outputs_skipped_behind``): ten inputs queued while the
+    node is busy get ten answers and one contacts message, the last step's."""
+    from rclpy.duration import Duration
+
+    from collres_ros.msg import ContactArray
+    peer = Peer(ros_domain)
+    try:
+        peer.listen('body_states/corrected', BodyStateArray)
+        peer.listen('contacts', ContactArray)
+        peer.advertise('body_states', BodyStateArray)
+        assert peer.wait(lambda: peer.connected('body_states') and node._publisher(
+            'contacts', ContactArray).get_subscription_count() > 0, 30.0)
+        stamps = [T0 + k * DT for k in range(10)]
+        with node._lock:   # busy: the inputs queue up (keep last 10: all of them)
+            for stamp in stamps:
+                peer.publish('body_states', at_rest(stamp))
+            assert peer.publishers['body_states'].wait_for_all_acked(Duration(seconds=20))
+        assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
+                                  peer.messages('body_states/corrected')} >= set(stamps), 20.0)
+        assert peer.wait(lambda: len(peer.messages('contacts')) >= 1, 20.0)
+        with node._lock:
+            assert node.skipped_behind == 9
+            assert node.snapshot().extra['outputs_skipped_behind'] == 9
+        assert [stamp_ns(m.header.stamp) for m in peer.messages('contacts')] == stamps[-1:]
+    finally:
+        peer.close()

@@ -83,6 +83,7 @@ class InputServer:
         self.closing = False
         self._subscriptions = subscriptions
         self._wake = GuardCondition(None, None, context=owner.context)   # close() wakes us
+        self._peek: Optional[Any] = None   # the wait set of ``waiting``
         self.thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> 'InputServer':
@@ -122,6 +123,17 @@ class InputServer:
                     if taken is None:
                         break
                     callback(*taken)
+
+    def waiting(self, subscription: Any) -> bool:
+        """Whether a message of ``subscription`` (one this server serves) waits to be taken
+        now: a wait that does not block, on a wait set of its own (call it from the server's
+        thread, as its callbacks are)."""
+        if self._peek is None:
+            self._peek = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, self.owner.context.handle)
+        self._peek.clear_entities()
+        self._peek.add_subscription(subscription.handle)
+        self._peek.wait(0)
+        return bool(self._peek.get_ready_entities('subscription'))
 
     def close(self) -> None:
         """Stop the thread (the subscriptions are their owners' to destroy)."""

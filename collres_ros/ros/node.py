@@ -41,7 +41,9 @@ as bytes built by ``messages.OutputEncoder``, the answer
 reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
 ``time.world_ms``, ``time.world_cpu_ms``: the thread's CPU time in it,
 ``answer_time_mean_ms``: to the answer published, then
-``time.encode_ms``, ``time.publish_ms``: the other outputs).
+``time.encode_ms``, ``time.publish_ms``: the other outputs). Behind (a newer ``body_states``
+input waits when a step is answered), that step's other outputs are skipped and counted
+(``outputs_skipped_behind``): every input is answered, the node catches up sooner.
 
 QoS: states, contacts and markers are reliable, volatile, keep-last with
 depth ``queue_depth`` (10): a control loop wants every step delivered in
@@ -207,6 +209,7 @@ class CollresNode(Node):
         self.last_step: Optional[ResolvedStep] = None
         self.health = Health()
         self._served = 0                 # bodies served, all steps
+        self.skipped_behind = 0          # steps answered without their other outputs (behind)
         self._parts_since_step = 0       # per-body inputs since the last per-body step
         self._last_part_step = time.monotonic()
         self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)
@@ -419,17 +422,23 @@ class CollresNode(Node):
         self._publisher(names.CORRECTED_STATES, BodyStateArray).publish(
             self.encoder.corrected(step))
         answered = time.perf_counter()
+        # behind: a newer body_states input waits already; the outputs that are not the
+        # answer (contacts, markers, wrenches, /tf) are skipped for this step and counted,
+        # so the node catches up sooner (every input is still answered)
+        more = not per_body and self.states_input.waiting(self._inputs[0])
+        self.skipped_behind += more
         # what nobody subscribes to is not built
         markers = self._publisher(names.MARKERS, MarkerArray).get_subscription_count() > 0
         contacts = self._publisher(names.CONTACTS, ContactArray).get_subscription_count() > 0
         node = self.scene.node
         bodies = self._publisher(names.BODY_MARKERS, MarkerArray).get_subscription_count() > 0
-        outputs = self.encoder.encode(step, per_body and node.per_body_outputs,
-                                      node.marker_lifetime, markers=markers, contacts=contacts,
-                                      wrenches=node.contact_wrench,
-                                      body_markers=node.body_markers_period if bodies else None,
-                                      tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES,
-                                      corrected=False)
+        outputs = self.encoder.encode(
+            step, per_body and node.per_body_outputs, node.marker_lifetime,
+            markers=markers and not more, contacts=contacts and not more,
+            wrenches=node.contact_wrench and not more,
+            body_markers=node.body_markers_period if bodies and not more else None,
+            tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES and not more,
+            corrected=False)
         encoded = time.perf_counter()
         for topic, kind, data in outputs:
             self._publisher(topic, CLASSES[kind]).publish(data)
@@ -542,6 +551,7 @@ class CollresNode(Node):
                    'inputs_uncounted': sum(self.losses.uncounted.values()),
                    **{f'messages_refused.{k}': v for k, v in sorted(self.refused.items())},
                    'contacts_total': totals['contacts'],
+                   'outputs_skipped_behind': self.skipped_behind,
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
                    'answer_time_mean_ms': mean('answer'),
                    **{f'time.{key}_ms': mean(key) for key in TIMED},

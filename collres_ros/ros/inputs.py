@@ -83,7 +83,7 @@ class InputServer:
         self.closing = False
         self._subscriptions = subscriptions
         self._wake = GuardCondition(None, None, context=owner.context)   # close() wakes us
-        self._peek: Optional[Any] = None   # the wait set of ``waiting``
+        self._held: dict[Any, Any] = {}   # subscription handle -> a message ``waiting`` took
         self.thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> 'InputServer':
@@ -119,21 +119,24 @@ class InputServer:
             for pointer in wait_set.get_ready_entities('subscription'):
                 sub, callback = by_handle[pointer]
                 while not self.closing:
-                    taken = sub.handle.take_message(sub.msg_type, True)
+                    taken = self._held.pop(sub.handle, None) or \
+                        sub.handle.take_message(sub.msg_type, True)
                     if taken is None:
                         break
                     callback(*taken)
 
     def waiting(self, subscription: Any) -> bool:
-        """Whether a message of ``subscription`` (one this server serves) waits to be taken
-        now: a wait that does not block, on a wait set of its own (call it from the server's
-        thread, as its callbacks are)."""
-        if self._peek is None:
-            self._peek = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, self.owner.context.handle)
-        self._peek.clear_entities()
-        self._peek.add_subscription(subscription.handle)
-        self._peek.wait(0)
-        return bool(self._peek.get_ready_entities('subscription'))
+        """Whether a message of ``subscription`` waits to be taken now. Call it from a
+        callback of that subscription (the server's thread): the message is taken ahead and
+        handed to the callback next, as it would have been (a take: 1 us, where a wait that
+        does not block on a wait set of its own took 65 us)."""
+        handle = subscription.handle
+        if handle not in self._held:
+            taken = handle.take_message(subscription.msg_type, True)
+            if taken is None:
+                return False
+            self._held[handle] = taken
+        return True
 
     def close(self) -> None:
         """Stop the thread (the subscriptions are their owners' to destroy)."""

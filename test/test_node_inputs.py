@@ -168,3 +168,26 @@ def test_steps_answered_while_a_newer_input_waits_skip_their_other_outputs(node,
         assert [stamp_ns(m.header.stamp) for m in peer.messages('contacts')] == stamps[-1:]
     finally:
         peer.close()
+
+
+def test_the_node_sends_through_a_large_shared_memory_segment_unless_told_otherwise(
+        tmp_path, monkeypatch):
+    """A step's outputs outgrow Fast DDS's 512 KB shared-memory segment from a few hundred
+    bodies in contact on: the node's process takes the shipped profile (a 16 MB segment,
+    Fast DDS's two transports) unless the rmw is another or the user configured Fast DDS."""
+    import xml.etree.ElementTree as ElementTree
+
+    from collres_ros.ros.node import FASTDDS_SETTINGS, large_outputs_profile
+    monkeypatch.chdir(tmp_path)
+    environ: dict[str, str] = {}
+    path = large_outputs_profile(environ)
+    assert path is not None and environ == {'FASTRTPS_DEFAULT_PROFILES_FILE': path}
+    space = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
+    shm = [d for d in ElementTree.parse(path).getroot().iter(f'{space}transport_descriptor')
+           if d.findtext(f'{space}type') == 'SHM']
+    assert [int(d.findtext(f'{space}segment_size')) for d in shm] == [16 * 2**20]
+    for setting in FASTDDS_SETTINGS:
+        assert large_outputs_profile({setting: 'mine.xml'}) is None
+    assert large_outputs_profile({'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}) is None
+    (tmp_path / 'DEFAULT_FASTRTPS_PROFILES.xml').write_text('<profiles/>')
+    assert large_outputs_profile({}) is None

@@ -199,6 +199,25 @@ void bind_detection(py::module_& m) {
            py::arg("angular"), py::arg("active") = py::none(),
            "Contacts of the step: (body_a, body_b, point, normal, separation, toi, kind, "
            "feature, manifolds, piece_a, piece_b), the fields of ContactSet.")
+      .def("hold_back",
+           [](collres::Detector& d, const py::array& p0, const py::array& q0,
+              const py::array& p1, const py::array& q1, const py::array& linear,
+              const py::array& angular, const std::optional<py::array>& active) {
+             const collres::StepPoses poses = poses_of(d, p0, q0, p1, q1, linear, angular,
+                                                       active);
+             std::vector<double> fraction;
+             {
+               py::gil_scoped_release release;
+               d.hold_back(poses, fraction);
+             }
+             const auto n = static_cast<py::ssize_t>(fraction.size());
+             return owned(std::move(fraction), {n});
+           },
+           py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
+           py::arg("angular"), py::arg("active") = py::none(),
+           "Per body, the fraction of its motion from the previous pose (p0, q0) to the "
+           "answer (p1, q1) it may keep against fixed shapes (1: all of it; Detector::"
+           "hold_back).")
       .def("candidate_pairs",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,

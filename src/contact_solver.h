@@ -66,7 +66,7 @@ struct SolverParams {
                                         // persistent contact is new (nothing to warm start)
   double balanced_friction = 1e-3;      // net friction / net normal impulse of a pair below
                                         // which a sticking pair is reported RESTING
-  double warm_start_ratio = 2.0;        // stored impulses are scaled by dt / last dt only
+  double warm_start_ratio = 10.0;       // stored impulses are scaled by dt / last dt only
                                         // while it lies in [1 / this, this]; else cold
   double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
                                         // from its pair's nearest stored point this close

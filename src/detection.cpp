@@ -305,6 +305,80 @@ void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
 }
 
+void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) {
+  prepare(poses);
+  fraction.assign(count(), 1.0);
+  const double slop = settings_.linear_slop;
+  std::vector<int> fixed;
+  for (int j = 0; j < pieces(); ++j) {
+    if (bodies_[j].fixed && bodies_[j].valid && shapes_[j].kind != ShapeKind::triangle) {
+      fixed.push_back(j);
+    }
+  }
+  if (fixed.empty()) return;
+  PointPair witness;
+  Vec3 normal;
+  for (int k = 0; k < pieces(); ++k) {
+    const Body& body = bodies_[k];
+    const BodyShape& shape = shapes_[k];
+    if (body.fixed || !body.valid || !(body.moved > slop) || shape.kind == ShapeKind::plane) {
+      continue;
+    }
+    const Aabb b0 = world_box(body.q0.toRotationMatrix(), body.p0, shape.local_lo,
+                              shape.local_hi);
+    const Aabb b1 = world_box(body.r1, body.p1, shape.local_lo, shape.local_hi);
+    const double bulge = shape.radius * (1.0 - std::cos(0.5 * std::min(body.turn, M_PI)));
+    const Vec3 grow = Vec3::Constant(bulge + slop);
+    const Aabb swept{b0.lo.cwiseMin(b1.lo) - grow, b0.hi.cwiseMax(b1.hi) + grow};
+    const Motion mk = motion(k);
+    for (const int j : fixed) {
+      if (shapes_[j].body == shape.body || !filter_.collides(shape.body, shapes_[j].body)) {
+        continue;
+      }
+      const BodyShape& other = shapes_[j];
+      const bool plane = other.kind == ShapeKind::plane;
+      if (plane) {
+        const Vec3 n = bodies_[j].r1 * other.plane_normal;
+        if (!box_reaches_plane(swept, n, other.plane_offset + n.dot(bodies_[j].p1), 0.0)) {
+          continue;
+        }
+      } else {
+        const Aabb box = world_box(bodies_[j].r1, bodies_[j].p1, other.local_lo,
+                                   other.local_hi);
+        if ((swept.lo.array() > box.hi.array()).any() ||
+            (swept.hi.array() < box.lo.array()).any()) {
+          continue;
+        }
+      }
+      // the pair in (a, b) order, as detection queries it
+      const int a = std::min(k, j), b = std::max(k, j);
+      const Motion ma = a == k ? mk : motion(j), mb = b == k ? mk : motion(j);
+      auto depth = [&](double s) {
+        return query_.signed_distance(*shapes_[a].geometry, ma.at(s), *shapes_[b].geometry,
+                                      mb.at(s), normal, witness);
+      };
+      // held back where the motion takes it deeper than it was (or touching) by more than
+      // the slop: a step's answer that deep is no contact the next step can push out
+      const double allowed = std::min(depth(0.0), 0.0) - slop;
+      const int samples = plane ? 1 : std::clamp(
+          static_cast<int>(std::ceil(body.moved / std::max(other.thickness, slop))), 1, 64);
+      double ok = 0.0, bad = -1.0;
+      for (int i = 1; i <= samples && bad < 0.0; ++i) {
+        const double s = static_cast<double>(i) / samples;
+        if (depth(s) < allowed) {
+          bad = s;
+        } else {
+          ok = s;
+        }
+      }
+      if (bad < 0.0) continue;
+      std::tie(ok, bad) = bisect([&](double s) { return depth(s) < allowed; }, ok, bad,
+                                 settings_.toi_tolerance, settings_.toi_max_iterations);
+      fraction[shape.body] = std::min(fraction[shape.body], ok);
+    }
+  }
+}
+
 // -- one step -------------------------------------------------------------------------------
 
 void Detector::detect(const StepPoses& poses, ContactRows& out) {
@@ -607,15 +681,24 @@ void Detector::classify(int a, int b, double distance_now, double relative, doub
   PointPair closest;
   const double before = query_.distance(ga, ma.at(0.0), gb, mb.at(0.0), closest);
   if (before <= settings_.speculative_margin) {
+    // touching at the previous state (within the slop): in contact from the start of the
+    // step, never an impact within it
+    const bool touched = before <= settings_.linear_slop;
     // apart before, overlapping now, fast: solved at its time of impact, not at the end
-    if (distance_now < 0.0 && before > 0.0 && speed > settings_.restitution_threshold &&
+    if (distance_now < 0.0 && !touched && speed > settings_.restitution_threshold &&
         time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, true, out)) {
       return;
     }
     // near at both ends but apart, moved farther than both gaps: it may have passed
     // through (a thin body at a low rate)
-    if (settings_.ccd && distance_now >= 0.0 && before > 0.0 &&
-        relative > before + distance_now && tunnelled(a, b, ma, mb, relative, out)) {
+    const bool passed = distance_now >= 0.0 && relative > before + distance_now;
+    if (settings_.ccd && passed && !touched && tunnelled(a, b, ma, mb, relative, out)) return;
+    // touching before and past each other now (a step of several periods after dropped
+    // inputs: the source integrated a resting body through its floor): the contact of the
+    // previous state, carried along with each body
+    if (settings_.ccd && passed && touched && !near) {
+      const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
+      deep_persistent(a, b, deep, settings_.speculative_margin, out);
       return;
     }
     if (near) current_manifold(a, b, out);  // in contact at both ends
@@ -718,10 +801,13 @@ void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plan
   std::size_t first = out.size();
   for (int side = 0; side < 2; ++side) {
     // B's corners approach A along -n, A's approach B along +n; only a movable body's (a
-    // sphere's one lowest point is its contact already), only towards a flat-faced
-    // partner (a curved one falls away from its tangent plane)
+    // sphere's one lowest point is its contact already, unless the contact is carried from
+    // the previous state: !skip_known), only towards a flat-faced partner (a curved one
+    // falls away from its tangent plane)
     const int body = side == 0 ? b : a, partner = side == 0 ? a : b;
-    if (bodies_[body].fixed || shapes_[body].single_point || shapes_[partner].curved) continue;
+    if (bodies_[body].fixed || (skip_known && shapes_[body].single_point) ||
+        shapes_[partner].curved)
+      continue;
     const Mat3& r = side == 0 ? rb : ra;
     const Vec3& p = side == 0 ? pb : pa;
     const Mat3& r_partner = side == 0 ? ra : rb;
@@ -751,8 +837,21 @@ void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plan
       heights_.resize(kMaxManifoldPoints);
     const BodyShape& sa = shapes_[a];
     const BodyShape& sb = shapes_[b];
+    if (!skip_known) row_codes_.clear();
     for (const auto& [height, k] : heights_) {
-      const Vec3 point = corners_[k] + 0.5 * height * towards;
+      // a contact carried from the previous state (!skip_known) that the current poses
+      // overlap: the corner on the body, and the feature ids of a patch (its warm start
+      // carries over); else between the corner and the plane, beyond every patch feature
+      const bool carried = !skip_known && height < 0.0;
+      const Vec3 point = corners_[k] + (carried ? 0.0 : 0.5 * height) * towards;
+      std::int64_t feature = 729 * 16 + 512 * side + k % 512 + kPiecePairFeature *
+          (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece);
+      if (!skip_known) {
+        const Vec3 on_plane = corners_[k] + height * towards;
+        const Vec3& on_a = side == 0 ? on_plane : corners_[k];
+        const Vec3& on_b = side == 0 ? corners_[k] : on_plane;
+        feature = feature_of(a, b, ra.transpose() * (on_a - pa), rb.transpose() * (on_b - pb));
+      }
       out.body_a.push_back(sa.body);
       out.body_b.push_back(sb.body);
       out.piece_a.push_back(sa.piece);
@@ -762,9 +861,7 @@ void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plan
       out.separation.push_back(height);
       out.toi.push_back(toi);
       out.kind.push_back(static_cast<std::int8_t>(kind));
-      // beyond every patch feature of the piece pair
-      out.feature.push_back(729 * 16 + 512 * side + k % 512 + kPiecePairFeature *
-                            (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece));
+      out.feature.push_back(feature);
     }
     out.close_manifold(sa.body, sb.body, first);   // each body's corners: one manifold
     first = out.size();
@@ -823,6 +920,19 @@ bool Detector::deep_persistent(int a, int b, double deep, double reach, ContactR
   return out.size() > first;
 }
 
+std::int64_t Detector::feature_of(int a, int b, const Vec3& local_a, const Vec3& local_b) {
+  // the corner or face in each piece's own frame (a body's frame when it is one shape)
+  const BodyShape& sa = shapes_[a];
+  const BodyShape& sb = shapes_[b];
+  const std::int64_t code =
+      feature_code(sa.rotation.transpose() * (local_a - sa.frame_position), sa.half,
+                   sb.rotation.transpose() * (local_b - sb.frame_position), sb.half);
+  const std::int64_t rank = std::count(row_codes_.begin(), row_codes_.end(), code);
+  row_codes_.push_back(code);
+  return code + 729 * rank + kPiecePairFeature *
+      (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece);
+}
+
 void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind kind,
                     double cap, const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
                     ContactRows& out) {
@@ -842,16 +952,9 @@ void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind
     if (std::isfinite(cap)) separation = std::min(separation, cap);
     const Vec3 local_a = ra.transpose() * (p.on_a - pa);
     const Vec3 local_b = rb.transpose() * (p.on_b - pb);
-    // the corner or face in each piece's own frame (a body's frame when it is one shape)
     const BodyShape& sa = shapes_[a];
     const BodyShape& sb = shapes_[b];
-    const std::int64_t code =
-        feature_code(sa.rotation.transpose() * (local_a - sa.frame_position), sa.half,
-                     sb.rotation.transpose() * (local_b - sb.frame_position), sb.half);
-    const std::int64_t rank = std::count(row_codes_.begin(), row_codes_.end(), code);
-    row_codes_.push_back(code);
-    const std::int64_t feature = code + 729 * rank + kPiecePairFeature *
-        (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece);
+    const std::int64_t feature = feature_of(a, b, local_a, local_b);
     out.body_a.push_back(sa.body);
     out.body_b.push_back(sb.body);
     out.piece_a.push_back(sa.piece);

@@ -21,7 +21,11 @@
 //    overlapping now, also from within the margin when the pair closes faster than the
 //    restitution threshold: bisection for the time of impact (time_of_impact.h);
 //    TUNNELLED when apart at both ends but conservative advancement finds a hit, then the
-//    same bisection.
+//    same bisection. A pair touching at the previous state (within the slop) is never an
+//    impact or a tunnelling: it is in contact from the start; one that the step carried
+//    past each other (a step of several periods after dropped inputs, which its source
+//    integrated under gravity through the floor) keeps the contact of the previous state,
+//    carried along with each body (deep_persistent).
 // 5. Manifolds: coal contact patches where faces touch, at most four points, each with a
 //    feature id (the same every step for the same corner, edge or face of both bodies).
 // 6. Speculative corners of an impact (speculate): the impact stops the corner that hits,
@@ -101,6 +105,18 @@ class Detector {
 
   // The contacts of the step (see the file comment); `out` is cleared first.
   void detect(const StepPoses& poses, ContactRows& out);
+  // After the solve (as Box2D v3's continuous step, against fixed shapes): `poses` from
+  // each body's previous pose (s = 0) to its answer (s = 1). A body that turns or moves
+  // far in a step takes its points along arcs that the solver's straight-line rows do not
+  // follow, and its corners without rows are not held at all (a thin plate tumbling at
+  // 0.8 rad a step into a floor): for every movable body that moved more than the slop,
+  // against every fixed shape its swept box reaches, the motion is sampled finely enough
+  // that it cannot pass the shape between samples (the shape's smallest half extent per
+  // sample; one at the end for a half-space), and the first sample where the pair is
+  // deeper than it was at s = 0 (or touching) by more than the slop is bisected for the
+  // boundary; `fraction` (N,) gets, per body, the latest s before it (1: the answer
+  // stands). Triangle meshes are left out.
+  void hold_back(const StepPoses& poses, std::vector<double>& fraction);
   // The broad-phase pairs of bodies (a < b), sorted (for tests and tools).
   void candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs);
   // Forget the stored manifolds (e.g. after bodies were teleported).
@@ -146,6 +162,10 @@ class Detector {
   void emit(int a, int b, const Vec3& normal, double toi, ContactKind kind, double cap,
             const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
             ContactRows& out);
+  // The feature id of a row whose points are local_a, local_b in the two pieces' body
+  // frames: both corner codes, their rank among the rows since row_codes_ was cleared,
+  // the piece pair (emit's, so a corner keeps its id from step to step)
+  std::int64_t feature_of(int a, int b, const Vec3& local_a, const Vec3& local_b);
   Motion motion(int body) const;
   double radius_or_zero(int body) const;
 

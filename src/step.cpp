@@ -27,6 +27,17 @@ double normal_speed(const double* v, int64_t a, int64_t b, Vec3 ra, Vec3 rb, Vec
   return dot(vb - va, n);
 }
 
+// m: how far the point of body i at r from its current centre of mass travelled over the
+// step: the centre's travel from the poses (a step of several periods that its source
+// integrated under gravity is no straight line at the twist), the turn from the twist
+// (`twist` (N, 6); to first order, as a curved surface's contact point is no material
+// point: a rolling ball's does not rise)
+Vec3 travelled(const BodyStatesView& previous, const BodyStatesView& current,
+               const double* twist, int64_t i, const Vec3& r, double dt) {
+  return load3(current.position + 3 * i) - load3(previous.position + 3 * i) +
+         dt * cross(load3(twist + 6 * i + 3), r);
+}
+
 }  // namespace
 
 StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView& current,
@@ -60,12 +71,15 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   double cold = warm(ctx);
   start_.assign(velocity_.begin(), velocity_.end());
   warm_start(rows_, ctx.solver);
-  // iterate: sequential impulses (more sweeps while resting contacts are new, and at
-  // least depth_sweeps per level of the deepest stack), then shock propagation from the
-  // ground up
+  // iterate: sequential impulses (more sweeps while resting contacts are new, for a step
+  // k periods long sqrt(k) times as many: a load k times the last, whose residual sinks
+  // the poses k^2 times as far, and at least depth_sweeps per level of the deepest
+  // stack), then shock propagation from the ground up
   const int32_t depth = levels(ctx);
+  const double stretch =
+      std::sqrt(std::clamp(dt / std::max(last_dt_, 1e-300), 1.0, params.warm_start_ratio));
   int iterations = static_cast<int>(
-      std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold)));
+      std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold) * stretch));
   iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
   StepStats stats;
   stats.sweeps = solve_velocities(rows_, manifolds_, ctx.solver, iterations, params.converged,
@@ -95,6 +109,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   const BodyProperties& bodies = ctx.bodies;
   const ContactsView& c = ctx.contacts;
   const double dt = ctx.dt, threshold = ctx.params.restitution_threshold;
+  const double slop = ctx.params.linear_slop, sticking = ctx.params.sticking_speed;
   ContactsOut& report = ctx.report;
   const int64_t n = bodies.count, m = c.count;
   now_.resize(6 * n);
@@ -108,32 +123,63 @@ void StepSolver::reference_frame(StepContext& ctx) {
   impact_.resize(m);
   remaining_.resize(m);
   allowance_.resize(m);
+  touching_.resize(m);
   fraction_.assign(n, 1.0);           // earliest time of impact per body (1: none)
   touched_.assign(n, 0);
   impacted_.assign(n, 0);
+  rested_.assign(n, 0);
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
-    bool impact = !persistent(c.kind[k]);
+    const bool detected = !persistent(c.kind[k]);   // IMPACT or TUNNELLED
     // contact points are at the time of impact (IMPACT/TUNNELLED) or the current state
-    double at = impact ? c.toi[k] : 1.0;
+    double at = detected ? c.toi[k] : 1.0;
     Vec3 point = load3(c.point + 3 * k), normal = load3(c.normal + 3 * k);
     Vec3 xa = load3(previous.position + 3 * a), xb = load3(previous.position + 3 * b);
     ra_[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
     rb_[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
-    // gap at the previous state of a persistent contact, from the current approach speed
-    double v_in = normal_speed(now_.data(), a, b, ra_[k], rb_[k], normal);
-    double gap = c.separation[k] - v_in * dt;
-    bool closing = !impact && gap > 0.0 && c.separation[k] < 0.0 && v_in < -threshold;
-    double toi = impact ? c.toi[k] : 0.0;
-    if (closing) toi = gap / std::max(gap - c.separation[k], 1e-300);
-    impact = impact || closing;
+    // how far the two points closed over the step (m, from the poses: a step of several
+    // periods that its source integrated is no straight line at the twist); a persistent
+    // contact's gap at the previous state is its separation less that
+    const double closed = dot(travelled(previous, current, now_.data(), b, rb_[k], dt) -
+                              travelled(previous, current, now_.data(), a, ra_[k], dt), normal);
+    gap_[k] = c.separation[k] - closed;
+    allowance_[k] = closed;           // (kept here for the loops below)
+    // touching at the previous state (within the slop) and not approaching then: in
+    // contact from the start of the step; its bodies rest on it unless they have an impact
+    touching_[k] = !detected && gap_[k] <= slop &&
+                   normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -sticking;
+    if (touching_[k]) rested_[a] = rested_[b] = 1;
+    touched_[a] = touched_[b] = 1;
+  }
+  for (int64_t i = 0; i < n; ++i) rested_[i] = rested_[i] && bodies.movable[i] != 0;
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    const bool detected = !persistent(c.kind[k]);
+    const Vec3 normal = load3(c.normal + 3 * k);
+    const double v_in = normal_speed(now_.data(), a, b, ra_[k], rb_[k], normal);
+    // a persistent contact that closes within the step faster than the threshold
+    bool closing = !detected && !touching_[k] && gap_[k] > 0.0 && c.separation[k] < 0.0 &&
+                   v_in < -threshold;
+    bool impact = detected || closing;
+    double toi = detected ? c.toi[k] : 0.0;
+    if (closing) toi = gap_[k] / std::max(gap_[k] - c.separation[k], 1e-300);
+    // a body resting on something from the start meets no impact that only the step's
+    // external change brings (at the start its pair approached slower than the
+    // threshold): after dropped inputs its source integrated it through its supports
+    // into what lies below them; the contact is speculative from the start instead
+    if (impact && (rested_[a] || rested_[b]) &&
+        normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -threshold) {
+      // a detected impact's rows touch (its corners: their separation) at the time of
+      // impact, and closed by toi of the step's closing before
+      if (detected) gap_[k] = std::max(c.separation[k], 0.0) - toi * allowance_[k];
+      impact = closing = false;
+      toi = 0.0;
+    }
     impact_[k] = impact;
     toi_[k] = toi;
-    gap_[k] = gap;                    // completed below, once the body fractions are known
-    allowance_[k] = v_in;             // (kept here for the next loop)
     report.toi[k] = std::clamp(toi, 0.0, 1.0);
-    report.kind[k] = closing ? static_cast<int8_t>(ContactKind::impact) : c.kind[k];
-    touched_[a] = touched_[b] = 1;
+    report.kind[k] = closing ? static_cast<int8_t>(ContactKind::impact)
+                             : impact ? c.kind[k] : static_cast<int8_t>(ContactKind::persistent);
     if (impact) {
       impacted_[a] = impacted_[b] = 1;
       fraction_[a] = std::min(fraction_[a], toi);
@@ -144,24 +190,28 @@ void StepSolver::reference_frame(StepContext& ctx) {
     bool movable = bodies.movable[i] != 0;
     touched_[i] = touched_[i] && movable;
     impacted_[i] = impacted_[i] && movable;
+    rested_[i] = rested_[i] && !impacted_[i];
     double f = impacted_[i] ? std::clamp(fraction_[i], 0.0, 1.0) : 0.0;
     fraction_[i] = f;
     // pre-solve velocity: at the time of impact for impacted bodies (the twist of a
-    // state is the velocity over the step that led to it, at mid-step), else current
+    // state is the velocity over the step that led to it, at mid-step); for a body
+    // touching something from the start, its previous twist (what it did while in
+    // contact: the step's external change is carried by the resting solve, to_travel);
+    // else current
     for (int d = 0; d < 6; ++d) {
-      double now = now_[6 * i + d], external = now - then_[6 * i + d];
-      velocity_[6 * i + d] = impacted_[i] ? now + (f - 0.5) * external : now;
+      double now = now_[6 * i + d], then = then_[6 * i + d], external = now - then;
+      velocity_[6 * i + d] = impacted_[i] ? now + (f - 0.5) * external : rested_[i] ? then : now;
     }
   }
   // speculative allowance: the gap at the later of the two bodies' reference times
   for (int64_t k = 0; k < m; ++k) {
     double later = std::max(fraction_[c.a[k]], fraction_[c.b[k]]);
     double remaining = std::max((1.0 - later) * dt, 1e-9 * dt);
-    double v_in = allowance_[k];
+    double closed = allowance_[k];
     // an impact's own rows touch at its time of impact; its speculative corners (detected
     // impact rows with a positive separation) are that far from touching then
     gap_[k] = impact_[k] ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
-                         : gap_[k] + v_in * later * dt;
+                         : gap_[k] + closed * later;   // (a demoted impact: from the start)
     remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
     allowance_[k] = std::max(gap_[k], 0.0) / remaining;
   }
@@ -174,13 +224,16 @@ void StepSolver::prepare(StepContext& ctx) {
   const int64_t m = c.count;
   // a speculative contact cannot activate when it separates faster than any impulse of
   // this step can turn around: (1 + e) per hit, a factor 2 for chains and lever arms,
-  // from the fastest pre-solve approach of the step
+  // from the fastest pre-solve approach of the step (a rested body's with the step's
+  // external change, which the resting solve meets)
   approach_.resize(m);
+  const int64_t n = bodies.count;
+  later_.resize(6 * n);
+  for (int64_t i = 0; i < 6 * n; ++i) later_[i] = rested_[i / 6] ? now_[i] : velocity_[i];
   double fastest = 0.0, e = 0.0;
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
-    approach_[k] = normal_speed(velocity_.data(), a, b, ra_[k], rb_[k],
-                                load3(c.normal + 3 * k));
+    approach_[k] = normal_speed(later_.data(), a, b, ra_[k], rb_[k], load3(c.normal + 3 * k));
     fastest = std::max(fastest, -approach_[k]);
     e = std::max({e, bodies.restitution[a], bodies.restitution[b]});
   }
@@ -295,6 +348,11 @@ double StepSolver::warm(StepContext& ctx) {
 void StepSolver::to_travel(StepContext& ctx) {
   const int64_t n = ctx.bodies.count;
   for (int64_t i = 0; i < n; ++i) {
+    if (rested_[i]) {   // the whole step's external change: now plus what impacts changed
+      for (int d = 0; d < 6; ++d)
+        velocity_[6 * i + d] = now_[6 * i + d] + (velocity_[6 * i + d] - then_[6 * i + d]);
+      continue;
+    }
     if (!impacted_[i]) continue;
     const double half_rest = 0.5 * (1.0 - fraction_[i]);
     for (int d = 0; d < 6; ++d)

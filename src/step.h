@@ -8,13 +8,26 @@
 // step's constant external acceleration (e.g. gravity).
 //
 // In order (StepSolver::step):
-// 1. reference frame: a body with an impact (IMPACT/TUNNELLED contact, or a persistent
-//    contact that closes faster than the restitution threshold during the step) is
-//    rewound to its earliest time of impact f and solved with the velocity it had then;
-//    a body in persistent contact only is solved with its current velocity; a
-//    persistent contact may approach by its gap at the reference time (speculative
-//    allowance, m/s), and so may an impact's speculative corner (a detected impact row
-//    with a positive separation: its gap at the time of impact) over the rest of the step;
+// 1. reference frame: a persistent contact's gap at the previous state is its separation
+//    less how far its points closed over the step (the centres' travel from the poses,
+//    the turn from the twist: a step of several periods that its source integrated under
+//    gravity, after dropped inputs, is no straight line at the twist); one within the
+//    slop then whose pair did not approach then (previous twists, faster than the
+//    sticking speed) touches from the start, and its movable bodies rest (rested). A
+//    body with an impact (IMPACT/TUNNELLED contact, or a persistent contact that closes
+//    faster than the restitution threshold during the step) is rewound to its earliest
+//    time of impact f and solved with the velocity it had then, except an impact of a
+//    rested body that its pair's previous twists do not make (slower than the
+//    threshold: only the step's external change brought it, as when the source integrated
+//    a resting pile through its supports), which is a persistent contact from the start
+//    instead, its gap then the one at the time of impact plus what closed before it; a
+//    rested body without impact is solved with its previous twist, the step's external
+//    change added after the impacts (to_travel): it is carried by the resting solve, and
+//    never makes a bounce; a body in persistent contact only is solved with its current
+//    velocity; a persistent contact may approach by its gap at the reference time
+//    (speculative allowance, m/s), and so may an impact's speculative corner (a detected
+//    impact row with a positive separation: its gap at the time of impact) over the rest
+//    of the step;
 // 2. prepare: one row per contact point that can carry an impulse this step (a
 //    speculative contact that cannot close within the step is no row), combined
 //    materials by the combine rules, rows in the order of detection's manifolds, one
@@ -32,8 +45,10 @@
 //    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
 //    every row starts cold, so no timing of the inputs can launch a resting body;
 // 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
-//    a block (more sweeps while the resting contacts are new, and at least depth_sweeps
-//    per level of the deepest stack: a load passes down one level per sweep); an island
+//    a block (more sweeps while the resting contacts are new; sqrt(k) times as many for a
+//    step k times as long as the last, up to warm_start_ratio: k times the load, whose
+//    residual would sink the poses k^2 times as far; and at least depth_sweeps per level
+//    of the deepest stack: a load passes down one level per sweep); an island
 //    (bodies joined by rows through movable bodies) whose kinetic energy the sweeps
 //    raised above what it had before the warm start is solved again from its pre-solve
 //    velocities without friction (coupled Coulomb friction can have no answer the sweeps
@@ -158,7 +173,8 @@ class StepSolver {
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx);   // returns the fraction of persistent contacts cold
   int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
-  void to_travel(StepContext& ctx);  // impacted bodies: + (1 - f) / 2 external change
+  void to_travel(StepContext& ctx);  // impacted bodies: + (1 - f) / 2 external change;
+                                     // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
   void land(StepContext& ctx);
   void report(StepContext& ctx);
@@ -175,11 +191,14 @@ class StepSolver {
   std::vector<double> then_;         // (N, 6) previous twist (held, non-finite: 0)
   std::vector<double> pseudo_;       // (N, 6) split-impulse pseudo velocity
   std::vector<double> start_;        // (N, 6) velocity before the warm start
+  std::vector<double> later_;        // (N, 6) pre-solve velocity, rested bodies' current
   std::vector<int32_t> island_;      // (N,) union-find parent (hold_energy)
   std::vector<double> gain_;         // (N, 2) J, per island root: the energy change, the
                                      // energy before (-1: driven, not judged)
   std::vector<double> fraction_;     // (N,) reference fraction of the step
   std::vector<uint8_t> touched_, impacted_;
+  std::vector<uint8_t> rested_;      // (N,) touching something from the start, no impact
+  std::vector<uint8_t> touching_;    // (M,) persistent, within the slop at the previous state
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;

@@ -103,6 +103,14 @@ class Detection:
         rows = self._native.detect(*self._arrays(previous, current, active))
         return ContactSet(*rows)
 
+    def hold_back(self, previous: BodyStates, answer: BodyStates,
+                  active: np.ndarray | None = None) -> np.ndarray:
+        """(N,) per body, the fraction of its motion from ``previous`` to ``answer`` (its
+        corrected state) that it keeps against fixed shapes: 1 unless the answer took it
+        deeper into one than it was at ``previous`` by more than the slop, else the latest
+        fraction before that (as Box2D v3's continuous step; ``Detector::hold_back``)."""
+        return self._native.hold_back(*self._arrays(previous, answer, active))
+
     @property
     def budget(self) -> tuple[int, int]:
         """What the step budget dropped in the last ``detect``: (broad-phase pairs never

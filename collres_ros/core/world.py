@@ -21,7 +21,11 @@ time (both world frame, before resolution) to corrected current states:
   its pose is the previous pose advanced by the new velocity for dt (so a
   resting box stays put);
 * then penetrations beyond ``linear_slop`` are pushed out by split impulses
-  (pose only, no velocity: no energy gain).
+  (pose only, no velocity: no energy gain);
+* last, a body whose motion from its previous pose to its answer goes deeper into
+  a fixed shape than it was, by more than the slop (a body that turns far in a step
+  takes its corners along arcs the rows do not follow), is held at the latest pose of
+  that motion before, at rest (``Detection.hold_back``, as Box2D v3's continuous step).
 
 Static bodies (and inactive ones, for this step) have zero inverse mass and
 inertia: their ``current`` twist is a kinematic velocity, their state is
@@ -48,6 +52,7 @@ import numpy as np
 from collres_ros.core import _native
 from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.detection import Detection
+from collres_ros.core.rotation import slerp
 from collres_ros.core.shapes import mass_properties
 from collres_ros.core.sleep import Sleep
 from collres_ros.core.types import (BodySpec, BodyStates, CollisionFilter, ContactReport,
@@ -180,6 +185,7 @@ class World:
         # advance poses, split-impulse push-out, contact states: one compiled call
         warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
         states, report, sweeps, rows = self._solve(previous, current, contacts, active, dt, warm)
+        self._hold_back(previous, states, active)
         # report: the final guard against non-finite output
         rejected = self._guard(states, current)
         report, sleeping = self._settle(states, report, active, dt, asleep)
@@ -231,6 +237,25 @@ class World:
             friction_impulse=report.friction_impulse, state=report.state,
             reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
         return out, report, sweeps, rows
+
+    def _hold_back(self, previous: BodyStates, states: BodyStates, active: np.ndarray) -> None:
+        """A body whose answer went deeper into a fixed shape than it was (by more than the
+        slop) along its motion from ``previous`` is held at the latest pose of that motion
+        before, its twist kept (``Detection.hold_back``); a hand-made detector (tests)
+        knows no shapes to hold it against."""
+        hold_back = getattr(self._collision, 'hold_back', None)
+        if hold_back is None:
+            return
+        fraction = hold_back(previous, states, active)
+        held = np.flatnonzero(fraction < 1.0)
+        if held.size == 0:
+            return
+        f = fraction[held, None]
+        states.position[held] = previous.position[held] + f * (
+            states.position[held] - previous.position[held])
+        states.orientation[held] = slerp(previous.orientation[held], states.orientation[held],
+                                         f[:, 0])
+        states.linear[held], states.angular[held] = 0.0, 0.0
 
     def _guard(self, states: BodyStates, current: BodyStates) -> list[Rejection]:
         """Bodies with a non-finite result keep their current input state; report them."""

@@ -91,9 +91,8 @@ double solve_normal(ContactRow& r, Twists& v) {
 // One update of a pair's rolling resistance and torsional friction (SpinRow): each part
 // stops the relative angular velocity as far as its limit allows. Returns the change
 // of angular impulse over the lever (N s).
-double solve_spin(SpinRow& s, const std::vector<ContactRow>& rows, double* v) {
-  double normal = 0.0;
-  for (int i = 0; i < s.count; ++i) normal += rows[s.first + i].normal;
+double solve_spin(SpinRow& s, double* v) {
+  const double normal = s.load;
   if (normal == 0.0 && s.torque.x() == 0.0 && s.torque.y() == 0.0 && s.torque.z() == 0.0)
     return 0.0;   // no load, nothing held: both limits are 0 and nothing changes
   double* wa = v + 6 * s.a + 3;
@@ -325,10 +324,8 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row.kt[0] = block(1, 1);
   row.kt[1] = block(1, 2) + block(2, 1);
   row.kt[2] = block(2, 2);
-  double rel[3], before[3];
-  row_velocity(row, bodies.velocity, rel);
+  double before[3];
   row_velocity(row, slow, before);
-  row.approach = rel[0];
   row.bounce = false;
   row.sticking = norm2(before[1], before[2]) < sticking_speed;
   row.mu = row.sticking ? mu_static : mu_kinetic;
@@ -355,7 +352,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
       const size_t lo = static_cast<size_t>(manifold.first);
       const size_t hi = lo + static_cast<size_t>(manifold.count);
       const int k = manifold.count;
-      const int32_t a = rows[lo].a, b = rows[lo].b;
+      const int32_t a = manifold.a, b = manifold.b;
       Twists t(v, a, b);
       double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
       if (step >= 0.0) {
@@ -367,9 +364,14 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
       t.store(v, a, b);
       change = std::max(change, step);
       for (size_t i = lo; i < hi; ++i) largest = std::max(largest, rows[i].normal);
+      if (spins != nullptr && manifold.spin >= 0) {   // its load, while its rows are at hand
+        double load = 0.0;
+        for (size_t i = lo; i < hi; ++i) load += rows[i].normal;
+        (*spins)[manifold.spin].load = load;
+      }
     }
     if (spins != nullptr)
-      for (SpinRow& s : *spins) change = std::max(change, solve_spin(s, rows, v));
+      for (SpinRow& s : *spins) change = std::max(change, solve_spin(s, v));
     if (change <= converged * largest) break;
   }
   return done;

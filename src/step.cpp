@@ -221,8 +221,8 @@ void StepSolver::prepare(StepContext& ctx) {
     const auto count = static_cast<int32_t>(rows_.size()) - first_row;
     if (count > 0) {
       Manifold& block = manifolds_.emplace_back();
-      block.a = static_cast<int32_t>(manifold[0]);
-      block.b = static_cast<int32_t>(manifold[1]);
+      block.a = rows_[first_row].a;   // (detection's manifold[0], [1])
+      block.b = rows_[first_row].b;
       block.first = first_row;
       block.count = count;
       prepare_block(block, &rows_[first_row]);
@@ -231,7 +231,7 @@ void StepSolver::prepare(StepContext& ctx) {
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0
   spins_.clear();
-  for (const Manifold& manifold : manifolds_) {
+  for (Manifold& manifold : manifolds_) {
     const ContactRow& r = rows_[manifold.first];
     const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
                                 p.friction_rule);
@@ -242,11 +242,10 @@ void StepSolver::prepare(StepContext& ctx) {
     if (r.ma > 0.0) lever = length(r.ra);
     if (r.mb > 0.0) lever = lever > 0.0 ? std::min(lever, length(r.rb)) : length(r.rb);
     if ((roll > 0.0 || twist > 0.0) && lever > 0.0) {
+      manifold.spin = static_cast<int32_t>(spins_.size());
       SpinRow& s = spins_.emplace_back();
       s.a = r.a;
       s.b = r.b;
-      s.first = manifold.first;
-      s.count = manifold.count;
       s.n = r.n;
       s.inv_a = inv_inertia_[r.a];
       s.inv_b = inv_inertia_[r.b];

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "vec_math.h"
+#include "worker.h"
 
 namespace collres {
 
@@ -70,6 +71,9 @@ struct SolverParams {
                                         // while it lies in [1 / this, this]; else cold
   double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
                                         // from its pair's nearest stored point this close
+  int threads = 2;                      // threads of the velocity sweeps (1 or 2)
+  int parallel_manifolds = 256;         // a solve of at least this many manifolds is split
+                                        // in two halves (SweepPlan), whatever `threads`
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };
@@ -174,10 +178,21 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 // when a sweep changes no impulse by more than params.converged times the largest
 // normal impulse. `spins` (rolling resistance and torsional friction, may be null; a
 // manifold's Manifold::spin names its own) are solved after the rows in each sweep.
-// Returns the sweeps done.
+// `plan` (may be null: one thread, in order) splits each sweep over two threads.
+// Immovable bodies' velocities are read, never written. Returns the sweeps done.
+// How the sweeps of a solve may run on two threads (StepSolver::split): manifolds
+// [0, halves[0]) and [halves[0], halves[1]) share no movable body, nor do their spin rows
+// (spins [0, spin_halves[0]) and [spin_halves[0], spin_halves[1])); the manifolds and spin
+// rows after them join the halves and follow both. One thread runs them in that order; two
+// run the halves at once (`worker`): the same arithmetic on the same data, the same bits.
+struct SweepPlan {
+  size_t halves[2] = {0, 0};
+  size_t spin_halves[2] = {0, 0};
+  Worker* worker = nullptr;   // null: one thread
+};
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins = nullptr);
+                     std::vector<SpinRow>* spins = nullptr, const SweepPlan* plan = nullptr);
 
 // Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the

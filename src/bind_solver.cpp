@@ -204,6 +204,9 @@ void bind_solver(py::module_& m) {
                               solver.manifold_count());
       }, "The last step's sweep halves: (end of the first, end of the second, manifolds); "
          "manifolds [0, first) and [first, second) share no movable body.")
+      .def_property_readonly("helped", [](const StepSolver& solver) {
+        return py::make_tuple(solver.helped(), solver.chunks_run());
+      }, "Chunks of the sweeps' second halves run so far: (by the second thread, in all).")
       .def("step", &solver_step, py::kw_only(), py::arg("previous"), py::arg("current"),
            py::arg("out"), py::arg("inv_mass"), py::arg("inv_inertia_body"),
            py::arg("movable"), py::arg("held"), py::arg("restitution"),

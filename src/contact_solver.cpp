@@ -9,6 +9,7 @@ namespace {
 constexpr double kTiny = 1e-12;
 constexpr double kRegular = 1e-8;   // relative weight added to a block's diagonal
 constexpr double kSlowest = 1e-9;   // m/s: a slower approach is no impact (rounding)
+constexpr size_t kChunks = 8;       // chunks of a sweep's second half (Worker::run_pair)
 
 inline Vec3 lin(const double* v, int32_t i) { return load3(v + 6 * i); }
 inline Vec3 ang(const double* v, int32_t i) { return load3(v + 6 * i + 3); }
@@ -407,13 +408,19 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
   serial.halves[0] = serial.halves[1] = count;
   serial.spin_halves[0] = serial.spin_halves[1] = spin_count;
   const SweepPlan& p = plan != nullptr ? *plan : serial;
-  // the two halves of a part, one after the other or at once
-  auto halves = [&](const std::function<void()>& first, const std::function<void()>& second) {
-    if (p.worker != nullptr) {
-      p.worker->run_pair(first, second);
+  // the two halves of a part, one after the other or at once: the second in chunks (in
+  // order), so that the caller can take over what the worker has not begun
+  auto halves = [&](const std::function<void()>& first,
+                    const std::function<void(size_t, size_t)>& second, size_t from, size_t to) {
+    const size_t chunks = std::min<size_t>(kChunks, to - from);
+    const std::function<void(int)> chunk = [&](int c) {
+      second(from + (to - from) * c / chunks, from + (to - from) * (c + 1) / chunks);
+    };
+    if (p.worker != nullptr && chunks > 0) {
+      p.worker->run_pair(first, chunk, static_cast<int>(chunks));
     } else {
       first();
-      second();
+      for (size_t c = 0; c < chunks; ++c) chunk(static_cast<int>(c));
     }
   };
   int done = 0;
@@ -421,12 +428,14 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     ++done;
     Progress part[3];
     halves([&] { solve_manifolds(rows, manifolds, 0, p.halves[0], bodies, spins, part[0]); },
-           [&] { solve_manifolds(rows, manifolds, p.halves[0], p.halves[1], bodies, spins,
-                                 part[1]); });
+           [&](size_t lo, size_t hi) {
+             solve_manifolds(rows, manifolds, lo, hi, bodies, spins, part[1]);
+           }, p.halves[0], p.halves[1]);
     solve_manifolds(rows, manifolds, p.halves[1], count, bodies, spins, part[2]);
     if (spins != nullptr) {
       halves([&] { solve_spins(*spins, 0, p.spin_halves[0], bodies, part[0]); },
-             [&] { solve_spins(*spins, p.spin_halves[0], p.spin_halves[1], bodies, part[1]); });
+             [&](size_t lo, size_t hi) { solve_spins(*spins, lo, hi, bodies, part[1]); },
+             p.spin_halves[0], p.spin_halves[1]);
       solve_spins(*spins, p.spin_halves[1], spin_count, bodies, part[2]);
     }
     const double change = std::max({part[0].change, part[1].change, part[2].change});

@@ -158,6 +158,9 @@ class StepSolver {
   // number of manifolds (halves = (count, count): not split)
   const SweepPlan& plan() const { return plan_; }
   size_t manifold_count() const { return manifolds_.size(); }
+  // chunks of the sweeps' second halves run so far: by the second thread, in all
+  uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
+  uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
 
  private:
   void reference_frame(StepContext& ctx);

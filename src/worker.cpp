@@ -9,7 +9,19 @@
 
 namespace collres {
 namespace {
-constexpr int kSpins = 4000;   // pauses (~40 ns each) a thread spins before it sleeps or yields
+// pauses (~40 ns each) a waiting thread spins before it sleeps (the worker) or yields its
+// core (the caller): short, so that a busy machine loses little to spinning
+constexpr int kSpins = 256;
+
+void wait_until(const std::function<bool()>& ready) {
+  for (int i = 0; !ready(); ++i) {
+    if (i < kSpins) {
+      COLLRES_PAUSE();
+    } else {
+      std::this_thread::yield();
+    }
+  }
+}
 }  // namespace
 
 Worker::Worker() : thread_([this] { loop(); }) {}
@@ -24,44 +36,52 @@ Worker::~Worker() {
 }
 
 void Worker::loop() {
+  uint32_t seen = 0;   // the last run helped with
   for (;;) {
-    // spin a little for the next task, then sleep until one is posted
-    for (int i = 0; i < kSpins && state_.load(std::memory_order_acquire) != kPosted; ++i)
+    for (int i = 0; i < kSpins && static_cast<uint32_t>(ticket_.load() >> 32) == seen; ++i)
       COLLRES_PAUSE();
-    if (state_.load(std::memory_order_acquire) != kPosted) {
+    uint32_t generation;
+    {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [this] { return stop_ || state_.load() == kPosted; });
+      wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
       if (stop_) return;
+      generation = seen = generation_;
     }
-    int posted = kPosted;
-    if (!state_.compare_exchange_strong(posted, kTaken, std::memory_order_acq_rel)) continue;
-    (*task_)();
-    state_.store(kDone, std::memory_order_release);
+    helped_.fetch_add(static_cast<uint64_t>(help(generation)), std::memory_order_relaxed);
   }
 }
 
-void Worker::run_pair(const std::function<void()>& first, const std::function<void()>& second) {
-  task_ = &second;
+int Worker::help(uint32_t generation) {
+  for (int ran = 0;;) {
+    uint64_t ticket = ticket_.load(std::memory_order_acquire);
+    const int chunk = static_cast<int>(ticket & 0xffffffffu);
+    if (static_cast<uint32_t>(ticket >> 32) != generation || chunk >= chunks_.load()) return ran;
+    if (!ticket_.compare_exchange_weak(ticket, ticket + 1, std::memory_order_acq_rel)) continue;
+    wait_until([&] { return done_.load(std::memory_order_acquire) == chunk; });
+    (*task_)(chunk);
+    done_.store(chunk + 1, std::memory_order_release);
+    ++ran;
+  }
+}
+
+void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
+                      int chunks) {
+  uint32_t generation;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    state_.store(kPosted, std::memory_order_release);
+    task_ = &second;
+    chunks_ = chunks;
+    done_.store(0);
+    generation = ++generation_;
+    ticket_.store(static_cast<uint64_t>(generation) << 32, std::memory_order_release);
   }
   wake_.notify_one();
+  chunks_run_ += static_cast<uint64_t>(chunks);
   first();
-  int posted = kPosted;
-  if (state_.compare_exchange_strong(posted, kIdle, std::memory_order_acq_rel)) {
-    second();   // the worker has not taken it: run it here
-    return;
-  }
-  // the worker runs it: wait until it is done
-  for (int i = 0; state_.load(std::memory_order_acquire) != kDone; ++i) {
-    if (i < kSpins) {
-      COLLRES_PAUSE();
-    } else {
-      std::this_thread::yield();
-    }
-  }
-  state_.store(kIdle, std::memory_order_relaxed);
+  help(generation);   // the chunks the worker has not taken
+  // (a chunk the worker claimed is finished before the next run is posted: it reads
+  // task_ only while it holds one)
+  wait_until([&] { return done_.load(std::memory_order_acquire) == chunks; });
 }
 
 }  // namespace collres

@@ -1,5 +1,8 @@
 #include "worker.h"
 
+#include <algorithm>
+#include <chrono>
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #define COLLRES_PAUSE() _mm_pause()
@@ -12,6 +15,7 @@ namespace {
 // pauses (~40 ns each) a waiting thread spins before it sleeps (the worker) or yields its
 // core (the caller): short, so that a busy machine loses little to spinning
 constexpr int kSpins = 256;
+constexpr int kFirstBackoff = 4, kLastBackoff = 1024;   // runs alone after a long wait
 
 void wait_until(const std::function<bool()>& ready) {
   for (int i = 0; !ready(); ++i) {
@@ -66,6 +70,14 @@ int Worker::help(uint32_t generation) {
 
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                       int chunks) {
+  chunks_run_ += static_cast<uint64_t>(chunks);
+  if (alone_ > 0) {   // backing off: all here, in order
+    --alone_;
+    first();
+    for (int c = 0; c < chunks; ++c) second(c);
+    return;
+  }
+  const auto start = std::chrono::steady_clock::now();
   uint32_t generation;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -76,12 +88,23 @@ void Worker::run_pair(const std::function<void()>& first, const std::function<vo
     ticket_.store(static_cast<uint64_t>(generation) << 32, std::memory_order_release);
   }
   wake_.notify_one();
-  chunks_run_ += static_cast<uint64_t>(chunks);
   first();
   help(generation);   // the chunks the worker has not taken
   // (a chunk the worker claimed is finished before the next run is posted: it reads
   // task_ only while it holds one)
+  if (done_.load(std::memory_order_acquire) == chunks) {
+    backoff_ /= 2;
+    return;
+  }
+  const auto waiting = std::chrono::steady_clock::now();
   wait_until([&] { return done_.load(std::memory_order_acquire) == chunks; });
+  const auto end = std::chrono::steady_clock::now();
+  if (end - waiting > (end - start) / 10) {
+    backoff_ = std::min(std::max(2 * backoff_, kFirstBackoff), kLastBackoff);
+    alone_ = backoff_;
+  } else {
+    backoff_ /= 2;
+  }
 }
 
 }  // namespace collres

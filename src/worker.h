@@ -6,9 +6,12 @@
 // front while the caller runs the first task; once done with it, the caller takes the
 // chunks still left, each after the one before it has finished. So the caller never waits
 // for the worker to start (its core busy with another process, or asleep), only, at most,
-// for the chunk the worker is running. The worker spins briefly for the next task (the
-// solver posts one per sweep, back to back), then sleeps on a condition variable. Results
-// do not depend on which thread runs a chunk.
+// for the chunk the worker is running. When that wait takes more than a tenth of a run
+// (the worker's core shared with other processes: it was preempted holding a chunk), the
+// caller runs the next runs alone, 4 of them, then twice as many after each such wait,
+// up to 1024, and halves the count after a run without. The worker spins briefly for the
+// next task (the solver posts one per sweep, back to back), then sleeps on a condition
+// variable. Results do not depend on which thread runs a chunk.
 #pragma once
 
 #include <atomic>
@@ -47,6 +50,8 @@ class Worker {
   std::atomic<int> chunks_{0};        // chunks of the current run
   std::atomic<uint64_t> helped_{0};   // chunks the worker ran
   uint64_t chunks_run_ = 0;           // chunks posted (the caller's thread)
+  int alone_ = 0;                     // (the caller's) runs left to run alone
+  int backoff_ = 0;                   // (the caller's) runs alone after the next long wait
   const std::function<void(int)>* task_ = nullptr;   // read only with a claimed chunk
   uint32_t generation_ = 0;           // (under mutex_) the run posted last
   bool stop_ = false;                 // (under mutex_)

@@ -6,9 +6,11 @@
 (``make bench`` runs it with the defaults.) For each pile (bench/pile.py: ``mixed``
 cubes and spheres, ``cubes`` only) and size: build the pile, let it settle with the
 core and a semi-implicit Euler integrator at 120 Hz, then time ``--steps`` more
-steps of World.step (median and 90th percentile of the whole step and of its
-detection and solve phases; contact points per step and how many became solver
-rows, and the solve's cost per row per velocity sweep in ns). The same pile is then
+steps of World.step on the default threads (``SOLVER_TUNING`` ``threads``: 2; median and
+90th percentile of the whole step and of its detection and solve phases; contact points
+per step and how many became solver rows, and the solve's cost per row per velocity sweep
+in ns), each followed by a step on one thread (the same bits), timed apart: the ratio of
+the one-thread step to the default one is printed. The same pile is then
 settled and timed again at 30 Hz: the ratio of that step to the 120 Hz one is printed
 (a step four times longer should not cost much more). On the same 120 Hz final poses it
 times coal's own detection alone: the DynamicAABBTree broad phase and narrow phase of
@@ -116,11 +118,19 @@ def settled_steps(kind: str, size: int, steps: int, settle_s: float, dt: float):
     world = World(bodies, AWAKE)
     for _ in range(int(settle_s / dt)):
         state = world.step(state, integrate(state, world.dynamic, dt), dt).states
-    timed = {key: [] for key in ('total', 'detect', 'solve', 'contacts', 'rows', 'sweeps')}
-    for _ in range(steps):
+    timed = {key: [] for key in ('total', 'detect', 'solve', 'contacts', 'rows', 'sweeps',
+                                 'one_thread')}
+    default_threads = world._params.threads
+    for k in range(2 * steps):
+        # every other step on one thread (the same bits: SOLVER_TUNING threads), timed apart
+        world._params.threads = 1 if k % 2 else default_threads
         current = integrate(state, world.dynamic, dt)
         start = time.perf_counter()
         result = world.step(state, current, dt)
+        if k % 2:
+            timed['one_thread'].append(time.perf_counter() - start)
+            state = result.states
+            continue
         timed['total'].append(time.perf_counter() - start)
         timed['detect'].append(world.timing['detect'])
         timed['solve'].append(world.timing['solve'])
@@ -128,6 +138,7 @@ def settled_steps(kind: str, size: int, steps: int, settle_s: float, dt: float):
         timed['rows'].append(world.timing['rows'])
         timed['sweeps'].append(world.timing['iterations'])
         state = result.states
+    world._params.threads = default_threads
     return bodies, state, timed
 
 
@@ -147,6 +158,7 @@ def ours(kind: str, size: int, steps: int, settle_s: float) -> dict:
             'solve_ms': [ms(timed['solve'], 50), ms(timed['solve'], 90)],
             'ns_per_row_sweep': float(np.median(per_row)),
             'step_30hz_ms': ms(slow['total'], 50),
+            'one_thread_ms': ms(timed['one_thread'], 50),
             'rows_30hz': int(np.median(slow['rows'])),
             'coal_ms': coal_ms, 'coal_contacts': coal_contacts,
             'largest_speed': float(np.abs(state.linear).max()),
@@ -327,12 +339,13 @@ def print_row(row: dict) -> None:
         f'{row["detect_ms"][0]:.2f}', f'{row["solve_ms"][0]:.2f}',
         f'{row["contacts"]}/{row["rows"]}', f'{row["coal_ms"]:.2f} ({row["coal_contacts"]})',
         f'{row["detect_ms"][0] / row["coal_ms"]:.1f}', f'{row["ns_per_row_sweep"]:.0f}',
-        f'{row["step_30hz_ms"] / row["step_ms"][0]:.2f}', *[cell(v) for v in peer],
+        f'{row["step_30hz_ms"] / row["step_ms"][0]:.2f}',
+        f'{row["one_thread_ms"] / row["step_ms"][0]:.2f}', *[cell(v) for v in peer],
         *[ratio(v) for v in peer]), flush=True)
 
 
-FORMAT = ('{:>6} {:>6} {:>13} {:>7} {:>7} {:>11} {:>14} {:>8} {:>7} {:>7} {:>15} {:>15} '
-          '{:>15} {:>15} {:>6} {:>6} {:>6} {:>6}')
+FORMAT = ('{:>6} {:>6} {:>13} {:>7} {:>7} {:>11} {:>14} {:>8} {:>7} {:>7} {:>7} {:>15} '
+          '{:>15} {:>15} {:>15} {:>6} {:>6} {:>6} {:>6}')
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -350,7 +363,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     python = None if args.no_peers else peer_python(args.peer_venv)
     print(FORMAT.format('pile', 'bodies', 'step p50/p90', 'detect', 'solve', 'points/rows',
-                        'coal (pts)', 'det/coal', 'ns/row', '30/120', 'mujoco CG',
+                        'coal (pts)', 'det/coal', 'ns/row', '30/120', '1thr/2', 'mujoco CG',
                         'mujoco Newton', 'pybullet', 'rapier', 'us/cg', 'us/nt', 'us/pb',
                         'us/rp'))
     rows = []
@@ -368,8 +381,10 @@ def main(argv: list[str] | None = None) -> int:
     print('ms per step at 120 Hz (contact points per step in brackets); points/rows: our '
           'contact points and solver rows; coal: its own broad + narrow phase alone on '
           'the same poses; ns/row: solve time per solver row per velocity sweep; 30/120: '
-          'our step at 30 Hz / at 120 Hz on the same pile settled at each rate; us/x: our '
-          'step / theirs (same run)')
+          'our step at 30 Hz / at 120 Hz on the same pile settled at each rate; 1thr/2: '
+          'our step on one thread / on the default threads (SOLVER_TUNING threads: 2), '
+          'every other step of the same run; us/x: our step (default threads) / theirs '
+          '(one thread; same run)')
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({'dt': DT, 'rows': rows}, indent=1))
     print(f'written {args.out}')

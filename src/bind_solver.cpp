@@ -177,6 +177,8 @@ void bind_solver(py::module_& m) {
       .def_readwrite("balanced_friction", &SolverParams::balanced_friction)
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)
       .def_readwrite("match_radius", &SolverParams::match_radius)
+      .def_readwrite("threads", &SolverParams::threads)
+      .def_readwrite("parallel_manifolds", &SolverParams::parallel_manifolds)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);
 
@@ -197,6 +199,14 @@ void bind_solver(py::module_& m) {
   py::class_<StepSolver>(m, "StepSolver", "The per-contact work of one step (see step.h).")
       .def(py::init<>())
       .def_property_readonly("cache", &StepSolver::cache, py::return_value_policy::reference_internal)
+      .def_property_readonly("split", [](const StepSolver& solver) {
+        return py::make_tuple(solver.plan().halves[0], solver.plan().halves[1],
+                              solver.manifold_count());
+      }, "The last step's sweep halves: (end of the first, end of the second, manifolds); "
+         "manifolds [0, first) and [first, second) share no movable body.")
+      .def_property_readonly("helped", [](const StepSolver& solver) {
+        return py::make_tuple(solver.helped(), solver.chunks_run());
+      }, "Chunks of the sweeps' second halves run so far: (by the second thread, in all).")
       .def("step", &solver_step, py::kw_only(), py::arg("previous"), py::arg("current"),
            py::arg("out"), py::arg("inv_mass"), py::arg("inv_inertia_body"),
            py::arg("movable"), py::arg("held"), py::arg("restitution"),

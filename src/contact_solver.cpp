@@ -9,6 +9,7 @@ namespace {
 constexpr double kTiny = 1e-12;
 constexpr double kRegular = 1e-8;   // relative weight added to a block's diagonal
 constexpr double kSlowest = 1e-9;   // m/s: a slower approach is no impact (rounding)
+constexpr size_t kChunks = 8;       // chunks of a sweep's second half (Worker::run_pair)
 
 inline Vec3 lin(const double* v, int32_t i) { return load3(v + 6 * i); }
 inline Vec3 ang(const double* v, int32_t i) { return load3(v + 6 * i + 3); }
@@ -24,6 +25,18 @@ struct Twists {
     store3(v + 6 * a + 3, wa);
     store3(v + 6 * b, vb);
     store3(v + 6 * b + 3, wb);
+  }
+  // the movable ones only (an immovable body's twist is unchanged: nothing to write, and a
+  // body shared by the two threads of a sweep is never written)
+  void store(double* v, int32_t a, int32_t b, const double* inv_mass) const {
+    if (inv_mass[a] > 0.0) {
+      store3(v + 6 * a, va);
+      store3(v + 6 * a + 3, wa);
+    }
+    if (inv_mass[b] > 0.0) {
+      store3(v + 6 * b, vb);
+      store3(v + 6 * b + 3, wb);
+    }
   }
 };
 
@@ -91,9 +104,8 @@ double solve_normal(ContactRow& r, Twists& v) {
 // One update of a pair's rolling resistance and torsional friction (SpinRow): each part
 // stops the relative angular velocity as far as its limit allows. Returns the change
 // of angular impulse over the lever (N s).
-double solve_spin(SpinRow& s, const std::vector<ContactRow>& rows, double* v) {
-  double normal = 0.0;
-  for (int i = 0; i < s.count; ++i) normal += rows[s.first + i].normal;
+double solve_spin(SpinRow& s, double* v, const double* inv_mass) {
+  const double normal = s.load;
   if (normal == 0.0 && s.torque.x() == 0.0 && s.torque.y() == 0.0 && s.torque.z() == 0.0)
     return 0.0;   // no load, nothing held: both limits are 0 and nothing changes
   double* wa = v + 6 * s.a + 3;
@@ -116,8 +128,8 @@ double solve_spin(SpinRow& s, const std::vector<ContactRow>& rows, double* v) {
   const Vec3 change = (roll - old_roll) + (twist - old_twist) * s.n;
   s.torque = roll + twist * s.n;
   if (change.x() == 0.0 && change.y() == 0.0 && change.z() == 0.0) return 0.0;
-  store3(wa, load3(wa) - mul(s.inv_a, change));
-  store3(wb, load3(wb) + mul(s.inv_b, change));
+  if (inv_mass[s.a] > 0.0) store3(wa, load3(wa) - mul(s.inv_a, change));
+  if (inv_mass[s.b] > 0.0) store3(wb, load3(wb) + mul(s.inv_b, change));
   return length(change) / s.lever;
 }
 
@@ -325,10 +337,8 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row.kt[0] = block(1, 1);
   row.kt[1] = block(1, 2) + block(2, 1);
   row.kt[2] = block(2, 2);
-  double rel[3], before[3];
-  row_velocity(row, bodies.velocity, rel);
+  double before[3];
   row_velocity(row, slow, before);
-  row.approach = rel[0];
   row.bounce = false;
   row.sticking = norm2(before[1], before[2]) < sticking_speed;
   row.mu = row.sticking ? mu_static : mu_kinetic;
@@ -343,33 +353,93 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
   }
 }
 
+namespace {
+
+// What a part of a sweep did: the largest impulse change, the largest normal impulse (N s).
+struct Progress {
+  double change = 0.0, largest = 0.0;
+};
+
+// One sweep over manifolds [from, to) (their rows; each spin row's load).
+void solve_manifolds(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
+                     size_t from, size_t to, const SolverBodies& bodies,
+                     std::vector<SpinRow>* spins, Progress& progress) {
+  double* v = bodies.velocity;
+  for (size_t m = from; m < to; ++m) {
+    const Manifold& manifold = manifolds[m];
+    const size_t lo = static_cast<size_t>(manifold.first);
+    const size_t hi = lo + static_cast<size_t>(manifold.count);
+    const int k = manifold.count;
+    const int32_t a = manifold.a, b = manifold.b;
+    Twists t(v, a, b);
+    double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
+    if (step >= 0.0) {
+      for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], t));
+    } else {
+      step = 0.0;
+      for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_row(rows[i], t));
+    }
+    t.store(v, a, b, bodies.inv_mass);
+    progress.change = std::max(progress.change, step);
+    for (size_t i = lo; i < hi; ++i) progress.largest = std::max(progress.largest, rows[i].normal);
+    if (spins != nullptr && manifold.spin >= 0) {   // its load, while its rows are at hand
+      double load = 0.0;
+      for (size_t i = lo; i < hi; ++i) load += rows[i].normal;
+      (*spins)[manifold.spin].load = load;
+    }
+  }
+}
+
+// One sweep over spin rows [from, to).
+void solve_spins(std::vector<SpinRow>& spins, size_t from, size_t to, const SolverBodies& bodies,
+                 Progress& progress) {
+  for (size_t i = from; i < to; ++i)
+    progress.change = std::max(progress.change, solve_spin(spins[i], bodies.velocity,
+                                                           bodies.inv_mass));
+}
+
+}  // namespace
+
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins) {
-  double* v = bodies.velocity;
+                     std::vector<SpinRow>* spins, const SweepPlan* plan) {
+  const size_t count = manifolds.size(), spin_count = spins != nullptr ? spins->size() : 0;
+  SweepPlan serial;
+  serial.halves[0] = serial.halves[1] = count;
+  serial.spin_halves[0] = serial.spin_halves[1] = spin_count;
+  const SweepPlan& p = plan != nullptr ? *plan : serial;
+  // the two halves of a part, one after the other or at once: the second in chunks (in
+  // order), so that the caller can take over what the worker has not begun
+  auto halves = [&](const std::function<void()>& first,
+                    const std::function<void(size_t, size_t)>& second, size_t from, size_t to) {
+    const size_t chunks = std::min<size_t>(kChunks, to - from);
+    const std::function<void(int)> chunk = [&](int c) {
+      second(from + (to - from) * c / chunks, from + (to - from) * (c + 1) / chunks);
+    };
+    if (p.worker != nullptr && chunks > 0) {
+      p.worker->run_pair(first, chunk, static_cast<int>(chunks));
+    } else {
+      first();
+      for (size_t c = 0; c < chunks; ++c) chunk(static_cast<int>(c));
+    }
+  };
   int done = 0;
   while (done < iterations) {
     ++done;
-    double change = 0.0, largest = 0.0;
-    for (const Manifold& manifold : manifolds) {
-      const size_t lo = static_cast<size_t>(manifold.first);
-      const size_t hi = lo + static_cast<size_t>(manifold.count);
-      const int k = manifold.count;
-      const int32_t a = rows[lo].a, b = rows[lo].b;
-      Twists t(v, a, b);
-      double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
-      if (step >= 0.0) {
-        for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], t));
-      } else {
-        step = 0.0;
-        for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_row(rows[i], t));
-      }
-      t.store(v, a, b);
-      change = std::max(change, step);
-      for (size_t i = lo; i < hi; ++i) largest = std::max(largest, rows[i].normal);
+    Progress part[3];
+    halves([&] { solve_manifolds(rows, manifolds, 0, p.halves[0], bodies, spins, part[0]); },
+           [&](size_t lo, size_t hi) {
+             solve_manifolds(rows, manifolds, lo, hi, bodies, spins, part[1]);
+           }, p.halves[0], p.halves[1]);
+    solve_manifolds(rows, manifolds, p.halves[1], count, bodies, spins, part[2]);
+    if (spins != nullptr) {
+      halves([&] { solve_spins(*spins, 0, p.spin_halves[0], bodies, part[0]); },
+             [&](size_t lo, size_t hi) { solve_spins(*spins, lo, hi, bodies, part[1]); },
+             p.spin_halves[0], p.spin_halves[1]);
+      solve_spins(*spins, p.spin_halves[1], spin_count, bodies, part[2]);
     }
-    if (spins != nullptr)
-      for (SpinRow& s : *spins) change = std::max(change, solve_spin(s, rows, v));
+    const double change = std::max({part[0].change, part[1].change, part[2].change});
+    const double largest = std::max({part[0].largest, part[1].largest, part[2].largest});
     if (change <= converged * largest) break;
   }
   return done;

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "vec_math.h"
+#include "worker.h"
 
 namespace collres {
 
@@ -70,19 +71,20 @@ struct SolverParams {
                                         // while it lies in [1 / this, this]; else cold
   double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
                                         // from its pair's nearest stored point this close
+  int threads = 2;                      // threads of the velocity sweeps (1 or 2)
+  int parallel_manifolds = 256;         // a solve of at least this many manifolds is split
+                                        // in two halves (SweepPlan), whatever `threads`
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };
 
-// One contact point as the solver sees it (prepared once per step).
-struct ContactRow {
-  int32_t a = 0, b = 0;          // body indices
-  int32_t contact = 0;           // index in the caller's contact arrays
-  int32_t manifold = 0;          // index of its Manifold
-  bool bounce = false;           // took part in an impact stage (resolve_impacts)
-  bool sticking = false;         // slow enough to stick: mu is the static coefficient
+// One contact point as the solver sees it (prepared once per step). Hot fields first:
+// what every velocity sweep reads and writes (solve_block, solve_friction, solve_normal),
+// 448 bytes, seven whole cache lines (the struct is aligned to a line); the rest, read by
+// the stages around the sweeps, after them.
+struct alignas(64) ContactRow {
+  // hot: the sweeps
   Vec3 n = Vec3::Zero(), t1 = Vec3::Zero(), t2 = Vec3::Zero();  // unit, world; n A to B
-  Vec3 ra = Vec3::Zero(), rb = Vec3::Zero();  // m, contact point minus each centre of mass
   Vec3 ang_a[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  // r_A x d, r_B x d for
   Vec3 ang_b[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  // d = n, t1, t2 (m)
   Vec3 dw_a[3] = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};   // I_A^-1 (r_A x d),
@@ -91,11 +93,17 @@ struct ContactRow {
   double normal_mass = 0.0;      // kg, 1 / (J_n M^-1 J_n^T), 0 when both immovable
   double kt[3] = {0, 0, 0};      // 1/kg: tangential block K_11, K_12 + K_21, K_22
   double allowance = 0.0;        // m/s >= 0: approach speed allowed without impulse
-  double approach = 0.0;         // m/s: pre-solve normal relative velocity
-  double e_a = 0.0, e_b = 0.0;   // restitution applied to A's / B's impulse
   double mu = 0.0;               // friction coefficient of the cone this step
   double normal = 0.0;           // N s >= 0, accumulated (what is warm started)
   double tangent[2] = {0, 0};    // N s along t1, t2; |.| <= mu * normal
+  // cold: prepare, impacts, shock propagation, landing, position pass, report
+  int32_t a = 0, b = 0;          // body indices
+  int32_t contact = 0;           // index in the caller's contact arrays
+  int32_t manifold = 0;          // index of its Manifold
+  bool bounce = false;           // took part in an impact stage (resolve_impacts)
+  bool sticking = false;         // slow enough to stick: mu is the static coefficient
+  Vec3 ra = Vec3::Zero(), rb = Vec3::Zero();  // m, contact point minus each centre of mass
+  double e_a = 0.0, e_b = 0.0;   // restitution applied to A's / B's impulse
   double impact = 0.0;           // N s >= 0, normal impulse of the impact stages (their
                                  // compression and restitution; reported, not warm started)
   double impact_tangent[2] = {0, 0};  // N s, friction impulse of the impact stages, t1, t2
@@ -111,13 +119,15 @@ struct ContactRow {
 struct Manifold {
   int32_t a = 0, b = 0;          // body indices
   int32_t first = 0, count = 0;  // its rows
+  int32_t spin = -1;             // index of its SpinRow in the solve's spins, -1: none
+  bool invertible = false;       // `inverse` holds delassus^-1
   // 2 to 4 rows (prepare_block, once per step): the normal rows' Delassus matrix
   // J_i M^-1 J_j^T (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block
-  // solve's regularisation), and the inverse of the latter (the all-active answer)
+  // solve's regularisation), and the inverse of the latter (the all-active answer); the
+  // sweeps read the first two, `delassus` only when the all-active answer does not fit
   double plain[4][4] = {};
-  double delassus[4][4] = {};
   double inverse[4][4] = {};   // kg: delassus^-1, when `invertible`
-  bool invertible = false;
+  double delassus[4][4] = {};
 };
 
 // The Delassus matrices of a manifold of 2 to 4 prepared rows (`rows`: its first row).
@@ -133,7 +143,6 @@ void prepare_block(Manifold& block, const ContactRow* rows);
 // tan(theta) <= mu_r, and its spin about the normal slows at mu_t r m g / I.
 struct SpinRow {
   int32_t a = 0, b = 0;            // body indices
-  int32_t first = 0, count = 0;    // the manifold's rows
   Vec3 n = Vec3::Zero();           // unit, world, A to B (the first row's normal)
   Mat3 inv_a = Mat3::Zero(), inv_b = Mat3::Zero();  // I_A^-1, I_B^-1, world, 1/(kg m^2)
   Mat3 inv_ab = Mat3::Zero();      // I_A^-1 + I_B^-1
@@ -141,6 +150,8 @@ struct SpinRow {
   double lever = 0.0;              // m, > 0
   double roll = 0.0, twist = 0.0;  // m: coefficient times lever
   Vec3 torque = Vec3::Zero();      // N m s, accumulated angular impulse on B (-on A)
+  double load = 0.0;               // N s, the manifold's normal impulse N, as its rows'
+                                   // last update in this sweep left it (solve_velocities)
 };
 
 // Per-body solver data: velocities (N, 6) and inverse mass properties.
@@ -151,9 +162,9 @@ struct SolverBodies {
   double* velocity = nullptr;         // (N, 6) m/s, rad/s: updated in place
 };
 
-// Prepare one row: basis, lever arms, effective masses and the pre-solve relative
-// velocity. `velocity` is the pre-solve velocity (N, 6); `slow` the velocity that decides
-// sticking (e.g. before this step's external forces).
+// Prepare one row: basis, lever arms, effective masses, and the friction coefficient:
+// static where `slow` (N, 6), the velocity that decides sticking (e.g. before this step's
+// external forces), slips slower than sticking_speed, else kinetic.
 void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
                  double sticking_speed, double mu_static, double mu_kinetic);
 
@@ -165,11 +176,23 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 // small LCP; one row, or more than 4, row by row), friction
 // along minus the slip velocity clamped to the circular cone mu * normal. Stops early
 // when a sweep changes no impulse by more than params.converged times the largest
-// normal impulse. `spins` (rolling resistance and torsional friction, may be null) are
-// solved after the rows in each sweep. Returns the sweeps done.
+// normal impulse. `spins` (rolling resistance and torsional friction, may be null; a
+// manifold's Manifold::spin names its own) are solved after the rows in each sweep.
+// `plan` (may be null: one thread, in order) splits each sweep over two threads.
+// Immovable bodies' velocities are read, never written. Returns the sweeps done.
+// How the sweeps of a solve may run on two threads (StepSolver::split): manifolds
+// [0, halves[0]) and [halves[0], halves[1]) share no movable body, nor do their spin rows
+// (spins [0, spin_halves[0]) and [spin_halves[0], spin_halves[1])); the manifolds and spin
+// rows after them join the halves and follow both. One thread runs them in that order; two
+// run the halves at once (`worker`): the same arithmetic on the same data, the same bits.
+struct SweepPlan {
+  size_t halves[2] = {0, 0};
+  size_t spin_halves[2] = {0, 0};
+  Worker* worker = nullptr;   // null: one thread
+};
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins = nullptr);
+                     std::vector<SpinRow>* spins = nullptr, const SweepPlan* plan = nullptr);
 
 // Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the

@@ -2,9 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <memory>
 
 namespace collres {
 namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 // Twist (6 per body) of states; held bodies and non-finite entries read as 0.
 void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* out) {
@@ -83,7 +87,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
   StepStats stats;
   stats.sweeps = solve_velocities(rows_, manifolds_, ctx.solver, iterations, params.converged,
-                                  &spins_);
+                                  &spins_, &plan_);
   stats.sweeps += hold_energy(ctx, iterations);
   stats.rows = static_cast<int64_t>(rows_.size());
   propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, params.shock_sweeps,
@@ -274,17 +278,19 @@ void StepSolver::prepare(StepContext& ctx) {
     const auto count = static_cast<int32_t>(rows_.size()) - first_row;
     if (count > 0) {
       Manifold& block = manifolds_.emplace_back();
-      block.a = static_cast<int32_t>(manifold[0]);
-      block.b = static_cast<int32_t>(manifold[1]);
+      block.a = rows_[first_row].a;   // (detection's manifold[0], [1])
+      block.b = rows_[first_row].b;
       block.first = first_row;
       block.count = count;
       prepare_block(block, &rows_[first_row]);
     }
   }
+  // a large solve in two halves that share no movable body, then what joins them
+  split(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
-  // not 0
+  // not 0 (in manifold order: the halves' spin rows are the halves of spins_)
   spins_.clear();
-  for (const Manifold& manifold : manifolds_) {
+  for (Manifold& manifold : manifolds_) {
     const ContactRow& r = rows_[manifold.first];
     const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
                                 p.friction_rule);
@@ -295,11 +301,10 @@ void StepSolver::prepare(StepContext& ctx) {
     if (r.ma > 0.0) lever = length(r.ra);
     if (r.mb > 0.0) lever = lever > 0.0 ? std::min(lever, length(r.rb)) : length(r.rb);
     if ((roll > 0.0 || twist > 0.0) && lever > 0.0) {
+      manifold.spin = static_cast<int32_t>(spins_.size());
       SpinRow& s = spins_.emplace_back();
       s.a = r.a;
       s.b = r.b;
-      s.first = manifold.first;
-      s.count = manifold.count;
       s.n = r.n;
       s.inv_a = inv_inertia_[r.a];
       s.inv_b = inv_inertia_[r.b];
@@ -309,7 +314,74 @@ void StepSolver::prepare(StepContext& ctx) {
       s.roll = roll * lever;
       s.twist = twist * lever;
     }
+    const size_t index = static_cast<size_t>(&manifold - manifolds_.data());
+    for (int half = 0; half < 2; ++half)
+      if (index < plan_.halves[half]) plan_.spin_halves[half] = spins_.size();
   }
+}
+
+void StepSolver::split(StepContext& ctx) {
+  const SolverParams& p = ctx.params;
+  const double* inv_mass = ctx.bodies.inv_mass;
+  const size_t count = manifolds_.size();
+  plan_ = SweepPlan();
+  plan_.halves[0] = plan_.halves[1] = count;
+  if (count < static_cast<size_t>(std::max(p.parallel_manifolds, 1))) return;
+  // the movable bodies of the manifolds, halved at their median along the axis of their
+  // largest extent (position, then index: one answer whatever the sort)
+  side_.assign(static_cast<size_t>(ctx.bodies.count), -1);
+  keyed_.clear();
+  Vec3 low = Vec3::Constant(kInfinity), high = Vec3::Constant(-kInfinity);
+  for (const Manifold& m : manifolds_)
+    for (const int32_t body : {m.a, m.b}) {
+      if (!(inv_mass[body] > 0.0) || side_[body] == 0) continue;
+      side_[body] = 0;
+      const Vec3 x = load3(ctx.current.position + 3 * body);
+      low = low.cwiseMin(x);
+      high = high.cwiseMax(x);
+      keyed_.emplace_back(0.0, body);
+    }
+  if (keyed_.size() < 2) return;
+  const Vec3 extent = high - low;
+  const int axis = extent.x() >= extent.y() ? (extent.x() >= extent.z() ? 0 : 2)
+                                            : (extent.y() >= extent.z() ? 1 : 2);
+  for (auto& [coordinate, body] : keyed_) {
+    const double x = ctx.current.position[3 * body + axis];
+    coordinate = std::isfinite(x) ? x : 0.0;
+  }
+  const auto middle = keyed_.begin() + static_cast<std::ptrdiff_t>(keyed_.size() / 2);
+  std::nth_element(keyed_.begin(), middle, keyed_.end());
+  const std::pair<double, int32_t> median = *middle;
+  for (const auto& key : keyed_) side_[key.second] = key < median ? 0 : 1;
+  // each manifold's class: the side of its movable bodies, or 2 when they lie on both
+  auto side_of = [&](const Manifold& m) {
+    const int sa = side_[m.a], sb = side_[m.b];   // -1: immovable
+    if (sa < 0) return sb;
+    if (sb < 0 || sa == sb) return sa;
+    return 2;
+  };
+  ordered_.clear();
+  size_t counts[3] = {0, 0, 0};
+  for (int cls = 0; cls < 3; ++cls)
+    for (const Manifold& m : manifolds_)
+      if (side_of(m) == cls) {
+        ordered_.push_back(m);
+        ++counts[cls];
+      }
+  manifolds_.swap(ordered_);
+  for (size_t index = 0; index < count; ++index) {
+    const Manifold& m = manifolds_[index];
+    for (int32_t i = m.first; i < m.first + m.count; ++i)
+      rows_[i].manifold = static_cast<int32_t>(index);
+  }
+  plan_.halves[0] = counts[0];
+  plan_.halves[1] = counts[0] + counts[1];
+  plan_.worker = p.threads >= 2 ? worker() : nullptr;
+}
+
+Worker* StepSolver::worker() {
+  if (!worker_) worker_ = std::make_unique<Worker>();
+  return worker_.get();
 }
 
 double StepSolver::warm(StepContext& ctx) {
@@ -442,7 +514,8 @@ void StepSolver::land(StepContext& ctx) {
   if (!any) return;
   // every row again, the landing ones without allowance: the velocities (not the poses,
   // which travel_ holds) leave the touching contacts at rest along their normals
-  solve_velocities(rows_, manifolds_, ctx.solver, p.velocity_iterations, p.converged, &spins_);
+  solve_velocities(rows_, manifolds_, ctx.solver, p.velocity_iterations, p.converged, &spins_,
+                   &plan_);
   for (size_t i = 0; i < rows_.size(); ++i) {
     ContactRow& r = rows_[i];
     r.landing = r.normal - landing_[i];     // reported, not warm started

@@ -74,6 +74,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <utility>
 #include <vector>
 
 #include "contact_cache.h"
@@ -167,6 +169,13 @@ class StepSolver {
                  ContactsOut& report);
 
   ContactCache& cache() { return cache_; }
+  // the last step's split of its velocity sweeps: the ends of the two halves and the
+  // number of manifolds (halves = (count, count): not split)
+  const SweepPlan& plan() const { return plan_; }
+  size_t manifold_count() const { return manifolds_.size(); }
+  // chunks of the sweeps' second halves run so far: by the second thread, in all
+  uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
+  uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
 
  private:
   void reference_frame(StepContext& ctx);
@@ -177,6 +186,11 @@ class StepSolver {
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
   void land(StepContext& ctx);
+  // manifolds_ in two halves that share no movable body, then the rest (plan_), when there
+  // are at least parallel_manifolds of them: the movable bodies halved at their median
+  // along the axis of their largest extent
+  void split(StepContext& ctx);
+  Worker* worker();   // the second thread, started at its first use
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
   void push_out(StepContext& ctx);
@@ -211,6 +225,11 @@ class StepSolver {
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
   std::vector<Manifold> retry_;      // manifolds of the islands solved again (hold_energy)
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
+  SweepPlan plan_;                   // the sweeps' halves (split)
+  std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
+  std::vector<int8_t> side_;         // (N,) split: half of each movable body, -1 immovable
+  std::vector<std::pair<double, int32_t>> keyed_;   // split: (position, body)
+  std::vector<Manifold> ordered_;    // split: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

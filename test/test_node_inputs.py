@@ -76,6 +76,45 @@ def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
         peer.close()
 
 
+def test_tf_is_taken_while_the_executor_never_spins(ros_domain, tmp_path):
+    """/tf and /tf_static are served by the input thread, as body_states is: with no executor
+    spinning, a /tf_static transform still poses the robot's root link."""
+    import yaml
+    from geometry_msgs.msg import TransformStamped
+    from test_robot import MESHES, arm_urdf
+    from tf2_msgs.msg import TFMessage
+
+    from collres_ros.ros import qos
+    scene = tmp_path / 'robot.yaml'
+    scene.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
+        'bodies': ['crate'], 'robot_description': arm_urdf(f'file://{MESHES}'),
+        'body': {'crate': {'shape': 'box', 'size': [0.03, 0.03, 0.03], 'mass': 0.5}}}}}))
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=ros_domain,
+               args=['collres_node', '--ros-args', '--params-file', str(scene)])
+    created = CollresNode(tmp_path, context=context)
+    created.start_inputs()
+    peer = Peer(ros_domain)
+    try:
+        static = peer.node.create_publisher(TFMessage, '/tf_static', qos.tf_static_qos())
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id = 'world', 'base_link'
+        t.header.stamp.sec = 5_000
+        t.transform.translation.x, t.transform.rotation.w = 1.0, 1.0
+        static.publish(TFMessage(transforms=[t]))
+
+        def posed() -> bool:
+            with created._lock:
+                found = created.tf_links.world_pose('base_link')
+            return found is not None and found[0][0] == pytest.approx(1.0)
+        assert peer.wait(posed, 20.0)
+    finally:
+        peer.close()
+        created.destroy_node()
+        rclpy.try_shutdown(context=context)
+        gc.unfreeze()
+
+
 def test_what_the_start_built_is_out_of_the_collectors_passes(node):
     """A full collection walks only what the steps left: the node, its resolver and its
     codecs are frozen (gc.freeze) once it is configured."""
@@ -83,3 +122,72 @@ def test_what_the_start_built_is_out_of_the_collectors_passes(node):
     for kept in (node, node.resolver, node.states_codec, node.encoder, node.scene):
         assert not any(o is kept for o in tracked), type(kept).__name__
     assert gc.get_freeze_count() > 0
+
+
+def test_what_a_cleanup_releases_is_freed(node):
+    """A managed node's cleanup (release_resolution) unfreezes what its configure froze: an
+    object it drops is freed by the collector even in a reference cycle (a frozen cycle is
+    never collected: refcounts alone free the resolver today, a cycle in it would keep it
+    for good), and a configure after it freezes the new objects."""
+    import weakref
+    dropped = weakref.ref(node.resolver)
+    node.resolver.world.owner = node.resolver   # a cycle: resolver -> world -> resolver
+    node.release_resolution()
+    gc.collect()
+    assert dropped() is None
+    node.configure_resolution()
+    assert gc.get_freeze_count() > 0 and node.resolver is not None
+
+
+def test_steps_answered_while_a_newer_input_waits_skip_their_other_outputs(node, ros_domain):
+    """Behind (a newer body_states input waits when a step is answered), the node answers
+    every input but skips the outputs that are not the answer (contacts here), counting
+    those steps in /diagnostics (``outputs_skipped_behind``): ten inputs queued while the
+    node is busy get ten answers and one contacts message, the last step's."""
+    from rclpy.duration import Duration
+
+    from collres_ros.msg import ContactArray
+    peer = Peer(ros_domain)
+    try:
+        peer.listen('body_states/corrected', BodyStateArray)
+        peer.listen('contacts', ContactArray)
+        peer.advertise('body_states', BodyStateArray)
+        assert peer.wait(lambda: peer.connected('body_states') and node._publisher(
+            'contacts', ContactArray).get_subscription_count() > 0, 30.0)
+        stamps = [T0 + k * DT for k in range(10)]
+        with node._lock:   # busy: the inputs queue up (keep last 10: all of them)
+            for stamp in stamps:
+                peer.publish('body_states', at_rest(stamp))
+            assert peer.publishers['body_states'].wait_for_all_acked(Duration(seconds=20))
+        assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
+                                  peer.messages('body_states/corrected')} >= set(stamps), 20.0)
+        assert peer.wait(lambda: len(peer.messages('contacts')) >= 1, 20.0)
+        with node._lock:
+            assert node.skipped_behind == 9
+            assert node.snapshot().extra['outputs_skipped_behind'] == 9
+        assert [stamp_ns(m.header.stamp) for m in peer.messages('contacts')] == stamps[-1:]
+    finally:
+        peer.close()
+
+
+def test_the_node_sends_through_a_large_shared_memory_segment_unless_told_otherwise(
+        tmp_path, monkeypatch):
+    """A step's outputs outgrow Fast DDS's 512 KB shared-memory segment from a few hundred
+    bodies in contact on: the node's process takes the shipped profile (a 16 MB segment,
+    Fast DDS's two transports) unless the rmw is another or the user configured Fast DDS."""
+    import xml.etree.ElementTree as ElementTree
+
+    from collres_ros.ros.node import FASTDDS_SETTINGS, large_outputs_profile
+    monkeypatch.chdir(tmp_path)
+    environ: dict[str, str] = {}
+    path = large_outputs_profile(environ)
+    assert path is not None and environ == {'FASTRTPS_DEFAULT_PROFILES_FILE': path}
+    space = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
+    shm = [d for d in ElementTree.parse(path).getroot().iter(f'{space}transport_descriptor')
+           if d.findtext(f'{space}type') == 'SHM']
+    assert [int(d.findtext(f'{space}segment_size')) for d in shm] == [16 * 2**20]
+    for setting in FASTDDS_SETTINGS:
+        assert large_outputs_profile({setting: 'mine.xml'}) is None
+    assert large_outputs_profile({'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}) is None
+    (tmp_path / 'DEFAULT_FASTRTPS_PROFILES.xml').write_text('<profiles/>')
+    assert large_outputs_profile({}) is None

@@ -131,3 +131,28 @@ def _array(z: float) -> BodyStateArray:
     state.pose.orientation.w = 1.0
     msg.bodies = [state]
     return msg
+
+
+def test_diagnostics_bytes_are_what_rclpy_serialises():
+    """/diagnostics is encoded with the codec (no rclpy objects): the bytes decode, through
+    rclpy, to the message ``diagnostics_array`` builds, unicode, an empty name list and a
+    status with a window included; rclpy serialises that message to as many bytes (its
+    padding bytes are uninitialised, so only the decoded messages are compared)."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message, serialize_message
+
+    from collres_ros.ros.diagnostics import diagnostics_array, diagnostics_bytes
+    from collres_ros.ros.health import Health
+    health = Health()
+    health.update(1.0, {'steps': 3, 'inputs': 4, 'unknown_body': 1}, 0.5)
+    for snapshot in (
+            messages.DiagnosticsSnapshot(stamp_ns=5 * 10**9 + 7, steps=3, counts={}),
+            messages.DiagnosticsSnapshot(
+                stamp_ns=12_345_678_901, steps=3, rate_hz=99.5, contacts=2,
+                counts={'unknown_body': 1}, stale=['bäll', 'box'],
+                status=health.status(1.0, 5.0, 0.0, ['box'], '', '', 'box'),
+                name='/r1/collres_node: resolver', extra={'bodies': 3, 'note': 'ü'})):
+        data = diagnostics_bytes(snapshot)
+        built = diagnostics_array(snapshot)
+        assert deserialize_message(data, DiagnosticArray) == built
+        assert len(serialize_message(built)) == len(data)

@@ -81,3 +81,20 @@ def test_a_driven_link_has_the_twist_of_its_last_two_poses() -> None:
     assert with_links(batch, links.inputs()) is batch
     joined = with_links(InputBatch(['box'], np.ones((1, 13)), 'world'), links.inputs())
     assert joined.names == ['box', 'arm'] and list(joined.frame_id) == ['world', '']
+
+
+def test_a_parent_transform_that_comes_after_its_child_moves_the_child() -> None:
+    """/tf and /tf_static have no order between them: the arm's transform in its base comes
+    first (the base then sits where the scene puts it, at the origin), the base's in the world
+    1 m along x comes next with the same stamp. The arm follows the base at once (its pose is
+    what the chain gives now, not the first one given at that stamp), and no twist is made
+    up from the change."""
+    links = TfLinks(['base', 'arm'], ['base', 'arm'], 'world',
+                    lambda name: np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]))
+    links.take([Transform(10**9, 'base', 'arm', _pose((0, 0, 0.3), 0.0))])
+    assert links.inputs().values[0, :3] == pytest.approx([0, 0, 0.3])
+    links.take([Transform(10**9, 'world', 'base', _pose((1, 0, 0), 0.0))])
+    got = links.inputs()
+    assert got.names == ['base', 'arm']
+    assert got.values[1, :3] == pytest.approx([1, 0, 0.3])
+    assert not got.values[:, 7:].any()

@@ -215,6 +215,20 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               'Most sequential-impulse sweeps of one impact stage\'s compression', 1, 10000,
               reason='a stage is solved to convergence (impact_converged) so that its '
                      'restitution is the simultaneous answer; few contacts take part'),
+    ParamSpec('threads', 'integer', 2,
+              'Threads of the velocity sweeps: with 2, the two halves of a split solve '
+              '(parallel_manifolds) run at once; the answer is the same bits with 1 or 2',
+              1, 2,
+              reason='the second core halves the sweeps of a large pile; a core busy with '
+                     'another process costs nothing (its half is run by the caller when the '
+                     'worker has not begun it)'),
+    ParamSpec('parallel_manifolds', 'integer', 256,
+              'A solve of at least this many manifolds is split in two halves that share no '
+              'movable body (the bodies halved at their median along their largest extent) '
+              'and the manifolds joining them, solved in that order; smaller solves keep '
+              'detection\'s order', 1, 10**9,
+              reason='below a few hundred manifolds a sweep is too short for a second thread '
+                     'to pay for its hand-over'),
     ParamSpec('impact_converged', 'double', 1e-10,
               'A stage\'s compression ends when a sweep changes no impulse by more than '
               'this times the largest', 0.0, 1.0,

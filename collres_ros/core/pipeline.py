@@ -194,9 +194,11 @@ class Resolver:
         # 1. validate: refused inputs are reported, their bodies held
         checked = check_inputs(inputs, self._lookup, self.world_frame)
         rejected = list(checked.rejected)
-        history = check_stamps(self.last_stamp[checked.index], stamp_ns,
+        # rows: the scene rows of the inputs, a slice when they are consecutive (block copies)
+        index, rows = checked.index, checked.rows
+        history = check_stamps(self.last_stamp[rows], stamp_ns,
                                int(settings.max_dt * 1e9), self.previous_step_ns)
-        index, fresh = checked.index, history.fresh
+        fresh = history.fresh
         entered = [checked.position, checked.orientation, checked.linear, checked.angular]
         twist_in_body = checked.twist_in_body
         resets: list[Rejection] = []
@@ -209,12 +211,12 @@ class Resolver:
             use = ~history.repeated
             if not use.all():
                 index, fresh, entered = index[use], fresh[use], [a[use] for a in entered]
-                twist_in_body = twist_in_body[use]
+                twist_in_body, rows = twist_in_body[use], index
 
         # 2. previous and current states of all N bodies
         current = self.state.copy()
         for target, values in zip(_arrays(current), entered):
-            target[index] = values
+            target[rows] = values
         previous = self.state.copy()
         if fresh.any():   # previous = current: nothing moved before a fresh start
             restart = index[fresh]
@@ -222,7 +224,7 @@ class Resolver:
                 target[restart] = source[restart]
             self.world.forget(restart)
         active = ~self.dynamic
-        active[index] = True
+        active[rows] = True
         step_ns = stamp_ns - self.previous_step_ns
         usable = (self.previous_step_ns != NO_STAMP and 0 < step_ns
                   and step_ns <= settings.max_dt * 1e9 and not fresh.all())
@@ -251,13 +253,13 @@ class Resolver:
         rejected += [r for r in result.rejected if r.reason != 'non_finite_result']
 
         # 4. keep the corrected states as the history of the next step
-        good, held = (index[~bad], index[bad]) if bad.any() else (index, None)
+        good, held = (index[~bad], index[bad]) if bad.any() else (rows, None)
         for kept, corrected, entered_now in zip(_arrays(self.state), _arrays(out),
                                                 _arrays(current)):
             kept[good] = corrected[good]
             if held is not None:
                 kept[held] = entered_now[held]
-        self.last_stamp[index] = stamp_ns
+        self.last_stamp[rows] = stamp_ns
         self.previous_step_ns = stamp_ns
 
         # 5. report
@@ -274,8 +276,8 @@ class Resolver:
             self.totals['contact_budget'] += 1   # steps over the budget
         if rejected or resets:
             self.totals.update(r.reason for r in rejected + resets)
-        names = self._name_array[index].tolist()
-        states = BodyStates(*(a[index] for a in _arrays(self.state)))   # copies
+        names = self._name_array[rows].tolist()
+        states = BodyStates(*(a[rows].copy() for a in _arrays(self.state)))
         return ResolvedStep(stamp_ns, names, index, states, twist_in_body,
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)] if stale.any()
@@ -283,7 +285,7 @@ class Resolver:
                             time.perf_counter() - start, world_time, world_cpu,
                             np.concatenate([self.state.position, self.state.orientation], 1),
                             budget, np.zeros(len(index), bool) if result.sleeping is None
-                            else result.sleeping[index] & ~bad)
+                            else result.sleeping[rows] & ~bad)
 
     def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
         resets = []

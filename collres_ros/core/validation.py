@@ -74,6 +74,14 @@ class CheckedInputs:
     angular: np.ndarray        # (K, 3) rad/s, world frame
     twist_in_body: np.ndarray  # (K,) bool: the twist came (and goes back) in the body frame
     rejected: list[Rejection] = field(default_factory=list)
+    # the scene rows of the K inputs as ``index``, or as the slice ``index`` is (the inputs
+    # are a run of consecutive scene bodies in scene order): scatters and gathers by it
+    # then move blocks instead of indexed rows
+    rows: np.ndarray | slice | None = None
+
+    def __post_init__(self) -> None:
+        if self.rows is None:
+            self.rows = self.index
 
 
 def _per_body(frames: str | Sequence[str], count: int) -> list[str]:
@@ -92,6 +100,8 @@ class NameIndex:
         self._names: tuple[str, ...] | None = None
         self._answer: tuple[np.ndarray, Counter[str] | None] = (np.zeros(0, np.int64), None)
         self.plain = False   # the last list looked up: every name known, none repeated
+        # the last list's index as a slice, when it is consecutive scene rows in order
+        self.span: slice | None = None
 
     def lookup(self, names: Sequence[str]) -> tuple[np.ndarray, Counter[str] | None]:
         """(K,) index of each name (-1: unknown; read-only) and the repeated names' counts
@@ -103,6 +113,9 @@ class NameIndex:
             repeats = Counter(key) if len(set(key)) < len(key) else None
             self._names, self._answer = key, (index, repeats)
             self.plain = repeats is None and bool((index >= 0).all())
+            run = len(index) > 0 and self.plain and bool(
+                (index == np.arange(index[0], index[0] + len(index))).all())
+            self.span = slice(int(index[0]), int(index[0]) + len(index)) if run else None
         return self._answer
 
 
@@ -133,7 +146,8 @@ def check_inputs(inputs: Sequence[BodyInput] | InputBatch,
         norm = np.sqrt(np.add.reduce(quaternion * quaternion, axis=1))   # np.linalg.norm's
         if (np.abs(norm - 1.0) <= min(quaternion_tolerance, 0.5)).all():
             return CheckedInputs(np.array(index), numbers[:, 0:3], quaternion / norm[:, None],
-                                 numbers[:, 7:10], numbers[:, 10:13], np.zeros(count, bool))
+                                 numbers[:, 7:10], numbers[:, 10:13], np.zeros(count, bool),
+                                 [], lookup.span)
     duplicate = np.array([repeats[n] > 1 for n in names], bool) if repeats \
         else np.zeros(count, bool)
     if isinstance(batch.frame_id, str):

@@ -268,6 +268,7 @@ class _Layout:
     check: np.ndarray        # positions that must equal the template (not options, stamp,
     #                          floats, padding, flags)
     legacy: bool             # bodies without the ``sleeping`` field (written before it existed)
+    expected: np.ndarray     # template[check]: what a message of this layout has there
 
 
 def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) -> _Layout:
@@ -297,8 +298,9 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
     keep[float_bytes.reshape(-1)] = False
     flag_bytes = np.array(flags, np.int64)
     keep[flag_bytes] = False
-    return _Layout(frame_id, list(names), size, template, rows, flag_bytes,
-                   np.flatnonzero(keep), legacy)
+    check = np.flatnonzero(keep)
+    return _Layout(frame_id, list(names), size, template, rows, flag_bytes, check, legacy,
+                   template[check])
 
 
 def _doubles(buffer: Any) -> np.ndarray:
@@ -317,6 +319,7 @@ class StatesCodec:
         self.max_bodies = max_bodies
         self._by_names: dict[tuple[str, tuple[str, ...]], _Layout] = {}
         self._by_size: dict[int, list[_Layout]] = {}
+        self._last: Optional[tuple[str, list[str], _Layout]] = None   # the last encode's
 
     def _remember(self, layout: _Layout) -> _Layout:
         if len(self._by_names) >= _LAYOUT_CACHE or len(self._by_size) >= _LAYOUT_CACHE:
@@ -331,9 +334,16 @@ class StatesCodec:
 
     def layout(self, frame_id: str, names: Sequence[str]) -> _Layout:
         """The layout of a BodyStateArray with these names (cached)."""
+        last = self._last   # a stream encodes the same list every step: one comparison
+        if last is not None and last[0] == frame_id and isinstance(names, list) \
+                and last[1] == names:
+            return last[2]
         key = (frame_id, tuple(names))
         found = self._by_names.get(key)
-        return found if found is not None else self._remember(_states_layout(frame_id, names))
+        if found is None:
+            found = self._remember(_states_layout(frame_id, names))
+        self._last = (frame_id, list(names), found)
+        return found
 
     # encode
 
@@ -343,7 +353,7 @@ class StatesCodec:
         ``sleeping`` (K,) bool flags (default: none sleeps)."""
         layout = self.layout(frame_id, names)
         buf = layout.template.copy()
-        buf[4:12] = np.frombuffer(_STAMP.pack(*stamp_parts(stamp_ns)), np.uint8)
+        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_ns))
         if len(names):
             _doubles(buf)[layout.rows] = np.asarray(values, float).reshape(-1, STATE_DOUBLES)
             if sleeping is not None:
@@ -359,8 +369,7 @@ class StatesCodec:
         raw = np.frombuffer(data, np.uint8)
         for size in range(len(data), len(data) - 4, -1) if len(data) % 4 == 0 else (len(data),):
             for layout in self._by_size.get(size, ()):
-                if np.array_equal(raw[layout.check], layout.template[layout.check]) \
-                        and padded_to(data, size):
+                if (raw[layout.check] == layout.expected).all() and padded_to(data, size):
                     return self._decoded(stamp, layout, data, raw)
         frame_id = reader.string()
         count = reader.u32()
@@ -415,8 +424,7 @@ def _parse_bodies(reader: Reader, frame_id: str, count: int, raw: np.ndarray,
     if not padded_to(reader.data, reader.pos):
         raise reader.fail(f'{len(reader.data) - reader.pos} bytes after the last body')
     layout = _states_layout(frame_id, names, legacy)
-    if layout.size != reader.pos or not np.array_equal(raw[layout.check],
-                                                       layout.template[layout.check]):
+    if layout.size != reader.pos or not np.array_equal(raw[layout.check], layout.expected):
         raise reader.fail('layout does not match the names')
     return layout
 

@@ -2,10 +2,11 @@
 
 ``DiagnosticsSnapshot`` holds the figures of one report (the node fills it from
 its counters, ``OfflineDiagnostics`` from a replay's steps on the stamps'
-clock); ``diagnostics_array`` builds the message. The level and message come
-from ``health.Health``: a recent window (5 reports) that returns to OK when a
-fault is over, with ERROR and STALE where they apply; the totals since start
-stay in the values (``count.<reason>``, ``steps``, ``inputs_received``, ...).
+clock); ``diagnostics_bytes`` builds the message (``diagnostics_array``: the same as an
+rclpy message). The level and message come from ``health.Health``: a recent window (5
+reports) that returns to OK when a fault is over, with ERROR and STALE where they apply;
+the totals since start stay in the values (``count.<reason>``, ``steps``,
+``inputs_received``, ...).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from collres_ros.ros.health import LEVEL_NAMES, Health, Status
 from collres_ros.ros.stamps import seconds_ns, to_stamp
 
 STATUS_TASK = 'resolver'
+HARDWARE_ID = 'collres_ros'
 
 
 def status_name(node_name: str) -> str:
@@ -62,10 +64,9 @@ def _level_and_message(snapshot: DiagnosticsSnapshot) -> tuple[int, str]:
     return level, message
 
 
-def diagnostics_array(snapshot: DiagnosticsSnapshot) -> Any:
-    """One DiagnosticStatus: the window's level and message, the totals as values."""
-    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-    from std_msgs.msg import Header
+def _status(snapshot: DiagnosticsSnapshot) -> tuple[int, str, dict[str, str]]:
+    """(level, message, values) of the one DiagnosticStatus: the window's level and
+    message, the totals as values."""
     level, message = _level_and_message(snapshot)
     recent = snapshot.status.recent if snapshot.status is not None else {}
     values = {
@@ -78,9 +79,38 @@ def diagnostics_array(snapshot: DiagnosticsSnapshot) -> Any:
         **{f'count.{k}': v for k, v in sorted(snapshot.counts.items())},
         **{f'window.{k}': v for k, v in sorted(recent.items())},
         **snapshot.extra}
+    return level, message, {k: str(v) for k, v in values.items()}
+
+
+def diagnostics_bytes(snapshot: DiagnosticsSnapshot) -> bytes:
+    """The DiagnosticArray of ``snapshot`` as CDR bytes (``codec``'s rules; what rclpy
+    serialises ``diagnostics_array`` to, built without rclpy message objects)."""
+    from collres_ros.ros.codec import Writer, string_bytes
+    level, message, values = _status(snapshot)
+    w = Writer()
+    w.header(snapshot.stamp_ns, '')
+    w.u32(1)
+    w.u8(level)
+    for text in (snapshot.name, message, HARDWARE_ID):
+        w.string(text)
+    w.u32(len(values))
+    parts, offset = [bytes(w.buf)], w.offset
+    for text in (t for pair in values.items() for t in pair):   # key, value, key, ...
+        pad = -offset % 4   # each string's length is a uint32, on 4
+        data = string_bytes(text)
+        parts.append(b'\x00' * pad + data)
+        offset += pad + len(data)
+    return b''.join(parts)
+
+
+def diagnostics_array(snapshot: DiagnosticsSnapshot) -> Any:
+    """``diagnostics_bytes`` as an rclpy DiagnosticArray (for tests and Python users)."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from std_msgs.msg import Header
+    level, message, values = _status(snapshot)
     status = DiagnosticStatus(level=bytes([level]), name=snapshot.name, message=message,
-                              hardware_id='collres_ros',
-                              values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+                              hardware_id=HARDWARE_ID,
+                              values=[KeyValue(key=k, value=v) for k, v in values.items()])
     return DiagnosticArray(header=Header(stamp=to_stamp(snapshot.stamp_ns)), status=[status])
 
 

@@ -21,7 +21,7 @@ from typing import Any, Container, Mapping, Optional, Sequence
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
 
 from collres_ros.core.pipeline import ResolvedStep
 from collres_ros.core.rotation import to_matrix
@@ -30,7 +30,8 @@ from collres_ros.core.types import BodyInput, BodySpec, BodyStates, InputBatch
 from collres_ros.core.wrench import contact_wrenches
 from collres_ros.msg import BodyStateArray
 from collres_ros.ros import codec
-from collres_ros.ros.diagnostics import DiagnosticsSnapshot, diagnostics_array
+from collres_ros.ros.diagnostics import (DiagnosticsSnapshot, diagnostics_array,
+                                         diagnostics_bytes)
 from collres_ros.ros.markers import contact_marker_specs
 from collres_ros.ros.names import (  # noqa: F401 (the topic names, re-exported)
     BODY_MARKERS, CONTACTS, CORRECTED_STATES, DIAGNOSTICS, MARKERS, STATES, TF, pose_topic,
@@ -279,7 +280,7 @@ class OutputEncoder:
             out.append((TF, TYPES[TF], self.tf(step)))
         if diagnostics is not None:
             out.append((DIAGNOSTICS, TYPES[DIAGNOSTICS],
-                        bytes(serialize_message(diagnostics_array(diagnostics)))))
+                        diagnostics_bytes(diagnostics)))
         return out
 
 

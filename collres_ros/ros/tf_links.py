@@ -97,6 +97,8 @@ class TfLinks:
             if not history or stamp != history[-1][1]:
                 history.append((pose, stamp))
                 del history[:-2]
+            else:   # the chain changed without a newer stamp (a parent's transform came
+                history[-1] = (pose, stamp)   # after its child's): the pose it gives now
             twist = np.zeros(6)
             if len(history) == 2 and history[1][1] > history[0][1]:
                 (p0, s0), (p1, s1) = history

@@ -14,10 +14,10 @@ wake it):
   filter change, a body reset or removed, and a clock jump.
 
 And a pile of 100 cubes dropped into a bin (``bench/pile.py``: columns of 6-7 cubes whose
-face contacts each hold 4 points) falls asleep within 3 s at 30, 120 and 240 Hz: the
-position pass's split impulses push each contact out in one sweep, where sweeps to
-convergence moved and tilted whole columns at once, which fed a sway (the top cubes at
-0.15 m/s) that never let the pile sleep.
+face contacts each hold 4 points) falls asleep within 5 s at 30, 120 and 240 Hz: the
+position pass's split impulses push each contact out in one sweep, 0.4 of the penetration
+a step, where 4 sweeps removing half of it moved and tilted whole columns at once, which
+fed a sway (the top cubes at 0.15 m/s) that never let the pile sleep.
 """
 
 from __future__ import annotations
@@ -285,7 +285,7 @@ def test_a_pile_of_cubes_falls_asleep(rate: float) -> None:
     bodies, initial = make_pile(100, kind='cubes')
     sim = Simulation(bodies, initial, rate)
     dynamic = sim.world.dynamic
-    for k in range(int(3.0 * rate)):
+    for k in range(int(5.0 * rate)):
         result = sim.step()
         if result.sleeping[dynamic].all():
             print(f'{rate:g} Hz: asleep after {(k + 1) / rate:.2f} s')
@@ -293,4 +293,4 @@ def test_a_pile_of_cubes_falls_asleep(rate: float) -> None:
     reach = 0.5 * np.linalg.norm([0.1] * 3)
     speed = np.linalg.norm(sim.state.linear, axis=1) + np.linalg.norm(sim.state.angular,
                                                                       axis=1) * reach
-    raise AssertionError(f'{rate:g} Hz: awake after 3 s, fastest point {speed.max():.3f} m/s')
+    raise AssertionError(f'{rate:g} Hz: awake after 5 s, fastest point {speed.max():.3f} m/s')

@@ -59,7 +59,7 @@ struct SolverParams {
   double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
   double linear_slop = 0.0001;          // m: penetration left alone by the position pass
-  double position_correction = 0.5;     // fraction of the penetration beyond the slop removed
+  double position_correction = 0.4;     // fraction of the penetration beyond the slop removed
   double max_correction = 0.2;          // m: largest push-out per step
   double converged = 1e-6;              // a sweep changing every impulse by less than this
                                         // times the largest normal impulse ends iterating

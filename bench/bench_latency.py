@@ -589,7 +589,7 @@ def main(argv: list[str] | None = None) -> int:
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
           'dropped: paced steps without an answer (behind: steps the node answered while a newer '
-          'input waited, their other outputs skipped, since its start); '
+          'input waited, their markers skipped, since its start); '
           'latency: publish to body_states/corrected received (it includes send: the '
           "publisher's own time to hand a step over, 2 x bodies messages in per_body mode); "
           'start: process start to its '

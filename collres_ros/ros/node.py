@@ -216,7 +216,7 @@ class CollresNode(Node):
         self.last_step: Optional[ResolvedStep] = None
         self.health = Health()
         self._served = 0                 # bodies served, all steps
-        self.skipped_behind = 0          # steps answered without their other outputs (behind)
+        self.skipped_behind = 0          # steps answered without their markers (behind)
         self._parts_since_step = 0       # per-body inputs since the last per-body step
         self._last_part_step = time.monotonic()
         self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)

@@ -2,6 +2,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -63,6 +64,14 @@ collres::StepPoses poses_of(const collres::Detector& detector, const py::array& 
 }  // namespace
 
 void bind_detection(py::module_& m) {
+  // before any query of this process's core: coal's box support fixes its inflate factor on
+  // its first call (shapes.h); one that is not 1 was fixed by an earlier coal query
+  const std::array<double, 2> inflate = collres::pin_box_support();
+  if (inflate[0] != 1.0 || inflate[1] != 1.0) {
+    throw py::import_error("coal's box support was first called before collres_ros.core was "
+                           "imported and now inflates boxes (contacts would depend on that "
+                           "query): import collres_ros.core before any coal query");
+  }
   m.attr("REUSE_TRANSLATION") = collres::kReuseTranslation;
   m.attr("REUSE_ROTATION") = collres::kReuseRotation;
   m.attr("HULL_FLATNESS") = collres::kHullFlatness;

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include <coal/narrowphase/support_functions.h>
 #include <coal/shape/geometric_shapes.h>
 
 namespace collres {
@@ -319,6 +320,18 @@ void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,
   const Vec3 reach = shape.rotation.cwiseAbs() * (0.5 * (hi - lo));
   shape.local_lo = centre - reach;
   shape.local_hi = centre + reach;
+}
+
+std::array<double, 2> pin_box_support() {
+  const coal::Box unit(2.0, 2.0, 2.0);   // half sides 1
+  const coal::Vec3s down(-1.0, -1.0, -1.0);
+  coal::details::ShapeSupportData data;
+  coal::Vec3s no_sweep, with_sweep;
+  int hint = 0;
+  coal::details::getShapeSupport<coal::details::NoSweptSphere>(&unit, down, no_sweep, hint, data);
+  coal::details::getShapeSupport<coal::details::WithSweptSphere>(&unit, down, with_sweep, hint,
+                                                                 data);
+  return {-no_sweep.minCoeff(), -with_sweep.minCoeff()};
 }
 
 }  // namespace collres

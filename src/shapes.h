@@ -130,4 +130,17 @@ void mark_active_edges(std::vector<BodyShape>& shapes);
 void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,
                  const Quat& orientation);
 
+// coal 3's box support function (getShapeSupport of a Box) keeps a function-local
+// `static const inflate`, set once per process (one per SupportOptions) by the direction of
+// its first call: 1 + 1e-10 when that direction has a zero component, else 1; every later
+// support point of every box (GJK, EPA, contact patches) pushes the box's faces that the
+// direction does not point at outwards by that factor. So one process's contacts depended on
+// which box query it ran first (a box on a plane asks along an axis: 1e-11 m of separation,
+// then other patch points and feature ids). pin_box_support makes those first calls
+// itself, along a direction free of zeros (inflate 1: the exact box), and returns the
+// factors then in force, [NoSweptSphere, WithSweptSphere], read back from support points
+// along -x-y-z (-inflate times the half sides). The module calls it at import, before any
+// query; a factor other than 1 says a coal query of a box ran earlier in the process.
+std::array<double, 2> pin_box_support();
+
 }  // namespace collres

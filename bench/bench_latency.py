@@ -471,12 +471,13 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
     latencies = [(listener.arrived[s] - t) / 1e6 for s, t in sent.items()
                  if s in listener.arrived]
     warm = latencies[len(latencies) // 10:] or latencies
-    asleep = listener.diagnostics[-1][1].get('sleeping_bodies', '-') \
-        if listener.diagnostics else '-'
+    last = listener.diagnostics[-1][1] if listener.diagnostics else {}
+    asleep = last.get('sleeping_bodies', '-')
+    behind = last.get('outputs_skipped_behind', '-')
     return {'server': server, 'mode': mode, 'bodies': count, 'rate': rate,
             'sleeping': sleeping if server == 'node' else '-', 'asleep': asleep,
             'startup_s': startup, 'lockstep': result['lockstep'], 'sent': len(sent),
-            'answered': len(latencies), 'dropped': len(sent) - len(latencies),
+            'answered': len(latencies), 'dropped': len(sent) - len(latencies), 'behind': behind,
             'p50': float(np.percentile(warm, 50)) if warm else float('nan'),
             'p99': float(np.percentile(warm, 99)) if warm else float('nan'),
             'send_ms': result.get('send_ms', [float('nan')] * 2),
@@ -567,7 +568,8 @@ def main(argv: list[str] | None = None) -> int:
         return echo(args)
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
     print('| bodies | server | mode | sleeping (asleep) | start s | lock-step Hz | '
-          'lock-step p50 ms | paced Hz | sent | send p50 / p99 ms | dropped | p50 ms | p99 ms | '
+          'lock-step p50 ms | paced Hz | sent | send p50 / p99 ms | dropped (behind) | p50 ms | '
+          'p99 ms | '
           'callback ms | '
           'decode | resolve | World.step wall / CPU (in-process wall / CPU) | answer ms | '
           'encode | publish | overhead ms |')
@@ -586,6 +588,8 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(r)
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
+          'dropped: paced steps without an answer (behind: steps the node answered while a newer '
+          'input waited, their markers skipped, since its start); '
           'latency: publish to body_states/corrected received (it includes send: the '
           "publisher's own time to hand a step over, 2 x bodies messages in per_body mode); "
           'start: process start to its '
@@ -606,7 +610,8 @@ def _print_row(r: dict[str, Any]) -> None:
     print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["sleeping"]} ({r["asleep"]}) | '
           f'{r["startup_s"]:.2f} | '
           f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
-          f'{r["sent"]} | {r["send_ms"][0]:.2f} / {r["send_ms"][1]:.2f} | {r["dropped"]} | '
+          f'{r["sent"]} | {r["send_ms"][0]:.2f} / {r["send_ms"][1]:.2f} | {r["dropped"]} '
+          f'({r["behind"]}) | '
           f'{r["p50"]:.2f} | {r["p99"]:.2f} | '
           f'{_f(t, "callback_time_mean_ms")} | {_f(t, "time.decode_ms")} | '
           f'{_f(t, "time.resolve_ms")} | {_f(t, "time.world_ms")} / '

@@ -30,6 +30,7 @@ from collres_ros.ros import cli
 from collres_ros.ros.analysis import RunReport, analyse, plot
 
 DEMO_DURATION = 2.5  # s of simulated time by default: four bounces of the default ball
+RECORDER_CATCH_UP_S = 20.0   # s: longest wait for the recorder's last messages after the sim
 OUTPUT_TOPICS = ('/body_states/corrected', '/contacts', '/contact_markers', '/diagnostics')
 
 
@@ -159,7 +160,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
                 raise DemoError(f'collres_sim did not finish within {timeout} s '
                                 f'(log: {logs["sim"]})')
             # the last inputs and answers may still be in flight to the recorder (the node
-            # answered them, the recorder's copy can come later)
+            # answered them, the recorder's copy can come later: on a loaded machine its one
+            # Python executor, taking every per-body topic, lags seconds behind the sim)
 
             def steps_topic(topic: str) -> bool:
                 return topic in ('/body_states', '/body_states/corrected') or (
@@ -168,7 +170,7 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
             processes.wait_for(lambda: all(
                 count >= expected_steps for topic, count in list(recorder.counts.items())
                 if steps_topic(topic)) and recorded('/body_states/corrected') >= expected_steps,
-                2.0)
+                RECORDER_CATCH_UP_S)
             if progress:
                 print(f'\rdemo: step {recorded("/body_states/corrected")}/{expected_steps}',
                       file=sys.stderr)

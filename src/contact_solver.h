@@ -52,14 +52,14 @@ struct SolverParams {
   int impact_stages = 64;               // most impact stages per step (resolve_impacts)
   int impact_sweeps = 100;              // most sweeps per impact stage
   double impact_converged = 1e-10;      // relative impulse change that ends an impact stage
-  int position_iterations = 4;          // split-impulse sweeps
+  int position_iterations = 1;          // split-impulse sweeps
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double shock_ratio = 4.0;             // ... only under a body this many times heavier
   double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack
   double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
   double linear_slop = 0.0001;          // m: penetration left alone by the position pass
-  double position_correction = 0.5;     // fraction of the penetration beyond the slop removed
+  double position_correction = 0.4;     // fraction of the penetration beyond the slop removed
   double max_correction = 0.2;          // m: largest push-out per step
   double converged = 1e-6;              // a sweep changing every impulse by less than this
                                         // times the largest normal impulse ends iterating

@@ -139,21 +139,25 @@ def test_what_a_cleanup_releases_is_freed(node):
     assert gc.get_freeze_count() > 0 and node.resolver is not None
 
 
-def test_steps_answered_while_a_newer_input_waits_skip_their_other_outputs(node, ros_domain):
+def test_steps_answered_while_a_newer_input_waits_skip_only_their_markers(node, ros_domain):
     """Behind (a newer body_states input waits when a step is answered), the node answers
-    every input but skips the outputs that are not the answer (contacts here), counting
-    those steps in /diagnostics (``outputs_skipped_behind``): ten inputs queued while the
-    node is busy get ten answers and one contacts message, the last step's."""
+    every input and publishes every step's contacts (an impact is an event a user must not
+    lose) but skips its markers, counting those steps in /diagnostics
+    (``outputs_skipped_behind``): ten inputs queued while the node is busy get ten answers,
+    ten contacts messages and one contact_markers message, the last step's."""
     from rclpy.duration import Duration
 
     from collres_ros.msg import ContactArray
+    from visualization_msgs.msg import MarkerArray
     peer = Peer(ros_domain)
     try:
         peer.listen('body_states/corrected', BodyStateArray)
         peer.listen('contacts', ContactArray)
+        peer.listen('contact_markers', MarkerArray)
         peer.advertise('body_states', BodyStateArray)
         assert peer.wait(lambda: peer.connected('body_states') and node._publisher(
-            'contacts', ContactArray).get_subscription_count() > 0, 30.0)
+            'contacts', ContactArray).get_subscription_count() > 0 and node._publisher(
+            'contact_markers', MarkerArray).get_subscription_count() > 0, 30.0)
         stamps = [T0 + k * DT for k in range(10)]
         with node._lock:   # busy: the inputs queue up (keep last 10: all of them)
             for stamp in stamps:
@@ -161,11 +165,15 @@ def test_steps_answered_while_a_newer_input_waits_skip_their_other_outputs(node,
             assert peer.publishers['body_states'].wait_for_all_acked(Duration(seconds=20))
         assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
                                   peer.messages('body_states/corrected')} >= set(stamps), 20.0)
-        assert peer.wait(lambda: len(peer.messages('contacts')) >= 1, 20.0)
+        assert peer.wait(lambda: len(peer.messages('contacts')) >= 10, 20.0)
+        assert peer.wait(lambda: len(peer.messages('contact_markers')) >= 1, 20.0)
         with node._lock:
             assert node.skipped_behind == 9
             assert node.snapshot().extra['outputs_skipped_behind'] == 9
-        assert [stamp_ns(m.header.stamp) for m in peer.messages('contacts')] == stamps[-1:]
+        assert [stamp_ns(m.header.stamp) for m in peer.messages('contacts')] == stamps
+        markers = peer.messages('contact_markers')
+        assert len(markers) == 1 and markers[0].markers
+        assert {stamp_ns(m.header.stamp) for m in markers[0].markers} == {stamps[-1]}
     finally:
         peer.close()
 

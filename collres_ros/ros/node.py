@@ -42,8 +42,9 @@ reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
 ``time.world_ms``, ``time.world_cpu_ms``: the thread's CPU time in it,
 ``answer_time_mean_ms``: to the answer published, then
 ``time.encode_ms``, ``time.publish_ms``: the other outputs). Behind (a newer ``body_states``
-input waits when a step is answered), that step's other outputs are skipped and counted
-(``outputs_skipped_behind``): every input is answered, the node catches up sooner.
+input waits when a step is answered), that step's markers are skipped and counted
+(``outputs_skipped_behind``); its answer, contacts, wrenches and ``/tf`` are always
+published: every input is answered, no contact event is lost, the node catches up sooner.
 
 QoS: states, contacts and markers are reliable, volatile, keep-last with
 depth ``queue_depth`` (10): a control loop wants every step delivered in
@@ -215,7 +216,7 @@ class CollresNode(Node):
         self.last_step: Optional[ResolvedStep] = None
         self.health = Health()
         self._served = 0                 # bodies served, all steps
-        self.skipped_behind = 0          # steps answered without their other outputs (behind)
+        self.skipped_behind = 0          # steps answered without their markers (behind)
         self._parts_since_step = 0       # per-body inputs since the last per-body step
         self._last_part_step = time.monotonic()
         self._reported: dict[str, Any] = {}   # what was logged once (slop, sync refusals)
@@ -428,9 +429,9 @@ class CollresNode(Node):
         self._publisher(names.CORRECTED_STATES, BodyStateArray).publish(
             self.encoder.corrected(step))
         answered = time.perf_counter()
-        # behind: a newer body_states input waits already; the outputs that are not the
-        # answer (contacts, markers, wrenches, /tf) are skipped for this step and counted,
-        # so the node catches up sooner (every input is still answered)
+        # behind: a newer body_states input waits already; this step's pictures (contact
+        # and body markers) are skipped and counted, so the node catches up sooner; its
+        # data (the answer, contacts, wrenches, /tf) are always published
         more = not per_body and self.states_input.waiting(self._inputs[0])
         self.skipped_behind += more
         # what nobody subscribes to is not built
@@ -440,10 +441,10 @@ class CollresNode(Node):
         bodies = self._publisher(names.BODY_MARKERS, MarkerArray).get_subscription_count() > 0
         outputs = self.encoder.encode(
             step, per_body and node.per_body_outputs, node.marker_lifetime,
-            markers=markers and not more, contacts=contacts and not more,
-            wrenches=node.contact_wrench and not more,
+            markers=markers and not more, contacts=contacts,
+            wrenches=node.contact_wrench,
             body_markers=node.body_markers_period if bodies and not more else None,
-            tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES and not more,
+            tf=node.publish_tf and messages.TYPES[names.TF] in CLASSES,
             corrected=False)
         encoded = time.perf_counter()
         for topic, kind, data in outputs:

@@ -411,13 +411,15 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
   // the two halves of a part, one after the other or at once: the second in chunks (in
   // order), so that the caller can take over what the worker has not begun
   auto halves = [&](const std::function<void()>& first,
-                    const std::function<void(size_t, size_t)>& second, size_t from, size_t to) {
+                    const std::function<void(size_t, size_t)>& second, size_t from, size_t to,
+                    int kind) {
     const size_t chunks = std::min<size_t>(kChunks, to - from);
     const std::function<void(int)> chunk = [&](int c) {
       second(from + (to - from) * c / chunks, from + (to - from) * (c + 1) / chunks);
     };
     if (p.worker != nullptr && chunks > 0) {
-      p.worker->run_pair(first, chunk, static_cast<int>(chunks));
+      p.worker->run_pair(first, chunk, static_cast<int>(chunks), kind,
+                         static_cast<double>(to));   // (the two halves: [0, to))
     } else {
       first();
       for (size_t c = 0; c < chunks; ++c) chunk(static_cast<int>(c));
@@ -430,12 +432,12 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     halves([&] { solve_manifolds(rows, manifolds, 0, p.halves[0], bodies, spins, part[0]); },
            [&](size_t lo, size_t hi) {
              solve_manifolds(rows, manifolds, lo, hi, bodies, spins, part[1]);
-           }, p.halves[0], p.halves[1]);
+           }, p.halves[0], p.halves[1], 0);
     solve_manifolds(rows, manifolds, p.halves[1], count, bodies, spins, part[2]);
     if (spins != nullptr) {
       halves([&] { solve_spins(*spins, 0, p.spin_halves[0], bodies, part[0]); },
              [&](size_t lo, size_t hi) { solve_spins(*spins, lo, hi, bodies, part[1]); },
-             p.spin_halves[0], p.spin_halves[1]);
+             p.spin_halves[0], p.spin_halves[1], 1);
       solve_spins(*spins, p.spin_halves[1], spin_count, bodies, part[2]);
     }
     const double change = std::max({part[0].change, part[1].change, part[2].change});

@@ -15,7 +15,8 @@ namespace {
 // pauses (~40 ns each) a waiting thread spins before it sleeps (the worker) or yields its
 // core (the caller): short, so that a busy machine loses little to spinning
 constexpr int kSpins = 256;
-constexpr int kFirstBackoff = 4, kLastBackoff = 1024;   // runs alone after a long wait
+constexpr unsigned kExplore = 17;   // every this many runs of a kind, the mode not chosen
+constexpr double kWeight = 0.2;     // of a run's cost in the running mean
 
 void wait_until(const std::function<bool()>& ready) {
   for (int i = 0; !ready(); ++i) {
@@ -69,42 +70,39 @@ int Worker::help(uint32_t generation) {
 }
 
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
-                      int chunks) {
+                      int chunks, int kind, double work) {
   chunks_run_ += static_cast<uint64_t>(chunks);
-  if (alone_ > 0) {   // backing off: all here, in order
-    --alone_;
+  Costs& costs = costs_[kind & 1];
+  // the mode that has cost less per unit of work, the other one every kExplore-th run (an
+  // unmeasured mode first)
+  const bool better = costs.paired <= costs.alone;
+  const bool paired = ++costs.runs % kExplore == 0 ? !better : better;
+  const auto start = std::chrono::steady_clock::now();
+  if (paired) {
+    uint32_t generation;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      task_ = &second;
+      chunks_ = chunks;
+      done_.store(0);
+      generation = ++generation_;
+      ticket_.store(static_cast<uint64_t>(generation) << 32, std::memory_order_release);
+    }
+    wake_.notify_one();
+    first();
+    help(generation);   // the chunks the worker has not taken
+    // (a chunk the worker claimed is finished before the next run is posted: it reads
+    // task_ only while it holds one)
+    wait_until([&] { return done_.load(std::memory_order_acquire) == chunks; });
+  } else {
     first();
     for (int c = 0; c < chunks; ++c) second(c);
-    return;
   }
-  const auto start = std::chrono::steady_clock::now();
-  uint32_t generation;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    task_ = &second;
-    chunks_ = chunks;
-    done_.store(0);
-    generation = ++generation_;
-    ticket_.store(static_cast<uint64_t>(generation) << 32, std::memory_order_release);
-  }
-  wake_.notify_one();
-  first();
-  help(generation);   // the chunks the worker has not taken
-  // (a chunk the worker claimed is finished before the next run is posted: it reads
-  // task_ only while it holds one)
-  if (done_.load(std::memory_order_acquire) == chunks) {
-    backoff_ /= 2;
-    return;
-  }
-  const auto waiting = std::chrono::steady_clock::now();
-  wait_until([&] { return done_.load(std::memory_order_acquire) == chunks; });
-  const auto end = std::chrono::steady_clock::now();
-  if (end - waiting > (end - start) / 10) {
-    backoff_ = std::min(std::max(2 * backoff_, kFirstBackoff), kLastBackoff);
-    alone_ = backoff_;
-  } else {
-    backoff_ /= 2;
-  }
+  const double cost =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
+      std::max(work, 1.0);
+  double& mean = paired ? costs.paired : costs.alone;
+  mean = mean == 0.0 ? cost : mean + kWeight * (cost - mean);
 }
 
 }  // namespace collres

@@ -6,12 +6,14 @@
 // front while the caller runs the first task; once done with it, the caller takes the
 // chunks still left, each after the one before it has finished. So the caller never waits
 // for the worker to start (its core busy with another process, or asleep), only, at most,
-// for the chunk the worker is running. When that wait takes more than a tenth of a run
-// (the worker's core shared with other processes: it was preempted holding a chunk), the
-// caller runs the next runs alone, 4 of them, then twice as many after each such wait,
-// up to 1024, and halves the count after a run without. The worker spins briefly for the
-// next task (the solver posts one per sweep, back to back), then sleeps on a condition
-// variable. Results do not depend on which thread runs a chunk.
+// for the chunk the worker is running. Whether to post to the worker at all is decided by
+// what it has cost: the caller keeps, per kind of run, a running mean of the wall time per
+// unit of work with the worker and without it, runs in the cheaper mode and, every 17th
+// run, in the other one (so a core that becomes busy or free is noticed): on a machine
+// whose other core is busy, or with both threads on one core, the caller ends up alone.
+// The worker spins briefly for the next task (the solver posts one per sweep, back to
+// back), then sleeps on a condition variable. Results do not depend on which thread runs
+// a chunk, nor on the mode.
 #pragma once
 
 #include <atomic>
@@ -31,9 +33,10 @@ class Worker {
   Worker& operator=(const Worker&) = delete;
 
   // Runs `first` on this thread and second(0), ..., second(chunks - 1) in that order, on
-  // the worker or here; returns when all are done.
+  // the worker or here; returns when all are done. `kind` (0 or 1) names the kind of run
+  // whose costs are compared, `work` its size (any unit, the same for the kind).
   void run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
-                int chunks);
+                int chunks, int kind, double work);
 
   // chunks of the second tasks run so far: by the worker, and by either thread
   uint64_t helped() const { return helped_.load(std::memory_order_relaxed); }
@@ -50,8 +53,11 @@ class Worker {
   std::atomic<int> chunks_{0};        // chunks of the current run
   std::atomic<uint64_t> helped_{0};   // chunks the worker ran
   uint64_t chunks_run_ = 0;           // chunks posted (the caller's thread)
-  int alone_ = 0;                     // (the caller's) runs left to run alone
-  int backoff_ = 0;                   // (the caller's) runs alone after the next long wait
+  struct Costs {                      // (the caller's) per kind of run
+    double alone = 0.0, paired = 0.0;   // s per unit of work, running means (0: none yet)
+    unsigned runs = 0;
+  };
+  Costs costs_[2];
   const std::function<void(int)>* task_ = nullptr;   // read only with a claimed chunk
   uint32_t generation_ = 0;           // (under mutex_) the run posted last
   bool stop_ = false;                 // (under mutex_)

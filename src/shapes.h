@@ -140,7 +140,8 @@ void place_piece(BodyShape& shape, int body, int piece, const Vec3& position,
 // itself, along a direction free of zeros (inflate 1: the exact box), and returns the
 // factors then in force, [NoSweptSphere, WithSweptSphere], read back from support points
 // along -x-y-z (-inflate times the half sides). The module calls it at import, before any
-// query; a factor other than 1 says a coal query of a box ran earlier in the process.
+// query; a factor other than 1 says a coal query of a box ran earlier in the process (the
+// import then warns and exposes the factors as _native.BOX_SUPPORT_INFLATE).
 std::array<double, 2> pin_box_support();
 
 }  // namespace collres

@@ -74,14 +74,30 @@ def test_a_pile_after_a_box_on_a_plane_equals_a_fresh_pile_byte_for_byte():
             key, float(np.abs(a.astype(float) - b.astype(float)).max()))
 
 
-def test_the_core_refuses_to_import_after_a_coal_box_query():
+def test_the_core_warns_on_import_after_a_coal_box_query():
+    """A coal box query made before the core is imported (a user's own coal use) fixes coal's
+    box inflate for the process: the import says so with a RuntimeWarning and exposes the
+    factor, and still works (a library user is never refused)."""
     run = _run('''
 import coal, numpy as np
 result = coal.CollisionResult()
 coal.collide(coal.Box(1.0, 1.0, 1.0), coal.Transform3s(),
              coal.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0), coal.Transform3s(),
              coal.CollisionRequest(), result)
-import collres_ros.core.detection
+from collres_ros.core import _native
+print('inflate', *_native.BOX_SUPPORT_INFLATE)
 ''')
-    assert run.returncode != 0
-    assert b"ImportError: coal's box support was first called" in run.stderr
+    assert run.returncode == 0, run.stderr
+    assert b"RuntimeWarning: coal's box support was first called" in run.stderr
+    inflate = [float(x) for x in run.stdout.split()[1:3]]
+    assert inflate != [1.0, 1.0] and all(abs(x - 1.0) < 1e-9 for x in inflate)
+
+
+def test_the_core_pins_the_exact_box_when_imported_first():
+    run = _run('''
+from collres_ros.core import _native
+print('inflate', *_native.BOX_SUPPORT_INFLATE)
+''')
+    assert run.returncode == 0, run.stderr
+    assert b'Warning' not in run.stderr
+    assert [float(x) for x in run.stdout.split()[1:3]] == [1.0, 1.0]

@@ -42,6 +42,17 @@ from pathlib import Path
 PILE = Path(__file__).resolve().parents[2] / 'config' / 'scenes' / 'pile.yaml'
 
 
+def lowest_corner(sim: Simulation, points: np.ndarray, seconds: float) -> np.ndarray:
+    """Height (m) of body 1's lowest corner (``points``: its corners, body frame) after each
+    of ``seconds`` of steps."""
+    lowest = []
+    for _ in range(int(round(seconds / sim.dt))):
+        sim.step()
+        rotation = to_matrix(sim.state.orientation[1:2])[0]
+        lowest.append((sim.state.position[1] + points @ rotation.T)[:, 2].min())
+    return np.array(lowest)
+
+
 def corners(size) -> np.ndarray:
     half = np.asarray(size, float) / 2
     return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
@@ -70,13 +81,7 @@ def lowest_points(rate: float, size, corner: np.ndarray, seconds: float = 3.0) -
     start.orientation[1] = q
     start.position[1] = [0.0, 0.0, 0.02 - (points @ to_matrix(q[None])[0].T)[:, 2].min()]
     start.linear[1] = [0.0, 0.0, -1.6]
-    sim = Simulation(bodies, start, rate)
-    lowest = []
-    for _ in range(int(seconds * rate)):
-        sim.step()
-        rotation = to_matrix(sim.state.orientation[1:2])[0]
-        lowest.append((sim.state.position[1] + points @ rotation.T)[:, 2].min())
-    return np.array(lowest)
+    return lowest_corner(Simulation(bodies, start, rate), points, seconds)
 
 
 @pytest.mark.parametrize('rate', [30.0, 10.0])
@@ -147,13 +152,7 @@ def tumbling_drop(size, rate: float, seed: int, seconds: float = 3.0) -> np.ndar
     spin = rng.normal(size=3)
     start.angular[1] = spin / np.linalg.norm(spin) * rng.uniform(0.0, 8.0)
     start.linear[1, :2] = rng.uniform(-1.0, 1.0, 2) / np.sqrt(2)
-    sim = Simulation(bodies, start, rate)
-    lowest = []
-    for _ in range(int(seconds * rate)):
-        sim.step()
-        rotation = to_matrix(sim.state.orientation[1:2])[0]
-        lowest.append((sim.state.position[1] + points @ rotation.T)[:, 2].min())
-    return np.array(lowest)
+    return lowest_corner(Simulation(bodies, start, rate), points, seconds)
 
 
 @pytest.mark.parametrize('rate', [10.0, 30.0])

@@ -5,6 +5,8 @@
 #include <limits>
 #include <memory>
 
+#include "sweep_waves.h"
+
 namespace collres {
 namespace {
 
@@ -285,10 +287,12 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_block(block, &rows_[first_row]);
     }
   }
-  // a large solve in two halves that share no movable body, then what joins them
+  // a large solve in two halves that share no movable body, then what joins them; the
+  // sweeps visit that order wave by wave (wide groups, two threads; the same bits)
   split(ctx);
+  plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
-  // not 0 (in manifold order: the halves' spin rows are the halves of spins_)
+  // not 0 (in manifold order)
   spins_.clear();
   for (Manifold& manifold : manifolds_) {
     const ContactRow& r = rows_[manifold.first];
@@ -314,9 +318,6 @@ void StepSolver::prepare(StepContext& ctx) {
       s.roll = roll * lever;
       s.twist = twist * lever;
     }
-    const size_t index = static_cast<size_t>(&manifold - manifolds_.data());
-    for (int half = 0; half < 2; ++half)
-      if (index < plan_.halves[half]) plan_.spin_halves[half] = spins_.size();
   }
 }
 
@@ -324,8 +325,6 @@ void StepSolver::split(StepContext& ctx) {
   const SolverParams& p = ctx.params;
   const double* inv_mass = ctx.bodies.inv_mass;
   const size_t count = manifolds_.size();
-  plan_ = SweepPlan();
-  plan_.halves[0] = plan_.halves[1] = count;
   if (count < static_cast<size_t>(std::max(p.parallel_manifolds, 1))) return;
   // the movable bodies of the manifolds, halved at their median along the axis of their
   // largest extent (position, then index: one answer whatever the sort)
@@ -374,8 +373,14 @@ void StepSolver::split(StepContext& ctx) {
     for (int32_t i = m.first; i < m.first + m.count; ++i)
       rows_[i].manifold = static_cast<int32_t>(index);
   }
-  plan_.halves[0] = counts[0];
-  plan_.halves[1] = counts[0] + counts[1];
+}
+
+void StepSolver::plan_sweeps(StepContext& ctx) {
+  const SolverParams& p = ctx.params;
+  wave_manifolds(manifolds_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_, wave_,
+                 buckets_, sorted_);
+  plan_.wide = p.wide_rows;
+  plan_.parallel = static_cast<size_t>(std::max(p.parallel_wave, 1));
   plan_.worker = p.threads >= 2 ? worker() : nullptr;
 }
 

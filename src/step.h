@@ -169,11 +169,10 @@ class StepSolver {
                  ContactsOut& report);
 
   ContactCache& cache() { return cache_; }
-  // the last step's split of its velocity sweeps: the ends of the two halves and the
-  // number of manifolds (halves = (count, count): not split)
+  // the last step's order of its velocity sweeps (waves, wide groups)
   const SweepPlan& plan() const { return plan_; }
-  size_t manifold_count() const { return manifolds_.size(); }
-  // chunks of the sweeps' second halves run so far: by the second thread, in all
+  const std::vector<Manifold>& manifolds() const { return manifolds_; }   // in that order
+  // chunks of the waves' second halves run so far: by the second thread, in all
   uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
   uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
 
@@ -186,10 +185,12 @@ class StepSolver {
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
   void land(StepContext& ctx);
-  // manifolds_ in two halves that share no movable body, then the rest (plan_), when there
-  // are at least parallel_manifolds of them: the movable bodies halved at their median
-  // along the axis of their largest extent
+  // manifolds_ in two halves that share no movable body, then the rest, when there are at
+  // least parallel_manifolds of them: the movable bodies halved at their median along the
+  // axis of their largest extent
   void split(StepContext& ctx);
+  // the sweeps' plan_ of manifolds_: waves (sweep_waves.h), wide groups, threads
+  void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
@@ -225,11 +226,14 @@ class StepSolver {
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
   std::vector<Manifold> retry_;      // manifolds of the islands solved again (hold_energy)
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
-  SweepPlan plan_;                   // the sweeps' halves (split)
+  SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
   std::vector<int8_t> side_;         // (N,) split: half of each movable body, -1 immovable
   std::vector<std::pair<double, int32_t>> keyed_;   // split: (position, body)
   std::vector<Manifold> ordered_;    // split: scratch
+  std::vector<int32_t> wave_;        // (N,) plan_sweeps: the last wave of each body
+  std::vector<size_t> buckets_;      // plan_sweeps: scratch
+  std::vector<Manifold> sorted_;     // plan_sweeps: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

@@ -627,21 +627,26 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
 // wide_rows, wave_groups).
 void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, const double* inv_mass) {
-  plan.groups.clear();
+  // (sized, not cleared: every field below is written, and growing a vector of these
+  // zero-fills it)
+  size_t group_count = 0;
+  for (const SweepWave& c : plan.waves) group_count += (c.wide_end - c.first) / kLanes;
+  if (plan.groups.size() < group_count) plan.groups.resize(group_count);
   plan.wave_groups.assign(1, 0);
-  size_t row_count = 0;
+  size_t row_count = 0, next = 0;
   for (const SweepWave& c : plan.waves) {
     for (size_t m = c.first; m < c.wide_end; m += kLanes) {
-      WideGroup& g = plan.groups.emplace_back();
+      WideGroup& g = plan.groups[next++];
       g.manifold = m;
       g.count = manifolds[m].count;
       g.row = row_count;
       row_count += static_cast<size_t>(g.count);
     }
-    plan.wave_groups.push_back(plan.groups.size());
+    plan.wave_groups.push_back(next);
   }
-  plan.wide_rows.resize(row_count);
-  for (WideGroup& g : plan.groups) {
+  if (plan.wide_rows.size() < row_count) plan.wide_rows.resize(row_count);
+  for (size_t group = 0; group < group_count; ++group) {
+    WideGroup& g = plan.groups[group];
     for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       g.a[l] = m.a;
@@ -686,8 +691,9 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 // The wide rows' impulses back into the rows.
 void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
                    const std::vector<Manifold>& manifolds) {
-  for (const WideGroup& g : plan.groups)
+  for (size_t group = 0; group < plan.wave_groups.back(); ++group)
     for (int l = 0; l < kLanes; ++l) {
+      const WideGroup& g = plan.groups[group];
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       lane_to_rows(&plan.wide_rows[g.row], l, &rows[static_cast<size_t>(m.first)], g.count);
     }

@@ -590,7 +590,58 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
       apply(w[i], g, t, 0, w[i].n, d);
       step = maximum(step, magnitude(d));
     }
-    const Mask search = ~(fits | idle);
+    Mask search = ~(fits | idle);
+    // two rows (an edge) whose all-active answer failed: solve_block's search tries sets
+    // of one row or none (the rows carrying impulse first, then {1}, {0}, {}), each a
+    // division; solved here in lanes, the same sets in the same order, the same arithmetic
+    const Mask two = search & (g.invertible != 0.0);
+    if (k == 2 && any(two)) {
+      const Lanes zero = splat(0.0);
+      Lanes candidate[3][2];   // x of the sets {0} (bit 1), {1} (bit 2), {} (0)
+      Mask fit[3];
+      for (int i = 0; i < 2; ++i) {
+        const int j = 1 - i;
+        const Lanes a_ii = g.delassus[i][i];
+        const Lanes x_i = (-q[i]) / a_ii;
+        candidate[i][i] = x_i;
+        candidate[i][j] = zero;
+        const Lanes w_j = q[j] + g.delassus[j][0] * candidate[i][0] +
+                          g.delassus[j][1] * candidate[i][1];
+        fit[i] = (magnitude(a_ii) > 1e-9 * magnitude(a_ii) + 1e-300) &
+                 (x_i >= -1e-12 * (1.0 + magnitude(x_i))) &
+                 (w_j >= -1e-12 * (1.0 + magnitude(q[j])));
+      }
+      candidate[2][0] = candidate[2][1] = zero;
+      fit[2] = (Mask){-1, -1, -1, -1};
+      for (int i = 0; i < 2; ++i)
+        fit[2] &= q[i] + g.delassus[i][0] * zero + g.delassus[i][1] * zero >=
+                  -1e-12 * (1.0 + magnitude(q[i]));
+      Mask chosen = {0, 0, 0, 0};
+      Lanes found[2] = {zero, zero};
+      for (int l = 0; l < kLanes; ++l) {
+        if (!two[l]) continue;
+        const int carrying = (w[0].normal[l] > 0.0 ? 1 : 0) | (w[1].normal[l] > 0.0 ? 2 : 0);
+        const int order[4] = {carrying, 2, 1, 0};   // (carrying 3: tried above)
+        for (int o = carrying == 3 ? 1 : 0; o < 4; ++o) {
+          const int set = order[o];
+          if (o > 0 && set == carrying) continue;
+          const int c = set == 1 ? 0 : (set == 2 ? 1 : 2);
+          if (fit[c][l]) {
+            chosen[l] = -1;
+            found[0][l] = candidate[c][0][l];
+            found[1][l] = candidate[c][1][l];
+            break;
+          }
+        }
+      }
+      for (int i = 0; i < 2; ++i) {   // take_block
+        const Lanes d = pick(chosen, maximum(found[i], zero) - w[i].normal, zero);
+        w[i].normal += d;
+        apply(w[i], g, t, 0, w[i].n, d);
+        step = maximum(step, magnitude(d));
+      }
+      search &= ~chosen;
+    }
     if (any(search)) {
       for (int l = 0; l < kLanes; ++l) {
         if (!search[l]) continue;
@@ -661,6 +712,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
         for (int j = 0; j < g.count; ++j) {
           g.plain[i][j][l] = m.plain[i][j];
           g.inverse[i][j][l] = m.inverse[i][j];
+          if (g.count == 2) g.delassus[i][j][l] = m.delassus[i][j];
         }
       for (int i = 0; i < g.count; ++i) {
         WideRow& w = plan.wide_rows[g.row + static_cast<size_t>(i)];

@@ -642,6 +642,95 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
       }
       search &= ~chosen;
     }
+    // three or four rows (a face) whose all-active answer failed: solve_block's search
+    // tries the rows carrying impulse first, and they are usually the answer: that set
+    // solved in lanes, each lane's set in its leading rows and the rest an identity that
+    // the elimination leaves alone (the same pivots and arithmetic as solve_block's
+    // `fits`); a lane whose set does not fit searches on one by one
+    const Mask face = search & (g.invertible != 0.0);
+    if (k >= 3 && any(face)) {
+      const Lanes zero = splat(0.0), one = splat(1.0);
+      Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
+      int idx[kLanes][4], members[kLanes];
+      Mask tried = {0, 0, 0, 0};
+      for (int l = 0; l < kLanes; ++l) {
+        members[l] = 0;
+        if (!face[l]) continue;
+        int carrying = 0;
+        for (int i = 0; i < k; ++i) carrying |= w[i].normal[l] > 0.0 ? 1 << i : 0;
+        if (carrying == (1 << k) - 1) continue;   // (the all-active set: failed above)
+        tried[l] = -1;
+        for (int i = 0; i < k; ++i)
+          if (carrying & (1 << i)) idx[l][members[l]++] = i;
+      }
+      if (any(tried)) {
+        for (int r = 0; r < 4; ++r) {
+          for (int c = 0; c < 5; ++c) e[r][c] = zero;
+          diagonal[r] = one;
+        }
+        for (int l = 0; l < kLanes; ++l) {
+          const int m = members[l];
+          for (int r = 0; r < 4; ++r) {
+            if (r >= m) {
+              e[r][r][l] = 1.0;
+              continue;
+            }
+            for (int c = 0; c < m; ++c) e[r][c][l] = g.delassus[idx[l][r]][idx[l][c]][l];
+            e[r][4][l] = -q[idx[l][r]][l];
+            diagonal[r][l] = g.delassus[idx[l][r]][idx[l][r]][l];
+          }
+        }
+        Mask ok = tried;
+        for (int c = 0; c < 4; ++c) {
+          // partial pivoting: the first row below c of strictly larger magnitude
+          Lanes best = magnitude(e[c][c]);
+          Lanes pivot = splat(static_cast<double>(c));
+          for (int r = c + 1; r < 4; ++r) {
+            const Mask larger = magnitude(e[r][c]) > best;
+            best = pick(larger, magnitude(e[r][c]), best);
+            pivot = pick(larger, splat(static_cast<double>(r)), pivot);
+          }
+          ok &= ~(best <= 1e-9 * magnitude(diagonal[c]) + 1e-300);
+          for (int r = c + 1; r < 4; ++r) {
+            const Mask swap = pivot == static_cast<double>(r);
+            for (int j = 0; j < 5; ++j) {
+              const Lanes upper = e[c][j];
+              e[c][j] = pick(swap, e[r][j], upper);
+              e[r][j] = pick(swap, upper, e[r][j]);
+            }
+          }
+          for (int r = 0; r < 4; ++r) {
+            if (r == c) continue;
+            const Lanes f = e[r][c] / e[c][c];
+            for (int j = c; j < 5; ++j) e[r][j] -= f * e[c][j];
+          }
+        }
+        Lanes xs[4] = {zero, zero, zero, zero};   // by row of the block
+        for (int r = 0; r < 4; ++r) {
+          const Lanes x_r = e[r][4] / e[r][r];
+          for (int l = 0; l < kLanes; ++l)
+            if (r < members[l]) {
+              xs[idx[l][r]][l] = x_r[l];
+              if (!(x_r[l] >= -1e-12 * (1.0 + std::fabs(x_r[l])))) ok[l] = 0;
+            }
+        }
+        for (int i = 0; i < k; ++i) {   // the rows left out: no approach
+          Lanes w_i = q[i];
+          for (int j = 0; j < k; ++j) w_i += g.delassus[i][j] * xs[j];
+          Mask in = {0, 0, 0, 0};
+          for (int l = 0; l < kLanes; ++l)
+            for (int r = 0; r < members[l]; ++r) in[l] |= idx[l][r] == i ? -1 : 0;
+          ok &= in | (w_i >= -1e-12 * (1.0 + magnitude(q[i])));
+        }
+        for (int i = 0; i < k; ++i) {   // take_block
+          const Lanes d = pick(ok, maximum(xs[i], zero) - w[i].normal, zero);
+          w[i].normal += d;
+          apply(w[i], g, t, 0, w[i].n, d);
+          step = maximum(step, magnitude(d));
+        }
+        search &= ~ok;
+      }
+    }
     if (any(search)) {
       for (int l = 0; l < kLanes; ++l) {
         if (!search[l]) continue;
@@ -712,7 +801,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
         for (int j = 0; j < g.count; ++j) {
           g.plain[i][j][l] = m.plain[i][j];
           g.inverse[i][j][l] = m.inverse[i][j];
-          if (g.count == 2) g.delassus[i][j][l] = m.delassus[i][j];
+          g.delassus[i][j][l] = m.delassus[i][j];
         }
       for (int i = 0; i < g.count; ++i) {
         WideRow& w = plan.wide_rows[g.row + static_cast<size_t>(i)];

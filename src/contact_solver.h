@@ -201,7 +201,7 @@ struct WideGroup {
   bool write_a[kLanes] = {}, write_b[kLanes] = {};   // movable: its twist is stored
   Lanes ma, mb;                  // 1/kg
   Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
-  Lanes delassus[2][2];          // Manifold::delassus (2 rows: the search in lanes)
+  Lanes delassus[4][4];          // Manifold::delassus (the active-set search in lanes)
   Lanes invertible;              // 1 where Manifold::invertible, else 0
 };
 

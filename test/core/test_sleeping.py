@@ -13,6 +13,14 @@ wake it):
   without sleeping, and a second island far away stays asleep), a material, settings or
   filter change, a body reset or removed, and a clock jump.
 
+A node that falls behind drops inputs, and the step it takes next spans k periods; its
+source either integrated the last answer for one period (it integrates each answer it
+gets, as bench/bench_latency.py's simulator) or for k (it kept integrating its own
+state). Either way a pile falls asleep within (1.5 times, a pile's sleep time being chaotic)
+the time it takes when no input is dropped, and a sleeping pile stays asleep and in place:
+the warm start and the sweeps follow the load the input carries (one period of gravity
+is one period's impulses, whatever dt says), not dt alone.
+
 And a pile of 100 cubes dropped into a bin (``bench/pile.py``: columns of 6-7 cubes whose
 face contacts each hold 4 points) falls asleep within 5 s at 30, 120 and 240 Hz: the
 position pass's split impulses push each contact out in one sweep, 0.4 of the penetration
@@ -294,3 +302,47 @@ def test_a_pile_of_cubes_falls_asleep(rate: float) -> None:
     speed = np.linalg.norm(sim.state.linear, axis=1) + np.linalg.norm(sim.state.angular,
                                                                       axis=1) * reach
     raise AssertionError(f'{rate:g} Hz: awake after 5 s, fastest point {speed.max():.3f} m/s')
+
+
+def _asleep_after(style: str, seed: int = 1, limit: float = 12.0,
+                  periods: int = 4) -> tuple[float, Simulation]:
+    """A pile of 100 cubes dropped at 30 Hz, each step spanning k = 1..``periods`` periods
+    at random (seeded), its input the last answer integrated for one period (``one``) or
+    for k (``k``): the time until every body sleeps (``limit`` when it never does)."""
+    bodies, initial = make_pile(100, kind='cubes')
+    sim = Simulation(bodies, initial, 30.0)
+    dynamic = sim.world.dynamic
+    rng = np.random.default_rng(seed)
+    elapsed = 0.0
+    while elapsed < limit:
+        k = int(rng.integers(1, periods + 1)) if elapsed > 0.0 else 1
+        current = sim.state
+        for _ in range(k if style == 'k' else 1):
+            current = sim.integrate(current)
+        result = sim.world.step(sim.state, current, k * sim.dt)
+        sim.state = result.states
+        elapsed += k * sim.dt
+        if result.sleeping[dynamic].all():
+            break
+    return elapsed, sim
+
+
+@pytest.mark.parametrize('style', ['one', 'k'])
+def test_a_pile_falls_asleep_and_stays_asleep_across_dropped_inputs(style: str) -> None:
+    steady, _ = _asleep_after('k', periods=1)
+    elapsed, sim = _asleep_after(style)
+    print(f'{style}: asleep after {elapsed:.2f} s (every period answered: {steady:.2f} s)')
+    assert elapsed <= 1.5 * steady
+    dynamic = sim.world.dynamic
+    held = sim.state.copy()
+    rng = np.random.default_rng(7)
+    for _ in range(30):
+        k = int(rng.integers(2, 5))
+        current = sim.state
+        for _ in range(k if style == 'k' else 1):
+            current = sim.integrate(current)
+        result = sim.world.step(sim.state, current, k * sim.dt)
+        sim.state = result.states
+        assert result.sleeping[dynamic].all()
+    np.testing.assert_array_equal(sim.state.position, held.position)
+    np.testing.assert_array_equal(sim.state.orientation, held.orientation)

@@ -16,8 +16,9 @@ wake it):
 A node that falls behind drops inputs, and the step it takes next spans k periods; its
 source either integrated the last answer for one period (it integrates each answer it
 gets, as bench/bench_latency.py's simulator) or for k (it kept integrating its own
-state). Either way a pile falls asleep within (1.5 times, a pile's sleep time being chaotic)
-the time it takes when no input is dropped, and a sleeping pile stays asleep and in place:
+state). Either way a pile falls asleep within the time it takes when no input is dropped
+(1.5 times it, over three piles: one pile's sleep time is chaotic, 1.9 to 6.9 s at 30 Hz
+for three jitters of the same pile), and a sleeping pile stays asleep and in place:
 the warm start and the sweeps follow the load the input carries (one period of gravity
 is one period's impulses, whatever dt says), not dt alone.
 
@@ -304,12 +305,12 @@ def test_a_pile_of_cubes_falls_asleep(rate: float) -> None:
     raise AssertionError(f'{rate:g} Hz: awake after 5 s, fastest point {speed.max():.3f} m/s')
 
 
-def _asleep_after(style: str, seed: int = 1, limit: float = 12.0,
+def _asleep_after(style: str, seed: int, limit: float = 12.0,
                   periods: int = 4) -> tuple[float, Simulation]:
     """A pile of 100 cubes dropped at 30 Hz, each step spanning k = 1..``periods`` periods
     at random (seeded), its input the last answer integrated for one period (``one``) or
     for k (``k``): the time until every body sleeps (``limit`` when it never does)."""
-    bodies, initial = make_pile(100, kind='cubes')
+    bodies, initial = make_pile(100, seed=seed, kind='cubes')
     sim = Simulation(bodies, initial, 30.0)
     dynamic = sim.world.dynamic
     rng = np.random.default_rng(seed)
@@ -327,12 +328,18 @@ def _asleep_after(style: str, seed: int = 1, limit: float = 12.0,
     return elapsed, sim
 
 
+SEEDS = (1, 2, 3)   # piles (bench/pile.py's jitter) and their random k
+
+
 @pytest.mark.parametrize('style', ['one', 'k'])
 def test_a_pile_falls_asleep_and_stays_asleep_across_dropped_inputs(style: str) -> None:
-    steady, _ = _asleep_after('k', periods=1)
-    elapsed, sim = _asleep_after(style)
-    print(f'{style}: asleep after {elapsed:.2f} s (every period answered: {steady:.2f} s)')
-    assert elapsed <= 1.5 * steady
+    steady = [_asleep_after('k', seed, periods=1)[0] for seed in SEEDS]
+    dropped = [_asleep_after(style, seed) for seed in SEEDS]
+    times = [elapsed for elapsed, _ in dropped]
+    print(f'{style}: asleep after {np.round(times, 2)} s (every period answered: '
+          f'{np.round(steady, 2)} s)')
+    assert np.mean(times) <= 1.5 * np.mean(steady)
+    sim = dropped[0][1]
     dynamic = sim.world.dynamic
     held = sim.state.copy()
     rng = np.random.default_rng(7)

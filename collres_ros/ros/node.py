@@ -648,8 +648,12 @@ def _spin(argv: Sequence[str]) -> int:
         kind = ManagedCollresNode
     try:
         node = kind(params_file_dir(argv))
-    except (ValueError, OSError) as failure:
-        return cli.error(failure)
+    except Exception as failure:
+        if not rclpy.ok():   # SIGINT/SIGTERM shut the context down while the node was created
+            return 0
+        if isinstance(failure, (ValueError, OSError)):
+            return cli.error(failure)
+        raise
     try:
         executor = SingleThreadedExecutor()
         executor.add_node(node)

@@ -92,7 +92,8 @@ def node_and_peer(domain_id: int, scene: Path, log: Path,
     never reaches it (a volatile writer sends a late reader nothing older: "no answer for
     stamp ...", once in 100 starts at load 2). The node learns of the peer's readers in the
     order they were created, so a report received on the last one says the node matched the
-    others before.
+    others before; the report also says that the node's ``body_states`` subscription has
+    matched the peer's publisher (``node_publishers``: a message sent before can be lost).
     """
     from collres_ros.msg import BodyStateArray
     from diagnostic_msgs.msg import DiagnosticArray
@@ -108,13 +109,23 @@ def node_and_peer(domain_id: int, scene: Path, log: Path,
         up = peer.wait(lambda: peer.connected('body_states') and all(
             any(s.get_publisher_count() for s in peer.node.subscriptions
                 if s.topic_name == topic) for topic in answering)
-            and bool(peer.messages(DIAGNOSTICS)), 30.0)
+            and node_publishers(peer) >= 1, 30.0)
         assert up, f'node did not come up: {node.output()}'
         yield peer, node
     finally:
         peer.close()
         if node.poll() is None:
             processes.stop(node)
+
+
+def node_publishers(peer: Peer) -> int:
+    """The publishers of ``body_states`` the node has matched, by its last /diagnostics
+    report (-1 before one arrived)."""
+    reports = peer.messages(DIAGNOSTICS)
+    if not reports:
+        return -1
+    values = {kv.key: kv.value for kv in reports[-1].status[0].values}
+    return int(values.get('body_states_publishers', -1))
 
 
 def write_scene(path: Path, extra_node: str = '', ball: str = '') -> Path:

@@ -8,7 +8,7 @@ import signal
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from ros_harness import Peer, node_and_peer, set_parameter, write_scene
+from ros_harness import Peer, node_and_peer, node_publishers, set_parameter, write_scene
 
 from collres_ros.ros import processes
 from collres_ros.ros.messages import stamp_ns, to_stamp
@@ -298,7 +298,9 @@ def test_two_publishers_on_body_states_report_no_phantom_loss(running, ros_domai
     other = Peer(ros_domain, 'collres_test_second_publisher')
     try:
         other.advertise('body_states', BodyStateArray)
-        assert peer.wait(lambda: other.connected('body_states'), 30.0)
+        # the node's side of the match too: a step sent before it could be lost
+        assert peer.wait(lambda: other.connected('body_states')
+                         and node_publishers(peer) == 2, 30.0), diagnostics_values(peer)
         t = T0
         for k in range(60):   # one publisher at twice the other's rate, every step answered
             t += DT

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from ros_harness import Peer, write_scene
+from ros_harness import Peer, node_publishers, write_scene
 
 from collres_ros.msg import BodyState, BodyStateArray
 from collres_ros.ros import processes
@@ -79,11 +79,14 @@ def part(stamp, kind, x=0.0, z=0.5):
 
 def wait_up(peer, node, topics):
     """The node subscribes to ``topics`` and a /diagnostics report arrived: on the peer's
-    last reader, so the node matched its other readers too (``ros_harness.node_and_peer``)."""
+    last reader, so the node matched its other readers too, and its ``body_states``
+    subscription the peer's publisher (``ros_harness.node_and_peer``)."""
     for topic, kind in topics:
         peer.advertise(topic, kind)
+    batched = any(t == 'body_states' for t, _ in topics)
     assert peer.wait(lambda: all(peer.connected(t) for t, _ in topics)
-                     and status(peer) is not None, 30.0), node.output()
+                     and status(peer) is not None
+                     and (not batched or node_publishers(peer) >= 1), 30.0), node.output()
 
 
 def answered(peer, topic, stamp):

@@ -552,6 +552,7 @@ class CollresNode(Node):
             name=status_name(self.get_fully_qualified_name()),
             extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
                    'inputs_received': received, 'inputs_lost': self.losses.total_lost,
+                   'body_states_publishers': self._inputs[0].get_publisher_count(),
                    'loss_counting': 'exact' if not self.losses.uncounted else (
                        'not inferred while several publishers share a topic: '
                        + ', '.join(sorted(self.losses.uncounted))),

@@ -43,7 +43,7 @@ $(MSG_STAMP): $(INTERFACE_INPUTS) $(VENV)/.deps-stamp
 
 # setuptools' "Editable installation ... folders with the same name" notice is informational
 # (the repo root is meant to be importable): silenced, nothing for a user to act on
-$(VENV)/.editable-stamp: setup.py pyproject.toml $(MSG_STAMP)
+$(VENV)/.editable-stamp: setup.py pyproject.toml $(wildcard scripts/collres_*) $(MSG_STAMP)
 	PYTHONWARNINGS="ignore:Editable installation" $(PIP) install --no-deps --no-build-isolation -e .
 	touch $@
 

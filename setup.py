@@ -46,13 +46,8 @@ setup(
                                   '_interfaces/tf2_msgs/*.so', '_interfaces/tf2_msgs/msg/*']},
     install_requires=['numpy', 'coal', 'PyYAML', 'rosbags', 'matplotlib'],
     cmdclass={'build_py': BuildWithInterfaces},
-    entry_points={
-        'console_scripts': [
-            'collres_node = collres_ros.entry:node',
-            'collres_sim = collres_ros.entry:sim',
-            'collres_replay = collres_ros.entry:replay',
-            'collres_demo = collres_ros.entry:demo',
-            'collres_decompose = collres_ros.entry:decompose',
-        ],
-    },
+    # the executables: the same scripts colcon installs (CMakeLists.txt), each of which makes a
+    # Ctrl-C before its main runs end the process quietly (collres_ros/entry.py)
+    scripts=['scripts/collres_node', 'scripts/collres_sim', 'scripts/collres_replay',
+             'scripts/collres_demo', 'scripts/collres_decompose'],
 )

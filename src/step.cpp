@@ -82,8 +82,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   // the poses k^2 times as far, and at least depth_sweeps per level of the deepest
   // stack), then shock propagation from the ground up
   const int32_t depth = levels(ctx);
-  const double stretch =
-      std::sqrt(std::clamp(dt / std::max(last_dt_, 1e-300), 1.0, params.warm_start_ratio));
+  const double stretch = std::sqrt(std::clamp(growth_, 1.0, params.warm_start_ratio));
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold) * stretch));
   iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
@@ -103,6 +102,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                cached_normal_.data(), report_out.friction_impulse, contacts.point);
   last_dt_ = dt;
+  last_load_.swap(load_);
   last_warm_ = warm_enabled;
   // correct poses: rewind / advance, then the split-impulse push-out (no velocity)
   advance(ctx);
@@ -158,6 +158,20 @@ void StepSolver::reference_frame(StepContext& ctx) {
     touched_[a] = touched_[b] = 1;
   }
   for (int64_t i = 0; i < n; ++i) rested_[i] = rested_[i] && bodies.movable[i] != 0;
+  // the step's load: the momentum its external change gives each movable body (N s), and
+  // its sum over the bodies in contact that had a load last step too, then and now
+  load_.assign(n, 0.0);
+  double load = 0.0, last_load = 0.0;
+  for (int64_t i = 0; i < n; ++i) {
+    if (!bodies.movable[i] || !(bodies.inv_mass[i] > 0.0)) continue;
+    load_[i] = length(load3(now_.data() + 6 * i) - load3(then_.data() + 6 * i)) /
+               bodies.inv_mass[i];
+    if (touched_[i] && i < static_cast<int64_t>(last_load_.size()) && last_load_[i] > 0.0) {
+      load += load_[i];
+      last_load += last_load_[i];
+    }
+  }
+  growth_ = load > 0.0 && last_load > 0.0 ? load / last_load : dt / std::max(last_dt_, 1e-300);
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
@@ -397,7 +411,7 @@ double StepSolver::warm(StepContext& ctx) {
   for (int64_t k = 0; k < m; ++k) persistent += collres::persistent(c.kind[k]);
   // impulses of a step of another length are a different answer: scaled by dt / last dt
   // only near 1, never from a fresh step (e.g. a nominal dt after a pause)
-  const double scale = last_dt_ > 0.0 ? ctx.dt / last_dt_ : 0.0;
+  const double scale = last_dt_ > 0.0 ? growth_ : 0.0;
   const bool usable = ctx.warm && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
   if (!usable) return persistent > 0 ? 1.0 : 0.0;
   cached_normal_.resize(m);

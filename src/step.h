@@ -41,12 +41,15 @@
 //    travel, gravity included, out of its partners (an impact's speculative corners, rows
 //    with a gap at the time of impact, among them);
 // 4. warm start from last step's impulses of the same pair and feature (ContactCache),
-//    scaled by dt / last dt, only while that ratio lies in [1 / r, r] (r =
-//    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
-//    every row starts cold, so no timing of the inputs can launch a resting body;
+//    scaled by the step's growth (the load its external change gives the bodies in
+//    contact over theirs last step: k for a step its source integrated for k periods
+//    after dropped inputs, 1 for one it integrated for one period whatever dt says; dt /
+//    last dt without a load), only while that lies in [1 / r, r] (r = warm_start_ratio)
+//    and the last step was itself not fresh (warm = false): otherwise every row starts
+//    cold, so no timing of the inputs can launch a resting body;
 // 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
 //    a block (more sweeps while the resting contacts are new; sqrt(k) times as many for a
-//    step k times as long as the last, up to warm_start_ratio: k times the load, whose
+//    step of k times the last one's load (growth), up to warm_start_ratio: whose
 //    residual would sink the poses k^2 times as far; and at least depth_sweeps per level
 //    of the deepest stack: a load passes down one level per sweep); an island
 //    (bodies joined by rows through movable bodies) whose kinetic energy the sweeps
@@ -198,6 +201,14 @@ class StepSolver {
 
   ContactCache cache_;
   double last_dt_ = 0.0;              // s, dt of the step the cache holds
+  // how many times the last step's impulses this step's need (reference_frame): the
+  // load of the bodies in contact over theirs last step, where a body's load is the
+  // momentum m |dv| the step's external change dv of its linear twist gives it (N s); dt
+  // / last dt when there is none (no gravity, nothing in contact). A source that
+  // integrated one period while the step spans k of them (inputs dropped on the way)
+  // gives its bodies one period's load, whatever dt says
+  double growth_ = 1.0;
+  std::vector<double> load_, last_load_;   // (N,) N s, this and the last step's loads
   bool last_warm_ = false;            // that step was not fresh: its impulses may seed
   // per body (scratch, reused across steps)
   std::vector<double> velocity_;     // (N, 6) working velocity

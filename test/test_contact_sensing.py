@@ -126,7 +126,7 @@ def test_a_hop_shorter_than_the_hysteresis_does_not_chatter_a_jump_does_switch(t
 def test_in_contact_and_get_contacts_over_dds(ros_domain, tmp_path) -> None:
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Bool
-    from ros_harness import Peer, node_and_peer
+    from ros_harness import Peer, answered, node_and_peer, set_parameter
     from test_node import T0, body, step
 
     from collres_ros.msg import BodyStateArray
@@ -142,9 +142,8 @@ def test_in_contact_and_get_contacts_over_dds(ros_domain, tmp_path) -> None:
         client = peer.node.create_client(GetContacts, 'get_contacts')
 
         def ask(*bodies: str):
-            future = client.call_async(GetContacts.Request(bodies=list(bodies)))
-            assert peer.wait(future.done, 10.0), 'get_contacts did not answer'
-            return future.result()
+            return answered(peer, lambda: client.call_async(
+                GetContacts.Request(bodies=list(bodies))))
 
         def seen():
             return [m.data for m in peer.messages('bodies/ball/in_contact')]
@@ -174,8 +173,7 @@ def test_in_contact_and_get_contacts_over_dds(ros_domain, tmp_path) -> None:
         assert peer.wait(lambda: seen() == [False, True, False, True], 10.0), seen()
         # a runtime change of the thresholds starts every body out of contact again; the
         # ball, still resting, is in contact from its next step
-        from test_node_filter import _set
-        assert _set(peer, 'contact_off_steps', 5).successful
+        assert set_parameter(peer, 'contact_off_steps', 5).successful
         assert peer.wait(lambda: seen() == [False, True, False, True, False], 10.0), seen()
         z, vz = answers[-1]
         vz -= G * DT

@@ -8,7 +8,7 @@ import signal
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from ros_harness import Peer, node_and_peer, write_scene
+from ros_harness import Peer, node_and_peer, node_publishers, set_parameter, write_scene
 
 from collres_ros.ros import processes
 from collres_ros.ros.messages import stamp_ns, to_stamp
@@ -192,16 +192,6 @@ def test_missing_params_file_exits_1(ros_domain, tmp_path):
     assert node.returncode == 1 and node.output().startswith('error: params file not found')
 
 
-def _set(peer, name, value):
-    from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
-    client = AsyncParameterClient(peer.node, 'collres_node')
-    assert client.wait_for_services(10.0)
-    future = client.set_parameters([Parameter(name, value=value)])
-    assert peer.wait(future.done, 10.0)
-    return future.result().results[0]
-
-
 def _bounce(peer, start):
     """Drop the ball onto the floor at 2 m/s over one step; its corrected vz."""
     dt = 1 / 60
@@ -221,12 +211,12 @@ def test_runtime_parameters_refused_with_reason_and_applied(running):
         ('solver.velocity_iterations', 0): 'solver.velocity_iterations',
     }
     for (name, value), text in refused.items():
-        result = _set(peer, name, value)
+        result = set_parameter(peer, name, value)
         print(name, value, '->', result.reason)
         assert not result.successful and text in result.reason
         assert '\n' not in result.reason
-    assert _set(peer, 'body.ball.restitution', 0.2).successful
-    assert _set(peer, 'body.floor.restitution', 0.2).successful
+    assert set_parameter(peer, 'body.ball.restitution', 0.2).successful
+    assert set_parameter(peer, 'body.floor.restitution', 0.2).successful
     after = _bounce(peer, T0 + 100 * 10**9)
     print('rebound speed: e 0.8 ->', before, ' e 0.2 ->', after)
     assert before == pytest.approx(1.6, rel=0.05)
@@ -292,15 +282,8 @@ def test_a_message_with_unknown_bodies_serves_the_known_ones(running):
 def test_a_step_over_the_budget_warns_once_and_is_counted(ros_domain, tmp_path):
     scene = write_scene(tmp_path / 'scene.yaml',
                         '    solver: {max_pairs: 1, max_contacts: 1}\n')
-    node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
-                           env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
-    peer = Peer(ros_domain)
-    try:
-        peer.listen('body_states/corrected', BodyStateArray)
-        peer.listen('/diagnostics', DiagnosticArray)
-        peer.advertise('body_states', BodyStateArray)
-        assert peer.wait(lambda: peer.connected('body_states') and all(
-            s.get_publisher_count() for s in peer.node.subscriptions), 30.0), node.output()
+    with node_and_peer(ros_domain, scene, tmp_path / 'node.log', listen=(
+            ('body_states/corrected', BodyStateArray),)) as (peer, node):
         for k in range(3):   # ball and box both resting on the floor: two pairs, budget one
             out = step(peer, T0 + k * DT, [body('ball', 0.05), body('box', 0.1, x=1.0)])
             assert sorted(b.name for b in out.bodies) == ['ball', 'box']
@@ -308,9 +291,6 @@ def test_a_step_over_the_budget_warns_once_and_is_counted(ros_domain, tmp_path):
                          5.0), diagnostics_values(peer)
         assert peer.messages('/diagnostics')[-1].status[0].level == b'\x01'
         assert node.output().count('over the contact budget') == 1, node.output()
-    finally:
-        peer.close()
-        processes.stop(node)
 
 
 def test_two_publishers_on_body_states_report_no_phantom_loss(running, ros_domain):
@@ -318,7 +298,9 @@ def test_two_publishers_on_body_states_report_no_phantom_loss(running, ros_domai
     other = Peer(ros_domain, 'collres_test_second_publisher')
     try:
         other.advertise('body_states', BodyStateArray)
-        assert peer.wait(lambda: other.connected('body_states'), 30.0)
+        # the node's side of the match too: a step sent before it could be lost
+        assert peer.wait(lambda: other.connected('body_states')
+                         and node_publishers(peer) == 2, 30.0), diagnostics_values(peer)
         t = T0
         for k in range(60):   # one publisher at twice the other's rate, every step answered
             t += DT

@@ -4,24 +4,13 @@ through rclpy's parameter service client, and a filtered pair stops producing co
 from __future__ import annotations
 
 import pytest
+from ros_harness import set_parameter
 from test_node import DT, T0, body, running, step  # noqa: F401 (the node's fixture)
 
 from collres_ros.msg import ContactArray
 from collres_ros.ros.messages import stamp_ns
 
 pytestmark = pytest.mark.slow
-
-
-def _set(peer, name, value, kind=None):
-    """Set one parameter of collres_node through its parameter service; the result."""
-    from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
-    client = AsyncParameterClient(peer.node, 'collres_node')
-    assert client.wait_for_services(10.0)
-    parameter = Parameter(name, kind, value) if kind else Parameter(name, value=value)
-    future = client.set_parameters([parameter])
-    assert peer.wait(future.done, 10.0)
-    return future.result().results[0]
 
 
 def _contacts(peer, stamp):
@@ -55,24 +44,25 @@ def test_filters_set_at_runtime_stop_the_contacts_of_their_pairs(request):
                ('body.box.collision_mask', 70000): 'body.box.collision_mask',
                ('body.box.collision_group', -1): 'body.box.collision_group'}
     for (name, value), text in refused.items():
-        result = _set(peer, name, list(value) if isinstance(value, tuple) else value,
-                      Parameter.Type.STRING_ARRAY if isinstance(value, tuple) else None)
+        result = set_parameter(peer, name, list(value) if isinstance(value, tuple) else value,
+                               Parameter.Type.STRING_ARRAY if isinstance(value, tuple) else None)
         print(name, value, '->', result.reason)
         assert not result.successful and text in result.reason and '\n' not in result.reason
 
-    assert _set(peer, 'ignore_pairs', ['ball:floor'], Parameter.Type.STRING_ARRAY).successful
+    assert set_parameter(peer, 'ignore_pairs', ['ball:floor'],
+                         Parameter.Type.STRING_ARRAY).successful
     after, ball, box = _falling_onto_the_floor(peer, T0 + 10 * 10**9)
     print('ball:floor ignored: contacts', sorted(after), 'vz ball', ball, 'box', box)
     assert after == {('floor', 'box')}
     assert ball == -1.0 and box > -0.5       # the ball keeps its velocity, the box does not
 
-    assert _set(peer, 'body.box.collision_mask', 0).successful   # accepts no other body
+    assert set_parameter(peer, 'body.box.collision_mask', 0).successful   # accepts no other body
     masked, ball, box = _falling_onto_the_floor(peer, T0 + 20 * 10**9)
     print('box mask 0: contacts', sorted(masked), 'vz ball', ball, 'box', box)
     assert masked == set() and ball == -1.0 and box == -1.0
 
-    assert _set(peer, 'ignore_pairs', [], Parameter.Type.STRING_ARRAY).successful
-    assert _set(peer, 'body.box.collision_mask', 0xFFFF).successful
+    assert set_parameter(peer, 'ignore_pairs', [], Parameter.Type.STRING_ARRAY).successful
+    assert set_parameter(peer, 'body.box.collision_mask', 0xFFFF).successful
     again, ball, box = _falling_onto_the_floor(peer, T0 + 30 * 10**9)
     print('filters cleared: contacts', sorted(again))
     assert again == before

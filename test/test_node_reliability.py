@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from ros_harness import Peer, write_scene
+from ros_harness import Peer, node_publishers, write_scene
 
 from collres_ros.msg import BodyState, BodyStateArray
 from collres_ros.ros import processes
@@ -24,9 +24,9 @@ def start(ros_domain, tmp_path, extra_node='', args=()):
     node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene), *args],
                            env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
     peer = Peer(ros_domain)
-    peer.listen('/diagnostics', DiagnosticArray)
     peer.listen('body_states/corrected', BodyStateArray)
     peer.listen('bodies/ball/pose/corrected', PoseStamped)
+    peer.listen('/diagnostics', DiagnosticArray)   # last: see wait_up
     return node, peer
 
 
@@ -78,10 +78,15 @@ def part(stamp, kind, x=0.0, z=0.5):
 
 
 def wait_up(peer, node, topics):
+    """The node subscribes to ``topics`` and a /diagnostics report arrived: on the peer's
+    last reader, so the node matched its other readers too, and its ``body_states``
+    subscription the peer's publisher (``ros_harness.node_and_peer``)."""
     for topic, kind in topics:
         peer.advertise(topic, kind)
+    batched = any(t == 'body_states' for t, _ in topics)
     assert peer.wait(lambda: all(peer.connected(t) for t, _ in topics)
-                     and status(peer) is not None, 30.0), node.output()
+                     and status(peer) is not None
+                     and (not batched or node_publishers(peer) >= 1), 30.0), node.output()
 
 
 def answered(peer, topic, stamp):
@@ -219,8 +224,8 @@ def test_log_lines_stay_short_and_say_what_happened(ros_domain, tmp_path, stoppe
     node = processes.start('collres_node', ['--ros-args', '--params-file', str(scene)],
                            env=processes.ros_env(ros_domain), log=tmp_path / 'node.log')
     peer = Peer(ros_domain)
-    peer.listen('/diagnostics', DiagnosticArray)
     peer.listen('body_states/corrected', BodyStateArray)
+    peer.listen('/diagnostics', DiagnosticArray)   # last: see wait_up
     stopped((node, peer))
     wait_up(peer, node, [('body_states', BodyStateArray)])
     for stamp in (T0, T0 + DT, T0 + 100 * S):            # the last one: a large gap

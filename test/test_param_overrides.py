@@ -8,14 +8,13 @@ values over its file too. Each test runs the documented form.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
 
 from collres_ros.ros import processes
 from collres_ros.ros.bag import BagReader
-from ros_harness import Peer
+from ros_harness import Peer, answered
 
 ROOT = Path(__file__).resolve().parents[1]
 BALL = ROOT / 'config' / 'scenes' / 'bouncing_ball.yaml'
@@ -29,15 +28,8 @@ def node_parameters(domain: int, names: list[str]) -> list:
     try:
         client = peer.node.create_client(GetParameters, '/collres_node/get_parameters')
         assert client.wait_for_service(timeout_sec=30.0), 'collres_node has no parameters'
-        # once in a full suite, a request sent as the service appeared got no answer in 30 s
-        # (the same test passed 12 times alone): asked again every 5 s until answered
-        deadline = time.monotonic() + 30.0
-        while True:
-            future = client.call_async(GetParameters.Request(names=names))
-            if peer.wait(future.done, 5.0) or time.monotonic() > deadline:
-                break
-        assert future.done(), 'collres_node never answered get_parameters'
-        return [parameter_value_to_python(v) for v in future.result().values]
+        result = answered(peer, lambda: client.call_async(GetParameters.Request(names=names)))
+        return [parameter_value_to_python(v) for v in result.values]
     finally:
         peer.close()
 

@@ -13,7 +13,7 @@ import pytest
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from ros_harness import Peer, write_scene
+from ros_harness import Peer, answered, write_scene
 
 from collres_ros.msg import BodyStateArray, ContactArray
 from collres_ros.ros import processes
@@ -101,14 +101,12 @@ def test_per_body_overrides_apply_and_only_those_set_are_declared(ros_domain, tm
         assert peer.wait(lambda: ball.get_subscription_count() > 0, 30.0), node.output()
         client = AsyncParameterClient(peer.node, 'collres_node')
         assert client.wait_for_services(10.0)
-        listed = client.list_parameters(['qos_overrides'], 0)
-        assert peer.wait(listed.done, 10.0)
-        names = sorted(n for n in listed.result().result.names if '/bodies/' in n)
+        listed = answered(peer, lambda: client.list_parameters(['qos_overrides'], 0))
+        names = sorted(n for n in listed.result.names if '/bodies/' in n)
         print('per-body QoS parameters:', names)
         assert names == ['qos_overrides./bodies/ball/pose.subscription.reliability']
-        got = client.get_parameters(names)
-        assert peer.wait(got.done, 10.0)
-        assert got.result().values[0].string_value == 'best_effort'
+        got = answered(peer, lambda: client.get_parameters(names))
+        assert got.values[0].string_value == 'best_effort'
         reliable = peer.node.create_publisher(PoseStamped, 'bodies/box/pose', BEST_EFFORT)
         box = peer.node.create_publisher(TwistStamped, 'bodies/box/twist', RELIABLE)
         assert peer.wait(lambda: box.get_subscription_count() > 0, 30.0), node.output()

@@ -81,7 +81,7 @@ def test_launch_file_names_only_executables_arguments_and_parameters_that_exist(
         assert (constants.get(package.id) if isinstance(package, ast.Name)
                 else ast.literal_eval(package)) == 'collres_ros'
         exe = ast.literal_eval(_keyword(node, 'executable'))
-        assert exe in EXECUTABLES and f'{exe} = collres_ros.' in setup
+        assert exe in EXECUTABLES and f"'scripts/{exe}'" in setup
         assert f'scripts/{exe}' in cmake, f'{exe} is not installed by CMake'
         assert ast.literal_eval(_keyword(node, 'name')) == exe
         # command-line flags given to an executable are flags its main knows

@@ -158,12 +158,17 @@ _SOLVER_BY_NAME = {p.name: p for p in SOLVER_PARAMS}
 # ``_native.SolverParams`` by its name (``world.solver_params``).
 SOLVER_TUNING: tuple[ParamSpec, ...] = (
     ParamSpec('warm_start_ratio', 'double', 10.0,
-              'Last step\'s impulses are scaled by dt / last dt and warm start a contact only '
-              'while that ratio lies in [1 / this, this] (and the last step was not fresh); '
-              'otherwise the step starts cold', 1.0, 1e3,
-              reason='a resting contact carries its load times dt, so a step of up to 10 '
-                     'periods (a node that fell behind dropped inputs) starts from the '
-                     'answer (a cold pile under 8 periods of load slid 5 mm into its floor); '
+              'Last step\'s impulses are scaled by the step\'s growth (the load m |dv| its '
+              'external change dv gives the bodies in contact over theirs last step; dt / '
+              'last dt without a load) and warm start a contact only while that lies in '
+              '[1 / this, this] (and the last step was not fresh); otherwise the step starts '
+              'cold', 1.0, 1e3,
+              reason='a resting contact carries its load, so a step of up to 10 periods of '
+                     'load (a node that fell behind dropped inputs) starts from the answer (a '
+                     'cold pile under 8 periods of load slid 5 mm into its floor), and a step '
+                     'of k periods whose source integrated one period (it integrates each '
+                     'answer it gets) starts from 1 times, not k times, the impulses (k times '
+                     'kept a pile of 100 cubes awake for good); '
                      'a 1 ns step or a 1 ms fresh step before a 30 Hz one would launch a '
                      'resting body'),
     ParamSpec('match_radius', 'double', 0.02,

@@ -552,6 +552,7 @@ class CollresNode(Node):
             name=status_name(self.get_fully_qualified_name()),
             extra={'bodies': len(self.scene.bodies), 'sync_dropped': self.sync.dropped,
                    'inputs_received': received, 'inputs_lost': self.losses.total_lost,
+                   'body_states_publishers': self._inputs[0].get_publisher_count(),
                    'loss_counting': 'exact' if not self.losses.uncounted else (
                        'not inferred while several publishers share a topic: '
                        + ', '.join(sorted(self.losses.uncounted))),
@@ -648,8 +649,12 @@ def _spin(argv: Sequence[str]) -> int:
         kind = ManagedCollresNode
     try:
         node = kind(params_file_dir(argv))
-    except (ValueError, OSError) as failure:
-        return cli.error(failure)
+    except Exception as failure:
+        if not rclpy.ok():   # SIGINT/SIGTERM shut the context down while the node was created
+            return 0
+        if isinstance(failure, (ValueError, OSError)):
+            return cli.error(failure)
+        raise
     try:
         executor = SingleThreadedExecutor()
         executor.add_node(node)

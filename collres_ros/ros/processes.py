@@ -1,6 +1,6 @@
 """A tiny harness for running the package's executables as child processes.
 
-Used by the end-to-end tests and by ``collres_demo``: start a console script
+Used by the end-to-end tests and by ``collres_demo``: start an executable
 (``collres_node``, ``collres_sim``, ...) with its own environment (a private
 ``ROS_DOMAIN_ID``, discovery limited to localhost), wait on predicates with
 deadlines (never a bare sleep), stop it with SIGINT, then SIGTERM, then
@@ -43,7 +43,7 @@ class Process(subprocess.Popen):
 
 
 def command(script: str) -> list[str]:
-    """argv prefix running ``script``: the installed console script next to this
+    """argv prefix running ``script``: the installed executable next to this
     interpreter, else one on PATH, else ``python -m <module>``."""
     local = Path(sys.executable).parent / script
     if local.is_file() and os.access(local, os.X_OK):

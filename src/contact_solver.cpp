@@ -761,6 +761,71 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
   }
 }
 
+// solve_spin() on the spin rows of a wide group (all four lanes; `load` each lane's
+// SpinRow::load); returns the change over the lever per lane
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
+void solve_wide_spin(WideSpin& s, const WideGroup& g, const std::vector<SpinRow>& spins,
+                     double* v, Progress& progress) {
+  Lanes normal;
+  for (int l = 0; l < kLanes; ++l) normal[l] = spins[s.spin[l]].load;
+  const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |
+                    (s.torque[2] != 0.0);
+  if (!any(held)) return;
+  Lanes wa[3], wb[3];
+  for (int l = 0; l < kLanes; ++l)
+    for (int e = 0; e < 3; ++e) {
+      wa[e][l] = v[6 * g.a[l] + 3 + e];
+      wb[e][l] = v[6 * g.b[l] + 3 + e];
+    }
+  auto dot3 = [](const Lanes* a, const Lanes* b) __attribute__((always_inline)) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  };
+  auto mul3 = [](const Lanes (*m)[3], const Lanes* x, Lanes* out) __attribute__((always_inline)) {
+    for (int r = 0; r < 3; ++r) out[r] = m[r][0] * x[0] + m[r][1] * x[1] + m[r][2] * x[2];
+  };
+  const Lanes zero = splat(0.0);
+  Lanes w[3], rolling[3], old_roll[3], roll[3];
+  for (int e = 0; e < 3; ++e) w[e] = wb[e] - wa[e];
+  const Lanes spin = dot3(w, s.n);
+  for (int e = 0; e < 3; ++e) rolling[e] = w[e] - spin * s.n[e];
+  const Lanes old_twist = dot3(s.torque, s.n);
+  for (int e = 0; e < 3; ++e) old_roll[e] = s.torque[e] - old_twist * s.n[e];
+  const Lanes speed2 = dot3(rolling, rolling);
+  Lanes k_rolling[3];
+  mul3(s.inv_ab, rolling, k_rolling);
+  const Lanes k_roll = dot3(rolling, k_rolling);
+  const Mask slips = (speed2 > 0.0) & (k_roll > kTiny * speed2);
+  const Lanes ratio = speed2 / k_roll;
+  for (int e = 0; e < 3; ++e) roll[e] = pick(slips, old_roll[e] - ratio * rolling[e], old_roll[e]);
+  const Lanes roll_size = root(dot3(roll, roll)), roll_limit = s.roll * normal;
+  const Mask over = roll_size > roll_limit;
+  const Lanes shrink = roll_limit / roll_size;
+  for (int e = 0; e < 3; ++e) roll[e] = pick(over, shrink * roll[e], roll[e]);
+  Lanes twist = pick(s.k_n > kTiny, old_twist - spin / s.k_n, old_twist);
+  const Lanes low = -s.twist * normal, high = s.twist * normal;
+  twist = pick(twist < low, low, pick(high < twist, high, twist));   // std::clamp
+  Lanes change[3];
+  for (int e = 0; e < 3; ++e) {
+    change[e] = pick(held, (roll[e] - old_roll[e]) + (twist - old_twist) * s.n[e], zero);
+    s.torque[e] = pick(held, roll[e] + twist * s.n[e], s.torque[e]);
+  }
+  const Mask moved = (change[0] != 0.0) | (change[1] != 0.0) | (change[2] != 0.0);
+  Lanes turn_a[3], turn_b[3];
+  mul3(s.inv_a, change, turn_a);
+  mul3(s.inv_b, change, turn_b);
+  const Lanes size = pick(moved, root(dot3(change, change)) / s.lever, zero);
+  for (int l = 0; l < kLanes; ++l) {
+    if (!moved[l]) continue;
+    if (g.write_a[l])
+      for (int e = 0; e < 3; ++e) v[6 * g.a[l] + 3 + e] = wa[e][l] - turn_a[e][l];
+    if (g.write_b[l])
+      for (int e = 0; e < 3; ++e) v[6 * g.b[l] + 3 + e] = wb[e][l] + turn_b[e][l];
+    progress.change = std::max(progress.change, size[l]);
+  }
+}
+
 #undef WIDE
 
 // The plan's wide groups and their rows from the manifolds and rows (plan.groups,
@@ -830,14 +895,75 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 }
 
 // The wide rows' impulses back into the rows.
-void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
-                   const std::vector<Manifold>& manifolds) {
-  for (size_t group = 0; group < plan.wave_groups.back(); ++group)
+// (pack_groups' spin rows)
+void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
+                const std::vector<SpinRow>* spins) {
+  const size_t group_count = plan.wave_groups.back();
+  if (plan.spin_groups.size() < group_count) plan.spin_groups.resize(group_count);
+  for (size_t group = 0; group < group_count; ++group) {
+    const WideGroup& g = plan.groups[group];
+    WideSpin& w = plan.spin_groups[group];
+    bool all = spins != nullptr;
+    for (int l = 0; l < kLanes && all; ++l) all = manifolds[g.manifold + static_cast<size_t>(l)].spin >= 0;
+    for (int l = 0; l < kLanes; ++l)
+      w.spin[l] = all ? manifolds[g.manifold + static_cast<size_t>(l)].spin : -1;
+    if (!all) continue;
     for (int l = 0; l < kLanes; ++l) {
-      const WideGroup& g = plan.groups[group];
+      const SpinRow& r = (*spins)[w.spin[l]];
+      for (int e = 0; e < 3; ++e) {
+        w.n[e][l] = r.n[e];
+        w.torque[e][l] = r.torque[e];
+        for (int c = 0; c < 3; ++c) {
+          w.inv_a[e][c][l] = r.inv_a(e, c);
+          w.inv_b[e][c][l] = r.inv_b(e, c);
+          w.inv_ab[e][c][l] = r.inv_ab(e, c);
+        }
+      }
+      w.k_n[l] = r.k_n;
+      w.lever[l] = r.lever;
+      w.roll[l] = r.roll;
+      w.twist[l] = r.twist;
+    }
+  }
+}
+
+// The wide rows' impulses back into the rows, the wide spin rows' torques into the spins.
+void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
+                   const std::vector<Manifold>& manifolds, std::vector<SpinRow>* spins) {
+  for (size_t group = 0; group < plan.wave_groups.back(); ++group) {
+    const WideGroup& g = plan.groups[group];
+    const WideSpin& w = plan.spin_groups[group];
+    for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       lane_to_rows(&plan.wide_rows[g.row], l, &rows[static_cast<size_t>(m.first)], g.count);
+      if (spins != nullptr && w.spin[l] >= 0)
+        (*spins)[w.spin[l]].torque = Vec3(w.torque[0][l], w.torque[1][l], w.torque[2][l]);
     }
+  }
+}
+
+// The spin rows of a sweep, wave by wave: a group's in lanes where all four have one, the
+// others one by one (a wave's spin rows share no movable body: the bits of their order).
+void solve_spin_waves(SweepPlan& plan, std::vector<SpinRow>& spins,
+                      const std::vector<Manifold>& manifolds, const SolverBodies& bodies,
+                      Progress& progress) {
+  double* v = bodies.velocity;
+  auto one = [&](size_t m) {
+    const int32_t spin = manifolds[m].spin;
+    if (spin >= 0)
+      progress.change = std::max(progress.change, solve_spin(spins[spin], v, bodies.inv_mass));
+  };
+  for (size_t l = 0; l < plan.waves.size(); ++l) {
+    for (size_t group = plan.wave_groups[l]; group < plan.wave_groups[l + 1]; ++group) {
+      const WideGroup& g = plan.groups[group];
+      if (plan.spin_groups[group].spin[0] >= 0) {
+        solve_wide_spin(plan.spin_groups[group], g, spins, v, progress);
+      } else {
+        for (int lane = 0; lane < kLanes; ++lane) one(g.manifold + static_cast<size_t>(lane));
+      }
+    }
+    for (size_t m = plan.waves[l].wide_end; m < plan.waves[l].end; ++m) one(m);
+  }
 }
 
 }  // namespace
@@ -847,7 +973,10 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
                      std::vector<SpinRow>* spins, SweepPlan* plan) {
   const size_t count = manifolds.size(), spin_count = spins != nullptr ? spins->size() : 0;
   const bool wide = plan != nullptr && plan->wide;
-  if (wide) pack_groups(*plan, rows, manifolds, bodies.inv_mass);
+  if (wide) {
+    pack_groups(*plan, rows, manifolds, bodies.inv_mass);
+    pack_spins(*plan, manifolds, spins);
+  }
   double* v = bodies.velocity;
   // wave l's part [lo, hi) of its work: its wide groups, then its manifolds one by one
   auto wave_part = [&](size_t l, size_t lo, size_t hi, Progress& progress) {
@@ -890,12 +1019,16 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
                                static_cast<int>(chunks), 0, static_cast<double>(size));
       }
     }
-    if (spins != nullptr) solve_spins(*spins, 0, spin_count, bodies, part[0]);
+    if (spins != nullptr && wide) {
+      solve_spin_waves(*plan, *spins, manifolds, bodies, part[0]);
+    } else if (spins != nullptr) {
+      solve_spins(*spins, 0, spin_count, bodies, part[0]);
+    }
     const double change = std::max(part[0].change, part[1].change);
     const double largest = std::max(part[0].largest, part[1].largest);
     if (change <= converged * largest) break;
   }
-  if (wide) unpack_groups(*plan, rows, manifolds);
+  if (wide) unpack_groups(*plan, rows, manifolds, spins);
   return done;
 }
 

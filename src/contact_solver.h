@@ -205,6 +205,15 @@ struct WideGroup {
   Lanes invertible;              // 1 where Manifold::invertible, else 0
 };
 
+// The spin rows (SpinRow) of a wide group's four manifolds in lanes: the fields
+// solve_spin reads and writes, same units and signs; `spin` the SpinRows they stand for
+// (all four, or the group's spin rows are solved one by one).
+struct WideSpin {
+  int32_t spin[kLanes] = {-1, -1, -1, -1};
+  Lanes n[3], inv_a[3][3], inv_b[3][3], inv_ab[3][3];
+  Lanes k_n, lever, roll, twist, torque[3];
+};
+
 // How the velocity sweeps visit the manifolds (sweep_waves.h builds it): wave by wave,
 // no two manifolds of a wave sharing a movable body, so that a wave's manifolds may be
 // solved in any order, in lanes and on two threads, with the bits of the sweep in the
@@ -224,6 +233,8 @@ struct SweepPlan {
   std::vector<WideGroup> groups;
   std::vector<WideRow> wide_rows;
   std::vector<size_t> wave_groups;      // groups of wave w: [wave_groups[w], [w + 1])
+  std::vector<WideSpin> spin_groups;    // per group: its manifolds' spin rows, in lanes
+                                        // (spin -1 in a lane: none, one by one)
 };
 
 // Sequential impulses over the manifolds: normal clamped >= 0 against the speculative

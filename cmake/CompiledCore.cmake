@@ -37,7 +37,12 @@ find_package(Threads REQUIRED)           # the solver's second thread (src/worke
 target_link_libraries(_native PRIVATE coal::coal Threads::Threads)
 target_compile_features(_native PRIVATE cxx_std_17)
 # No -march=native: Eigen fixed-size types cross libcoal's ABI (built for generic x86-64).
-target_compile_options(_native PRIVATE $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra>)
+# -ffp-contract=off: no fused multiply-add where a target has one (aarch64): the solver's
+# lanes and its one-by-one path do the same arithmetic, so the same bits on every target.
+# -fno-math-errno: std::sqrt as the one instruction (nothing reads errno), so the lanes'
+# square roots vectorise (correctly rounded either way: the same bits).
+target_compile_options(_native PRIVATE
+  $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wno-psabi -ffp-contract=off -fno-math-errno>)
 # Installed as site-packages/collres_ros/core/_native*.so: $ORIGIN/../.. is site-packages,
 # where a pip install keeps coal's cmeel.prefix/lib; coal's own library directory (an
 # absolute cmeel.prefix/lib, or the ROS prefix's lib) covers editable and colcon installs.

@@ -179,6 +179,8 @@ void bind_solver(py::module_& m) {
       .def_readwrite("match_radius", &SolverParams::match_radius)
       .def_readwrite("threads", &SolverParams::threads)
       .def_readwrite("parallel_manifolds", &SolverParams::parallel_manifolds)
+      .def_readwrite("parallel_wave", &SolverParams::parallel_wave)
+      .def_readwrite("wide_rows", &SolverParams::wide_rows)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);
 
@@ -199,14 +201,29 @@ void bind_solver(py::module_& m) {
   py::class_<StepSolver>(m, "StepSolver", "The per-contact work of one step (see step.h).")
       .def(py::init<>())
       .def_property_readonly("cache", &StepSolver::cache, py::return_value_policy::reference_internal)
-      .def_property_readonly("split", [](const StepSolver& solver) {
-        return py::make_tuple(solver.plan().halves[0], solver.plan().halves[1],
-                              solver.manifold_count());
-      }, "The last step's sweep halves: (end of the first, end of the second, manifolds); "
-         "manifolds [0, first) and [first, second) share no movable body.")
+      .def_property_readonly("waves", [](const StepSolver& solver) {
+        py::list waves;
+        for (const SweepWave& w : solver.plan().waves)
+          waves.append(py::make_tuple(w.first, w.wide_end, w.end));
+        return waves;
+      }, "The last step's sweep waves, in order: (first, wide_end, end) each; manifolds "
+         "[first, wide_end) in wide groups of 4, [wide_end, end) one by one; no two "
+         "manifolds of a wave share a movable body.")
+      .def_property_readonly("sweep_bodies", [](const StepSolver& solver) {
+        const std::vector<Manifold>& manifolds = solver.manifolds();
+        py::array_t<int32_t> out({static_cast<py::ssize_t>(manifolds.size()),
+                                  static_cast<py::ssize_t>(3)});
+        auto view = out.mutable_unchecked<2>();
+        for (size_t m = 0; m < manifolds.size(); ++m) {
+          view(m, 0) = manifolds[m].a;
+          view(m, 1) = manifolds[m].b;
+          view(m, 2) = manifolds[m].count;
+        }
+        return out;
+      }, "The last step's manifolds in sweep order: (body a, body b, rows) each.")
       .def_property_readonly("helped", [](const StepSolver& solver) {
         return py::make_tuple(solver.helped(), solver.chunks_run());
-      }, "Chunks of the sweeps' second halves run so far: (by the second thread, in all).")
+      }, "Chunks of the waves' second halves run so far: (by the second thread, in all).")
       .def("step", &solver_step, py::kw_only(), py::arg("previous"), py::arg("current"),
            py::arg("out"), py::arg("inv_mass"), py::arg("inv_inertia_body"),
            py::arg("movable"), py::arg("held"), py::arg("restitution"),

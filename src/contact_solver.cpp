@@ -18,6 +18,7 @@ inline Vec3 ang(const double* v, int32_t i) { return load3(v + 6 * i + 3); }
 // once, updated in place, stored once (the same arithmetic as on the (N, 6) array).
 struct Twists {
   Vec3 va, wa, vb, wb;   // m/s, rad/s: A's and B's linear and angular velocity
+  Twists() = default;
   Twists(const double* v, int32_t a, int32_t b)
       : va(lin(v, a)), wa(ang(v, a)), vb(lin(v, b)), wb(ang(v, b)) {}
   void store(double* v, int32_t a, int32_t b) const {
@@ -360,33 +361,39 @@ struct Progress {
   double change = 0.0, largest = 0.0;
 };
 
-// One sweep over manifolds [from, to) (their rows; each spin row's load).
+// One sweep's update of one manifold (its rows; its spin row's load), twists at hand.
+double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
+                      std::vector<SpinRow>* spins, Progress& progress) {
+  const size_t lo = static_cast<size_t>(manifold.first);
+  const size_t hi = lo + static_cast<size_t>(manifold.count);
+  const int k = manifold.count;
+  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
+  if (step >= 0.0) {
+    for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], t));
+  } else {
+    step = 0.0;
+    for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_row(rows[i], t));
+  }
+  progress.change = std::max(progress.change, step);
+  for (size_t i = lo; i < hi; ++i) progress.largest = std::max(progress.largest, rows[i].normal);
+  if (spins != nullptr && manifold.spin >= 0) {   // its load, while its rows are at hand
+    double load = 0.0;
+    for (size_t i = lo; i < hi; ++i) load += rows[i].normal;
+    (*spins)[manifold.spin].load = load;
+  }
+  return step;
+}
+
+// One sweep over manifolds [from, to), one by one.
 void solve_manifolds(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      size_t from, size_t to, const SolverBodies& bodies,
                      std::vector<SpinRow>* spins, Progress& progress) {
   double* v = bodies.velocity;
   for (size_t m = from; m < to; ++m) {
     const Manifold& manifold = manifolds[m];
-    const size_t lo = static_cast<size_t>(manifold.first);
-    const size_t hi = lo + static_cast<size_t>(manifold.count);
-    const int k = manifold.count;
-    const int32_t a = manifold.a, b = manifold.b;
-    Twists t(v, a, b);
-    double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
-    if (step >= 0.0) {
-      for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], t));
-    } else {
-      step = 0.0;
-      for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_row(rows[i], t));
-    }
-    t.store(v, a, b, bodies.inv_mass);
-    progress.change = std::max(progress.change, step);
-    for (size_t i = lo; i < hi; ++i) progress.largest = std::max(progress.largest, rows[i].normal);
-    if (spins != nullptr && manifold.spin >= 0) {   // its load, while its rows are at hand
-      double load = 0.0;
-      for (size_t i = lo; i < hi; ++i) load += rows[i].normal;
-      (*spins)[manifold.spin].load = load;
-    }
+    Twists t(v, manifold.a, manifold.b);
+    solve_manifold(rows, manifold, t, spins, progress);
+    t.store(v, manifold.a, manifold.b, bodies.inv_mass);
   }
 }
 
@@ -398,52 +405,497 @@ void solve_spins(std::vector<SpinRow>& spins, size_t from, size_t to, const Solv
                                                            bodies.inv_mass));
 }
 
+// ---- wide groups: the update of solve_manifold on kLanes manifolds at once, lane by lane
+// the same arithmetic in the same order (a manifold's bits do not depend on its lane)
+
+typedef int64_t Mask __attribute__((vector_size(32), aligned(32)));
+// (the helpers below are inlined into each clone of solve_group: a vector argument passed
+// between code of different targets would not agree on registers)
+#define WIDE inline __attribute__((always_inline))
+
+WIDE Lanes splat(double x) { return Lanes{x, x, x, x}; }
+WIDE Lanes pick(Mask m, Lanes a, Lanes b) {   // m ? a : b, lane by lane
+  return (Lanes)((m & (Mask)a) | (~m & (Mask)b));
+}
+WIDE Lanes maximum(Lanes a, Lanes b) { return pick(a < b, b, a); }   // std::max(a, b)
+WIDE Lanes magnitude(Lanes a) {                                        // std::fabs
+  return (Lanes)((Mask)a & (Mask){INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX});
+}
+WIDE Lanes root(Lanes a) {
+  Lanes r;
+  for (int l = 0; l < kLanes; ++l) r[l] = std::sqrt(a[l]);
+  return r;
+}
+WIDE bool any(Mask m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+
+struct WideVec {
+  Lanes x, y, z;
+};
+WIDE Lanes dot(const WideVec& a, const Lanes* b) { return a.x * b[0] + a.y * b[1] + a.z * b[2]; }
+
+// The twists of the lanes' bodies (as Twists).
+struct WideTwists {
+  WideVec va, wa, vb, wb;
+  WIDE WideTwists(const double* v, const WideGroup& g) {
+    for (int l = 0; l < kLanes; ++l) {
+      const double* a = v + 6 * g.a[l];
+      const double* b = v + 6 * g.b[l];
+      va.x[l] = a[0], va.y[l] = a[1], va.z[l] = a[2];
+      wa.x[l] = a[3], wa.y[l] = a[4], wa.z[l] = a[5];
+      vb.x[l] = b[0], vb.y[l] = b[1], vb.z[l] = b[2];
+      wb.x[l] = b[3], wb.y[l] = b[4], wb.z[l] = b[5];
+    }
+  }
+  WIDE Twists lane(int l) const {
+    Twists t;
+    t.va = Vec3(va.x[l], va.y[l], va.z[l]);
+    t.wa = Vec3(wa.x[l], wa.y[l], wa.z[l]);
+    t.vb = Vec3(vb.x[l], vb.y[l], vb.z[l]);
+    t.wb = Vec3(wb.x[l], wb.y[l], wb.z[l]);
+    return t;
+  }
+  WIDE void set_lane(int l, const Twists& t) {
+    va.x[l] = t.va.x(), va.y[l] = t.va.y(), va.z[l] = t.va.z();
+    wa.x[l] = t.wa.x(), wa.y[l] = t.wa.y(), wa.z[l] = t.wa.z();
+    vb.x[l] = t.vb.x(), vb.y[l] = t.vb.y(), vb.z[l] = t.vb.z();
+    wb.x[l] = t.wb.x(), wb.y[l] = t.wb.y(), wb.z[l] = t.wb.z();
+  }
+  WIDE void store(double* v, const WideGroup& g) const {
+    for (int l = 0; l < kLanes; ++l) {
+      if (g.write_a[l]) {
+        double* a = v + 6 * g.a[l];
+        a[0] = va.x[l], a[1] = va.y[l], a[2] = va.z[l];
+        a[3] = wa.x[l], a[4] = wa.y[l], a[5] = wa.z[l];
+      }
+      if (g.write_b[l]) {
+        double* b = v + 6 * g.b[l];
+        b[0] = vb.x[l], b[1] = vb.y[l], b[2] = vb.z[l];
+        b[3] = wb.x[l], b[4] = wb.y[l], b[5] = wb.z[l];
+      }
+    }
+  }
+};
+
+// relative(): velocity of B's point relative to A's along direction k of the row
+WIDE Lanes relative(const WideRow& r, const WideTwists& t, int k, const Lanes* d) {
+  const WideVec rel{t.vb.x - t.va.x, t.vb.y - t.va.y, t.vb.z - t.va.z};
+  return dot(rel, d) + dot(t.wb, r.ang_b[k]) - dot(t.wa, r.ang_a[k]);
+}
+
+// apply(): impulse s along direction k, +s on B, -s on A; lanes where s is 0 unchanged
+WIDE void apply(const WideRow& r, const WideGroup& g, WideTwists& t, int k, const Lanes* d,
+                  Lanes s) {
+  const Mask on = s != 0.0;
+  const Lanes sa = s * g.ma, sb = s * g.mb;
+  t.va.x = pick(on, t.va.x - sa * d[0], t.va.x);
+  t.va.y = pick(on, t.va.y - sa * d[1], t.va.y);
+  t.va.z = pick(on, t.va.z - sa * d[2], t.va.z);
+  t.wa.x = pick(on, t.wa.x - s * r.dw_a[k][0], t.wa.x);
+  t.wa.y = pick(on, t.wa.y - s * r.dw_a[k][1], t.wa.y);
+  t.wa.z = pick(on, t.wa.z - s * r.dw_a[k][2], t.wa.z);
+  t.vb.x = pick(on, t.vb.x + sb * d[0], t.vb.x);
+  t.vb.y = pick(on, t.vb.y + sb * d[1], t.vb.y);
+  t.vb.z = pick(on, t.vb.z + sb * d[2], t.vb.z);
+  t.wb.x = pick(on, t.wb.x + s * r.dw_b[k][0], t.wb.x);
+  t.wb.y = pick(on, t.wb.y + s * r.dw_b[k][1], t.wb.y);
+  t.wb.z = pick(on, t.wb.z + s * r.dw_b[k][2], t.wb.z);
+}
+
+// solve_friction() in the lanes of `live`; returns the largest impulse change per lane
+// (0 elsewhere)
+WIDE Lanes solve_friction(WideRow& r, const WideGroup& g, WideTwists& t, Mask live) {
+  const Mask held = (r.normal != 0.0) | (r.tangent[0] != 0.0) | (r.tangent[1] != 0.0);
+  live &= held;
+  const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
+  const Lanes speed2 = x * x + y * y;
+  const Lanes stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
+  const Lanes slip = speed2 / maximum(stiffness, splat(kTiny) * speed2 + 1e-300);
+  Lanes tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
+  const Lanes size = root(tx * tx + ty * ty);
+  const Lanes limit = r.mu * r.normal;
+  const Lanes scale = pick(size > 0.0, limit / size, splat(0.0));
+  const Mask over = size > limit;
+  tx = pick(over, tx * scale, tx);
+  ty = pick(over, ty * scale, ty);
+  const Lanes zero = splat(0.0);
+  const Lanes d_x = pick(live, tx - r.tangent[0], zero), d_y = pick(live, ty - r.tangent[1], zero);
+  r.tangent[0] = pick(live, tx, r.tangent[0]);
+  r.tangent[1] = pick(live, ty, r.tangent[1]);
+  apply(r, g, t, 1, r.t1, d_x);
+  apply(r, g, t, 2, r.t2, d_y);
+  return maximum(magnitude(d_x), magnitude(d_y));
+}
+
+// solve_normal() of a one-row manifold, every lane
+WIDE Lanes solve_normal(WideRow& r, const WideGroup& g, WideTwists& t) {
+  const Lanes v_n = relative(r, t, 0, r.n);
+  const Lanes new_n = maximum(r.normal - r.normal_mass * (v_n + r.allowance), splat(0.0));
+  const Lanes d_n = new_n - r.normal;
+  r.normal = new_n;
+  apply(r, g, t, 0, r.n, d_n);
+  return magnitude(d_n);
+}
+
+// The rows of a lane's manifold to and from its ContactRows (normal and friction impulses).
+void lane_to_rows(const WideRow* w, int l, ContactRow* r, int count) {
+  for (int i = 0; i < count; ++i) {
+    r[i].normal = w[i].normal[l];
+    r[i].tangent[0] = w[i].tangent[0][l];
+    r[i].tangent[1] = w[i].tangent[1][l];
+  }
+}
+void rows_to_lane(const ContactRow* r, int count, WideRow* w, int l) {
+  for (int i = 0; i < count; ++i) {
+    w[i].normal[l] = r[i].normal;
+    w[i].tangent[0][l] = r[i].tangent[0];
+    w[i].tangent[1][l] = r[i].tangent[1];
+  }
+}
+
+// One sweep's update of a wide group: solve_manifold on its kLanes manifolds. A block
+// whose all-active answer does not fit (the active-set search, or rows one by one) is
+// handed to solve_manifold in its lane.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
+void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
+                 const std::vector<Manifold>& manifolds, double* v,
+                 std::vector<SpinRow>* spins, Progress& progress) {
+  const int k = g.count;
+  WideTwists t(v, g);
+  Lanes step = splat(0.0);
+  Mask live = (Mask){-1, -1, -1, -1};   // lanes whose friction is solved here
+  if (k == 1) {
+    step = solve_normal(w[0], g, t);
+  } else {
+    // solve_block: q = J v + allowance - A normal; x = 0 when idle, else A^-1 (-q) when
+    // every row ends active, else the lane's own search
+    Lanes q[4], x[4];
+    Mask idle = (Mask){-1, -1, -1, -1};
+    for (int i = 0; i < k; ++i) {
+      q[i] = relative(w[i], t, 0, w[i].n) + w[i].allowance;
+      for (int j = 0; j < k; ++j) q[i] -= g.plain[i][j] * w[j].normal;
+      idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
+    }
+    Mask fits = g.invertible != 0.0;
+    for (int i = 0; i < k; ++i) {
+      x[i] = splat(0.0);
+      for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
+      fits &= x[i] >= -1e-12 * (1.0 + magnitude(x[i]));
+    }
+    const Mask take = fits & ~idle;
+    for (int i = 0; i < k; ++i) {   // take_block
+      const Lanes d = pick(take, maximum(x[i], splat(0.0)) - w[i].normal, splat(0.0));
+      w[i].normal += d;
+      apply(w[i], g, t, 0, w[i].n, d);
+      step = maximum(step, magnitude(d));
+    }
+    Mask search = ~(fits | idle);
+    // two rows (an edge) whose all-active answer failed: solve_block's search tries sets
+    // of one row or none (the rows carrying impulse first, then {1}, {0}, {}), each a
+    // division; solved here in lanes, the same sets in the same order, the same arithmetic
+    const Mask two = search & (g.invertible != 0.0);
+    if (k == 2 && any(two)) {
+      const Lanes zero = splat(0.0);
+      Lanes candidate[3][2];   // x of the sets {0} (bit 1), {1} (bit 2), {} (0)
+      Mask fit[3];
+      for (int i = 0; i < 2; ++i) {
+        const int j = 1 - i;
+        const Lanes a_ii = g.delassus[i][i];
+        const Lanes x_i = (-q[i]) / a_ii;
+        candidate[i][i] = x_i;
+        candidate[i][j] = zero;
+        const Lanes w_j = q[j] + g.delassus[j][0] * candidate[i][0] +
+                          g.delassus[j][1] * candidate[i][1];
+        fit[i] = (magnitude(a_ii) > 1e-9 * magnitude(a_ii) + 1e-300) &
+                 (x_i >= -1e-12 * (1.0 + magnitude(x_i))) &
+                 (w_j >= -1e-12 * (1.0 + magnitude(q[j])));
+      }
+      candidate[2][0] = candidate[2][1] = zero;
+      fit[2] = (Mask){-1, -1, -1, -1};
+      for (int i = 0; i < 2; ++i)
+        fit[2] &= q[i] + g.delassus[i][0] * zero + g.delassus[i][1] * zero >=
+                  -1e-12 * (1.0 + magnitude(q[i]));
+      Mask chosen = {0, 0, 0, 0};
+      Lanes found[2] = {zero, zero};
+      for (int l = 0; l < kLanes; ++l) {
+        if (!two[l]) continue;
+        const int carrying = (w[0].normal[l] > 0.0 ? 1 : 0) | (w[1].normal[l] > 0.0 ? 2 : 0);
+        const int order[4] = {carrying, 2, 1, 0};   // (carrying 3: tried above)
+        for (int o = carrying == 3 ? 1 : 0; o < 4; ++o) {
+          const int set = order[o];
+          if (o > 0 && set == carrying) continue;
+          const int c = set == 1 ? 0 : (set == 2 ? 1 : 2);
+          if (fit[c][l]) {
+            chosen[l] = -1;
+            found[0][l] = candidate[c][0][l];
+            found[1][l] = candidate[c][1][l];
+            break;
+          }
+        }
+      }
+      for (int i = 0; i < 2; ++i) {   // take_block
+        const Lanes d = pick(chosen, maximum(found[i], zero) - w[i].normal, zero);
+        w[i].normal += d;
+        apply(w[i], g, t, 0, w[i].n, d);
+        step = maximum(step, magnitude(d));
+      }
+      search &= ~chosen;
+    }
+    // three or four rows (a face) whose all-active answer failed: solve_block's search
+    // tries the rows carrying impulse first, and they are usually the answer: that set
+    // solved in lanes, each lane's set in its leading rows and the rest an identity that
+    // the elimination leaves alone (the same pivots and arithmetic as solve_block's
+    // `fits`); a lane whose set does not fit searches on one by one
+    const Mask face = search & (g.invertible != 0.0);
+    if (k >= 3 && any(face)) {
+      const Lanes zero = splat(0.0), one = splat(1.0);
+      Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
+      int idx[kLanes][4], members[kLanes];
+      Mask tried = {0, 0, 0, 0};
+      for (int l = 0; l < kLanes; ++l) {
+        members[l] = 0;
+        if (!face[l]) continue;
+        int carrying = 0;
+        for (int i = 0; i < k; ++i) carrying |= w[i].normal[l] > 0.0 ? 1 << i : 0;
+        if (carrying == (1 << k) - 1) continue;   // (the all-active set: failed above)
+        tried[l] = -1;
+        for (int i = 0; i < k; ++i)
+          if (carrying & (1 << i)) idx[l][members[l]++] = i;
+      }
+      if (any(tried)) {
+        for (int r = 0; r < 4; ++r) {
+          for (int c = 0; c < 5; ++c) e[r][c] = zero;
+          diagonal[r] = one;
+        }
+        for (int l = 0; l < kLanes; ++l) {
+          const int m = members[l];
+          for (int r = 0; r < 4; ++r) {
+            if (r >= m) {
+              e[r][r][l] = 1.0;
+              continue;
+            }
+            for (int c = 0; c < m; ++c) e[r][c][l] = g.delassus[idx[l][r]][idx[l][c]][l];
+            e[r][4][l] = -q[idx[l][r]][l];
+            diagonal[r][l] = g.delassus[idx[l][r]][idx[l][r]][l];
+          }
+        }
+        Mask ok = tried;
+        for (int c = 0; c < 4; ++c) {
+          // partial pivoting: the first row below c of strictly larger magnitude
+          Lanes best = magnitude(e[c][c]);
+          Lanes pivot = splat(static_cast<double>(c));
+          for (int r = c + 1; r < 4; ++r) {
+            const Mask larger = magnitude(e[r][c]) > best;
+            best = pick(larger, magnitude(e[r][c]), best);
+            pivot = pick(larger, splat(static_cast<double>(r)), pivot);
+          }
+          ok &= ~(best <= 1e-9 * magnitude(diagonal[c]) + 1e-300);
+          for (int r = c + 1; r < 4; ++r) {
+            const Mask swap = pivot == static_cast<double>(r);
+            for (int j = 0; j < 5; ++j) {
+              const Lanes upper = e[c][j];
+              e[c][j] = pick(swap, e[r][j], upper);
+              e[r][j] = pick(swap, upper, e[r][j]);
+            }
+          }
+          for (int r = 0; r < 4; ++r) {
+            if (r == c) continue;
+            const Lanes f = e[r][c] / e[c][c];
+            for (int j = c; j < 5; ++j) e[r][j] -= f * e[c][j];
+          }
+        }
+        Lanes xs[4] = {zero, zero, zero, zero};   // by row of the block
+        for (int r = 0; r < 4; ++r) {
+          const Lanes x_r = e[r][4] / e[r][r];
+          for (int l = 0; l < kLanes; ++l)
+            if (r < members[l]) {
+              xs[idx[l][r]][l] = x_r[l];
+              if (!(x_r[l] >= -1e-12 * (1.0 + std::fabs(x_r[l])))) ok[l] = 0;
+            }
+        }
+        for (int i = 0; i < k; ++i) {   // the rows left out: no approach
+          Lanes w_i = q[i];
+          for (int j = 0; j < k; ++j) w_i += g.delassus[i][j] * xs[j];
+          Mask in = {0, 0, 0, 0};
+          for (int l = 0; l < kLanes; ++l)
+            for (int r = 0; r < members[l]; ++r) in[l] |= idx[l][r] == i ? -1 : 0;
+          ok &= in | (w_i >= -1e-12 * (1.0 + magnitude(q[i])));
+        }
+        for (int i = 0; i < k; ++i) {   // take_block
+          const Lanes d = pick(ok, maximum(xs[i], zero) - w[i].normal, zero);
+          w[i].normal += d;
+          apply(w[i], g, t, 0, w[i].n, d);
+          step = maximum(step, magnitude(d));
+        }
+        search &= ~ok;
+      }
+    }
+    if (any(search)) {
+      for (int l = 0; l < kLanes; ++l) {
+        if (!search[l]) continue;
+        const Manifold& manifold = manifolds[g.manifold + static_cast<size_t>(l)];
+        ContactRow* r = &rows[static_cast<size_t>(manifold.first)];
+        lane_to_rows(w, l, r, k);
+        Twists lane = t.lane(l);
+        Progress own;
+        step[l] = solve_manifold(rows, manifold, lane, nullptr, own);
+        rows_to_lane(r, k, w, l);
+        t.set_lane(l, lane);
+      }
+      live = ~search;
+    }
+  }
+  for (int i = 0; i < k; ++i) step = maximum(step, solve_friction(w[i], g, t, live));
+  t.store(v, g);
+  Lanes largest = splat(0.0), load = splat(0.0);
+  for (int i = 0; i < k; ++i) {
+    largest = maximum(largest, w[i].normal);
+    load += w[i].normal;
+  }
+  for (int l = 0; l < kLanes; ++l) {
+    progress.change = std::max(progress.change, step[l]);
+    progress.largest = std::max(progress.largest, largest[l]);
+    const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
+    if (spins != nullptr && spin >= 0) (*spins)[spin].load = load[l];
+  }
+}
+
+#undef WIDE
+
+// The plan's wide groups and their rows from the manifolds and rows (plan.groups,
+// wide_rows, wave_groups).
+void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
+                 const std::vector<Manifold>& manifolds, const double* inv_mass) {
+  // (sized, not cleared: every field below is written, and growing a vector of these
+  // zero-fills it)
+  size_t group_count = 0;
+  for (const SweepWave& c : plan.waves) group_count += (c.wide_end - c.first) / kLanes;
+  if (plan.groups.size() < group_count) plan.groups.resize(group_count);
+  plan.wave_groups.assign(1, 0);
+  size_t row_count = 0, next = 0;
+  for (const SweepWave& c : plan.waves) {
+    for (size_t m = c.first; m < c.wide_end; m += kLanes) {
+      WideGroup& g = plan.groups[next++];
+      g.manifold = m;
+      g.count = manifolds[m].count;
+      g.row = row_count;
+      row_count += static_cast<size_t>(g.count);
+    }
+    plan.wave_groups.push_back(next);
+  }
+  if (plan.wide_rows.size() < row_count) plan.wide_rows.resize(row_count);
+  for (size_t group = 0; group < group_count; ++group) {
+    WideGroup& g = plan.groups[group];
+    for (int l = 0; l < kLanes; ++l) {
+      const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+      g.a[l] = m.a;
+      g.b[l] = m.b;
+      g.write_a[l] = inv_mass[m.a] > 0.0;
+      g.write_b[l] = inv_mass[m.b] > 0.0;
+      const ContactRow* r = &rows[static_cast<size_t>(m.first)];
+      g.ma[l] = r[0].ma;
+      g.mb[l] = r[0].mb;
+      g.invertible[l] = m.invertible ? 1.0 : 0.0;
+      for (int i = 0; i < g.count; ++i)
+        for (int j = 0; j < g.count; ++j) {
+          g.plain[i][j][l] = m.plain[i][j];
+          g.inverse[i][j][l] = m.inverse[i][j];
+          g.delassus[i][j][l] = m.delassus[i][j];
+        }
+      for (int i = 0; i < g.count; ++i) {
+        WideRow& w = plan.wide_rows[g.row + static_cast<size_t>(i)];
+        const ContactRow& c = r[i];
+        for (int e = 0; e < 3; ++e) {
+          w.n[e][l] = c.n[e];
+          w.t1[e][l] = c.t1[e];
+          w.t2[e][l] = c.t2[e];
+          for (int d = 0; d < 3; ++d) {
+            w.ang_a[d][e][l] = c.ang_a[d][e];
+            w.ang_b[d][e][l] = c.ang_b[d][e];
+            w.dw_a[d][e][l] = c.dw_a[d][e];
+            w.dw_b[d][e][l] = c.dw_b[d][e];
+          }
+          w.kt[e][l] = c.kt[e];
+        }
+        w.normal_mass[l] = c.normal_mass;
+        w.allowance[l] = c.allowance;
+        w.mu[l] = c.mu;
+        w.normal[l] = c.normal;
+        w.tangent[0][l] = c.tangent[0];
+        w.tangent[1][l] = c.tangent[1];
+      }
+    }
+  }
+}
+
+// The wide rows' impulses back into the rows.
+void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
+                   const std::vector<Manifold>& manifolds) {
+  for (size_t group = 0; group < plan.wave_groups.back(); ++group)
+    for (int l = 0; l < kLanes; ++l) {
+      const WideGroup& g = plan.groups[group];
+      const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+      lane_to_rows(&plan.wide_rows[g.row], l, &rows[static_cast<size_t>(m.first)], g.count);
+    }
+}
+
 }  // namespace
 
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins, const SweepPlan* plan) {
+                     std::vector<SpinRow>* spins, SweepPlan* plan) {
   const size_t count = manifolds.size(), spin_count = spins != nullptr ? spins->size() : 0;
-  SweepPlan serial;
-  serial.halves[0] = serial.halves[1] = count;
-  serial.spin_halves[0] = serial.spin_halves[1] = spin_count;
-  const SweepPlan& p = plan != nullptr ? *plan : serial;
-  // the two halves of a part, one after the other or at once: the second in chunks (in
-  // order), so that the caller can take over what the worker has not begun
-  auto halves = [&](const std::function<void()>& first,
-                    const std::function<void(size_t, size_t)>& second, size_t from, size_t to,
-                    int kind) {
-    const size_t chunks = std::min<size_t>(kChunks, to - from);
-    const std::function<void(int)> chunk = [&](int c) {
-      second(from + (to - from) * c / chunks, from + (to - from) * (c + 1) / chunks);
-    };
-    if (p.worker != nullptr && chunks > 0) {
-      p.worker->run_pair(first, chunk, static_cast<int>(chunks), kind,
-                         static_cast<double>(to));   // (the two halves: [0, to))
-    } else {
-      first();
-      for (size_t c = 0; c < chunks; ++c) chunk(static_cast<int>(c));
+  const bool wide = plan != nullptr && plan->wide;
+  if (wide) pack_groups(*plan, rows, manifolds, bodies.inv_mass);
+  double* v = bodies.velocity;
+  // wave l's part [lo, hi) of its work: its wide groups, then its manifolds one by one
+  auto wave_part = [&](size_t l, size_t lo, size_t hi, Progress& progress) {
+    const SweepWave& span = plan->waves[l];
+    const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
+    const size_t first = wide ? span.wide_end : span.first;
+    for (size_t item = lo; item < hi; ++item) {
+      if (item < groups) {
+        WideGroup& g = plan->groups[plan->wave_groups[l] + item];
+        solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, progress);
+      } else {
+        solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
+                        bodies, spins, progress);
+      }
     }
   };
   int done = 0;
   while (done < iterations) {
     ++done;
-    Progress part[3];
-    halves([&] { solve_manifolds(rows, manifolds, 0, p.halves[0], bodies, spins, part[0]); },
-           [&](size_t lo, size_t hi) {
-             solve_manifolds(rows, manifolds, lo, hi, bodies, spins, part[1]);
-           }, p.halves[0], p.halves[1], 0);
-    solve_manifolds(rows, manifolds, p.halves[1], count, bodies, spins, part[2]);
-    if (spins != nullptr) {
-      halves([&] { solve_spins(*spins, 0, p.spin_halves[0], bodies, part[0]); },
-             [&](size_t lo, size_t hi) { solve_spins(*spins, lo, hi, bodies, part[1]); },
-             p.spin_halves[0], p.spin_halves[1], 1);
-      solve_spins(*spins, p.spin_halves[1], spin_count, bodies, part[2]);
+    Progress part[2];
+    if (plan == nullptr) {
+      solve_manifolds(rows, manifolds, 0, count, bodies, spins, part[0]);
+    } else {
+      for (size_t l = 0; l < plan->waves.size(); ++l) {
+        const SweepWave& span = plan->waves[l];
+        const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
+        const size_t items = groups + (span.end - (wide ? span.wide_end : span.first));
+        const size_t size = span.end - span.first;
+        if (plan->worker == nullptr || size < plan->parallel) {
+          wave_part(l, 0, items, part[0]);
+          continue;
+        }
+        // the first half here, the second in ordered chunks on the worker or here
+        const size_t half = items / 2, chunks = std::min<size_t>(kChunks, items - half);
+        const std::function<void(int)> chunk = [&](int i) {
+          wave_part(l, half + (items - half) * i / chunks,
+                     half + (items - half) * (i + 1) / chunks, part[1]);
+        };
+        plan->worker->run_pair([&] { wave_part(l, 0, half, part[0]); }, chunk,
+                               static_cast<int>(chunks), 0, static_cast<double>(size));
+      }
     }
-    const double change = std::max({part[0].change, part[1].change, part[2].change});
-    const double largest = std::max({part[0].largest, part[1].largest, part[2].largest});
+    if (spins != nullptr) solve_spins(*spins, 0, spin_count, bodies, part[0]);
+    const double change = std::max(part[0].change, part[1].change);
+    const double largest = std::max(part[0].largest, part[1].largest);
     if (change <= converged * largest) break;
   }
+  if (wide) unpack_groups(*plan, rows, manifolds);
   return done;
 }
 

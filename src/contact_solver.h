@@ -72,8 +72,11 @@ struct SolverParams {
   double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
                                         // from its pair's nearest stored point this close
   int threads = 2;                      // threads of the velocity sweeps (1 or 2)
-  int parallel_manifolds = 256;         // a solve of at least this many manifolds is split
-                                        // in two halves (SweepPlan), whatever `threads`
+  int parallel_manifolds = 256;         // a solve of at least this many manifolds is ordered
+                                        // in two halves (StepSolver::split), whatever `threads`
+  int parallel_wave = 64;               // a wave of at least this many manifolds is shared
+                                        // by the two threads (SweepPlan)
+  bool wide_rows = true;                // wide groups solved in lanes (SweepPlan)
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };
@@ -171,28 +174,70 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
 // Apply the rows' accumulated impulses (warm start) to the velocities.
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 
-// Sequential impulses over the manifolds, in their order: normal clamped >= 0 against
-// the speculative allowance (a manifold's rows, 2 to 4 of them, solved exactly as one
-// small LCP; one row, or more than 4, row by row), friction
-// along minus the slip velocity clamped to the circular cone mu * normal. Stops early
-// when a sweep changes no impulse by more than params.converged times the largest
-// normal impulse. `spins` (rolling resistance and torsional friction, may be null; a
-// manifold's Manifold::spin names its own) are solved after the rows in each sweep.
-// `plan` (may be null: one thread, in order) splits each sweep over two threads.
-// Immovable bodies' velocities are read, never written. Returns the sweeps done.
-// How the sweeps of a solve may run on two threads (StepSolver::split): manifolds
-// [0, halves[0]) and [halves[0], halves[1]) share no movable body, nor do their spin rows
-// (spins [0, spin_halves[0]) and [spin_halves[0], spin_halves[1])); the manifolds and spin
-// rows after them join the halves and follow both. One thread runs them in that order; two
-// run the halves at once (`worker`): the same arithmetic on the same data, the same bits.
-struct SweepPlan {
-  size_t halves[2] = {0, 0};
-  size_t spin_halves[2] = {0, 0};
-  Worker* worker = nullptr;   // null: one thread
+// Lanes of a wide row: four doubles, one per manifold of a wide group, solved together
+// (GCC / Clang vector extensions: two SSE2 or NEON registers, one AVX2 register where the
+// kernel's AVX2 clone runs; no -march flag). Aligned to 32 bytes whatever the target, so
+// the clones agree on the layout.
+constexpr int kLanes = 4;
+typedef double Lanes __attribute__((vector_size(32), aligned(32)));
+
+// One row index of a wide group's four manifolds as a structure of arrays (lane l: row
+// `first + i` of the group's manifold l): the ContactRow fields the velocity sweeps read
+// and write, same units and signs. Vectors are [x, y, z]; [k][.] for d = n, t1, t2.
+struct WideRow {
+  Lanes n[3], t1[3], t2[3];
+  Lanes ang_a[3][3], ang_b[3][3], dw_a[3][3], dw_b[3][3];
+  Lanes normal_mass, kt[3], allowance, mu;
+  Lanes normal, tangent[2];
 };
+
+// Four manifolds of one wave with the same number of rows (1 to 4), solved in lanes:
+// their rows are WideRows [row, row + count); `manifold` is the first of the four
+// (consecutive in the solve's order).
+struct WideGroup {
+  size_t manifold = 0, row = 0;
+  int count = 0;
+  int32_t a[kLanes] = {}, b[kLanes] = {};   // body indices
+  bool write_a[kLanes] = {}, write_b[kLanes] = {};   // movable: its twist is stored
+  Lanes ma, mb;                  // 1/kg
+  Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
+  Lanes delassus[4][4];          // Manifold::delassus (the active-set search in lanes)
+  Lanes invertible;              // 1 where Manifold::invertible, else 0
+};
+
+// How the velocity sweeps visit the manifolds (sweep_waves.h builds it): wave by wave,
+// no two manifolds of a wave sharing a movable body, so that a wave's manifolds may be
+// solved in any order, in lanes and on two threads, with the bits of the sweep in the
+// solve's order. Wave w is manifolds [first, wide_end) in wide groups of kLanes (one row
+// count each) and [wide_end, end) one by one.
+struct SweepWave {
+  size_t first = 0, wide_end = 0, end = 0;
+};
+struct SweepPlan {
+  std::vector<SweepWave> waves;         // in sweep order
+  bool wide = true;                     // wide groups solved in lanes (else one by one:
+                                        // the same bits, SOLVER_TUNING wide_rows)
+  size_t parallel = 0;                  // a wave of at least this many manifolds is
+                                        // shared with `worker`
+  Worker* worker = nullptr;             // null: one thread
+  // scratch of solve_velocities: the wide groups of the waves and their rows
+  std::vector<WideGroup> groups;
+  std::vector<WideRow> wide_rows;
+  std::vector<size_t> wave_groups;      // groups of wave w: [wave_groups[w], [w + 1])
+};
+
+// Sequential impulses over the manifolds: normal clamped >= 0 against the speculative
+// allowance (a manifold's rows, 2 to 4 of them, solved exactly as one small LCP; one
+// row, or more than 4, row by row), friction along minus the slip velocity clamped to the
+// circular cone mu * normal. Stops early when a sweep changes no impulse by more than
+// params.converged times the largest normal impulse. `spins` (rolling resistance and
+// torsional friction, may be null; a manifold's Manifold::spin names its own) are solved
+// after the rows in each sweep, in order. Without `plan`, the manifolds in their order on
+// one thread; with it, wave by wave (above): the same bits. Immovable bodies' velocities
+// are read, never written. Returns the sweeps done.
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins = nullptr, const SweepPlan* plan = nullptr);
+                     std::vector<SpinRow>* spins = nullptr, SweepPlan* plan = nullptr);
 
 // Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the

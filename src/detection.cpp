@@ -582,7 +582,12 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
   if (stored == nullptr || shapes_[a].curved || shapes_[b].curved) return false;
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
-  if (A.moved + B.moved > settings_.speculative_margin) return false;
+  // the pair's own motion over the step, as the narrow phase classifies it: the motion
+  // both share (a pile that its source integrated one long period under gravity) moves no
+  // point of one relative to the other
+  const double margin = settings_.speculative_margin;
+  const double relative = relative_motion(a, b);
+  if (relative > margin) return false;
   const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
   const Quat rel_q = A.q1.conjugate() * B.q1;
   if ((rel_p - stored->rel_p).norm() > kReuseTranslation ||
@@ -596,7 +601,17 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
     const Vec3 normal = A.r1 * row.normal_a;
     gap = std::min(gap, ((B.r1 * row.local_b + B.p1) - (A.r1 * row.local_a + A.p1)).dot(normal));
   }
-  if (gap > settings_.speculative_margin) return true;
+  if (gap > margin) return true;
+  // what the narrow phase would not call persistent goes to it: apart at the previous
+  // state maybe (gap + relative motion beyond the margin), a hit that may bounce, a deep
+  // overlap (deep_persistent)
+  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
+                       B.angular.norm() * radius_or_zero(b);
+  const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
+  if (gap + relative > margin || -gap > deep ||
+      (gap < 0.0 && gap + relative > 0.0 && speed > settings_.restitution_threshold)) {
+    return false;
+  }
   next_.begin(key, stored->rel_p, stored->rel_q);
   const std::size_t first = out.size();
   for (int k = 0; k < stored->count; ++k) {

@@ -13,8 +13,12 @@
 //    with a < b.
 // 3. Stored manifolds (manifold.h): a pair of flat-faced bodies that was in contact last
 //    step and whose relative pose has barely changed keeps its contact points, stored in
-//    the two body frames; only their gaps are recomputed (no coal query). A curved body's
-//    points are never reused: on a rolling surface they would turn with the body.
+//    the two body frames; only their gaps are recomputed (no coal query), as long as the
+//    narrow phase would call the pair persistent (step 4: its least gap plus the pair's
+//    relative motion over the step within the margin, no hit fast enough to bounce, no
+//    deep overlap). Motion the two bodies share does not count: a pile that its source
+//    integrated one 30 Hz period under gravity keeps its points. A curved body's points
+//    are never reused: on a rolling surface they would turn with the body.
 // 4. Narrow phase of the other pairs at the current state (coal), then per pair:
 //    PERSISTENT when within the margin at the previous state too (or within it now and
 //    apart before without a hit: a speculative contact); IMPACT when apart before and

@@ -5,6 +5,8 @@
 #include <limits>
 #include <memory>
 
+#include "sweep_waves.h"
+
 namespace collres {
 namespace {
 
@@ -80,8 +82,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   // the poses k^2 times as far, and at least depth_sweeps per level of the deepest
   // stack), then shock propagation from the ground up
   const int32_t depth = levels(ctx);
-  const double stretch =
-      std::sqrt(std::clamp(dt / std::max(last_dt_, 1e-300), 1.0, params.warm_start_ratio));
+  const double stretch = std::sqrt(std::clamp(growth_, 1.0, params.warm_start_ratio));
   int iterations = static_cast<int>(
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold) * stretch));
   iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
@@ -101,6 +102,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                cached_normal_.data(), report_out.friction_impulse, contacts.point);
   last_dt_ = dt;
+  last_load_.swap(load_);
   last_warm_ = warm_enabled;
   // correct poses: rewind / advance, then the split-impulse push-out (no velocity)
   advance(ctx);
@@ -156,6 +158,20 @@ void StepSolver::reference_frame(StepContext& ctx) {
     touched_[a] = touched_[b] = 1;
   }
   for (int64_t i = 0; i < n; ++i) rested_[i] = rested_[i] && bodies.movable[i] != 0;
+  // the step's load: the momentum its external change gives each movable body (N s), and
+  // its sum over the bodies in contact that had a load last step too, then and now
+  load_.assign(n, 0.0);
+  double load = 0.0, last_load = 0.0;
+  for (int64_t i = 0; i < n; ++i) {
+    if (!bodies.movable[i] || !(bodies.inv_mass[i] > 0.0)) continue;
+    load_[i] = length(load3(now_.data() + 6 * i) - load3(then_.data() + 6 * i)) /
+               bodies.inv_mass[i];
+    if (touched_[i] && i < static_cast<int64_t>(last_load_.size()) && last_load_[i] > 0.0) {
+      load += load_[i];
+      last_load += last_load_[i];
+    }
+  }
+  growth_ = load > 0.0 && last_load > 0.0 ? load / last_load : dt / std::max(last_dt_, 1e-300);
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
@@ -285,10 +301,12 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_block(block, &rows_[first_row]);
     }
   }
-  // a large solve in two halves that share no movable body, then what joins them
+  // a large solve in two halves that share no movable body, then what joins them; the
+  // sweeps visit that order wave by wave (wide groups, two threads; the same bits)
   split(ctx);
+  plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
-  // not 0 (in manifold order: the halves' spin rows are the halves of spins_)
+  // not 0 (in manifold order)
   spins_.clear();
   for (Manifold& manifold : manifolds_) {
     const ContactRow& r = rows_[manifold.first];
@@ -314,9 +332,6 @@ void StepSolver::prepare(StepContext& ctx) {
       s.roll = roll * lever;
       s.twist = twist * lever;
     }
-    const size_t index = static_cast<size_t>(&manifold - manifolds_.data());
-    for (int half = 0; half < 2; ++half)
-      if (index < plan_.halves[half]) plan_.spin_halves[half] = spins_.size();
   }
 }
 
@@ -324,8 +339,6 @@ void StepSolver::split(StepContext& ctx) {
   const SolverParams& p = ctx.params;
   const double* inv_mass = ctx.bodies.inv_mass;
   const size_t count = manifolds_.size();
-  plan_ = SweepPlan();
-  plan_.halves[0] = plan_.halves[1] = count;
   if (count < static_cast<size_t>(std::max(p.parallel_manifolds, 1))) return;
   // the movable bodies of the manifolds, halved at their median along the axis of their
   // largest extent (position, then index: one answer whatever the sort)
@@ -374,8 +387,14 @@ void StepSolver::split(StepContext& ctx) {
     for (int32_t i = m.first; i < m.first + m.count; ++i)
       rows_[i].manifold = static_cast<int32_t>(index);
   }
-  plan_.halves[0] = counts[0];
-  plan_.halves[1] = counts[0] + counts[1];
+}
+
+void StepSolver::plan_sweeps(StepContext& ctx) {
+  const SolverParams& p = ctx.params;
+  wave_manifolds(manifolds_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_, wave_,
+                 buckets_, sorted_);
+  plan_.wide = p.wide_rows;
+  plan_.parallel = static_cast<size_t>(std::max(p.parallel_wave, 1));
   plan_.worker = p.threads >= 2 ? worker() : nullptr;
 }
 
@@ -392,7 +411,7 @@ double StepSolver::warm(StepContext& ctx) {
   for (int64_t k = 0; k < m; ++k) persistent += collres::persistent(c.kind[k]);
   // impulses of a step of another length are a different answer: scaled by dt / last dt
   // only near 1, never from a fresh step (e.g. a nominal dt after a pause)
-  const double scale = last_dt_ > 0.0 ? ctx.dt / last_dt_ : 0.0;
+  const double scale = last_dt_ > 0.0 ? growth_ : 0.0;
   const bool usable = ctx.warm && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
   if (!usable) return persistent > 0 ? 1.0 : 0.0;
   cached_normal_.resize(m);

@@ -41,12 +41,15 @@
 //    travel, gravity included, out of its partners (an impact's speculative corners, rows
 //    with a gap at the time of impact, among them);
 // 4. warm start from last step's impulses of the same pair and feature (ContactCache),
-//    scaled by dt / last dt, only while that ratio lies in [1 / r, r] (r =
-//    warm_start_ratio) and the last step was itself not fresh (warm = false): otherwise
-//    every row starts cold, so no timing of the inputs can launch a resting body;
+//    scaled by the step's growth (the load its external change gives the bodies in
+//    contact over theirs last step: k for a step its source integrated for k periods
+//    after dropped inputs, 1 for one it integrated for one period whatever dt says; dt /
+//    last dt without a load), only while that lies in [1 / r, r] (r = warm_start_ratio)
+//    and the last step was itself not fresh (warm = false): otherwise every row starts
+//    cold, so no timing of the inputs can launch a resting body;
 // 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
 //    a block (more sweeps while the resting contacts are new; sqrt(k) times as many for a
-//    step k times as long as the last, up to warm_start_ratio: k times the load, whose
+//    step of k times the last one's load (growth), up to warm_start_ratio: whose
 //    residual would sink the poses k^2 times as far; and at least depth_sweeps per level
 //    of the deepest stack: a load passes down one level per sweep); an island
 //    (bodies joined by rows through movable bodies) whose kinetic energy the sweeps
@@ -169,11 +172,10 @@ class StepSolver {
                  ContactsOut& report);
 
   ContactCache& cache() { return cache_; }
-  // the last step's split of its velocity sweeps: the ends of the two halves and the
-  // number of manifolds (halves = (count, count): not split)
+  // the last step's order of its velocity sweeps (waves, wide groups)
   const SweepPlan& plan() const { return plan_; }
-  size_t manifold_count() const { return manifolds_.size(); }
-  // chunks of the sweeps' second halves run so far: by the second thread, in all
+  const std::vector<Manifold>& manifolds() const { return manifolds_; }   // in that order
+  // chunks of the waves' second halves run so far: by the second thread, in all
   uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
   uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
 
@@ -186,10 +188,12 @@ class StepSolver {
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
   void land(StepContext& ctx);
-  // manifolds_ in two halves that share no movable body, then the rest (plan_), when there
-  // are at least parallel_manifolds of them: the movable bodies halved at their median
-  // along the axis of their largest extent
+  // manifolds_ in two halves that share no movable body, then the rest, when there are at
+  // least parallel_manifolds of them: the movable bodies halved at their median along the
+  // axis of their largest extent
   void split(StepContext& ctx);
+  // the sweeps' plan_ of manifolds_: waves (sweep_waves.h), wide groups, threads
+  void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
@@ -197,6 +201,14 @@ class StepSolver {
 
   ContactCache cache_;
   double last_dt_ = 0.0;              // s, dt of the step the cache holds
+  // how many times the last step's impulses this step's need (reference_frame): the
+  // load of the bodies in contact over theirs last step, where a body's load is the
+  // momentum m |dv| the step's external change dv of its linear twist gives it (N s); dt
+  // / last dt when there is none (no gravity, nothing in contact). A source that
+  // integrated one period while the step spans k of them (inputs dropped on the way)
+  // gives its bodies one period's load, whatever dt says
+  double growth_ = 1.0;
+  std::vector<double> load_, last_load_;   // (N,) N s, this and the last step's loads
   bool last_warm_ = false;            // that step was not fresh: its impulses may seed
   // per body (scratch, reused across steps)
   std::vector<double> velocity_;     // (N, 6) working velocity
@@ -225,11 +237,14 @@ class StepSolver {
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
   std::vector<Manifold> retry_;      // manifolds of the islands solved again (hold_energy)
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
-  SweepPlan plan_;                   // the sweeps' halves (split)
+  SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
   std::vector<int8_t> side_;         // (N,) split: half of each movable body, -1 immovable
   std::vector<std::pair<double, int32_t>> keyed_;   // split: (position, body)
   std::vector<Manifold> ordered_;    // split: scratch
+  std::vector<int32_t> wave_;        // (N,) plan_sweeps: the last wave of each body
+  std::vector<size_t> buckets_;      // plan_sweeps: scratch
+  std::vector<Manifold> sorted_;     // plan_sweeps: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

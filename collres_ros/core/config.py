@@ -158,12 +158,17 @@ _SOLVER_BY_NAME = {p.name: p for p in SOLVER_PARAMS}
 # ``_native.SolverParams`` by its name (``world.solver_params``).
 SOLVER_TUNING: tuple[ParamSpec, ...] = (
     ParamSpec('warm_start_ratio', 'double', 10.0,
-              'Last step\'s impulses are scaled by dt / last dt and warm start a contact only '
-              'while that ratio lies in [1 / this, this] (and the last step was not fresh); '
-              'otherwise the step starts cold', 1.0, 1e3,
-              reason='a resting contact carries its load times dt, so a step of up to 10 '
-                     'periods (a node that fell behind dropped inputs) starts from the '
-                     'answer (a cold pile under 8 periods of load slid 5 mm into its floor); '
+              'Last step\'s impulses are scaled by the step\'s growth (the load m |dv| its '
+              'external change dv gives the bodies in contact over theirs last step; dt / '
+              'last dt without a load) and warm start a contact only while that lies in '
+              '[1 / this, this] (and the last step was not fresh); otherwise the step starts '
+              'cold', 1.0, 1e3,
+              reason='a resting contact carries its load, so a step of up to 10 periods of '
+                     'load (a node that fell behind dropped inputs) starts from the answer (a '
+                     'cold pile under 8 periods of load slid 5 mm into its floor), and a step '
+                     'of k periods whose source integrated one period (it integrates each '
+                     'answer it gets) starts from 1 times, not k times, the impulses (k times '
+                     'kept a pile of 100 cubes awake for good); '
                      'a 1 ns step or a 1 ms fresh step before a 30 Hz one would launch a '
                      'resting body'),
     ParamSpec('match_radius', 'double', 0.02,
@@ -218,19 +223,30 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               reason='a stage is solved to convergence (impact_converged) so that its '
                      'restitution is the simultaneous answer; few contacts take part'),
     ParamSpec('threads', 'integer', 2,
-              'Threads of the velocity sweeps: with 2, the two halves of a split solve '
-              '(parallel_manifolds) run at once; the answer is the same bits with 1 or 2',
-              1, 2,
-              reason='the second core halves the sweeps of a large pile; a core busy with '
-                     'another process costs nothing (its half is run by the caller when the '
-                     'worker has not begun it)'),
+              'Threads of the velocity sweeps: with 2, each large wave of manifolds '
+              '(parallel_wave) is shared by two threads; the answer is the same bits with '
+              '1 or 2', 1, 2,
+              reason='a wave\'s manifolds share no movable body, so the second core can take '
+                     'half of each; a core busy with another process costs nothing (its half '
+                     'is run by the caller when the worker has not begun it)'),
     ParamSpec('parallel_manifolds', 'integer', 256,
-              'A solve of at least this many manifolds is split in two halves that share no '
-              'movable body (the bodies halved at their median along their largest extent) '
-              'and the manifolds joining them, solved in that order; smaller solves keep '
-              'detection\'s order', 1, 10**9,
-              reason='below a few hundred manifolds a sweep is too short for a second thread '
+              'A solve of at least this many manifolds is ordered in two halves that share '
+              'no movable body (the bodies halved at their median along their largest '
+              'extent), then the manifolds joining them; smaller solves keep detection\'s '
+              'order', 1, 10**9,
+              reason='the halves give the waves of a large pile twice the manifolds (the '
+                     'order whose answers the laws and goldens hold)'),
+    ParamSpec('parallel_wave', 'integer', 64,
+              'A wave (manifolds that share no movable body, solved one after the other '
+              'in the sweep\'s order) of at least this many manifolds is shared by the two '
+              'threads; smaller waves are solved by the caller alone', 1, 10**9,
+              reason='below a few dozen manifolds a wave is too short for a second thread '
                      'to pay for its hand-over'),
+    ParamSpec('wide_rows', 'bool', True,
+              'Solve each wave\'s manifolds four at a time (wide rows: structure of arrays, '
+              'SIMD); off, one by one: the same bits', None, None,
+              reason='a row update is a chain of dependent arithmetic: four independent '
+                     'manifolds in lanes fill the pipeline and the vector unit'),
     ParamSpec('impact_converged', 'double', 1e-10,
               'A stage\'s compression ends when a sweep changes no impulse by more than '
               'this times the largest', 0.0, 1.0,

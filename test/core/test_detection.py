@@ -154,6 +154,30 @@ def test_stored_manifolds_match_a_fresh_query_and_keep_their_features() -> None:
     assert world.detect(nudged, lifted).count == 12
 
 
+def test_motion_a_pair_shares_keeps_its_stored_points() -> None:
+    """A stack that its source integrated one 30 Hz period under gravity arrives g dt^2
+    (11 mm) lower, every box with its neighbours: each pair of boxes moved only by the
+    nudge relative to each other, so it keeps its stored points (they move with each
+    body), where a fresh query would find the corners of the upper box of the lowest pair
+    moved by the whole nudge."""
+    specs, resting = stack(4)
+    world = Detection(specs, SETTINGS)
+    first = world.detect(resting, resting)
+    shift = np.array([0.0, 0.0, -9.81 / 30.0 ** 2])
+    nudge = np.array([0.3 * REUSE_TRANSLATION, 0.0, 0.0])   # all boxes but the lowest
+    fallen = resting.copy()
+    fallen.position[1:] += shift
+    fallen.position[2:] += nudge
+    moved = world.detect(resting, fallen)
+    boxes = first.body_a > 0                           # the box-on-box pairs, not the floor's
+    assert boxes.sum() == 12 and (moved.body_a > 0).sum() == 12
+    np.testing.assert_array_equal(moved.feature[moved.body_a > 0], first.feature[boxes])
+    # the bottom box (body 1) is not nudged: its pair's midpoints move by half the nudge
+    share = np.where(first.body_a[boxes] == 1, 0.5, 1.0)[:, None]
+    np.testing.assert_allclose(moved.point[moved.body_a > 0],
+                               first.point[boxes] + shift + share * nudge, rtol=0, atol=1e-9)
+
+
 def test_frozen_bodies_are_held_at_their_current_pose() -> None:
     world = Detection([BodySpec('a', 'sphere', (0.1,)), BodySpec('b', 'sphere', (0.1,))],
                       SETTINGS)

@@ -1,11 +1,16 @@
-"""The velocity sweeps on two threads give the same bits as on one.
+"""The velocity sweeps give the same bits whatever their layout: waves, lanes, threads.
 
-A large solve is split in two halves that share no movable body, then the manifolds that
-join them (``SOLVER_TUNING`` ``parallel_manifolds``); one thread solves them in that order,
-two solve the halves at once (``threads``). The law: whatever the thread count, every
-step's corrected states and impulses are the same bytes. Here a pile of cubes and spheres
-falls into a bin and settles (impacts, stacking, friction, rolling resistance), split from
-a low ``parallel_manifolds`` on so that every step with contacts is split.
+A sweep visits a solve's manifolds wave by wave (src/sweep_waves.h): a manifold's wave is
+one more than the highest wave of the manifolds before it that share a movable body, so
+the manifolds of a wave share no movable body and the waves in turn are the sweep in the
+solve's order, bit for bit. A wave is solved four manifolds at a time in wide rows
+(``SOLVER_TUNING`` ``wide_rows``) and, when it has at least ``parallel_wave`` manifolds,
+shared by two threads (``threads``). The laws: the waves hold (no movable body twice in a
+wave, each after one that moved its bodies, wide groups of one row count); whatever the
+thread count and with wide rows on or off, every step's corrected states and impulses are
+the same bytes. Here a pile of cubes and spheres falls into a bin and settles (impacts,
+stacking, friction, rolling resistance), with a low ``parallel_wave`` so that most steps
+share waves between the threads.
 """
 
 from __future__ import annotations
@@ -55,31 +60,65 @@ def pile(count: int = 48) -> tuple[list[BodySpec], BodyStates]:
     return bodies, state
 
 
-def world(bodies: list[BodySpec], threads: int) -> World:
+def world(bodies: list[BodySpec], threads: int, wide_rows: bool = True) -> World:
     w = World(bodies, SolverSettings(sleeping=False))
     w._params.threads = threads
-    w._params.parallel_manifolds = 8
+    w._params.parallel_wave = 8
+    w._params.wide_rows = wide_rows
     return w
 
 
-def test_two_threads_give_the_bytes_of_one():
+def answer(result) -> bytes:
+    return b''.join(np.ascontiguousarray(a, '<f8').tobytes() for a in (
+        result.states.position, result.states.orientation, result.states.linear,
+        result.states.angular, result.report.normal_impulse, result.report.friction_impulse))
+
+
+def test_two_threads_and_one_by_one_give_the_bytes_of_one_thread_in_lanes():
     bodies, start = pile()
-    worlds = [world(bodies, 1), world(bodies, 2), world(bodies, 2)]
+    worlds = [world(bodies, 1), world(bodies, 2), world(bodies, 2), world(bodies, 1, False),
+              world(bodies, 2, False)]
     states = [start.copy() for _ in worlds]
-    split_steps = 0
+    shared_steps = 0
     for _ in range(STEPS):
         answers = []
         for k, w in enumerate(worlds):
             result = w.step(states[k], euler_step(states[k], w.dynamic, GRAVITY, DT), DT)
             states[k] = result.states
-            answers.append(b''.join(np.ascontiguousarray(a, '<f8').tobytes() for a in (
-                result.states.position, result.states.orientation, result.states.linear,
-                result.states.angular, result.report.normal_impulse,
-                result.report.friction_impulse)))
-        assert answers[1] == answers[0] and answers[2] == answers[0]
-        first, second, count = worlds[1]._solver.split
-        split_steps += 0 < first < second <= count
-    # the pile was in contact and split in two non-empty halves nearly all the time
-    assert split_steps > STEPS // 2
+            answers.append(answer(result))
+        assert all(a == answers[0] for a in answers[1:])
+        shared_steps += any(end - first >= 8 for first, _, end in worlds[1]._solver.waves)
+    # the pile was in contact with waves shared by the threads nearly all the time
+    assert shared_steps > STEPS // 2
     assert np.isfinite(states[0].position).all()
     assert states[0].position[5:, 2].max() < 0.6          # it fell and piled up
+
+
+def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bodies():
+    bodies, state = pile()
+    w = world(bodies, 1)
+    movable = w.dynamic
+    total = wide = 0
+    for _ in range(STEPS):
+        state = w.step(state, euler_step(state, w.dynamic, GRAVITY, DT), DT).states
+        waves = w._solver.waves
+        sweep = w._solver.sweep_bodies
+        assert [s[0] for s in waves[1:]] == [s[2] for s in waves[:-1]]    # in a row
+        assert (waves[-1][2] if waves else 0) == len(sweep)                # all of them
+        seen = set()     # the movable bodies of the waves before
+        for first, wide_end, end in waves:
+            assert first < wide_end or wide_end < end              # never empty
+            assert first <= wide_end <= end and (wide_end - first) % 4 == 0
+            counts = sweep[first:wide_end, 2].reshape(-1, 4)
+            assert (counts == counts[:, :1]).all()     # a wide group: one row count
+            pairs = sweep[first:end, :2]
+            used = pairs[movable[pairs]]
+            assert len(np.unique(used)) == len(used)   # none twice in a wave
+            # each manifold of a wave after the first shares a movable body with the waves
+            # before (else it would be in an earlier wave)
+            if first > 0:
+                assert all(any(b in seen for b in pair if movable[b]) for pair in pairs)
+            seen.update(used.tolist())
+            wide += wide_end - first
+            total += end - first
+    assert total > 0 and wide > total // 2   # most manifolds solved in lanes

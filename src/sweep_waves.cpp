@@ -1,0 +1,70 @@
+#include "sweep_waves.h"
+
+#include <algorithm>
+
+namespace collres {
+
+void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& rows,
+                    const double* inv_mass, int64_t body_count, SweepPlan& plan,
+                    std::vector<int32_t>& wave, std::vector<size_t>& start,
+                    std::vector<Manifold>& sorted) {
+  const size_t count = manifolds.size();
+  // each manifold's wave, kept in its `spin` field meanwhile (the spin rows are named
+  // after the waves, StepSolver::prepare); wave[body]: the last wave that moved it
+  wave.assign(static_cast<size_t>(body_count), -1);
+  int32_t waves = 0;
+  for (Manifold& m : manifolds) {
+    const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
+    const int32_t own = std::max(move_a ? wave[m.a] : -1, move_b ? wave[m.b] : -1) + 1;
+    if (move_a) wave[m.a] = own;
+    if (move_b) wave[m.b] = own;
+    m.spin = own;
+    waves = std::max(waves, own + 1);
+  }
+  // stable counting sort by (wave, row count): bucket wave * 5 + count - 1 (counts 1 to
+  // 4; the last bucket of a wave for longer manifolds)
+  constexpr int kBuckets = 5;
+  auto bucket = [](const Manifold& m) {
+    return static_cast<size_t>(m.spin) * kBuckets + static_cast<size_t>(std::min(m.count, 5) - 1);
+  };
+  start.assign(static_cast<size_t>(waves) * kBuckets + 1, 0);
+  for (const Manifold& m : manifolds) ++start[bucket(m) + 1];
+  for (size_t i = 0; i + 1 < start.size(); ++i) start[i + 1] += start[i];
+  sorted.resize(count);
+  for (const Manifold& m : manifolds) sorted[start[bucket(m)]++] = m;   // (start: ends now)
+  // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then the
+  // rest one by one (counts 1..4's remainders, then longer manifolds)
+  manifolds.clear();
+  plan.waves.clear();
+  size_t from = 0;
+  for (int32_t l = 0; l < waves; ++l) {
+    size_t first[kBuckets + 1];
+    first[0] = from;
+    for (int k = 0; k < kBuckets; ++k) first[k + 1] = start[static_cast<size_t>(l) * kBuckets + k];
+    from = first[kBuckets];
+    SweepWave part;
+    part.first = manifolds.size();
+    for (int k = 0; k < 4; ++k) {
+      const size_t n = first[k + 1] - first[k];
+      manifolds.insert(manifolds.end(), sorted.begin() + first[k],
+                       sorted.begin() + first[k] + (n - n % kLanes));
+    }
+    part.wide_end = manifolds.size();
+    for (int k = 0; k < 4; ++k) {
+      const size_t n = first[k + 1] - first[k];
+      manifolds.insert(manifolds.end(), sorted.begin() + first[k] + (n - n % kLanes),
+                       sorted.begin() + first[k + 1]);
+    }
+    manifolds.insert(manifolds.end(), sorted.begin() + first[4], sorted.begin() + first[5]);
+    part.end = manifolds.size();
+    plan.waves.push_back(part);
+  }
+  for (Manifold& m : manifolds) m.spin = -1;
+  for (size_t index = 0; index < count; ++index) {
+    const Manifold& m = manifolds[index];
+    for (int32_t i = m.first; i < m.first + m.count; ++i)
+      rows[i].manifold = static_cast<int32_t>(index);
+  }
+}
+
+}  // namespace collres

@@ -75,6 +75,9 @@ class ResolvedStep:
     budget: tuple[int, int] = (0, 0)
     # (K,) bool: the body's island sleeps (answered with its held pose, zero twist)
     sleeping: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    number: int = 0                   # the resolver's steps so far, this one included
+    # the report is step ``number - 1``'s, array for array (``StepResult.unchanged``)
+    unchanged: bool = False
 
     def contact_names(self, k: int) -> tuple[str, str]:
         """Body names (A, B) of contact ``k``."""
@@ -124,6 +127,7 @@ class Resolver:
             from collres_ros.core.world import World
             world = World(self.bodies, self._settings, collision_filter=collision_filter)
         self.world = world
+        self.number = 0   # steps resolved (never reset: ``ResolvedStep.number``)
         self._params_state = (initial if initial is not None
                               else BodyStates.zeros(len(self.bodies))).copy()
         self.reset()
@@ -270,6 +274,7 @@ class Resolver:
         stale = stale_bodies(self.last_stamp, stamp_ns, int(self.stale_timeout * 1e9),
                              self.dynamic)
         self.totals['steps'] += 1
+        self.number += 1
         self.totals['contacts'] += report.contacts.count
         budget = self.world.budget
         if any(budget):
@@ -285,7 +290,8 @@ class Resolver:
                             time.perf_counter() - start, world_time, world_cpu,
                             np.concatenate([self.state.position, self.state.orientation], 1),
                             budget, np.zeros(len(index), bool) if result.sleeping is None
-                            else result.sleeping[rows] & ~bad)
+                            else result.sleeping[rows] & ~bad,
+                            number=self.number, unchanged=result.unchanged)
 
     def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
         resets = []

@@ -51,6 +51,9 @@ class Sleep:
         self._last_active: np.ndarray | None = None
         self._held = ContactReport.empty()    # contacts of the sleeping islands
         self._held_for = np.zeros(len(self.dynamic), bool)   # bodies asleep after last step
+        self._version = 0   # of _held: counts its replacements
+        self._reported: int | None = None   # _held's version when the last step's report
+        #                                     was _held alone (None: it was not)
         self.settings = settings
 
     @property
@@ -75,6 +78,7 @@ class Sleep:
     def wake_all(self) -> None:
         self._native.wake_all()
         self._held = ContactReport.empty()
+        self._version += 1
         self._held_for = np.zeros(len(self.dynamic), bool)
 
     def counts(self) -> dict[str, int]:
@@ -112,11 +116,12 @@ class Sleep:
         return held, active & ~asleep, asleep
 
     def after(self, out: BodyStates, movable: np.ndarray, report: ContactReport, dt: float,
-              asleep: np.ndarray) -> tuple[ContactReport, np.ndarray]:
+              asleep: np.ndarray) -> tuple[ContactReport, np.ndarray, bool]:
         """Islands, timers and falling asleep from the step's answers ``out`` (islands that
         fall asleep get zero twist there). Returns the step's report with the held contacts
-        of the islands answered as asleep appended (state SLEEPING), and the (N,) bodies
-        answered as asleep."""
+        of the islands answered as asleep appended (state SLEEPING), the (N,) bodies
+        answered as asleep, and whether that report is the last step's (``StepResult.
+        unchanged``: both were the held contacts alone, the same ones)."""
         contacts = report.contacts
         self._native.update(out.linear, out.angular, movable.astype(np.uint8),
                             np.ascontiguousarray(contacts.body_a, np.int64),
@@ -128,6 +133,11 @@ class Sleep:
         # answered as asleep unless an island woke before this step's detection
         woke = bool((self._held_for & ~asleep).any())
         shown = _between(self._held, sleeping | ~self.dynamic) if woke else self._held
+        # nothing awake touched anything: the report is the held contacts alone, unchanged
+        # since the last step if that one's was too (the held arrays are never written)
+        alone = not woke and not contacts.count
+        unchanged = alone and self._reported == self._version
+        self._reported = self._version if alone else None
         fell = now & ~asleep
         if woke or fell.any() or (asleep & ~now).any():
             kept = _between(self._held, now | ~self.dynamic)
@@ -135,10 +145,11 @@ class Sleep:
             new.contacts.toi[:], new.contacts.kind[:] = 0.0, 0
             new.state[:] = ContactState.SLEEPING
             self._held = _joined(kept, new)
+            self._version += 1
         self._held_for = now
         if shown.contacts.count:
             report = _joined(report, shown)
-        return report, sleeping
+        return report, sleeping, unchanged
 
 
 def _between(report: ContactReport, bodies: np.ndarray) -> ContactReport:

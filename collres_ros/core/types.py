@@ -196,6 +196,9 @@ class StepResult:
     rejected: list[Rejection] = field(default_factory=list)
     # (N,) bool: answered as asleep (held pose, zero twist; ``core.sleep``); None: none
     sleeping: np.ndarray | None = None
+    # the report is the last step's, array for array (every island that touches anything
+    # asleep, the same ones held: ``core.sleep``): what was built from the last one holds
+    unchanged: bool = False
 
 
 SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex', 'triangle')

@@ -179,8 +179,9 @@ class World:
                            'rows': 0}
             self._cache.clear()
             states = current.copy()
-            report, sleeping = self._settle(states, ContactReport.empty(), active, dt, asleep)
-            return StepResult(states, report, [], sleeping)
+            report, sleeping, unchanged = self._settle(states, ContactReport.empty(), active,
+                                                       dt, asleep)
+            return StepResult(states, report, [], sleeping, unchanged)
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
         warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
@@ -188,19 +189,19 @@ class World:
         self._hold_back(previous, states, active)
         # report: the final guard against non-finite output
         rejected = self._guard(states, current)
-        report, sleeping = self._settle(states, report, active, dt, asleep)
+        report, sleeping, unchanged = self._settle(states, report, active, dt, asleep)
         self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
                        'iterations': sweeps, 'rows': rows}
-        return StepResult(states, report, rejected, sleeping)
+        return StepResult(states, report, rejected, sleeping, unchanged)
 
     def _settle(self, states: BodyStates, report: ContactReport, active: np.ndarray,
                 dt: float, asleep: np.ndarray | None
-                ) -> tuple[ContactReport, np.ndarray | None]:
+                ) -> tuple[ContactReport, np.ndarray | None, bool]:
         """Sleep timers and islands after the step (``core.sleep``): the report with the
-        sleeping islands' held contacts, and the bodies answered as asleep (None when
-        sleeping is off)."""
+        sleeping islands' held contacts, the bodies answered as asleep (None when sleeping
+        is off) and whether the report is the last step's (``StepResult.unchanged``)."""
         if asleep is None:
-            return report, None
+            return report, None, False
         return self.sleep.after(states, self.dynamic & active, report, dt, asleep)
 
     def _solve(self, previous: BodyStates, current: BodyStates, contacts: ContactSet,

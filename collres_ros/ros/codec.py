@@ -21,8 +21,8 @@ refused at once) and refuses negative stamps and ``nanosec >= 1e9``:
 ``DecodeError`` with a reason key and one line.
 
 ``contacts_message`` and ``markers_message`` give the same bytes as a ``Restampable``: a
-message that equals the last one but for its stamps (the held contacts of a sleeping pile) is
-then restamped in place (one scatter) instead of encoded again.
+message that equals the last one but for its stamps (the held contacts of a sleeping pile,
+``ResolvedStep.unchanged``) is then restamped in place (one scatter) instead of encoded again.
 
 Padding bytes are written as zeros (rclpy leaves them uninitialised), so
 compare decoded values, or bytes outside the padding, never raw bytes with rclpy's.

@@ -130,10 +130,6 @@ POSE_TYPE, TWIST_TYPE = 'geometry_msgs/msg/PoseStamped', 'geometry_msgs/msg/Twis
 WRENCH_TYPE = 'geometry_msgs/msg/WrenchStamped'
 
 
-# what a message was built from: dtypes and shapes, and the bytes of its arrays
-Fingerprint = tuple[tuple[tuple[str, tuple[int, ...]], ...], bytes]
-
-
 class OutputEncoder:
     """Every output of a step as (topic, wire type, CDR bytes), topics relative to the node.
 
@@ -162,9 +158,10 @@ class OutputEncoder:
             from collres_ros.ros.body_markers import BodyMarkers
             self._body_markers = BodyMarkers(bodies)
         self._last_body_markers: Optional[int] = None   # stamp (ns) of the last ones
-        # topic -> (what its last message was built from, the message): a step whose
-        # arrays are all equal to those (a sleeping pile's held contacts) only restamps it
-        self._last: dict[str, tuple[Fingerprint, codec.Restampable]] = {}
+        # topic -> (the step its last message was built or restamped for, the lifetime of
+        # its markers, the message): a step whose report is that step's (``ResolvedStep.
+        # unchanged``: a sleeping pile's held contacts) only restamps it
+        self._last: dict[str, tuple[int, float, codec.Restampable]] = {}
 
     def body_markers(self, step: ResolvedStep, period: float, lifetime: float
                      ) -> Optional[bytes]:
@@ -210,16 +207,12 @@ class OutputEncoder:
 
     def contacts(self, step: ResolvedStep) -> bytes:
         """contacts: every solved contact, world frame, normal from body_a to body_b."""
+        reused = self._reused(CONTACTS, step, 0.0)
+        if reused is not None:   # the stamp and each contact's time of impact are new
+            return reused.restamped(np.concatenate([[step.stamp_ns], step.toi_ns]))
         r = step.report
         c = r.contacts
         piece_a, piece_b = c.pieces()
-        before = step.stamp_ns - step.toi_ns   # ns from each time of impact to the stamp
-        key = (c.body_a, c.body_b, c.point, c.normal, c.depth, before, r.normal_impulse,
-               r.friction_impulse, r.state, piece_a, piece_b)
-        built_from = _fingerprint(key)
-        last = self._last.get(CONTACTS)
-        if last is not None and last[0] == built_from:
-            return last[1].restamped(np.concatenate([[step.stamp_ns], step.toi_ns]))
         pieces = None if self.piece_names is None else (
             self.piece_names, self.piece_start[c.body_a] + piece_a,
             self.piece_start[c.body_b] + piece_b)
@@ -227,7 +220,7 @@ class OutputEncoder:
                                          c.body_a, c.body_b, c.point, c.normal, c.depth,
                                          step.toi_ns, r.normal_impulse, r.friction_impulse,
                                          r.state, pieces)
-        self._last[CONTACTS] = (built_from, message)
+        self._last[CONTACTS] = (step.number, 0.0, message)
         return message.data()
 
     def wrenches(self, step: ResolvedStep) -> list[tuple[str, str, bytes]]:
@@ -240,17 +233,25 @@ class OutputEncoder:
 
     def markers(self, step: ResolvedStep, lifetime: float) -> bytes:
         """contact_markers (markers.py)."""
-        r = step.report
-        key = (r.contacts.point, r.contacts.normal, r.normal_impulse, r.state,
-               np.array([lifetime]))
-        built_from = _fingerprint(key)
-        last = self._last.get(MARKERS)
-        if last is not None and last[0] == built_from:
-            return last[1].restamped(step.stamp_ns)
+        reused = self._reused(MARKERS, step, lifetime)
+        if reused is not None:
+            return reused.restamped(step.stamp_ns)
         message = codec.markers_message(step.stamp_ns, self.world_frame,
                                         contact_marker_specs(step, lifetime))
-        self._last[MARKERS] = (built_from, message)
+        self._last[MARKERS] = (step.number, lifetime, message)
         return message.data()
+
+    def _reused(self, topic: str, step: ResolvedStep, lifetime: float
+                ) -> Optional[codec.Restampable]:
+        """The last message of ``topic`` when ``step``'s report is the one it was built from:
+        built or reused for the step before, whose report this one's is (``ResolvedStep.
+        unchanged``), with the same marker lifetime; None otherwise (it is built anew)."""
+        last = self._last.get(topic)
+        if last is None or not step.unchanged or last[0] != step.number - 1 \
+                or last[1] != lifetime:
+            return None
+        self._last[topic] = (step.number, lifetime, last[2])
+        return last[2]
 
     def encode(self, step: ResolvedStep, per_body: bool = False, marker_lifetime: float = 0.5,
                diagnostics: Optional[DiagnosticsSnapshot] = None,
@@ -282,14 +283,6 @@ class OutputEncoder:
             out.append((DIAGNOSTICS, TYPES[DIAGNOSTICS],
                         diagnostics_bytes(diagnostics)))
         return out
-
-
-def _fingerprint(arrays: Sequence[Any]) -> Fingerprint:
-    """What a message was built from, as one value: each array's dtype and shape, and all
-    their bytes (two equal fingerprints encode to the same bytes; a comparison of values
-    would take -0.0 for 0.0, whose bytes differ, and cost a Python call per array)."""
-    views = [np.asarray(a) for a in arrays]
-    return (tuple((a.dtype.str, a.shape) for a in views), b''.join(a.tobytes() for a in views))
 
 
 _ENCODERS: dict[tuple[tuple[str, ...], str], OutputEncoder] = {}

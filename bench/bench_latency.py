@@ -50,8 +50,9 @@ step detected and solved); the row says which, and how many bodies the node's la
 /diagnostics reported asleep. The pile falls asleep in the lock-step run once the node has
 answered ``time_to_sleep`` (0.5 s) of stamps of a still pile, 50 steps at 100 Hz: give
 1000 bodies a ``--settle`` that brings them to rest (3 s) and a ``--lockstep`` long enough
-for 50 awake steps. A step the node misses starts its bodies fresh, which wakes every island:
-a pile never falls asleep under a node that drops steps.
+for 50 awake steps. An input the node drops (it was behind) is no fresh start: the next
+answered step spans the time since the last answered one (up to ``max_dt``), its warm start
+follows the load that step carries, and a pile can fall asleep, and stays asleep, across it.
 
 Runs against whatever ``collres_ros`` the interpreter imports (set PYTHONPATH
 to a checkout to measure that one; its generated ``msg/`` must be present).

@@ -230,6 +230,7 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                     wall_start = time.monotonic()
                     pace.append(RealtimePace(sim.rate_hz, wall_start))
                     steps, dropped = run_loop(sim, exchange, progress)
+                    wall = time.monotonic() - wall_start
                     # every subscriber (a recorder) has every step before we leave: a step
                     # sent but not yet acknowledged is lost with its writer (under load, one
                     # run in 20 of a busy reader missed the last steps of a writer that left)
@@ -237,8 +238,7 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                                for p in [*inputs, clock]):
                         log.warning('a subscriber of the inputs did not acknowledge the last '
                                     f'steps within {min(args.wait, 10.0)} s')
-                    log.info(f'done: {steps} steps, {dropped} dropped, '
-                             f'{time.monotonic() - wall_start:.2f} s wall time')
+                    log.info(f'done: {steps} steps, {dropped} dropped, {wall:.2f} s wall time')
                     short = pace[0].summary(steps, published_at[0]) if args.realtime else None
                     if short:
                         log.warning(short)

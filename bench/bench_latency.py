@@ -528,7 +528,8 @@ def in_process(count: int, rate: float, mode: str, scene: Path,
     from collres_ros.ros import messages, params
     resolver = Resolver.for_scene(params.load_scene(scene))
     encoder = messages.OutputEncoder(resolver.names, resolver.world_frame, resolver.bodies)
-    inputs = Inputs((scene.parent / f'input{count}.cdr').read_bytes(), mode, 1.0 / rate)
+    inputs = Inputs((scene.parent / f'input{count}.cdr').read_bytes(), mode,
+                    int(round(1e9 / rate)) * 1e-9)   # the publisher's period
     needed = {base for _, base in stepped}
     answers: dict[int, bytes] = {0: bytes(inputs.template)}   # 0: no answer yet
     world_step = resolver.world.step

@@ -169,9 +169,10 @@ class World:
         # (a sleeper's previous state is already its held one: its last answer)
         previous = _hold(previous, current, ~active if asleep is None else ~active & ~asleep)
         warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
-        # a long step in substeps of at most max_substep (core.substeps); a fresh one whole
-        count = 1 if fresh or dt > self._settings.max_dt else \
-            substeps.count(dt, self._settings.max_substep)
+        # a long step in substeps of at most max_substep (core.substeps); a fresh one, or one
+        # without an active dynamic body (all asleep), whole
+        count = 1 if fresh or dt > self._settings.max_dt or not (self.dynamic & active).any() \
+            else substeps.count(dt, self._settings.max_substep)
         self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0,
                        'substeps': count}
         self.budget = (0, 0)

@@ -188,7 +188,8 @@ class World:
             if count > 1:
                 goal = substeps.advanced(goal, answer, free, linear, angular, h)
             answer, report = self._substep(answer, goal, active, h, warm, rejected)
-            touched |= substeps.changed(answer, goal)
+            if count > 1:
+                touched |= substeps.changed(answer, goal)
             reports.append(report)
         if count > 1:      # bodies no substep changed: the input as it was
             for name in ('position', 'orientation', 'linear', 'angular'):

@@ -85,6 +85,14 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               'A step longer than this is treated as a fresh start (no sweep, no warm start)',
               1e-6, 3600.0, unit='s',
               reason='after a pause the interpolated motion is meaningless'),
+    ParamSpec('max_substep', 'double', 0.0,
+              'A step longer than this is resolved as ceil(dt / max_substep) substeps of '
+              'equal length, each a whole detection and solve (0: never)', 0.0, 3600.0,
+              unit='s',
+              reason='off by default (every law holds as before); 1/60 s lets a pile stepped '
+                     'at 30 Hz come to rest (the sweeps do not converge a deep stack under a '
+                     '30 Hz step\'s load: a column of 7 cubes topples, a pile of 1000 never '
+                     'rests); on by default it still breaks laws at 10 Hz (README)'),
     ParamSpec('max_pairs', 'integer', 20000,
               'Budget of pairs queried per step (broad-phase pairs whose bounding spheres come '
               'within reach); beyond it the pairs whose spheres overlap deepest are kept '
@@ -138,6 +146,7 @@ class SolverSettings:
     warm_start: bool = True
     ccd: bool = True
     max_dt: float = 0.5
+    max_substep: float = 0.0
     max_pairs: int = 20000
     max_contacts: int = 40000
     max_contacts_per_pair: int = 8

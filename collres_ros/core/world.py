@@ -31,6 +31,9 @@ Static bodies (and inactive ones, for this step) have zero inverse mass and
 inertia: their ``current`` twist is a kinematic velocity, their state is
 returned as given.
 
+With ``settings.max_substep`` > 0 a longer step is resolved as several substeps, each the
+above from the last substep's answer (``core.substeps``).
+
 Islands at rest sleep (``core.sleep``, ``settings.sleeping``): a sleeping body is answered
 with its held pose and zero twist, left out of detection and solve, until something
 wakes its island in the step.
@@ -49,7 +52,7 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
-from collres_ros.core import _native
+from collres_ros.core import _native, substeps
 from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.detection import Detection
 from collres_ros.core.rotation import slerp
@@ -160,39 +163,72 @@ class World:
         ``SOLVER_TUNING`` ``warm_start_ratio``.
         """
         active = np.ones(current.count, bool) if active is None else np.asarray(active, bool)
-        started = time.perf_counter()
         asleep = None
         if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
             current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
         # (a sleeper's previous state is already its held one: its last answer)
         previous = _hold(previous, current, ~active if asleep is None else ~active & ~asleep)
+        warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
+        # a long step in substeps of at most max_substep (core.substeps); a fresh one, or one
+        # without an active dynamic body (all asleep), whole
+        count = 1 if fresh or dt > self._settings.max_dt or not (self.dynamic & active).any() \
+            else substeps.count(dt, self._settings.max_substep)
+        self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0,
+                       'substeps': count}
+        self.budget = (0, 0)
+        free = self.dynamic & active       # the bodies the substeps integrate
+        h = dt / count
+        linear = (current.linear - previous.linear) / count
+        angular = (current.angular - previous.angular) / count
+        answer = previous
+        reports, rejected = [], []
+        touched = np.zeros(current.count, bool)    # bodies an answer changed
+        for k in range(1, count + 1):
+            goal = substeps.along(previous, current, k / count)
+            if count > 1:
+                goal = substeps.advanced(goal, answer, free, linear, angular, h)
+            answer, report = self._substep(answer, goal, active, h, warm, rejected)
+            if count > 1:
+                touched |= substeps.changed(answer, goal)
+            reports.append(report)
+        if count > 1:      # bodies no substep changed: the input as it was
+            for name in ('position', 'orientation', 'linear', 'angular'):
+                getattr(answer, name)[~touched] = getattr(current, name)[~touched]
+        self.timing['rows'] = int(round(self.timing['rows'] / count))   # per substep
+        report, sleeping, unchanged = self._settle(answer, substeps.merge(reports), active, dt,
+                                                   asleep)
+        return StepResult(answer, report, rejected, sleeping, unchanged)
+
+    def _substep(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
+                 dt: float, warm: bool, rejected: list[Rejection]
+                 ) -> tuple[BodyStates, ContactReport]:
+        """Detection and solve of one (sub)step previous -> current: the answer and its
+        report; non-finite results refused are added to ``rejected``, times, sweeps and
+        rows to ``timing``, the budget's drops to ``budget`` (the largest)."""
+        started = time.perf_counter()
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
         if (self.dynamic & active).any():
             contacts = _finite(self._collision.detect(previous, current, active))
-            self.budget = self._collision.budget
+            budget = self._collision.budget
+            self.budget = (max(self.budget[0], budget[0]), max(self.budget[1], budget[1]))
         else:
-            contacts, self.budget = ContactSet.empty(), (0, 0)
+            contacts = ContactSet.empty()
         detected = time.perf_counter()
+        self.timing['detect'] += detected - started
         if contacts.count == 0:
-            self.timing = {'detect': detected - started, 'solve': 0.0, 'iterations': 0,
-                           'rows': 0}
             self._cache.clear()
-            states = current.copy()
-            report, sleeping, unchanged = self._settle(states, ContactReport.empty(), active,
-                                                       dt, asleep)
-            return StepResult(states, report, [], sleeping, unchanged)
+            return current.copy(), ContactReport.empty()
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
-        warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
         states, report, sweeps, rows = self._solve(previous, current, contacts, active, dt, warm)
         self._hold_back(previous, states, active)
         # report: the final guard against non-finite output
-        rejected = self._guard(states, current)
-        report, sleeping, unchanged = self._settle(states, report, active, dt, asleep)
-        self.timing = {'detect': detected - started, 'solve': time.perf_counter() - detected,
-                       'iterations': sweeps, 'rows': rows}
-        return StepResult(states, report, rejected, sleeping, unchanged)
+        rejected += self._guard(states, current)
+        self.timing['solve'] += time.perf_counter() - detected
+        self.timing['iterations'] += sweeps
+        self.timing['rows'] += rows
+        return states, report
 
     def _settle(self, states: BodyStates, report: ContactReport, active: np.ndarray,
                 dt: float, asleep: np.ndarray | None

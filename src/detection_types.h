@@ -80,6 +80,8 @@ struct ContactRows {
   // These rows (any order, each at most once) in that order, into `out` (cleared first;
   // its manifolds are the caller's to set).
   void take(const std::vector<std::size_t>& rows, ContactRows& out) const;
+  // `other`'s rows and manifolds after these (its manifolds' first rows shifted).
+  void append(const ContactRows& other);
   std::size_t size() const { return body_a.size(); }
 };
 

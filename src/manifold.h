@@ -129,15 +129,15 @@ class ManifoldStore {
     keys_.clear();
     pairs_.clear();
     rows_.clear();
-    cursor_ = 0;
   }
-  // The manifold of `key`, or null; keys asked in increasing order cost O(1) each.
-  const StoredManifold* find(std::int64_t key) {
-    if (cursor_ > keys_.size() || (cursor_ > 0 && keys_[cursor_ - 1] > key)) cursor_ = 0;
-    cursor_ = static_cast<std::size_t>(
-        std::lower_bound(keys_.begin() + cursor_, keys_.end(), key) - keys_.begin());
-    if (cursor_ == keys_.size() || keys_[cursor_] != key) return nullptr;
-    return &pairs_[cursor_];
+  // The manifold of `key`, or null; `cursor` is the caller's place in the store (0 to
+  // start; one per reader): keys asked in increasing order cost O(1) each.
+  const StoredManifold* find(std::int64_t key, std::size_t& cursor) const {
+    if (cursor > keys_.size() || (cursor > 0 && keys_[cursor - 1] > key)) cursor = 0;
+    cursor = static_cast<std::size_t>(
+        std::lower_bound(keys_.begin() + cursor, keys_.end(), key) - keys_.begin());
+    if (cursor == keys_.size() || keys_[cursor] != key) return nullptr;
+    return &pairs_[cursor];
   }
   const StoredRow& row(int index) const { return rows_[index]; }
   // Starts the manifold of `key` (keys in increasing order); rows follow with `add_row`.
@@ -149,18 +149,26 @@ class ManifoldStore {
     rows_.push_back(row);
     ++pairs_.back().count;
   }
+  // `other`'s manifolds after these (its keys all greater).
+  void append(const ManifoldStore& other) {
+    const int shift = static_cast<int>(rows_.size());
+    keys_.insert(keys_.end(), other.keys_.begin(), other.keys_.end());
+    rows_.insert(rows_.end(), other.rows_.begin(), other.rows_.end());
+    for (StoredManifold m : other.pairs_) {
+      m.first += shift;
+      pairs_.push_back(m);
+    }
+  }
   void swap(ManifoldStore& other) {
     keys_.swap(other.keys_);
     pairs_.swap(other.pairs_);
     rows_.swap(other.rows_);
-    cursor_ = other.cursor_ = 0;
   }
 
  private:
   std::vector<std::int64_t> keys_;
   std::vector<StoredManifold> pairs_;
   std::vector<StoredRow> rows_;
-  std::size_t cursor_ = 0;
 };
 
 }  // namespace collres

@@ -45,8 +45,10 @@ void ContactRows::reserve(std::size_t rows) {
 
 void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t first) {
   if (size() > first) {
-    manifolds.insert(manifolds.end(), {a, b, static_cast<std::int64_t>(first),
-                                       static_cast<std::int64_t>(size() - first)});
+    manifolds.push_back(a);
+    manifolds.push_back(b);
+    manifolds.push_back(static_cast<std::int64_t>(first));
+    manifolds.push_back(static_cast<std::int64_t>(size() - first));
   }
 }
 
@@ -100,6 +102,20 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
     out.piece_a.push_back(piece_a[row]);
     out.piece_b.push_back(piece_b[row]);
   }
+}
+
+void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
+                      double gap, double fraction, ContactKind contact, std::int64_t id) {
+  body_a.push_back(a.body);
+  body_b.push_back(b.body);
+  piece_a.push_back(a.piece);
+  piece_b.push_back(b.piece);
+  for (int k = 0; k < 3; ++k) point.push_back(at[k]);
+  for (int k = 0; k < 3; ++k) normal.push_back(n[k]);
+  separation.push_back(gap);
+  toi.push_back(fraction);
+  kind.push_back(static_cast<std::int8_t>(contact));
+  feature.push_back(id);
 }
 
 void ContactRows::append(const ContactRows& other) {
@@ -623,8 +639,9 @@ void Detector::limit_rows(ContactRows& out) {
 
 bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
+  if (shapes_[a].curved || shapes_[b].curved) return false;
   const StoredManifold* stored = stored_.find(key, lane.cursor);
-  if (stored == nullptr || shapes_[a].curved || shapes_[b].curved) return false;
+  if (stored == nullptr) return false;
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   // the pair's own motion over the step, as the narrow phase classifies it: the motion
@@ -664,17 +681,8 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
     const Vec3 on_a = A.r1 * row.local_a + A.p1;
     const Vec3 on_b = B.r1 * row.local_b + B.p1;
     const Vec3 normal = A.r1 * row.normal_a;
-    out.body_a.push_back(shapes_[a].body);
-    out.body_b.push_back(shapes_[b].body);
-    out.piece_a.push_back(shapes_[a].piece);
-    out.piece_b.push_back(shapes_[b].piece);
-    const Vec3 point = 0.5 * (on_a + on_b);
-    out.point.insert(out.point.end(), point.data(), point.data() + 3);
-    out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
-    out.separation.push_back((on_b - on_a).dot(normal));
-    out.toi.push_back(0.0);
-    out.kind.push_back(static_cast<std::int8_t>(ContactKind::persistent));
-    out.feature.push_back(row.feature);
+    out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, (on_b - on_a).dot(normal),
+            0.0, ContactKind::persistent, row.feature);
     lane.next.add_row(row);
   }
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
@@ -912,16 +920,7 @@ void Detector::speculate(Lane& lane, int a, int b, const Vec3& normal, const Poi
         const Vec3& on_b = side == 0 ? lane.corners[k] : on_plane;
         feature = feature_of(lane, a, b, ra.transpose() * (on_a - pa), rb.transpose() * (on_b - pb));
       }
-      out.body_a.push_back(sa.body);
-      out.body_b.push_back(sb.body);
-      out.piece_a.push_back(sa.piece);
-      out.piece_b.push_back(sb.piece);
-      out.point.insert(out.point.end(), point.data(), point.data() + 3);
-      out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
-      out.separation.push_back(height);
-      out.toi.push_back(toi);
-      out.kind.push_back(static_cast<std::int8_t>(kind));
-      out.feature.push_back(feature);
+      out.add(sa, sb, point, normal, height, toi, kind, feature);
     }
     out.close_manifold(sa.body, sb.body, first);   // each body's corners: one manifold
     first = out.size();
@@ -1017,17 +1016,7 @@ void Detector::emit(Lane& lane, int a, int b, const Vec3& normal_in, double toi,
     const BodyShape& sa = shapes_[a];
     const BodyShape& sb = shapes_[b];
     const std::int64_t feature = feature_of(lane, a, b, local_a, local_b);
-    out.body_a.push_back(sa.body);
-    out.body_b.push_back(sb.body);
-    out.piece_a.push_back(sa.piece);
-    out.piece_b.push_back(sb.piece);
-    const Vec3 point = 0.5 * (p.on_a + p.on_b);
-    out.point.insert(out.point.end(), point.data(), point.data() + 3);
-    out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
-    out.separation.push_back(separation);
-    out.toi.push_back(toi);
-    out.kind.push_back(static_cast<std::int8_t>(kind));
-    out.feature.push_back(feature);
+    out.add(sa, sb, 0.5 * (p.on_a + p.on_b), normal, separation, toi, kind, feature);
     if (store) lane.next.add_row({local_a, local_b, ra.transpose() * normal, feature});
   }
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);

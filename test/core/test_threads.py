@@ -10,9 +10,9 @@ threads too (``src/detection.h``: the first half here, the second on the worker,
 its own lane, joined in pair order). The laws: the waves hold (no movable body twice in a
 wave, each after one that moved its bodies, wide groups of one row count); whatever the
 thread count and with wide rows on or off, every step's corrected states and impulses are
-the same bytes, and so is every array detection gives. Here a pile of cubes and spheres falls into a bin and settles (impacts,
-stacking, friction, rolling resistance), with a low ``parallel_wave`` so that most steps
-share waves between the threads.
+the same bytes, and so is every array detection gives. Here a pile of cubes and spheres
+falls into a bin and settles (impacts, stacking, friction, rolling resistance), with a low
+``parallel_wave`` so that most steps share waves between the threads.
 """
 
 from __future__ import annotations

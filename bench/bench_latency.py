@@ -24,11 +24,14 @@ processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
   ``contact_markers`` (so the node builds and publishes all of them) and of
   ``/diagnostics`` (the node's own timing figures).
 
-The in-process reference of ``World.step``: the same scene (read back from the params
-file), the same inputs of the same mode, stamps and dt, stepped by a ``Resolver`` in this
-process as many steps as the live run took (wall and thread CPU time, median over the paced
-part). The node's ``time.world_ms`` and ``time.world_cpu_ms`` beside it say what the live
-run adds to the core's step: the CPU time it lacks is time it waited for a core.
+The in-process reference of ``World.step``: the node's own steps again, in this process:
+the same scene (read back from the params file), every input the node answered, in order
+(the same stamps, so the same dt and the same long steps across inputs it never took), each
+built by the publisher's rule from the answer it was built from live (simulator mode: the
+publisher records which), stepped by a ``Resolver`` (wall and thread CPU time, median over
+the paced part). The core is deterministic, so these are the node's steps; the node's
+``time.world_ms`` and ``time.world_cpu_ms`` beside it say what the live run adds to them:
+the CPU time it lacks is time it waited for a core.
 
 The echo floor: the same publisher against an echo process (``--role echo``:
 subscribe ``body_states`` as bytes, publish them back on
@@ -186,16 +189,21 @@ class Inputs:
         self.template, self.mode, self.dt = bytearray(template), mode, dt
         self.codec = StatesCodec()
         self.latest: bytes = bytes(template)   # the last answer (simulator)
+        self.base = 0   # the stamp of that answer (simulator; 0: none yet, the template)
 
     def answer(self, data: bytes) -> None:
         if self.mode == 'simulator':
-            self.latest = bytes(data)
+            self.latest, self.base = bytes(data), stamp_of(data)
 
     def next(self, stamp: int) -> bytes:
+        return self.from_answer(stamp, self.latest)
+
+    def from_answer(self, stamp: int, answer: bytes) -> bytes:
+        """The input at ``stamp`` when ``answer`` is the last answer the publisher has."""
         if self.mode in ('estimator', 'per_body'):
             return with_stamp(self.template, stamp)
         from collres_ros.ros.messages import state_values, states_of
-        decoded = self.codec.decode(self.latest)
+        decoded = self.codec.decode(answer)
         states = states_of(decoded.values)
         current = integrate(states, np.ones(len(decoded.names), bool), self.dt)
         return self.codec.encode(stamp, decoded.frame_id, decoded.names, state_values(current))
@@ -264,12 +272,15 @@ def publisher(args: argparse.Namespace) -> int:
                                       for p in inputs_of), 60.0):
             raise RuntimeError('no subscriber of the inputs')
         stamp = T0
+        # every input sent: (stamp, the stamp of the answer it was integrated from)
+        result['inputs'] = sent_inputs = []
         # lock-step: the next step as soon as the previous one is answered
         times, lost = [], 0
         lock_end = time.monotonic() + args.lockstep
         while time.monotonic() < lock_end:
             stamp += period
             data = inputs.next(stamp)
+            sent_inputs.append((stamp, inputs.base))
             sent = time.monotonic_ns()
             pub.publish(data)
             if spin_until(lambda: stamp in answered, 5.0):
@@ -295,6 +306,7 @@ def publisher(args: argparse.Namespace) -> int:
                 executor.spin_once(timeout_sec=min((due - now) * 1e-9, 0.002))
             stamp += period
             data = inputs.next(stamp)
+            sent_inputs.append((stamp, inputs.base))
             sent_at[stamp] = time.monotonic_ns()
             pub.publish(data)
             sending.append(time.monotonic_ns() - sent_at[stamp])
@@ -484,7 +496,10 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
             'send_ms': result.get('send_ms', [float('nan')] * 2),
             'contacts_msgs': listener.counts['contacts'],
             'markers_msgs': listener.counts['contact_markers'],
-            'timings': timings, 'lock_timings': lock_timings}
+            'timings': timings, 'lock_timings': lock_timings,
+            # the node's steps: every input it answered, in order, with the answer it was
+            # built from (an input lost in the node's queue was never stepped)
+            'stepped': [(s, base) for s, base in result['inputs'] if s in listener.arrived]}
 
 
 def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> None:
@@ -495,25 +510,28 @@ def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) ->
     (workdir / f'input{count}.cdr').write_bytes(input_bytes(bodies, state))
 
 
-def in_process(count: int, rate: float, mode: str, scene: Path, steps: int, last: int
-               ) -> tuple[float, float]:
-    """(wall, CPU) median ms of World.step over the ``last`` of ``steps`` steps of the
-    node's own workload, in this process.
+def in_process(count: int, rate: float, mode: str, scene: Path,
+               stepped: list[tuple[int, int]], last: int) -> tuple[float, float]:
+    """(wall, CPU) median ms of World.step over the ``last`` of the node's steps, stepped
+    again in this process.
 
-    The scene read back from the params file into a ``Resolver`` as the node builds it,
-    the publisher's inputs of ``mode`` (``Inputs``: simulator inputs from the last answer)
-    with the same stamps and dt, as many steps as the live run's lock-step and paced parts
-    (the node's state after 2000 estimator steps is not its state after 100: it integrates
-    each answered twist from its own last state). What the node's ``time.world_ms`` adds to
-    it, the live run adds.
+    The scene read back from the params file into a ``Resolver`` as the node builds it, and
+    the node's own steps (``stepped``: every input it answered, in order, with the stamp of
+    the answer the publisher had built it from): the same stamps, so the same dt and the
+    same long steps across the inputs it never took, and each input built by the
+    publisher's rule (``Inputs``) from this process's answer of that stamp. The core is
+    deterministic, so these are the node's steps; what the node's ``time.world_ms`` adds
+    to them, the live run adds.
     """
     from collres_ros.core.pipeline import Resolver
     from collres_ros.core.types import InputBatch
     from collres_ros.ros import messages, params
     resolver = Resolver.for_scene(params.load_scene(scene))
     encoder = messages.OutputEncoder(resolver.names, resolver.world_frame, resolver.bodies)
-    period = int(round(1e9 / rate))
-    inputs = Inputs((scene.parent / f'input{count}.cdr').read_bytes(), mode, period * 1e-9)
+    inputs = Inputs((scene.parent / f'input{count}.cdr').read_bytes(), mode,
+                    int(round(1e9 / rate)) * 1e-9)   # the publisher's period
+    needed = {base for _, base in stepped}
+    answers: dict[int, bytes] = {0: bytes(inputs.template)}   # 0: no answer yet
     world_step = resolver.world.step
     wall, cpu = [], []
 
@@ -523,13 +541,14 @@ def in_process(count: int, rate: float, mode: str, scene: Path, steps: int, last
         cpu.append(time.thread_time() - start)
         return result
     resolver.world.step = timed   # type: ignore[method-assign]
-    stamp = T0
-    for _ in range(steps):
-        stamp += period
-        decoded = inputs.codec.decode(inputs.next(stamp))
+    for stamp, base in stepped:
+        decoded = inputs.codec.decode(inputs.from_answer(stamp, answers[base]))
+        for old in [k for k in answers if k < base]:   # bases only grow
+            del answers[old]
         step = resolver.resolve(stamp, InputBatch(decoded.names, decoded.values,
                                                   decoded.frame_id, decoded.frame_id))
-        inputs.answer(encoder.corrected(step))
+        if stamp in needed:
+            answers[stamp] = encoder.corrected(step)
         wall.append(step.world_time_s)
     return 1e3 * float(np.median(wall[-last:])), 1e3 * float(np.median(cpu[-last:]))
 
@@ -584,8 +603,8 @@ def main(argv: list[str] | None = None) -> int:
             for server, mode, flag in runs:
                 r = measure(count, rate, args, Path(tmp), server, mode, flag)
                 r['in_process_ms'] = in_process(
-                    count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml',
-                    r['lockstep']['steps'] + r['sent'], r['sent'])
+                    count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml', r['stepped'],
+                    r['answered'])
                 rows.append(r)
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
@@ -595,8 +614,9 @@ def main(argv: list[str] | None = None) -> int:
           "publisher's own time to hand a step over, 2 x bodies messages in per_body mode); "
           'start: process start to its '
           'topics connected; callback split: the node\'s /diagnostics means over the paced '
-          'run; World.step (in-process wall / CPU): the same scene, inputs, stamps and dt '
-          'stepped by a Resolver in this process (median, thread CPU time beside); '
+          'run; World.step (in-process wall / CPU): the node\'s own steps (every input it '
+          'answered, the same stamps and inputs) stepped again by a Resolver in this process '
+          '(median, thread CPU time beside); '
           'answer: callback start to body_states/corrected published (the other outputs '
           'follow: encode, publish); overhead = answer - World.step')
     if args.json:

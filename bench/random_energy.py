@@ -46,7 +46,7 @@ class Fixed:
         self.contacts, self.settings, self.collision_filter = contacts, settings, None
         self.budget = (0, 0)      # nothing dropped by a step budget
 
-    def detect(self, previous, current, active=None) -> ContactSet:
+    def detect(self, previous, current, active=None, threads=1) -> ContactSet:
         return self.contacts
 
 

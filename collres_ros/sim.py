@@ -10,7 +10,9 @@ Each step it publishes ``body_states`` (BodyStateArray of the dynamic and kinema
 stamped with simulated time; or, with ``--per-body``/``publish_per_body``,
 ``bodies/<name>/pose`` and ``bodies/<name>/twist`` instead) and ``/clock``,
 waits for ``body_states/corrected`` of the same stamp and adopts it
-(closing the loop). A step whose answer does
+(closing the loop). The first step waits until the node's ``/diagnostics`` report counts
+the sim's publisher (the node's side of the match); the sim leaves once every subscriber has
+acknowledged every step. A step whose answer does
 not arrive within ``--step-timeout`` s is counted as dropped and the sim goes
 on with its own uncorrected state. The run is lock-step, as fast as the node
 answers; ``--realtime`` paces it to the wall clock and keeps the rate: an answer is
@@ -47,8 +49,29 @@ from collres_ros.ros.stamps import to_stamp
 
 # --- live -------------------------------------------------------------------------------------
 
+def full_name(info: Any) -> str:
+    """The full name (``/ns/name``) of the node of a graph ``TopicEndpointInfo``."""
+    return f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+
+
+def reported(msg: Any) -> dict[str, int]:
+    """{node full name: body_states publishers it has matched} of a collres_node's
+    ``/diagnostics`` report (DiagnosticArray); other statuses are left out."""
+    from collres_ros.ros.diagnostics import STATUS_TASK
+    suffix = f': {STATUS_TASK}'
+    found = {}
+    for status in msg.status:
+        values = {kv.key: kv.value for kv in status.values}
+        count = values.get('body_states_publishers', '')
+        if status.name.endswith(suffix) and count.lstrip('-').isdigit():
+            found[status.name[:-len(suffix)]] = int(count)
+    return found
+
+
 def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> int:
     """Run the DDS loop: publish, wait for the corrected state, adopt, integrate."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.duration import Duration
     from rclpy.event_handler import PublisherEventCallbacks
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
@@ -94,6 +117,11 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
 
             corrected = node.create_subscription(BodyStateArray, names.CORRECTED_STATES, answer,
                                                  qos, raw=True)
+            # last: the node learns of our readers in the order they were created, so its
+            # report received here says it has matched the answers' reader too
+            matches: dict[str, int] = {}   # node full name -> its body_states publishers
+            node.create_subscription(DiagnosticArray, names.DIAGNOSTICS,
+                                     lambda msg: matches.update(reported(msg)), 10)
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             log = node.get_logger()
@@ -115,7 +143,6 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 # Every subscriber counted before the run (the node, a recorder) acknowledges
                 # the first step: a reader our publisher matched may not have matched us yet,
                 # and would lose the steps published until it does.
-                from rclpy.duration import Duration
                 acked = all(p.wait_for_all_acked(Duration(seconds=min(args.wait, 10.0)))
                             for p in inputs)
                 if not acked:
@@ -174,11 +201,27 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                 if step % 240 == 0 or step == total:
                     log.info(f'step {step}/{total}')
 
+            def node_matched() -> bool:
+                # The answering node's own side of the match: its /diagnostics report counts
+                # the body_states publishers its subscription has matched (every one we see,
+                # ourselves included); with per-body inputs, that it reports at all (its
+                # report's reader was matched after the answers' one). A step published
+                # before the node matched us is lost to it.
+                answering = node.get_publishers_info_by_topic(corrected.topic_name)
+                needed = 0 if per_body else node.count_publishers(publisher.topic_name)
+                return any(matches.get(full_name(info), -1) >= needed for info in answering)
+
             try:
+                start_wait = time.monotonic()
                 matched = spin_until(
                     lambda: all(p.get_subscription_count() >= args.subscribers
                                 for p in inputs) and corrected.get_publisher_count() > 0,
                     args.wait)
+                if matched and not spin_until(
+                        node_matched, args.wait - (time.monotonic() - start_wait)):
+                    log.warning(f'collres_node has not reported on {names.DIAGNOSTICS} that it '
+                                f'matched our {names.STATES} within {args.wait} s: its first '
+                                'steps can be lost')
                 if not matched:
                     log.error(f'error: no collres_node answered on {names.STATES} within '
                               f'{args.wait} s')
@@ -187,8 +230,15 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                     wall_start = time.monotonic()
                     pace.append(RealtimePace(sim.rate_hz, wall_start))
                     steps, dropped = run_loop(sim, exchange, progress)
-                    log.info(f'done: {steps} steps, {dropped} dropped, '
-                             f'{time.monotonic() - wall_start:.2f} s wall time')
+                    wall = time.monotonic() - wall_start
+                    # every subscriber (a recorder) has every step before we leave: a step
+                    # sent but not yet acknowledged is lost with its writer (under load, one
+                    # run in 20 of a busy reader missed the last steps of a writer that left)
+                    if not all(p.wait_for_all_acked(Duration(seconds=min(args.wait, 10.0)))
+                               for p in [*inputs, clock]):
+                        log.warning('a subscriber of the inputs did not acknowledge the last '
+                                    f'steps within {min(args.wait, 10.0)} s')
+                    log.info(f'done: {steps} steps, {dropped} dropped, {wall:.2f} s wall time')
                     short = pace[0].summary(steps, published_at[0]) if args.realtime else None
                     if short:
                         log.warning(short)

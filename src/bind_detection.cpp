@@ -184,6 +184,9 @@ void bind_detection(py::module_& m) {
            },
            "What the budget dropped in the last detect: (pairs never queried, contact rows "
            "beyond max_contacts).")
+      .def_property_readonly("helped", [](const collres::Detector& d) {
+        return py::make_tuple(d.helped(), d.chunks_run());
+      }, "Chunks of the pairs' second halves run so far: (by the second thread, in all).")
       .def("set_filter", &collres::Detector::set_filter, py::arg("group"), py::arg("mask"),
            py::arg("ignored"),
            "Collision filter for the next step: per body group and mask bits, ignored "
@@ -192,12 +195,15 @@ void bind_detection(py::module_& m) {
       .def("detect",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,
-              const py::array& angular, const std::optional<py::array>& active) {
+              const py::array& angular, const std::optional<py::array>& active,
+              int threads) {
+             if (threads < 1 || threads > 2) throw py::value_error("threads: 1 or 2");
              const collres::StepPoses poses = poses_of(d, p0, q0, p1, q1, linear, angular,
                                                        active);
              collres::ContactRows rows;
              {
                py::gil_scoped_release release;
+               d.set_threads(threads);
                d.detect(poses, rows);
              }
              const auto m_rows = static_cast<py::ssize_t>(rows.size());
@@ -213,9 +219,10 @@ void bind_detection(py::module_& m) {
                  owned(std::move(rows.piece_a), {m_rows}), owned(std::move(rows.piece_b), {m_rows}));
            },
            py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
-           py::arg("angular"), py::arg("active") = py::none(),
+           py::arg("angular"), py::arg("active") = py::none(), py::arg("threads") = 1,
            "Contacts of the step: (body_a, body_b, point, normal, separation, toi, kind, "
-           "feature, manifolds, piece_a, piece_b), the fields of ContactSet.")
+           "feature, manifolds, piece_a, piece_b), the fields of ContactSet; the same bits "
+           "with `threads` 1 or 2.")
       .def("hold_back",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,

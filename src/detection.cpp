@@ -45,8 +45,10 @@ void ContactRows::reserve(std::size_t rows) {
 
 void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t first) {
   if (size() > first) {
-    manifolds.insert(manifolds.end(), {a, b, static_cast<std::int64_t>(first),
-                                       static_cast<std::int64_t>(size() - first)});
+    manifolds.push_back(a);
+    manifolds.push_back(b);
+    manifolds.push_back(static_cast<std::int64_t>(first));
+    manifolds.push_back(static_cast<std::int64_t>(size() - first));
   }
 }
 
@@ -100,6 +102,37 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
     out.piece_a.push_back(piece_a[row]);
     out.piece_b.push_back(piece_b[row]);
   }
+}
+
+void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
+                      double gap, double fraction, ContactKind contact, std::int64_t id) {
+  body_a.push_back(a.body);
+  body_b.push_back(b.body);
+  piece_a.push_back(a.piece);
+  piece_b.push_back(b.piece);
+  for (int k = 0; k < 3; ++k) point.push_back(at[k]);
+  for (int k = 0; k < 3; ++k) normal.push_back(n[k]);
+  separation.push_back(gap);
+  toi.push_back(fraction);
+  kind.push_back(static_cast<std::int8_t>(contact));
+  feature.push_back(id);
+}
+
+void ContactRows::append(const ContactRows& other) {
+  const auto shift = static_cast<std::int64_t>(size());
+  body_a.insert(body_a.end(), other.body_a.begin(), other.body_a.end());
+  body_b.insert(body_b.end(), other.body_b.begin(), other.body_b.end());
+  point.insert(point.end(), other.point.begin(), other.point.end());
+  normal.insert(normal.end(), other.normal.begin(), other.normal.end());
+  separation.insert(separation.end(), other.separation.begin(), other.separation.end());
+  toi.insert(toi.end(), other.toi.begin(), other.toi.end());
+  kind.insert(kind.end(), other.kind.begin(), other.kind.end());
+  feature.insert(feature.end(), other.feature.begin(), other.feature.end());
+  piece_a.insert(piece_a.end(), other.piece_a.begin(), other.piece_a.end());
+  piece_b.insert(piece_b.end(), other.piece_b.begin(), other.piece_b.end());
+  const std::size_t from = manifolds.size();
+  manifolds.insert(manifolds.end(), other.manifolds.begin(), other.manifolds.end());
+  for (std::size_t k = from; k < manifolds.size(); k += kManifoldFields) manifolds[k + 2] += shift;
 }
 
 void ContactRows::clear() {
@@ -354,7 +387,7 @@ void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) 
       const int a = std::min(k, j), b = std::max(k, j);
       const Motion ma = a == k ? mk : motion(j), mb = b == k ? mk : motion(j);
       auto depth = [&](double s) {
-        return query_.signed_distance(*shapes_[a].geometry, ma.at(s), *shapes_[b].geometry,
+        return lanes_[0].query.signed_distance(*shapes_[a].geometry, ma.at(s), *shapes_[b].geometry,
                                       mb.at(s), normal, witness);
       };
       // held back where the motion takes it deeper than it was (or touching) by more than
@@ -390,11 +423,39 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   if (pairs_.size() > static_cast<std::size_t>(std::max(settings_.max_pairs, 0))) {
     limit_pairs();
   }
-  next_.clear();
-  for (const auto& [a, b] : pairs_) {
-    if (!reuse(a, b, out)) narrow_phase(a, b, out);
+  // the pairs in turn: stored points or the narrow phase, in lanes (a pair reads only
+  // the step's poses and the stored manifolds, and writes only its lane)
+  const std::size_t count = pairs_.size();
+  auto run = [this, count](Lane& lane, std::size_t lo, std::size_t hi, ContactRows& rows) {
+    for (std::size_t k = lo; k < hi && k < count; ++k) {
+      const auto [a, b] = pairs_[k];
+      if (!reuse(lane, a, b, rows)) narrow_phase(lane, a, b, rows);
+    }
+  };
+  for (Lane& lane : lanes_) {
+    lane.next.clear();
+    lane.cursor = 0;
   }
-  stored_.swap(next_);
+  if (threads_ < 2 || count < kParallelPairs) {
+    run(lanes_[0], 0, count, out);
+  } else {
+    // the first half here, the second in ordered chunks on the worker or here, into its
+    // own lane; then its rows and manifolds after the first half's: the order of one thread
+    Lane& second = lanes_[1];
+    second.rows.clear();
+    const std::size_t half = count / 2;
+    const int chunks = kPairChunks;
+    if (!worker_) worker_ = std::make_unique<Worker>();
+    worker_->run_pair([&] { run(lanes_[0], 0, half, out); },
+                      [&](int c) {
+                        run(second, half + (count - half) * c / chunks,
+                            half + (count - half) * (c + 1) / chunks, second.rows);
+                      },
+                      chunks, 0, static_cast<double>(count));
+    out.append(second.rows);
+    lanes_[0].next.append(second.next);
+  }
+  stored_.swap(lanes_[0].next);
   if (compound_) group_by_bodies(out);
   if (out.size() > static_cast<std::size_t>(std::max(settings_.max_contacts, 0))) {
     limit_rows(out);
@@ -576,10 +637,11 @@ void Detector::limit_rows(ContactRows& out) {
   budget_.rows_dropped = count - keep;
 }
 
-bool Detector::reuse(int a, int b, ContactRows& out) {
+bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
-  const StoredManifold* stored = stored_.find(key);
-  if (stored == nullptr || shapes_[a].curved || shapes_[b].curved) return false;
+  if (shapes_[a].curved || shapes_[b].curved) return false;
+  const StoredManifold* stored = stored_.find(key, lane.cursor);
+  if (stored == nullptr) return false;
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   // the pair's own motion over the step, as the narrow phase classifies it: the motion
@@ -612,25 +674,16 @@ bool Detector::reuse(int a, int b, ContactRows& out) {
       (gap < 0.0 && gap + relative > 0.0 && speed > settings_.restitution_threshold)) {
     return false;
   }
-  next_.begin(key, stored->rel_p, stored->rel_q);
+  lane.next.begin(key, stored->rel_p, stored->rel_q);
   const std::size_t first = out.size();
   for (int k = 0; k < stored->count; ++k) {
     const StoredRow& row = stored_.row(stored->first + k);
     const Vec3 on_a = A.r1 * row.local_a + A.p1;
     const Vec3 on_b = B.r1 * row.local_b + B.p1;
     const Vec3 normal = A.r1 * row.normal_a;
-    out.body_a.push_back(shapes_[a].body);
-    out.body_b.push_back(shapes_[b].body);
-    out.piece_a.push_back(shapes_[a].piece);
-    out.piece_b.push_back(shapes_[b].piece);
-    const Vec3 point = 0.5 * (on_a + on_b);
-    out.point.insert(out.point.end(), point.data(), point.data() + 3);
-    out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
-    out.separation.push_back((on_b - on_a).dot(normal));
-    out.toi.push_back(0.0);
-    out.kind.push_back(static_cast<std::int8_t>(ContactKind::persistent));
-    out.feature.push_back(row.feature);
-    next_.add_row(row);
+    out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, (on_b - on_a).dot(normal),
+            0.0, ContactKind::persistent, row.feature);
+    lane.next.add_row(row);
   }
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
   return true;
@@ -646,7 +699,7 @@ Motion Detector::motion(int body) const {
   return Motion(b.p0, b.p1, b.q0, b.q1, shapes_[body].offset, shapes_[body].rotation);
 }
 
-void Detector::narrow_phase(int a, int b, ContactRows& out) {
+void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   const double margin = settings_.speculative_margin;
@@ -657,7 +710,7 @@ void Detector::narrow_phase(int a, int b, ContactRows& out) {
   if (bound > margin && bound >= relative) return;
   Vec3 normal;
   PointPair witness;
-  const double distance = query_.signed_distance(*shapes_[a].geometry, A.pose1,
+  const double distance = lane.query.signed_distance(*shapes_[a].geometry, A.pose1,
                                                  *shapes_[b].geometry, B.pose1, normal, witness);
   const bool near = distance <= margin;
   // bound on the speed of any point of B relative to A (current twists), m/s
@@ -670,93 +723,93 @@ void Detector::narrow_phase(int a, int b, ContactRows& out) {
   if (near && distance + relative <= margin && !may_have_hit) {
     // within the margin at the previous state for sure: a persistent contact
     const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
-    if (-distance > deep && deep_persistent(a, b, deep, margin + relative, out)) return;
-    points_.clear();
+    if (-distance > deep && deep_persistent(lane, a, b, deep, margin + relative, out)) return;
+    lane.points.clear();
     if (shapes_[a].single_point || shapes_[b].single_point) {
-      points_.push_back(witness);
+      lane.points.push_back(witness);
     } else {
-      query_.manifold(*shapes_[a].geometry, A.pose1, *shapes_[b].geometry, B.pose1, points_);
+      lane.query.manifold(*shapes_[a].geometry, A.pose1, *shapes_[b].geometry, B.pose1, lane.points);
     }
-    emit(a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
+    emit(lane, a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
     const Vec3 unit = normal.normalized();
-    speculate(a, b, unit, deepest(unit), true, 0.0, ContactKind::persistent, margin + relative,
+    speculate(lane, a, b, unit, deepest(lane.points, unit), true, 0.0, ContactKind::persistent, margin + relative,
               A.r1, A.p1, B.r1, B.p1, out);
     return;
   }
   if (near || (settings_.ccd && relative > distance)) {
-    classify(a, b, distance, relative, speed, near, out);
+    classify(lane, a, b, distance, relative, speed, near, out);
   }
 }
 
-void Detector::classify(int a, int b, double distance_now, double relative, double speed,
-                        bool near, ContactRows& out) {
+void Detector::classify(Lane& lane, int a, int b, double distance_now, double relative,
+                        double speed, bool near, ContactRows& out) const {
   const coal::CollisionGeometry& ga = *shapes_[a].geometry;
   const coal::CollisionGeometry& gb = *shapes_[b].geometry;
   const Motion ma = motion(a), mb = motion(b);
   PointPair closest;
-  const double before = query_.distance(ga, ma.at(0.0), gb, mb.at(0.0), closest);
+  const double before = lane.query.distance(ga, ma.at(0.0), gb, mb.at(0.0), closest);
   if (before <= settings_.speculative_margin) {
     // touching at the previous state (within the slop): in contact from the start of the
     // step, never an impact within it
     const bool touched = before <= settings_.linear_slop;
     // apart before, overlapping now, fast: solved at its time of impact, not at the end
     if (distance_now < 0.0 && !touched && speed > settings_.restitution_threshold &&
-        time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, true, out)) {
+        time_of_impact(lane, a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, true, out)) {
       return;
     }
     // near at both ends but apart, moved farther than both gaps: it may have passed
     // through (a thin body at a low rate)
     const bool passed = distance_now >= 0.0 && relative > before + distance_now;
-    if (settings_.ccd && passed && !touched && tunnelled(a, b, ma, mb, relative, out)) return;
+    if (settings_.ccd && passed && !touched && tunnelled(lane, a, b, ma, mb, relative, out)) return;
     // touching before and past each other now (a step of several periods after dropped
     // inputs: the source integrated a resting body through its floor): the contact of the
     // previous state, carried along with each body
     if (settings_.ccd && passed && touched && !near) {
       const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
-      deep_persistent(a, b, deep, settings_.speculative_margin, out);
+      deep_persistent(lane, a, b, deep, settings_.speculative_margin, out);
       return;
     }
-    if (near) current_manifold(a, b, out);  // in contact at both ends
+    if (near) current_manifold(lane, a, b, out);  // in contact at both ends
     return;
   }
   if (distance_now < 0.0) {  // apart before, overlapping now
-    time_of_impact(a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, false, out);
+    time_of_impact(lane, a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, false, out);
     return;
   }
-  if (settings_.ccd && tunnelled(a, b, ma, mb, relative, out)) return;
-  if (near) current_manifold(a, b, out);  // approaching, not touching yet: speculative
+  if (settings_.ccd && tunnelled(lane, a, b, ma, mb, relative, out)) return;
+  if (near) current_manifold(lane, a, b, out);  // approaching, not touching yet: speculative
 }
 
-bool Detector::tunnelled(int a, int b, const Motion& ma, const Motion& mb, double relative,
-                         ContactRows& out) {
+bool Detector::tunnelled(Lane& lane, int a, int b, const Motion& ma, const Motion& mb,
+                         double relative, ContactRows& out) const {
   const coal::CollisionGeometry& ga = *shapes_[a].geometry;
   const coal::CollisionGeometry& gb = *shapes_[b].geometry;
   const double tolerance = std::max(
       1e-9, std::min(settings_.toi_tolerance * relative, 0.5 * settings_.linear_slop));
   PointPair scratch;
-  auto gap = [&](double s) { return query_.distance(ga, ma.at(s), gb, mb.at(s), scratch); };
-  auto overlaps = [&](double s) { return query_.overlaps(ga, ma.at(s), gb, mb.at(s)); };
+  auto gap = [&](double s) { return lane.query.distance(ga, ma.at(s), gb, mb.at(s), scratch); };
+  auto overlaps = [&](double s) { return lane.query.overlaps(ga, ma.at(s), gb, mb.at(s)); };
   const auto bracket = advance(gap, overlaps, relative, tolerance,
                                4 * settings_.toi_max_iterations);
-  return bracket && time_of_impact(a, b, ma, mb, bracket->first, bracket->second,
+  return bracket && time_of_impact(lane, a, b, ma, mb, bracket->first, bracket->second,
                                    ContactKind::tunnelled, kInf, false, out);
 }
 
-bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, double s0,
-                              double s1, ContactKind kind, double cap, bool only_if_fast,
-                              ContactRows& out) {
+bool Detector::time_of_impact(Lane& lane, int a, int b, const Motion& ma, const Motion& mb,
+                              double s0, double s1, ContactKind kind, double cap,
+                              bool only_if_fast, ContactRows& out) const {
   const coal::CollisionGeometry& ga = *shapes_[a].geometry;
   const coal::CollisionGeometry& gb = *shapes_[b].geometry;
-  auto overlaps = [&](double s) { return query_.overlaps(ga, ma.at(s), gb, mb.at(s)); };
+  auto overlaps = [&](double s) { return lane.query.overlaps(ga, ma.at(s), gb, mb.at(s)); };
   std::tie(s0, s1) = bisect(overlaps, s0, s1, settings_.toi_tolerance,
                             settings_.toi_max_iterations);
   double distance = 0.0;
   Vec3 normal;
   PointPair witness;
-  if (!query_.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0, distance, normal, witness)) {
+  if (!lane.query.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0, distance, normal, witness)) {
     // only for a degenerate bracket: the end of the step overlaps
     s1 = 1.0;
-    if (!query_.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0, distance, normal, witness)) {
+    if (!lane.query.contact(ga, ma.at(s1), gb, mb.at(s1), 0.0, distance, normal, witness)) {
       return false;
     }
   }
@@ -765,15 +818,15 @@ bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, 
     // EPA on a deep overlap is not trusted: the classic direction from the closest
     // points of the last separated configuration
     PointPair closest;
-    const double gap = query_.distance(ga, ma.at(s0), gb, mb.at(s0), closest);
+    const double gap = lane.query.distance(ga, ma.at(s0), gb, mb.at(s0), closest);
     const Vec3 direction = closest.on_b - closest.on_a;
     if (gap > 0.0 && direction.norm() > 0.0) used = direction.normalized();
   }
-  points_.clear();
+  lane.points.clear();
   if (shapes_[a].single_point || shapes_[b].single_point) {
-    points_.push_back(witness);
+    lane.points.push_back(witness);
   } else {
-    query_.manifold(ga, ma.at(s1), gb, mb.at(s1), points_);
+    lane.query.manifold(ga, ma.at(s1), gb, mb.at(s1), lane.points);
   }
   const Mat3 ra = ma.rotation_at(s1), rb = mb.rotation_at(s1);
   const Vec3 pa = ma.position_at(s1), pb = mb.position_at(s1);
@@ -783,7 +836,7 @@ bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, 
     const Body& A = bodies_[a];
     const Body& B = bodies_[b];
     double approach = kInf;
-    for (const PointPair& p : points_) {
+    for (const PointPair& p : lane.points) {
       const Vec3 point = 0.5 * (p.on_a + p.on_b);
       const Vec3 va = A.linear + A.angular.cross(point - pa);
       const Vec3 vb = B.linear + B.angular.cross(point - pb);
@@ -791,26 +844,26 @@ bool Detector::time_of_impact(int a, int b, const Motion& ma, const Motion& mb, 
     }
     if (!(approach < -settings_.restitution_threshold)) return false;
   }
-  emit(a, b, used, s1, kind, cap, ra, pa, rb, pb, out);
+  emit(lane, a, b, used, s1, kind, cap, ra, pa, rb, pb, out);
   // after the impact a corner may turn faster than anything moved before it (a fall
   // turned into a spin about the corner that hit): three times the motion of the rest
   const double reach = settings_.speculative_margin + 3.0 * (1.0 - s1) * relative_motion(a, b);
   const Vec3 unit = used.normalized();
-  speculate(a, b, unit, deepest(unit), true, s1, kind, reach, ra, pa, rb, pb, out);
+  speculate(lane, a, b, unit, deepest(lane.points, unit), true, s1, kind, reach, ra, pa, rb, pb, out);
   return true;
 }
 
-const PointPair* Detector::deepest(const Vec3& normal) const {
-  const PointPair* pair = points_.empty() ? nullptr : &points_[0];
-  for (const PointPair& p : points_)
+const PointPair* Detector::deepest(const std::vector<PointPair>& points, const Vec3& normal) {
+  const PointPair* pair = points.empty() ? nullptr : &points[0];
+  for (const PointPair& p : points)
     if ((p.on_b - p.on_a).dot(normal) < (pair->on_b - pair->on_a).dot(normal)) pair = &p;
   return pair;
 }
 
-void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plane,
+void Detector::speculate(Lane& lane, int a, int b, const Vec3& normal, const PointPair* plane,
                          bool skip_known, double toi, ContactKind kind, double reach,
                          const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
-                         ContactRows& out) {
+                         ContactRows& out) const {
   if (plane == nullptr) return;
   const double gap = (plane->on_b - plane->on_a).dot(normal);   // m, the deepest point's
   std::size_t first = out.size();
@@ -830,11 +883,11 @@ void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plan
     const Vec3 towards = side == 0 ? Vec3(-normal) : normal;       // world
     const Vec3 on_plane = side == 0 ? plane->on_a : plane->on_b;
     const BodyShape& shape = shapes_[body];
-    lowest_points(shape, shape.rotation.transpose() * (r.transpose() * towards), corners_);
-    for (Vec3& corner : corners_) corner = r * (shape.rotation * corner + shape.offset) + p;
-    heights_.clear();
-    for (std::size_t k = 0; k < corners_.size(); ++k) {
-      const Vec3& q = corners_[k];   // world
+    lowest_points(shape, shape.rotation.transpose() * (r.transpose() * towards), lane.corners);
+    for (Vec3& corner : lane.corners) corner = r * (shape.rotation * corner + shape.offset) + p;
+    lane.heights.clear();
+    for (std::size_t k = 0; k < lane.corners.size(); ++k) {
+      const Vec3& q = lane.corners[k];   // world
       const double height = (on_plane - q).dot(towards);
       if (!(height <= reach)) continue;
       // within the patch's band about the deepest point's gap: a corner of the manifold
@@ -845,45 +898,36 @@ void Detector::speculate(int a, int b, const Vec3& normal, const PointPair* plan
       const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
       const bool over = (local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
                         (local.array() <= (shapes_[partner].local_hi + grow).array()).all();
-      if (!known && over) heights_.emplace_back(height, static_cast<int>(k));
+      if (!known && over) lane.heights.emplace_back(height, static_cast<int>(k));
     }
-    std::sort(heights_.begin(), heights_.end());
-    if (heights_.size() > static_cast<std::size_t>(kMaxManifoldPoints))
-      heights_.resize(kMaxManifoldPoints);
+    std::sort(lane.heights.begin(), lane.heights.end());
+    if (lane.heights.size() > static_cast<std::size_t>(kMaxManifoldPoints))
+      lane.heights.resize(kMaxManifoldPoints);
     const BodyShape& sa = shapes_[a];
     const BodyShape& sb = shapes_[b];
-    if (!skip_known) row_codes_.clear();
-    for (const auto& [height, k] : heights_) {
+    if (!skip_known) lane.row_codes.clear();
+    for (const auto& [height, k] : lane.heights) {
       // a contact carried from the previous state (!skip_known) that the current poses
       // overlap: the corner on the body, and the feature ids of a patch (its warm start
       // carries over); else between the corner and the plane, beyond every patch feature
       const bool carried = !skip_known && height < 0.0;
-      const Vec3 point = corners_[k] + (carried ? 0.0 : 0.5 * height) * towards;
+      const Vec3 point = lane.corners[k] + (carried ? 0.0 : 0.5 * height) * towards;
       std::int64_t feature = 729 * 16 + 512 * side + k % 512 + kPiecePairFeature *
           (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece);
       if (!skip_known) {
-        const Vec3 on_plane = corners_[k] + height * towards;
-        const Vec3& on_a = side == 0 ? on_plane : corners_[k];
-        const Vec3& on_b = side == 0 ? corners_[k] : on_plane;
-        feature = feature_of(a, b, ra.transpose() * (on_a - pa), rb.transpose() * (on_b - pb));
+        const Vec3 on_plane = lane.corners[k] + height * towards;
+        const Vec3& on_a = side == 0 ? on_plane : lane.corners[k];
+        const Vec3& on_b = side == 0 ? lane.corners[k] : on_plane;
+        feature = feature_of(lane, a, b, ra.transpose() * (on_a - pa), rb.transpose() * (on_b - pb));
       }
-      out.body_a.push_back(sa.body);
-      out.body_b.push_back(sb.body);
-      out.piece_a.push_back(sa.piece);
-      out.piece_b.push_back(sb.piece);
-      out.point.insert(out.point.end(), point.data(), point.data() + 3);
-      out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
-      out.separation.push_back(height);
-      out.toi.push_back(toi);
-      out.kind.push_back(static_cast<std::int8_t>(kind));
-      out.feature.push_back(feature);
+      out.add(sa, sb, point, normal, height, toi, kind, feature);
     }
     out.close_manifold(sa.body, sb.body, first);   // each body's corners: one manifold
     first = out.size();
   }
 }
 
-void Detector::current_manifold(int a, int b, ContactRows& out) {
+void Detector::current_manifold(Lane& lane, int a, int b, ContactRows& out) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   const coal::CollisionGeometry& ga = *shapes_[a].geometry;
@@ -891,31 +935,32 @@ void Detector::current_manifold(int a, int b, ContactRows& out) {
   double distance = 0.0;
   Vec3 normal;
   PointPair witness;
-  if (!query_.contact(ga, A.pose1, gb, B.pose1, settings_.speculative_margin, distance, normal,
+  if (!lane.query.contact(ga, A.pose1, gb, B.pose1, settings_.speculative_margin, distance, normal,
                       witness)) {
     return;
   }
   const double reach = settings_.speculative_margin + relative_motion(a, b);
   const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
-  if (-distance > deep && deep_persistent(a, b, deep, reach, out)) return;
-  points_.clear();
+  if (-distance > deep && deep_persistent(lane, a, b, deep, reach, out)) return;
+  lane.points.clear();
   if (shapes_[a].single_point || shapes_[b].single_point) {
-    points_.push_back(witness);
+    lane.points.push_back(witness);
   } else {
-    query_.manifold(ga, A.pose1, gb, B.pose1, points_);
+    lane.query.manifold(ga, A.pose1, gb, B.pose1, lane.points);
   }
-  emit(a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
+  emit(lane, a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
   const Vec3 unit = normal.normalized();
-  speculate(a, b, unit, deepest(unit), true, 0.0, ContactKind::persistent, reach, A.r1, A.p1,
+  speculate(lane, a, b, unit, deepest(lane.points, unit), true, 0.0, ContactKind::persistent, reach, A.r1, A.p1,
             B.r1, B.p1, out);
 }
 
-bool Detector::deep_persistent(int a, int b, double deep, double reach, ContactRows& out) {
+bool Detector::deep_persistent(Lane& lane, int a, int b, double deep, double reach,
+                               ContactRows& out) const {
   const Motion ma = motion(a), mb = motion(b);
   double distance = 0.0;
   Vec3 normal;
   PointPair witness;
-  if (!previous_query_.contact(*shapes_[a].geometry, ma.at(0.0), *shapes_[b].geometry,
+  if (!lane.previous_query.contact(*shapes_[a].geometry, ma.at(0.0), *shapes_[b].geometry,
                                mb.at(0.0), settings_.speculative_margin, distance, normal,
                                witness) ||
       -distance > deep) {
@@ -930,58 +975,49 @@ bool Detector::deep_persistent(int a, int b, double deep, double reach, ContactR
   const PointPair plane{turn_a * (witness.on_a - ma.position_at(0.0)) + A.p1,
                         turn_b * (witness.on_b - mb.position_at(0.0)) + B.p1};
   const std::size_t first = out.size();
-  speculate(a, b, unit, &plane, false, 0.0, ContactKind::persistent, reach, A.r1, A.p1, B.r1,
+  speculate(lane, a, b, unit, &plane, false, 0.0, ContactKind::persistent, reach, A.r1, A.p1, B.r1,
             B.p1, out);
   return out.size() > first;
 }
 
-std::int64_t Detector::feature_of(int a, int b, const Vec3& local_a, const Vec3& local_b) {
+std::int64_t Detector::feature_of(Lane& lane, int a, int b, const Vec3& local_a,
+                                  const Vec3& local_b) const {
   // the corner or face in each piece's own frame (a body's frame when it is one shape)
   const BodyShape& sa = shapes_[a];
   const BodyShape& sb = shapes_[b];
   const std::int64_t code =
       feature_code(sa.rotation.transpose() * (local_a - sa.frame_position), sa.half,
                    sb.rotation.transpose() * (local_b - sb.frame_position), sb.half);
-  const std::int64_t rank = std::count(row_codes_.begin(), row_codes_.end(), code);
-  row_codes_.push_back(code);
+  const std::int64_t rank = std::count(lane.row_codes.begin(), lane.row_codes.end(), code);
+  lane.row_codes.push_back(code);
   return code + 729 * rank + kPiecePairFeature *
       (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece);
 }
 
-void Detector::emit(int a, int b, const Vec3& normal_in, double toi, ContactKind kind,
-                    double cap, const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
-                    ContactRows& out) {
+void Detector::emit(Lane& lane, int a, int b, const Vec3& normal_in, double toi,
+                    ContactKind kind, double cap, const Mat3& ra, const Vec3& pa,
+                    const Mat3& rb, const Vec3& pb, ContactRows& out) const {
   const double length = normal_in.norm();
   const Vec3 normal = normal_in / std::max(length, 1e-300);
   const bool store = kind == ContactKind::persistent;
   if (store) {
     const Body& A = bodies_[a];
     const Body& B = bodies_[b];
-    next_.begin(static_cast<std::int64_t>(a) * pieces() + b,
+    lane.next.begin(static_cast<std::int64_t>(a) * pieces() + b,
                 A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1);
   }
-  row_codes_.clear();
+  lane.row_codes.clear();
   const std::size_t first = out.size();
-  for (const PointPair& p : points_) {
+  for (const PointPair& p : lane.points) {
     double separation = (p.on_b - p.on_a).dot(normal);
     if (std::isfinite(cap)) separation = std::min(separation, cap);
     const Vec3 local_a = ra.transpose() * (p.on_a - pa);
     const Vec3 local_b = rb.transpose() * (p.on_b - pb);
     const BodyShape& sa = shapes_[a];
     const BodyShape& sb = shapes_[b];
-    const std::int64_t feature = feature_of(a, b, local_a, local_b);
-    out.body_a.push_back(sa.body);
-    out.body_b.push_back(sb.body);
-    out.piece_a.push_back(sa.piece);
-    out.piece_b.push_back(sb.piece);
-    const Vec3 point = 0.5 * (p.on_a + p.on_b);
-    out.point.insert(out.point.end(), point.data(), point.data() + 3);
-    out.normal.insert(out.normal.end(), normal.data(), normal.data() + 3);
-    out.separation.push_back(separation);
-    out.toi.push_back(toi);
-    out.kind.push_back(static_cast<std::int8_t>(kind));
-    out.feature.push_back(feature);
-    if (store) next_.add_row({local_a, local_b, ra.transpose() * normal, feature});
+    const std::int64_t feature = feature_of(lane, a, b, local_a, local_b);
+    out.add(sa, sb, 0.5 * (p.on_a + p.on_b), normal, separation, toi, kind, feature);
+    if (store) lane.next.add_row({local_a, local_b, ra.transpose() * normal, feature});
   }
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
 }

@@ -61,6 +61,11 @@
 // rows stay grouped by pair in (a, b) order. Work and memory per step are then bounded
 // whatever the poses; budget() says what the last step dropped.
 //
+// Threads (set_threads): the pairs after the broad phase are independent (each reads the
+// step's bodies and the stored manifolds, writes its own rows and manifold): with two
+// threads the caller takes the first half and a worker the second, each into its own lane
+// (coal queries, scratch, rows, manifolds to store), joined in pair order: the same bits.
+//
 // Rows (ContactRows): PERSISTENT rows are at the current state (toi 0, separation > 0 for
 // a speculative gap, < 0 for a penetration). IMPACT rows have point and normal at the
 // time of impact and separation min(separation there, signed distance now) < 0;
@@ -70,6 +75,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -78,6 +84,7 @@
 #include "manifold.h"
 #include "shapes.h"
 #include "time_of_impact.h"
+#include "worker.h"
 
 namespace collres {
 
@@ -88,6 +95,8 @@ constexpr double kReuseTranslation = 1e-3; // m: a manifold is reused while its 
 constexpr double kReuseRotation = 1e-2;    // rad: ... and turned less than this
 constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs of boxes
                                            // grown by this while no box leaves its own
+constexpr std::size_t kParallelPairs = 64; // a step of fewer pairs runs on one thread
+constexpr int kPairChunks = 8;             // chunks of the second half (Worker::run_pair)
 
 class Detector {
  public:
@@ -104,6 +113,14 @@ class Detector {
   void set_filter(std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
                   const std::vector<std::pair<int, int>>& ignored);
   const DetectionSettings& settings() const { return settings_; }
+  // Threads of the pairs' stage from the next step on (1 or 2): with 2, a step of at
+  // least kParallelPairs pairs gives the first half to this thread and the second to a
+  // worker (worker.h: chunks in order, each on the worker or here), each into its own
+  // lane, then joins them in pair order: the same rows, bit for bit, with 1 or 2.
+  void set_threads(int threads) { threads_ = threads; }
+  // chunks of the second halves run so far: by the worker, and by either thread
+  std::uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
+  std::uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
   int count() const { return bodies_count_; }   // bodies
   int pieces() const { return static_cast<int>(shapes_.size()); }
 
@@ -149,27 +166,46 @@ class Detector {
   void limit_rows(ContactRows& out);
   void group_by_bodies(ContactRows& out);
   void merge_mesh_faces(ContactRows& out);
-  bool reuse(int a, int b, ContactRows& out);
-  void narrow_phase(int a, int b, ContactRows& out);
-  void classify(int a, int b, double distance_now, double relative, double speed, bool near,
-                ContactRows& out);
-  bool time_of_impact(int a, int b, const Motion& ma, const Motion& mb, double s0, double s1,
-                      ContactKind kind, double cap, bool only_if_fast, ContactRows& out);
-  bool tunnelled(int a, int b, const Motion& ma, const Motion& mb, double relative,
-                 ContactRows& out);
-  void current_manifold(int a, int b, ContactRows& out);
-  const PointPair* deepest(const Vec3& normal) const;   // of points_, or null
-  void speculate(int a, int b, const Vec3& normal, const PointPair* plane, bool skip_known,
-                 double toi, ContactKind kind, double reach, const Mat3& ra, const Vec3& pa,
-                 const Mat3& rb, const Vec3& pb, ContactRows& out);
-  bool deep_persistent(int a, int b, double deep, double reach, ContactRows& out);
-  void emit(int a, int b, const Vec3& normal, double toi, ContactKind kind, double cap,
-            const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
-            ContactRows& out);
+  // One thread's part of a step's pairs: its coal queries, scratch, the persistent
+  // manifolds it found (for the store, in pair order) and, for the second, its rows.
+  struct Lane {
+    PairQuery query;
+    PairQuery previous_query;   // deep_persistent: the previous state (query keeps its own)
+    std::vector<PointPair> points;
+    std::vector<Vec3> corners;                    // speculate: candidate corners
+    std::vector<std::pair<double, int>> heights;  // speculate: (height, corner) kept
+    std::vector<std::int64_t> row_codes;
+    ManifoldStore next;
+    std::size_t cursor = 0;     // its place in stored_
+    ContactRows rows;           // the second lane's rows (the first writes the step's)
+  };
+  // The per-pair stages: each reads the step's bodies and the stored manifolds and
+  // writes only `lane` and `out` (so two lanes run at once).
+  bool reuse(Lane& lane, int a, int b, ContactRows& out) const;
+  void narrow_phase(Lane& lane, int a, int b, ContactRows& out) const;
+  void classify(Lane& lane, int a, int b, double distance_now, double relative, double speed,
+                bool near, ContactRows& out) const;
+  bool time_of_impact(Lane& lane, int a, int b, const Motion& ma, const Motion& mb, double s0,
+                      double s1, ContactKind kind, double cap, bool only_if_fast,
+                      ContactRows& out) const;
+  bool tunnelled(Lane& lane, int a, int b, const Motion& ma, const Motion& mb,
+                 double relative, ContactRows& out) const;
+  void current_manifold(Lane& lane, int a, int b, ContactRows& out) const;
+  // the deepest of `points` along `normal`, or null
+  static const PointPair* deepest(const std::vector<PointPair>& points, const Vec3& normal);
+  void speculate(Lane& lane, int a, int b, const Vec3& normal, const PointPair* plane,
+                 bool skip_known, double toi, ContactKind kind, double reach, const Mat3& ra,
+                 const Vec3& pa, const Mat3& rb, const Vec3& pb, ContactRows& out) const;
+  bool deep_persistent(Lane& lane, int a, int b, double deep, double reach,
+                       ContactRows& out) const;
+  void emit(Lane& lane, int a, int b, const Vec3& normal, double toi, ContactKind kind,
+            double cap, const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
+            ContactRows& out) const;
   // The feature id of a row whose points are local_a, local_b in the two pieces' body
-  // frames: both corner codes, their rank among the rows since row_codes_ was cleared,
-  // the piece pair (emit's, so a corner keeps its id from step to step)
-  std::int64_t feature_of(int a, int b, const Vec3& local_a, const Vec3& local_b);
+  // frames: both corner codes, their rank among the rows since lane.row_codes was
+  // cleared, the piece pair (emit's, so a corner keeps its id from step to step)
+  std::int64_t feature_of(Lane& lane, int a, int b, const Vec3& local_a,
+                          const Vec3& local_b) const;
   Motion motion(int body) const;
   double radius_or_zero(int body) const;
 
@@ -194,14 +230,11 @@ class Detector {
   CoherentPairs sweep_;
   std::vector<std::pair<int, int>> pairs_;
   std::vector<int> bucket_, bucket_start_, bucket_fill_;
-  std::vector<PointPair> points_;
-  std::vector<Vec3> corners_;                        // speculate: candidate corners
-  std::vector<std::pair<double, int>> heights_;      // speculate: (height, corner) kept
-  std::vector<std::int64_t> row_codes_;
-  PairQuery query_;
-  PairQuery previous_query_;   // deep_persistent: the previous state (query_ keeps its own)
+  Lane lanes_[2];              // the caller's, the second half's (hold_back: the first)
+  int threads_ = 1;            // of the next detect (set_threads)
+  std::unique_ptr<Worker> worker_;   // the second half's thread, started at its first use
   std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
-  ManifoldStore stored_, next_;
+  ManifoldStore stored_;       // the last step's persistent manifolds
   StepBudget budget_;
   std::vector<double> depth_;        // budget: per pair or row, the ranking value
   std::vector<std::size_t> order_;   // budget: pairs or rows considered, by index

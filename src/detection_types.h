@@ -56,6 +56,8 @@ struct StepPoses {
   const std::uint8_t* active = nullptr;  // (N,) or null: 0 = frozen, held at its current pose
 };
 
+struct BodyShape;   // shapes.h
+
 // Contact rows of one step, M of them, grouped by pair in increasing (a, b) order, and
 // their K manifolds (collres_ros.core.types.ContactSet, field by field).
 struct ContactRows {
@@ -71,6 +73,10 @@ struct ContactRows {
 
   void clear();
   void reserve(std::size_t rows);
+  // One row between the pieces a and b: point `at` (m, world), unit normal `n` A -> B,
+  // separation `gap` (m), time of impact `fraction` (of the step), feature `id`.
+  void add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n, double gap,
+           double fraction, ContactKind contact, std::int64_t id);
   // Close the manifold of pair (a, b) whose rows start at `first` (the rows added since);
   // a manifold without rows is no manifold.
   void close_manifold(std::int64_t a, std::int64_t b, std::size_t first);
@@ -80,6 +86,8 @@ struct ContactRows {
   // These rows (any order, each at most once) in that order, into `out` (cleared first;
   // its manifolds are the caller's to set).
   void take(const std::vector<std::size_t>& rows, ContactRows& out) const;
+  // `other`'s rows and manifolds after these (its manifolds' first rows shifted).
+  void append(const ContactRows& other);
   std::size_t size() const { return body_a.size(); }
 };
 

@@ -99,6 +99,34 @@ double PairQuery::signed_distance(const coal::CollisionGeometry& ga,
   return distance;
 }
 
+std::size_t TypedCollide::operator()(const coal::CollisionGeometry& ga,
+                                     const coal::Transform3s& ta,
+                                     const coal::CollisionGeometry& gb,
+                                     const coal::Transform3s& tb,
+                                     const coal::CollisionRequest& request,
+                                     coal::CollisionResult& result) {
+  o1 = &ga;
+  o2 = &gb;
+  // a new solver's guesses (ComputeCollision keeps the last query's support hints)
+  solver.cached_guess = coal::Vec3s(1, 0, 0);
+  solver.support_func_cached_guess = coal::support_func_guess_t::Zero();
+  return coal::ComputeCollision::operator()(ta, tb, request, result);
+}
+
+std::size_t PairQuery::collide(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                               const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                               const coal::CollisionRequest& request,
+                               coal::CollisionResult& result) {
+  const int a = ga.getNodeType(), b = gb.getNodeType();
+  if (ga.getObjectType() != coal::OT_GEOM || gb.getObjectType() != coal::OT_GEOM || a < 0 ||
+      b < 0 || a >= coal::NODE_COUNT || b >= coal::NODE_COUNT) {
+    return coal::collide(&ga, ta, &gb, tb, request, result);
+  }
+  std::unique_ptr<TypedCollide>& typed = collide_[a][b];
+  if (!typed) typed = std::make_unique<TypedCollide>(&ga, &gb);
+  return (*typed)(ga, ta, gb, tb, request, result);
+}
+
 bool PairQuery::loaded_is_valid() const {
   const double depth = result_.getContact(0).penetration_depth;
   return std::isfinite(depth) && std::abs(depth) < kFailedDepth;
@@ -109,7 +137,7 @@ bool PairQuery::contact(const coal::CollisionGeometry& ga, const coal::Transform
                         double margin, double& distance, Vec3& normal, PointPair& witness) {
   request_.security_margin = margin;
   result_.clear();
-  if (coal::collide(&ga, ta, &gb, tb, request_, result_) == 0) return false;
+  if (collide(ga, ta, gb, tb, request_, result_) == 0) return false;
   Vec3 shift = Vec3::Zero();
   if (!loaded_is_valid()) {
     // GJK/EPA fail on some just-touching poses (depth -DBL_MAX, a wrong normal): query B
@@ -119,7 +147,7 @@ bool PairQuery::contact(const coal::CollisionGeometry& ga, const coal::Transform
       shift = Vec3::Unit(k / 2) * (k % 2 ? -kRetryStep : kRetryStep);
       const coal::Transform3s moved(tb.getRotation(), tb.getTranslation() + shift);
       result_.clear();
-      found = coal::collide(&ga, ta, &gb, moved, request_, result_) > 0 && loaded_is_valid();
+      found = collide(ga, ta, gb, moved, request_, result_) > 0 && loaded_is_valid();
     }
     if (!found) {
       result_.clear();
@@ -191,7 +219,7 @@ bool PairQuery::overlaps(const coal::CollisionGeometry& ga, const coal::Transfor
   loaded_shift_ = Vec3::Zero();
   // a failed query (just touching, see `contact`) counts as apart: bisection then ends on
   // a pose whose contact coal computes
-  return coal::collide(&ga, ta, &gb, tb, request_, result_) > 0 && loaded_is_valid();
+  return collide(ga, ta, gb, tb, request_, result_) > 0 && loaded_is_valid();
 }
 
 double PairQuery::distance(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
@@ -199,7 +227,7 @@ double PairQuery::distance(const coal::CollisionGeometry& ga, const coal::Transf
                            PointPair& closest) {
   if (ga.getNodeType() == coal::GEOM_TRIANGLE || gb.getNodeType() == coal::GEOM_TRIANGLE) {
     range_result_.clear();
-    if (coal::collide(&ga, ta, &gb, tb, range_request_, range_result_) == 0) return 0.0;
+    if (collide(ga, ta, gb, tb, range_request_, range_result_) == 0) return 0.0;
     const coal::Contact& c = range_result_.getContact(0);
     closest = {to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1])};
     // a failed query (depth -DBL_MAX) counts as touching: advancement stops there

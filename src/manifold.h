@@ -23,6 +23,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <coal/collision.h>
@@ -41,6 +42,19 @@ constexpr int kMaxManifoldPoints = 4;     // as Box2D, Bullet and Jolt
 
 struct PointPair {
   Vec3 on_a, on_b;  // m, world, each body's own point
+};
+
+// coal's collide for one pair of node types, on any two geometries of those types, with
+// one GJK/EPA solver kept from query to query: coal::collide builds a solver, and EPA its
+// buffers, on every call (a fifth of a settled pile's detection went to allocation). Each
+// query starts the solver as a new one would (no warm start from the last pair): the same
+// answer as coal::collide.
+class TypedCollide : public coal::ComputeCollision {
+ public:
+  using coal::ComputeCollision::ComputeCollision;
+  std::size_t operator()(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                         const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                         const coal::CollisionRequest& request, coal::CollisionResult& result);
 };
 
 // Reusable coal requests and results for the queries on one pair at a time.
@@ -77,6 +91,10 @@ class PairQuery {
 
  private:
   bool loaded_is_valid() const;  // the loaded contact's depth is a number coal computed
+  // coal::collide's answer, through the kept TypedCollide of the two node types
+  std::size_t collide(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                      const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                      const coal::CollisionRequest& request, coal::CollisionResult& result);
   // The loaded contact of a triangle as the file comment says; false when it is none.
   // `tb` is B's pose of the loaded query.
   bool onto_face(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
@@ -92,6 +110,7 @@ class PairQuery {
   coal::ContactPatchResult patch_result_;
   std::vector<Vec3> polygon_;
   std::vector<int> keep_;
+  std::unique_ptr<TypedCollide> collide_[coal::NODE_COUNT][coal::NODE_COUNT];
   Vec3 loaded_shift_ = Vec3::Zero();  // m, B's step of the loaded contact (failed queries)
 };
 
@@ -129,15 +148,15 @@ class ManifoldStore {
     keys_.clear();
     pairs_.clear();
     rows_.clear();
-    cursor_ = 0;
   }
-  // The manifold of `key`, or null; keys asked in increasing order cost O(1) each.
-  const StoredManifold* find(std::int64_t key) {
-    if (cursor_ > keys_.size() || (cursor_ > 0 && keys_[cursor_ - 1] > key)) cursor_ = 0;
-    cursor_ = static_cast<std::size_t>(
-        std::lower_bound(keys_.begin() + cursor_, keys_.end(), key) - keys_.begin());
-    if (cursor_ == keys_.size() || keys_[cursor_] != key) return nullptr;
-    return &pairs_[cursor_];
+  // The manifold of `key`, or null; `cursor` is the caller's place in the store (0 to
+  // start; one per reader): keys asked in increasing order cost O(1) each.
+  const StoredManifold* find(std::int64_t key, std::size_t& cursor) const {
+    if (cursor > keys_.size() || (cursor > 0 && keys_[cursor - 1] > key)) cursor = 0;
+    cursor = static_cast<std::size_t>(
+        std::lower_bound(keys_.begin() + cursor, keys_.end(), key) - keys_.begin());
+    if (cursor == keys_.size() || keys_[cursor] != key) return nullptr;
+    return &pairs_[cursor];
   }
   const StoredRow& row(int index) const { return rows_[index]; }
   // Starts the manifold of `key` (keys in increasing order); rows follow with `add_row`.
@@ -149,18 +168,26 @@ class ManifoldStore {
     rows_.push_back(row);
     ++pairs_.back().count;
   }
+  // `other`'s manifolds after these (its keys all greater).
+  void append(const ManifoldStore& other) {
+    const int shift = static_cast<int>(rows_.size());
+    keys_.insert(keys_.end(), other.keys_.begin(), other.keys_.end());
+    rows_.insert(rows_.end(), other.rows_.begin(), other.rows_.end());
+    for (StoredManifold m : other.pairs_) {
+      m.first += shift;
+      pairs_.push_back(m);
+    }
+  }
   void swap(ManifoldStore& other) {
     keys_.swap(other.keys_);
     pairs_.swap(other.pairs_);
     rows_.swap(other.rows_);
-    cursor_ = other.cursor_ = 0;
   }
 
  private:
   std::vector<std::int64_t> keys_;
   std::vector<StoredManifold> pairs_;
   std::vector<StoredRow> rows_;
-  std::size_t cursor_ = 0;
 };
 
 }  // namespace collres

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <stdexcept>
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -59,8 +60,9 @@ void Worker::loop() {
 int Worker::help(uint32_t generation) {
   for (int ran = 0;;) {
     uint64_t ticket = ticket_.load(std::memory_order_acquire);
-    const int chunk = static_cast<int>(ticket & 0xffffffffu);
-    if (static_cast<uint32_t>(ticket >> 32) != generation || chunk >= chunks_.load()) return ran;
+    const int chunk = static_cast<int>(ticket & 0xffffu);
+    const int chunks = static_cast<int>((ticket >> 16) & 0xffffu);
+    if (static_cast<uint32_t>(ticket >> 32) != generation || chunk >= chunks) return ran;
     if (!ticket_.compare_exchange_weak(ticket, ticket + 1, std::memory_order_acq_rel)) continue;
     wait_until([&] { return done_.load(std::memory_order_acquire) == chunk; });
     (*task_)(chunk);
@@ -71,6 +73,7 @@ int Worker::help(uint32_t generation) {
 
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                       int chunks, int kind, double work) {
+  if (chunks < 0 || chunks > kMaxChunks) throw std::invalid_argument("Worker: chunks out of range");
   chunks_run_ += static_cast<uint64_t>(chunks);
   Costs& costs = costs_[kind & 1];
   // the mode that has cost less per unit of work, the other one every kExplore-th run (an
@@ -83,10 +86,11 @@ void Worker::run_pair(const std::function<void()>& first, const std::function<vo
     {
       std::lock_guard<std::mutex> lock(mutex_);
       task_ = &second;
-      chunks_ = chunks;
       done_.store(0);
       generation = ++generation_;
-      ticket_.store(static_cast<uint64_t>(generation) << 32, std::memory_order_release);
+      ticket_.store(static_cast<uint64_t>(generation) << 32 |
+                        static_cast<uint64_t>(chunks) << 16,
+                    std::memory_order_release);
     }
     wake_.notify_one();
     first();

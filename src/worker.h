@@ -27,13 +27,15 @@ namespace collres {
 
 class Worker {
  public:
+  static constexpr int kMaxChunks = 0xffff;
+
   Worker();
   ~Worker();
   Worker(const Worker&) = delete;
   Worker& operator=(const Worker&) = delete;
 
   // Runs `first` on this thread and second(0), ..., second(chunks - 1) in that order, on
-  // the worker or here; returns when all are done. `kind` (0 or 1) names the kind of run
+  // the worker or here; returns when all are done. 0 <= chunks <= kMaxChunks. `kind` (0 or 1) names the kind of run
   // whose costs are compared, `work` its size (any unit, the same for the kind).
   void run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                 int chunks, int kind, double work);
@@ -47,10 +49,11 @@ class Worker {
   // claims and runs chunks of run `generation` until none is left; returns how many
   int help(uint32_t generation);
 
-  // (run generation << 32) | next chunk to claim
+  // (run generation << 32) | (its chunks << 16) | next chunk to claim: one word, so that
+  // a claim is checked against the count of its own run (a thread that read a count of
+  // the next run with a ticket of the last one would run a chunk twice)
   std::atomic<uint64_t> ticket_{0};
   std::atomic<int> done_{0};          // chunks of the current run finished
-  std::atomic<int> chunks_{0};        // chunks of the current run
   std::atomic<uint64_t> helped_{0};   // chunks the worker ran
   uint64_t chunks_run_ = 0;           // chunks posted (the caller's thread)
   struct Costs {                      // (the caller's) per kind of run

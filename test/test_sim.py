@@ -114,28 +114,44 @@ def test_pile_scene_is_what_its_generator_writes(tmp_path: Path) -> None:
 
 
 def against_a_fake_node(tmp_path: Path, sim_args: list[str], respond: Any, raw: bool = False,
-                        depth: int = 10, between: Any = None) -> tuple[int, str]:
+                        depth: int = 10, between: Any = None, matched: Any = None,
+                        domain: int | None = None) -> tuple[int, str]:
     """``collres_sim`` on the bouncing ball (``sim_args`` added) over DDS against a fake
     collres_node in this process: each ``body_states`` message goes to ``respond(message,
     answer)`` (``answer``: the fake's ``body_states/corrected`` publisher; ``raw``: the
-    message as bytes), ``between(answer)`` runs after each spin. (exit code, sim's log)."""
+    message as bytes), ``between(answer, sim)`` runs after each spin (``sim``: the sim's
+    process). Every 0.05 s the fake
+    reports on ``/diagnostics``, as collres_node does, the ``body_states`` publishers it has
+    matched: ``matched(count)`` of its subscription's count (default: that count).
+    (exit code, sim's log)."""
     pytest.importorskip('rclpy')
     import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
     from collres_ros.msg import BodyStateArray
     from collres_ros.ros import processes
     from conftest import next_domain_id
-    domain = next_domain_id()
+    domain = next_domain_id() if domain is None else domain
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=domain)
     try:
         node = rclpy.create_node('fake_collres_node', context=context)
         qos = QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
         answer = node.create_publisher(BodyStateArray, 'body_states/corrected', qos)
-        node.create_subscription(BodyStateArray, 'body_states',
-                                 lambda message: respond(message, answer), qos, raw=raw)
+        inputs = node.create_subscription(BodyStateArray, 'body_states',
+                                          lambda message: respond(message, answer), qos,
+                                          raw=raw)
+        diagnostics = node.create_publisher(DiagnosticArray, '/diagnostics', 10)
+
+        def report() -> None:
+            count = inputs.get_publisher_count()
+            count = count if matched is None else matched(count)
+            diagnostics.publish(DiagnosticArray(status=[DiagnosticStatus(
+                name='/fake_collres_node: resolver',
+                values=[KeyValue(key='body_states_publishers', value=str(count))])]))
+        node.create_timer(0.05, report)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         sim = processes.start('collres_sim', ['--params', str(SCENES / 'bouncing_ball.yaml'),
@@ -145,7 +161,7 @@ def against_a_fake_node(tmp_path: Path, sim_args: list[str], respond: Any, raw: 
         def serve() -> bool:
             executor.spin_once(timeout_sec=0.002)
             if between is not None:
-                between(answer)
+                between(answer, sim)
             return sim.poll() is not None
         assert processes.wait_for(serve, 60.0), 'sim did not finish'
         code = sim.wait()
@@ -205,7 +221,7 @@ def test_live_realtime_sim_keeps_its_rate_and_counts_the_late_answers(tmp_path: 
     held: list[tuple[float, bytes]] = []
     delay = 0.03   # s: 3 steps at 100 Hz
 
-    def release(answer: Any) -> None:
+    def release(answer: Any, sim: Any) -> None:
         while held and time.monotonic() - held[0][0] >= delay:
             answer.publish(held.pop(0)[1])
     code, log = against_a_fake_node(
@@ -218,3 +234,87 @@ def test_live_realtime_sim_keeps_its_rate_and_counts_the_late_answers(tmp_path: 
     assert (f'realtime: {found.group(1)} of 21 answers came after the next step was due'
             in log)
     assert 'reached' not in log and 'behind' not in log
+
+
+@pytest.mark.slow
+def test_live_sim_steps_only_once_the_node_reports_it_matched_the_inputs(
+        tmp_path: Path) -> None:
+    """A subscriber may have been matched by the sim's publisher before it matched the sim
+    (each side discovers the other on its own): the sim's own count says nothing of the
+    node's side, and a step sent before the node's side matched is lost to it. The sim
+    sends its first step only after the node's /diagnostics counts the sim's publisher
+    among the ones it matched: here the fake reports 0 for 1 s after it saw the sim."""
+    seen: list[float] = []       # when the fake first saw the sim's publisher
+    released: list[float] = []   # when it first reported it matched
+    received: list[float] = []
+
+    def matched(count: int) -> int:
+        if count and not seen:
+            seen.append(time.monotonic())
+        if not seen or time.monotonic() < seen[0] + 1.0:
+            return 0
+        if not released:
+            released.append(time.monotonic())
+        return count
+
+    def respond(data: bytes, answer: Any) -> None:
+        received.append(time.monotonic())
+        answer.publish(data)
+    code, log = against_a_fake_node(tmp_path, ['--duration', '0.02'], respond, raw=True,
+                                    matched=matched)
+    assert code == 0 and 'done: 6 steps, 0 dropped' in log, log
+    assert released and received[0] > released[0], (released, received[:1])
+
+
+@pytest.mark.slow
+def test_live_sim_leaves_once_every_subscriber_has_every_step(tmp_path: Path) -> None:
+    """A subscriber counted with --subscribers (a recorder) that has not acknowledged the
+    last steps when the node answered them: the sim waits for its acknowledgement before it
+    leaves (a writer that leaves takes its unacknowledged steps with it: a busy reader
+    missed the last steps of one run in 20 without this). The recorder here stops itself
+    (SIGSTOP) on the second step and is let go once the sim is done stepping."""
+    import os
+    import signal
+    import sys
+
+    from collres_ros.ros import processes
+    from conftest import next_domain_id
+    domain = next_domain_id()
+    recorder_code = (
+        'import os, signal, sys, rclpy\n'
+        'from rclpy.qos import QoSProfile, ReliabilityPolicy\n'
+        'from collres_ros.msg import BodyStateArray\n'
+        'rclpy.init()\n'
+        "node = rclpy.create_node('recorder')\n"
+        'got = []\n'
+        'def take(msg):\n'
+        '    got.append(msg.header.stamp.nanosec)\n'
+        "    print('got', msg.header.stamp.sec, msg.header.stamp.nanosec, flush=True)\n"
+        '    if len(got) == 2:\n'
+        '        os.kill(os.getpid(), signal.SIGSTOP)\n'
+        "node.create_subscription(BodyStateArray, 'body_states', take,\n"
+        '    QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))\n'
+        'rclpy.spin(node)\n')
+    recorder = processes.start(sys.executable, ['-c', recorder_code],
+                               env=processes.ros_env(domain), log=tmp_path / 'recorder.log')
+    stopped, left_early = [], []
+
+    def between(answer: Any, sim: Any) -> None:
+        if stopped or 'step 6/6' not in sim.output():
+            return
+        # the sim has its last answer: while the recorder is stopped, it must not leave
+        left_early.append(processes.wait_for(lambda: sim.poll() is not None, 2.0))
+        stopped.append(True)
+        os.kill(recorder.pid, signal.SIGCONT)
+    try:
+        code, log = against_a_fake_node(
+            tmp_path, ['--duration', '0.02', '--subscribers', '2', '--wait', '30'],
+            lambda data, answer: answer.publish(data), raw=True, between=between,
+            domain=domain)
+    finally:
+        os.kill(recorder.pid, signal.SIGCONT)
+        processes.stop(recorder)
+    got = [line for line in recorder.output().splitlines() if line.startswith('got')]
+    assert code == 0 and 'done: 6 steps, 0 dropped' in log, log
+    assert stopped == [True] and left_early == [False]
+    assert len(got) == 6, got

@@ -232,12 +232,13 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               reason='a stage is solved to convergence (impact_converged) so that its '
                      'restitution is the simultaneous answer; few contacts take part'),
     ParamSpec('threads', 'integer', 2,
-              'Threads of the velocity sweeps: with 2, each large wave of manifolds '
-              '(parallel_wave) is shared by two threads; the answer is the same bits with '
-              '1 or 2', 1, 2,
-              reason='a wave\'s manifolds share no movable body, so the second core can take '
-                     'half of each; a core busy with another process costs nothing (its half '
-                     'is run by the caller when the worker has not begun it)'),
+              'Threads of detection and of the velocity sweeps: with 2, the pairs of a step '
+              '(64 or more) are shared by two threads, and so is each large wave of '
+              'manifolds (parallel_wave); the answer is the same bits with 1 or 2', 1, 2,
+              reason='pairs are independent and a wave\'s manifolds share no movable body, '
+                     'so the second core can take half of each; a core busy with another '
+                     'process costs nothing (its half is run by the caller when the worker '
+                     'has not begun it)'),
     ParamSpec('parallel_manifolds', 'integer', 256,
               'A solve of at least this many manifolds is ordered in two halves that share '
               'no movable body (the bodies halved at their median along their largest '

@@ -94,13 +94,15 @@ class Detection:
         self._filter = value
 
     def detect(self, previous: BodyStates, current: BodyStates,
-               active: np.ndarray | None = None) -> ContactSet:
+               active: np.ndarray | None = None, threads: int = 1) -> ContactSet:
         """Contacts of the step ``previous`` -> ``current`` (see the module docstring).
 
         ``active`` (N,) bool: False marks a frozen body, held at its current pose over
-        the whole step (its previous pose is ignored); it still collides.
+        the whole step (its previous pose is ignored); it still collides. ``threads`` 1
+        or 2 (``SOLVER_TUNING`` ``threads``): the pairs shared by two threads give the
+        same bits.
         """
-        rows = self._native.detect(*self._arrays(previous, current, active))
+        rows = self._native.detect(*self._arrays(previous, current, active), threads=threads)
         return ContactSet(*rows)
 
     def hold_back(self, previous: BodyStates, answer: BodyStates,

@@ -70,7 +70,7 @@ class Detector(Protocol):
     budget: tuple[int, int]   # last detect: (pairs, rows) the step budget dropped
 
     def detect(self, previous: BodyStates, current: BodyStates,
-               active: np.ndarray | None = None) -> ContactSet: ...
+               active: np.ndarray | None = None, threads: int = 1) -> ContactSet: ...
 
 
 class World:
@@ -209,7 +209,8 @@ class World:
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
         if (self.dynamic & active).any():
-            contacts = _finite(self._collision.detect(previous, current, active))
+            contacts = _finite(self._collision.detect(previous, current, active,
+                                                       self._params.threads))
             budget = self._collision.budget
             self.budget = (max(self.budget[0], budget[0]), max(self.budget[1], budget[1]))
         else:

@@ -18,7 +18,7 @@ class FixedContacts:
         self.budget = (0, 0)
 
     def detect(self, previous: BodyStates, current: BodyStates,
-               active: np.ndarray | None = None) -> ContactSet:
+               active: np.ndarray | None = None, threads: int = 1) -> ContactSet:
         return self.contacts
 
 

@@ -63,9 +63,9 @@ class CountingDetection(Detection):
 
     calls = 0
 
-    def detect(self, previous, current, active=None):
+    def detect(self, previous, current, active=None, threads=1):
         self.calls += 1
-        return super().detect(previous, current, active)
+        return super().detect(previous, current, active, threads)
 
 
 def resting_boxes(xs=(0.0,), settings: SolverSettings | None = None,

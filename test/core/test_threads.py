@@ -5,12 +5,14 @@ one more than the highest wave of the manifolds before it that share a movable b
 the manifolds of a wave share no movable body and the waves in turn are the sweep in the
 solve's order, bit for bit. A wave is solved four manifolds at a time in wide rows
 (``SOLVER_TUNING`` ``wide_rows``) and, when it has at least ``parallel_wave`` manifolds,
-shared by two threads (``threads``). The laws: the waves hold (no movable body twice in a
+shared by two threads (``threads``). Detection shares a step's pairs between the two
+threads too (``src/detection.h``: the first half here, the second on the worker, each into
+its own lane, joined in pair order). The laws: the waves hold (no movable body twice in a
 wave, each after one that moved its bodies, wide groups of one row count); whatever the
 thread count and with wide rows on or off, every step's corrected states and impulses are
-the same bytes. Here a pile of cubes and spheres falls into a bin and settles (impacts,
-stacking, friction, rolling resistance), with a low ``parallel_wave`` so that most steps
-share waves between the threads.
+the same bytes, and so is every array detection gives. Here a pile of cubes and spheres
+falls into a bin and settles (impacts, stacking, friction, rolling resistance), with a low
+``parallel_wave`` so that most steps share waves between the threads.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from collres_ros.core.config import SolverSettings
+from collres_ros.core.detection import Detection
 from collres_ros.core.types import BodySpec, BodyStates
 from collres_ros.core.world import World
 from collres_ros.ros.integrator import euler_step
@@ -122,3 +125,26 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
             wide += wide_end - first
             total += end - first
     assert total > 0 and wide > total // 2   # most manifolds solved in lanes
+
+
+def test_detection_on_two_threads_gives_the_bytes_of_one_thread():
+    # the pile falling (impacts, times of impact, speculative corners), then settling
+    # (stored points reused): two detectors, one and two threads, on the same steps
+    bodies, state = pile(96)
+    w = world(bodies, 1)
+    settings = SolverSettings(sleeping=False)
+    one, two = Detection(bodies, settings), Detection(bodies, settings)
+    kinds = set()
+    for _ in range(STEPS):
+        current = euler_step(state, w.dynamic, GRAVITY, DT)
+        a = one.detect(state, current, None, 1)
+        b = two.detect(state, current, None, 2)
+        for name in ('body_a', 'body_b', 'point', 'normal', 'separation', 'toi', 'kind', 'feature',
+                     'manifolds', 'piece_a', 'piece_b'):
+            assert np.ascontiguousarray(getattr(a, name)).tobytes() == \
+                np.ascontiguousarray(getattr(b, name)).tobytes(), name
+        kinds.update(np.unique(a.kind).tolist())
+        state = w.step(state, current, DT).states
+    assert len(kinds) >= 2                       # impacts and persistent contacts met
+    assert two._native.helped[1] >= STEPS        # every step split its pairs in two
+    assert one._native.helped[1] == 0

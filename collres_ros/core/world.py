@@ -210,7 +210,7 @@ class World:
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
         if (self.dynamic & active).any():
             contacts = _finite(self._collision.detect(previous, current, active,
-                                                       self._params.threads))
+                                                      self._params.threads))
             budget = self._collision.budget
             self.budget = (max(self.budget[0], budget[0]), max(self.budget[1], budget[1]))
         else:

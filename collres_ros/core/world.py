@@ -176,28 +176,37 @@ class World:
         self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0,
                        'substeps': count}
         self.budget = (0, 0)
+        rejected: list[Rejection] = []
+        if count == 1:
+            answer, report = self._substep(previous, current, active, dt, warm, rejected)
+        else:
+            answer, report = self._divided(previous, current, active, dt, warm, rejected, count)
+        report, sleeping, unchanged = self._settle(answer, report, active, dt, asleep)
+        return StepResult(answer, report, rejected, sleeping, unchanged)
+
+    def _divided(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
+                 dt: float, warm: bool, rejected: list[Rejection], count: int
+                 ) -> tuple[BodyStates, ContactReport]:
+        """The step previous -> current in ``count`` (> 1) substeps (``core.substeps``):
+        each from the last answer advanced as the source integrates; bodies no substep
+        changed answered with their input as it was; the reports merged."""
         free = self.dynamic & active       # the bodies the substeps integrate
         h = dt / count
         linear = (current.linear - previous.linear) / count
         angular = (current.angular - previous.angular) / count
         answer = previous
-        reports, rejected = [], []
+        reports = []
         touched = np.zeros(current.count, bool)    # bodies an answer changed
         for k in range(1, count + 1):
-            goal = substeps.along(previous, current, k / count)
-            if count > 1:
-                goal = substeps.advanced(goal, answer, free, linear, angular, h)
+            goal = substeps.advanced(substeps.along(previous, current, k / count), answer,
+                                     free, linear, angular, h)
             answer, report = self._substep(answer, goal, active, h, warm, rejected)
-            if count > 1:
-                touched |= substeps.changed(answer, goal)
+            touched |= substeps.changed(answer, goal)
             reports.append(report)
-        if count > 1:      # bodies no substep changed: the input as it was
-            for name in ('position', 'orientation', 'linear', 'angular'):
-                getattr(answer, name)[~touched] = getattr(current, name)[~touched]
+        for name in ('position', 'orientation', 'linear', 'angular'):
+            getattr(answer, name)[~touched] = getattr(current, name)[~touched]
         self.timing['rows'] = int(round(self.timing['rows'] / count))   # per substep
-        report, sleeping, unchanged = self._settle(answer, substeps.merge(reports), active, dt,
-                                                   asleep)
-        return StepResult(answer, report, rejected, sleeping, unchanged)
+        return answer, substeps.merge(reports)
 
     def _substep(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
                  dt: float, warm: bool, rejected: list[Rejection]

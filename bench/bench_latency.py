@@ -2,14 +2,16 @@
 
     .venv/bin/python bench/bench_latency.py [--sizes 10 100 1000] [--rates 100 100 30]
         [--duration 10] [--settle 2.0] [--modes estimator simulator] [--no-echo]
-        [--sleeping on off]
+        [--sleeping on off] [--start-only RUNS]
 
 For each size the pile of bench/pile.py is settled in-process with the core
 (120 Hz, semi-implicit Euler), written as a params file, and then three
 processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
 
-* ``collres_node`` on that scene (its start-up time, from the process start
-  to every topic of this process connected, is printed);
+* ``collres_node`` on that scene. Its start-up time is printed: from the process start
+  to its first answer, in a probe run of its own (``first_answer``: this process sends the
+  pile's input every 20 ms from the start; ``--start-only RUNS``: only that, RUNS times per
+  size), and, in brackets, to every topic of the run connected;
 * a publisher (this file, ``--role publisher``) in one of two modes
   (``--modes``): ``estimator``, the settled pile as an estimator measures it at rest
   (its poses, zero twists: ``input_bytes``) as pre-serialised
@@ -83,6 +85,7 @@ from pile import integrate, make_pile  # noqa: E402
 
 SETTLE_DT = 1.0 / 120.0
 T0 = 1_000_000_000_000   # first stamp, ns
+PROBE_PERIOD = 0.02      # s between the start probe's inputs (``first_answer``)
 TIMING_KEYS = ('time.decode_ms', 'time.resolve_ms', 'time.world_ms', 'time.world_cpu_ms',
                'time.encode_ms',
                'time.publish_ms', 'callback_time_mean_ms', 'step_time_mean_ms',
@@ -410,6 +413,62 @@ class Listener:
         rclpy.try_shutdown(context=self.context)
 
 
+def first_answer(count: int, args: argparse.Namespace, workdir: Path) -> float:
+    """Seconds from ``collres_node``'s process start to its first answer on the pile's scene.
+
+    This process publishes the pile's input (estimator mode, a new stamp each time) every
+    ``PROBE_PERIOD`` from the moment the node's process is started, and the start is over
+    when the first ``body_states/corrected`` arrives: imports, parameters, resolver, topics,
+    discovery and the first step, all that a user waits for. The node is then stopped; the
+    runs that follow start their own.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from collres_ros.msg import BodyStateArray
+    template = bytearray((workdir / f'input{count}.cdr').read_bytes())
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=args.domain)
+    probe = rclpy.create_node('collres_bench_start_probe', context=context)
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    pub = probe.create_publisher(BodyStateArray, 'body_states', qos)
+    answered: list[int] = []
+    probe.create_subscription(BodyStateArray, 'body_states/corrected',
+                              lambda data: answered.append(time.monotonic_ns()), qos, raw=True)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(probe)
+    command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
+               '--params-file', str(workdir / f'pile{count}_on.yaml')]
+    stamp = T0 // 2   # before any stamp of the runs (this node is stopped before them)
+    try:
+        with open(workdir / f'start{count}.log', 'wb') as log:
+            begin = time.monotonic_ns()
+            node = subprocess.Popen(command, env=ros_env(args.domain), stdout=log,
+                                    stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            deadline = begin + 120 * 10**9
+            while not answered and time.monotonic_ns() < deadline:
+                stamp += int(PROBE_PERIOD * 1e9)
+                pub.publish(with_stamp(template, stamp))
+                sent = time.monotonic_ns()
+                while not answered and time.monotonic_ns() - sent < PROBE_PERIOD * 1e9:
+                    executor.spin_once(timeout_sec=PROBE_PERIOD / 4)
+            if not answered:
+                raise RuntimeError(f'the node never answered ({workdir}/start{count}.log)')
+            return (answered[0] - begin) * 1e-9
+        finally:
+            node.send_signal(2)
+            try:
+                node.wait(15)
+            except subprocess.TimeoutExpired:
+                node.kill()
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
 def _wait(predicate: Any, timeout: float) -> bool:
     deadline = time.monotonic() + timeout
     while not predicate():
@@ -575,6 +634,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--sleeping', nargs='+', default=['on'], choices=('on', 'off'),
                         help='solver.sleeping of the node (see the docstring)')
     parser.add_argument('--json', help='also write the rows here')
+    parser.add_argument('--start-only', type=int, default=0, metavar='RUNS',
+                        help="only the node's start-up: RUNS first answers per size")
     parser.add_argument('--role', default='main', help=argparse.SUPPRESS)
     parser.add_argument('--bytes', help=argparse.SUPPRESS)
     parser.add_argument('--rate', type=float, default=100.0, help=argparse.SUPPRESS)
@@ -587,7 +648,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == 'echo':
         return echo(args)
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
-    print('| bodies | server | mode | sleeping (asleep) | start s | lock-step Hz | '
+    if args.start_only:
+        with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
+            for count, rate in zip(args.sizes, rates):
+                prepare(count, rate, args, Path(tmp))
+                starts = [first_answer(count, args, Path(tmp)) for _ in range(args.start_only)]
+                print(f'{count} bodies: first answer after '
+                      f'{", ".join(f"{t:.2f}" for t in starts)} s', flush=True)
+        return 0
+    print('| bodies | server | mode | sleeping (asleep) | start s: answer (topics) | '
+          'lock-step Hz | '
           'lock-step p50 ms | paced Hz | sent | send p50 / p99 ms | dropped (behind) | p50 ms | '
           'p99 ms | '
           'callback ms | '
@@ -598,6 +668,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         for count, rate in zip(args.sizes, rates):
             prepare(count, rate, args, Path(tmp))
+            start = first_answer(count, args, Path(tmp))
             runs = ([] if args.no_echo else [('echo', 'estimator', 'on')]) + \
                 [('node', mode, flag) for mode in args.modes for flag in args.sleeping]
             for server, mode, flag in runs:
@@ -605,6 +676,7 @@ def main(argv: list[str] | None = None) -> int:
                 r['in_process_ms'] = in_process(
                     count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml', r['stepped'],
                     r['answered'])
+                r['first_answer_s'] = start if server == 'node' else float('nan')
                 rows.append(r)
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
@@ -612,8 +684,9 @@ def main(argv: list[str] | None = None) -> int:
           'input waited, their markers skipped, since its start); '
           'latency: publish to body_states/corrected received (it includes send: the '
           "publisher's own time to hand a step over, 2 x bodies messages in per_body mode); "
-          'start: process start to its '
-          'topics connected; callback split: the node\'s /diagnostics means over the paced '
+          "start: the node's process start to its first answer (a probe run of its own, "
+          'the pile\'s input sent every 20 ms from the start), in brackets to every topic of '
+          'the run connected; callback split: the node\'s /diagnostics means over the paced '
           'run; World.step (in-process wall / CPU): the node\'s own steps (every input it '
           'answered, the same stamps and inputs) stepped again by a Resolver in this process '
           '(median, thread CPU time beside); '
@@ -629,7 +702,7 @@ def _print_row(r: dict[str, Any]) -> None:
     answer, world = t.get('answer_time_mean_ms'), t.get('time.world_ms')
     overhead = answer - world if answer is not None and world is not None else None
     print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["sleeping"]} ({r["asleep"]}) | '
-          f'{r["startup_s"]:.2f} | '
+          f'{r["first_answer_s"]:.2f} ({r["startup_s"]:.2f}) | '
           f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
           f'{r["sent"]} | {r["send_ms"][0]:.2f} / {r["send_ms"][1]:.2f} | {r["dropped"]} '
           f'({r["behind"]}) | '

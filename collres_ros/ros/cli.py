@@ -116,14 +116,15 @@ def namespace_from_ros_args(argv: Sequence[str], node: str) -> str:
 @contextmanager
 def ros_init(*, args: Optional[Sequence[str]] = None, context: Any = None,
              domain_id: Optional[int] = None,
-             failure: str = 'cannot initialise ROS') -> Iterator[Any]:
+             failure: str = 'cannot initialise ROS',
+             explain: Optional[Callable[[], None]] = None) -> Iterator[Any]:
     """``with ros_init(args=...):`` the ``with rclpy.init(...)`` idiom on Jazzy's rclpy.
 
     rclpy 7.1 (Jazzy) ``init`` returns None (the context manager it returns
     came later), so this does the same: initialise ``context`` (default: the
     global one) and shut it down on leaving, whatever happened inside. A
     failing init (rcl's argument and params-file parser) raises CliError
-    ``<failure>: <rcl's first line>``.
+    ``<failure>: <rcl's first line>``, unless ``explain()`` raises a clearer error first.
     """
     import rclpy
     from rclpy.signals import SignalHandlerOptions, install_signal_handlers
@@ -138,6 +139,8 @@ def ros_init(*, args: Optional[Sequence[str]] = None, context: Any = None,
     except (KeyboardInterrupt, CliError):
         raise
     except Exception as error:  # RCLError and friends
+        if explain is not None:
+            explain()
         lines = str(error).strip().splitlines() or [type(error).__name__]
         raise CliError(f'{failure}: {lines[0]}') from None
     finally:

@@ -24,13 +24,16 @@ import math
 import re
 import struct
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import coal
 import numpy as np
 
 from collres_ros.core.config import HULL_MAX_VERTICES
 from collres_ros.core.rotation import to_matrix
 from collres_ros.core.types import COMPOUND, TRIANGLE_MESH, BodySpec, Piece
+
+if TYPE_CHECKING:
+    import coal
 
 # A dynamic compound body's centre of mass may lie this fraction of its bounding radius off
 # its origin (a decomposed mesh's hulls overlap a little): the inertia is then taken about
@@ -40,6 +43,7 @@ CENTRE_TOLERANCE = 0.01
 
 def make_geometry(spec: BodySpec) -> coal.CollisionGeometry:
     """A new coal geometry for ``spec`` (one instance per body: its id names the body)."""
+    import coal   # here: its module takes 60 ms to import, and a node's start needs none
     size = [float(s) for s in spec.size]
     shape = spec.shape
     if shape == 'sphere':
@@ -175,6 +179,7 @@ def convex_hull(points: np.ndarray) -> coal.Convex:
     problem = hull_problem(points)
     if problem:
         raise ValueError(f'convex {problem}')
+    import coal
     vertices = coal.StdVec_Vec3s()
     for point in np.asarray(points, dtype=float):
         vertices.append(point)

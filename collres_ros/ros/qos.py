@@ -130,6 +130,14 @@ def _override_names(node: Any) -> frozenset[str]:
     return names
 
 
+def is_overridden(node: Any, topic: str, entity: str) -> bool:
+    """Whether ``node``'s parameters override a policy of ``topic`` (absolute name) for
+    ``entity`` ('publisher' or 'subscription')."""
+    given = _override_names(node)
+    prefix = f'{OVERRIDE_PREFIX}{topic}.{entity}.'
+    return any(prefix + kind.name.lower() in given for kind in OVERRIDABLE)
+
+
 def overridden(node: Any, topic: str, entity: str, profile: QoSProfile) -> QoSProfile:
     """``profile`` with the overrides ``node``'s parameters give ``topic`` (absolute name) for
     ``entity`` ('publisher' or 'subscription'), as ``qos_overriding_options`` applies them.
@@ -141,10 +149,10 @@ def overridden(node: Any, topic: str, entity: str, profile: QoSProfile) -> QoSPr
     16,000 parameters and start in seconds). ValueError (one line) for a bad value.
     """
     from rcl_interfaces.msg import ParameterDescriptor
+    if not is_overridden(node, topic, entity):
+        return profile
     given = _override_names(node)
     prefix = f'{OVERRIDE_PREFIX}{topic}.{entity}.'
-    if not any(prefix + kind.name.lower() in given for kind in OVERRIDABLE):
-        return profile
     enums = {QoSPolicyKind.HISTORY: HistoryPolicy, QoSPolicyKind.RELIABILITY: ReliabilityPolicy,
              QoSPolicyKind.DURABILITY: DurabilityPolicy}
     for kind in OVERRIDABLE:

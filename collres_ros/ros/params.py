@@ -848,8 +848,9 @@ def declare_scene(node: Any, scene: Scene) -> None:
     values against their descriptors is not run again: ``scene_from_values`` checked each
     against the same ``ParamSpec`` the descriptor is built from, inclusive bounds, as
     strict as rclpy's. The descriptors of one kind of parameter are built once and copied
-    per name without the message's field checks, as are the ``Parameter`` objects (their
-    type is the spec's): 0.6 s of a 1000-body start declared the slow way.
+    per name without the message's field checks, and each ``Parameter`` is given its spec's
+    type (rclpy checks that the value agrees): 0.6 s of a 1000-body start declared the
+    slow way, 0.12 s this way.
     Raises ParameterAlreadyDeclaredException as ``declare_parameters`` does.
     """
     from rcl_interfaces.msg import ParameterDescriptor

@@ -77,7 +77,7 @@ struct SolverParams {
   int parallel_wave = 64;               // a wave of at least this many manifolds is shared
                                         // by the two threads (SweepPlan)
   bool wide_rows = true;                // wide groups solved in lanes (SweepPlan)
-  double max_substep = 0.005;           // s: the resting solve's substeps are at most this
+  double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
                                         // long (StepSolver::soft_step) ...
   int max_substeps = 8;                 // ... and at most this many per step
   CombineRule restitution_rule = CombineRule::kMax;

@@ -32,7 +32,7 @@ inertia: their ``current`` twist is a kinematic velocity, their state is
 returned as given.
 
 The resting solve runs in ceil(dt / ``settings.max_substep``) substeps after the one
-detection (``StepSolver::soft_step``): a 30 Hz step is solved as 7 of 1/210 s.
+detection (``StepSolver::soft_step``): a 30 Hz step is solved as 5 of 1/150 s.
 
 Islands at rest sleep (``core.sleep``, ``settings.sleeping``): a sleeping body is answered
 with its held pose and zero twist, left out of detection and solve, until something

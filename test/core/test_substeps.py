@@ -5,7 +5,7 @@ step's load (g dt = 0.33 m/s): a column of 7 cubes of 0.1 m started touching top
 within 1-2 s, and a pile of mixed bodies never came to rest, its bodies 5-6 cm into one
 another (bench/pile.py's mixed pile of 200, seeds 1 and 2: awake after 8 s, 52 and 57 mm
 deep). After its one detection a step's resting solve now runs in ceil(dt / max_substep)
-substeps (7 of 1/210 s at 30 Hz), each adding its share of gravity, letting each contact
+substeps (5 of 1/150 s at 30 Hz), each adding its share of gravity, letting each contact
 close by its separation as the substeps so far moved its bodies, and moving the poses.
 With the default settings:
 
@@ -54,7 +54,7 @@ def test_a_column_of_7_cubes_stands_at_30_hz() -> None:
     start = sim.state.position.copy()
     for _ in range(int(10 * RATE)):
         result = sim.step()
-    assert sim.world.timing['substeps'] == 7
+    assert sim.world.timing['substeps'] == 5
     drift = float(np.abs(sim.state.position - start)[1:].max())
     floor = result.report.contacts.body_a == 0
     carried = result.report.normal_impulse[floor].sum() / (7 * G / RATE)
@@ -64,7 +64,7 @@ def test_a_column_of_7_cubes_stands_at_30_hz() -> None:
 
 
 def test_a_body_the_solve_does_not_touch_ends_at_its_input_bit_for_bit() -> None:
-    """A ball flying past a resting box (7 substeps): the box is resolved, the ball is
+    """A ball flying past a resting box (5 substeps): the box is resolved, the ball is
     answered with its input, every bit."""
     floor = BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)
     bodies = [floor, box('box', (0.2,) * 3, 1.0, mu_s=0.5, mu_k=0.5),
@@ -76,7 +76,7 @@ def test_a_body_the_solve_does_not_touch_ends_at_its_input_bit_for_bit() -> None
     dt = 1.0 / RATE
     current = integrate(previous, world.dynamic, dt)
     result = world.step(previous, current, dt)
-    assert world.timing['substeps'] == 7
+    assert world.timing['substeps'] == 5
     for name in ('position', 'orientation', 'linear', 'angular'):
         np.testing.assert_array_equal(getattr(result.states, name)[2], getattr(current, name)[2])
     assert result.states.position[1, 2] == pytest.approx(0.1, abs=1e-4)   # held by the floor

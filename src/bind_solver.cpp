@@ -178,7 +178,6 @@ void bind_solver(py::module_& m) {
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)
       .def_readwrite("match_radius", &SolverParams::match_radius)
       .def_readwrite("threads", &SolverParams::threads)
-      .def_readwrite("parallel_manifolds", &SolverParams::parallel_manifolds)
       .def_readwrite("parallel_wave", &SolverParams::parallel_wave)
       .def_readwrite("wide_rows", &SolverParams::wide_rows)
       .def_readwrite("max_substep", &SolverParams::max_substep)

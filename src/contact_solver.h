@@ -72,8 +72,6 @@ struct SolverParams {
   double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
                                         // from its pair's nearest stored point this close
   int threads = 2;                      // threads of the velocity sweeps (1 or 2)
-  int parallel_manifolds = 256;         // a solve of at least this many manifolds is ordered
-                                        // in two halves (StepSolver::split), whatever `threads`
   int parallel_wave = 64;               // a wave of at least this many manifolds is shared
                                         // by the two threads (SweepPlan)
   bool wide_rows = true;                // wide groups solved in lanes (SweepPlan)

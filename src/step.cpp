@@ -2,15 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <memory>
 
 #include "sweep_waves.h"
 
 namespace collres {
 namespace {
-
-constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 // Twist (6 per body) of states; held bodies and non-finite entries read as 0.
 void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* out) {
@@ -308,9 +305,8 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_block(block, &rows_[first_row]);
     }
   }
-  // a large solve in two halves that share no movable body, then what joins them; the
-  // sweeps visit that order wave by wave (wide groups, two threads; the same bits)
-  split(ctx);
+  // the sweeps visit detection's order wave by wave (wide groups, two threads; the same
+  // bits)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0 (in manifold order)
@@ -339,60 +335,6 @@ void StepSolver::prepare(StepContext& ctx) {
       s.roll = roll * lever;
       s.twist = twist * lever;
     }
-  }
-}
-
-void StepSolver::split(StepContext& ctx) {
-  const SolverParams& p = ctx.params;
-  const double* inv_mass = ctx.bodies.inv_mass;
-  const size_t count = manifolds_.size();
-  if (count < static_cast<size_t>(std::max(p.parallel_manifolds, 1))) return;
-  // the movable bodies of the manifolds, halved at their median along the axis of their
-  // largest extent (position, then index: one answer whatever the sort)
-  side_.assign(static_cast<size_t>(ctx.bodies.count), -1);
-  keyed_.clear();
-  Vec3 low = Vec3::Constant(kInfinity), high = Vec3::Constant(-kInfinity);
-  for (const Manifold& m : manifolds_)
-    for (const int32_t body : {m.a, m.b}) {
-      if (!(inv_mass[body] > 0.0) || side_[body] == 0) continue;
-      side_[body] = 0;
-      const Vec3 x = load3(ctx.current.position + 3 * body);
-      low = low.cwiseMin(x);
-      high = high.cwiseMax(x);
-      keyed_.emplace_back(0.0, body);
-    }
-  if (keyed_.size() < 2) return;
-  const Vec3 extent = high - low;
-  const int axis = extent.x() >= extent.y() ? (extent.x() >= extent.z() ? 0 : 2)
-                                            : (extent.y() >= extent.z() ? 1 : 2);
-  for (auto& [coordinate, body] : keyed_) {
-    const double x = ctx.current.position[3 * body + axis];
-    coordinate = std::isfinite(x) ? x : 0.0;
-  }
-  const auto middle = keyed_.begin() + static_cast<std::ptrdiff_t>(keyed_.size() / 2);
-  std::nth_element(keyed_.begin(), middle, keyed_.end());
-  const std::pair<double, int32_t> median = *middle;
-  for (const auto& key : keyed_) side_[key.second] = key < median ? 0 : 1;
-  // each manifold's class: the side of its movable bodies, or 2 when they lie on both
-  auto side_of = [&](const Manifold& m) {
-    const int sa = side_[m.a], sb = side_[m.b];   // -1: immovable
-    if (sa < 0) return sb;
-    if (sb < 0 || sa == sb) return sa;
-    return 2;
-  };
-  ordered_.clear();
-  size_t counts[3] = {0, 0, 0};
-  for (int cls = 0; cls < 3; ++cls)
-    for (const Manifold& m : manifolds_)
-      if (side_of(m) == cls) {
-        ordered_.push_back(m);
-        ++counts[cls];
-      }
-  manifolds_.swap(ordered_);
-  for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds_[index];
-    for (int32_t i = m.first; i < m.first + m.count; ++i)
-      rows_[i].manifold = static_cast<int32_t>(index);
   }
 }
 

@@ -86,7 +86,6 @@
 
 #include <cstdint>
 #include <memory>
-#include <utility>
 #include <vector>
 
 #include "contact_cache.h"
@@ -199,10 +198,6 @@ class StepSolver {
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
   void land(StepContext& ctx);
-  // manifolds_ in two halves that share no movable body, then the rest, when there are at
-  // least parallel_manifolds of them: the movable bodies halved at their median along the
-  // axis of their largest extent
-  void split(StepContext& ctx);
   // the sweeps' plan_ of manifolds_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
@@ -253,9 +248,6 @@ class StepSolver {
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
-  std::vector<int8_t> side_;         // (N,) split: half of each movable body, -1 immovable
-  std::vector<std::pair<double, int32_t>> keyed_;   // split: (position, body)
-  std::vector<Manifold> ordered_;    // split: scratch
   std::vector<int32_t> wave_;        // (N,) plan_sweeps: the last wave of each body
   std::vector<size_t> buckets_;      // plan_sweeps: scratch
   std::vector<Manifold> sorted_;     // plan_sweeps: scratch

@@ -243,13 +243,6 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
     ParamSpec('max_substeps', 'integer', 8,
               'Most substeps of a step\'s resting solve (max_substep)', 1, 64,
               reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 8 solves'),
-    ParamSpec('parallel_manifolds', 'integer', 256,
-              'A solve of at least this many manifolds is ordered in two halves that share '
-              'no movable body (the bodies halved at their median along their largest '
-              'extent), then the manifolds joining them; smaller solves keep detection\'s '
-              'order', 1, 10**9,
-              reason='the halves give the waves of a large pile twice the manifolds (the '
-                     'order whose answers the laws and goldens hold)'),
     ParamSpec('parallel_wave', 'integer', 64,
               'A wave (manifolds that share no movable body, solved one after the other '
               'in the sweep\'s order) of at least this many manifolds is shared by the two '

@@ -3,7 +3,7 @@
 Usage::
 
     .venv/bin/python bench/bench_rest.py [--kind mixed|cubes] [--size 1000] [--rate 30]
-        [--seconds 12] [--every 1] [--substep 0] [--seed 1]
+        [--seconds 12] [--every 1] [--substep S] [--seed 1]
 
 The simulator's loop (semi-implicit Euler under gravity, each answer integrated for one
 period), sleeping on. Every ``--every`` s it prints: the bodies whose farthest point moves
@@ -11,7 +11,7 @@ faster than 0.05 m/s (Box2D's sleep speed) and the fastest, the deepest penetrat
 answer (any pair, and into the floor: a detector of its own on the answered poses), the
 fastest approach left at a touching contact (the answered twists), solver rows and velocity
 sweeps per step and the step's median time, and the sleeping bodies; at the end the time
-the pile fell asleep. ``--substep``: ``solver.max_substep`` (s, 0: off).
+the pile fell asleep. ``--substep``: ``solver.max_substep`` (s; default: the setting's).
 """
 
 from __future__ import annotations
@@ -56,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--rate', type=float, default=30.0, help='Hz')
     parser.add_argument('--seconds', type=float, default=12.0)
     parser.add_argument('--every', type=float, default=1.0, help='s between reports')
-    parser.add_argument('--substep', type=float, default=0.0, help='solver.max_substep, s')
+    parser.add_argument('--substep', type=float, default=SolverSettings().max_substep,
+                        help='solver.max_substep, s')
     parser.add_argument('--seed', type=int, default=1)
     args = parser.parse_args(argv)
     dt = 1.0 / args.rate

@@ -119,7 +119,7 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
     py::gil_scoped_release release;
     stats = solver.step(prev, cur, bodies, c, dt, warm, params, out, r);
   }
-  return py::make_tuple(stats.sweeps, stats.rows);
+  return py::make_tuple(stats.sweeps, stats.rows, stats.substeps);
 }
 
 void cache_store(ContactCache& cache, const py::array& a, const py::array& b,
@@ -178,9 +178,10 @@ void bind_solver(py::module_& m) {
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)
       .def_readwrite("match_radius", &SolverParams::match_radius)
       .def_readwrite("threads", &SolverParams::threads)
-      .def_readwrite("parallel_manifolds", &SolverParams::parallel_manifolds)
       .def_readwrite("parallel_wave", &SolverParams::parallel_wave)
       .def_readwrite("wide_rows", &SolverParams::wide_rows)
+      .def_readwrite("max_substep", &SolverParams::max_substep)
+      .def_readwrite("max_substeps", &SolverParams::max_substeps)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);
 
@@ -236,5 +237,5 @@ void bind_solver(py::module_& m) {
            py::arg("friction_impulse"), py::arg("state"), py::arg("reported_toi"),
            py::arg("reported_kind"),
            "Solve one step in place of `out` (a copy of `current`) and the per-contact "
-           "outputs; returns (velocity sweeps, solver rows).");
+           "outputs; returns (velocity sweeps, solver rows, substeps).");
 }

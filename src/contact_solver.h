@@ -72,11 +72,12 @@ struct SolverParams {
   double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
                                         // from its pair's nearest stored point this close
   int threads = 2;                      // threads of the velocity sweeps (1 or 2)
-  int parallel_manifolds = 256;         // a solve of at least this many manifolds is ordered
-                                        // in two halves (StepSolver::split), whatever `threads`
   int parallel_wave = 64;               // a wave of at least this many manifolds is shared
                                         // by the two threads (SweepPlan)
   bool wide_rows = true;                // wide groups solved in lanes (SweepPlan)
+  double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
+                                        // long (StepSolver::soft_step) ...
+  int max_substeps = 8;                 // ... and at most this many per step
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };

@@ -2,15 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <memory>
 
 #include "sweep_waves.h"
 
 namespace collres {
 namespace {
-
-constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 // Twist (6 per body) of states; held bodies and non-finite entries read as 0.
 void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* out) {
@@ -72,9 +69,13 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   // from here on an impacted body's velocity is the one its pose travels with over the
   // rest of the step (its velocity at the time of impact plus half the external change
   // over the rest, advance): the resting solve keeps that travel out of the partners
-  to_travel(ctx);
-  // warm start from last step's impulses of the same pair and feature
-  double cold = warm(ctx);
+  // substeps of the resting solve: as many as keep each within params.max_substep
+  const int substeps = static_cast<int>(std::clamp(
+      std::ceil(dt / std::max(params.max_substep, 1e-300) * (1.0 - 1e-6)), 1.0,
+      static_cast<double>(std::max(params.max_substeps, 1))));
+  to_travel(ctx, substeps);
+  // warm start from last step's impulses of the same pair and feature (a substep's share)
+  double cold = warm(ctx, substeps);
   start_.assign(velocity_.begin(), velocity_.end());
   warm_start(rows_, ctx.solver);
   // iterate: sequential impulses (more sweeps while resting contacts are new, for a step
@@ -87,16 +88,17 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
       std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold) * stretch));
   iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
   StepStats stats;
-  stats.sweeps = solve_velocities(rows_, manifolds_, ctx.solver, iterations, params.converged,
-                                  &spins_, &plan_);
-  stats.sweeps += hold_energy(ctx, iterations);
   stats.rows = static_cast<int64_t>(rows_.size());
-  propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, params.shock_sweeps,
-                  params.shock_ratio);
-  // landing: the poses travel with these velocities; a speculative contact that closes
-  // within the step ends it touching, and with no approach left for the next step
-  travel_.assign(velocity_.begin(), velocity_.end());
+  stats.substeps = substeps;
+  stats.sweeps = soft_step(ctx, substeps, iterations);
+  // landing: the poses travel with the substeps' mean velocity; a speculative contact that
+  // closes within the step ends it touching, and with no approach left for the next step
   land(ctx);
+  for (size_t i = 0; i < rows_.size(); ++i) {   // the step's impulses: the substeps' sums
+    rows_[i].normal += total_[3 * i];
+    rows_[i].tangent[0] += total_[3 * i + 1];
+    rows_[i].tangent[1] += total_[3 * i + 2];
+  }
   // store impulses for next step's warm start, then report them
   report(ctx);
   cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
@@ -128,6 +130,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   toi_.resize(m);
   impact_.resize(m);
   remaining_.resize(m);
+  span_.resize(m);
   allowance_.resize(m);
   touching_.resize(m);
   fraction_.assign(n, 1.0);           // earliest time of impact per body (1: none)
@@ -233,6 +236,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
     gap_[k] = impact_[k] ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
                          : gap_[k] + closed * later;   // (a demoted impact: from the start)
     remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
+    span_[k] = remaining;
     allowance_[k] = std::max(gap_[k], 0.0) / remaining;
   }
 }
@@ -301,9 +305,8 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_block(block, &rows_[first_row]);
     }
   }
-  // a large solve in two halves that share no movable body, then what joins them; the
-  // sweeps visit that order wave by wave (wide groups, two threads; the same bits)
-  split(ctx);
+  // the sweeps visit detection's order wave by wave (wide groups, two threads; the same
+  // bits)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0 (in manifold order)
@@ -335,60 +338,6 @@ void StepSolver::prepare(StepContext& ctx) {
   }
 }
 
-void StepSolver::split(StepContext& ctx) {
-  const SolverParams& p = ctx.params;
-  const double* inv_mass = ctx.bodies.inv_mass;
-  const size_t count = manifolds_.size();
-  if (count < static_cast<size_t>(std::max(p.parallel_manifolds, 1))) return;
-  // the movable bodies of the manifolds, halved at their median along the axis of their
-  // largest extent (position, then index: one answer whatever the sort)
-  side_.assign(static_cast<size_t>(ctx.bodies.count), -1);
-  keyed_.clear();
-  Vec3 low = Vec3::Constant(kInfinity), high = Vec3::Constant(-kInfinity);
-  for (const Manifold& m : manifolds_)
-    for (const int32_t body : {m.a, m.b}) {
-      if (!(inv_mass[body] > 0.0) || side_[body] == 0) continue;
-      side_[body] = 0;
-      const Vec3 x = load3(ctx.current.position + 3 * body);
-      low = low.cwiseMin(x);
-      high = high.cwiseMax(x);
-      keyed_.emplace_back(0.0, body);
-    }
-  if (keyed_.size() < 2) return;
-  const Vec3 extent = high - low;
-  const int axis = extent.x() >= extent.y() ? (extent.x() >= extent.z() ? 0 : 2)
-                                            : (extent.y() >= extent.z() ? 1 : 2);
-  for (auto& [coordinate, body] : keyed_) {
-    const double x = ctx.current.position[3 * body + axis];
-    coordinate = std::isfinite(x) ? x : 0.0;
-  }
-  const auto middle = keyed_.begin() + static_cast<std::ptrdiff_t>(keyed_.size() / 2);
-  std::nth_element(keyed_.begin(), middle, keyed_.end());
-  const std::pair<double, int32_t> median = *middle;
-  for (const auto& key : keyed_) side_[key.second] = key < median ? 0 : 1;
-  // each manifold's class: the side of its movable bodies, or 2 when they lie on both
-  auto side_of = [&](const Manifold& m) {
-    const int sa = side_[m.a], sb = side_[m.b];   // -1: immovable
-    if (sa < 0) return sb;
-    if (sb < 0 || sa == sb) return sa;
-    return 2;
-  };
-  ordered_.clear();
-  size_t counts[3] = {0, 0, 0};
-  for (int cls = 0; cls < 3; ++cls)
-    for (const Manifold& m : manifolds_)
-      if (side_of(m) == cls) {
-        ordered_.push_back(m);
-        ++counts[cls];
-      }
-  manifolds_.swap(ordered_);
-  for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds_[index];
-    for (int32_t i = m.first; i < m.first + m.count; ++i)
-      rows_[i].manifold = static_cast<int32_t>(index);
-  }
-}
-
 void StepSolver::plan_sweeps(StepContext& ctx) {
   const SolverParams& p = ctx.params;
   wave_manifolds(manifolds_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_, wave_,
@@ -403,7 +352,7 @@ Worker* StepSolver::worker() {
   return worker_.get();
 }
 
-double StepSolver::warm(StepContext& ctx) {
+double StepSolver::warm(StepContext& ctx, int substeps) {
   const ContactsView& c = ctx.contacts;
   const double ratio = ctx.params.warm_start_ratio;
   const int64_t m = c.count;
@@ -412,6 +361,7 @@ double StepSolver::warm(StepContext& ctx) {
   // impulses of a step of another length are a different answer: scaled by dt / last dt
   // only near 1, never from a fresh step (e.g. a nominal dt after a pause)
   const double scale = last_dt_ > 0.0 ? growth_ : 0.0;
+  const double share = 1.0 / substeps;   // a substep carries its share of the step's
   const bool usable = ctx.warm && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
   if (!usable) return persistent > 0 ? 1.0 : 0.0;
   cached_normal_.resize(m);
@@ -423,8 +373,8 @@ double StepSolver::warm(StepContext& ctx) {
   for (ContactRow& r : rows_) {
     const int64_t k = r.contact;
     Vec3 friction = load3(cached_friction_.data() + 3 * k);
-    r.normal = cached_normal_[k] * scale;
-    double tx = dot(r.t1, friction) * scale, ty = dot(r.t2, friction) * scale;
+    r.normal = cached_normal_[k] * scale * share;
+    double tx = dot(r.t1, friction) * scale * share, ty = dot(r.t2, friction) * scale * share;
     double size = norm2(tx, ty), limit = r.mu * r.normal;
     if (size > limit) {
       tx *= limit / size;
@@ -436,9 +386,15 @@ double StepSolver::warm(StepContext& ctx) {
   return static_cast<double>(cold) / static_cast<double>(std::max<int64_t>(1, persistent));
 }
 
-void StepSolver::to_travel(StepContext& ctx) {
+void StepSolver::to_travel(StepContext& ctx, int substeps) {
   const int64_t n = ctx.bodies.count;
+  const double share = 1.0 / substeps;
   for (int64_t i = 0; i < n; ++i) {
+    if (rested_[i] && substeps > 1) {   // the first substep's share of the external change
+      for (int d = 0; d < 6; ++d)
+        velocity_[6 * i + d] += share * (now_[6 * i + d] - then_[6 * i + d]);
+      continue;
+    }
     if (rested_[i]) {   // the whole step's external change: now plus what impacts changed
       for (int d = 0; d < 6; ++d)
         velocity_[6 * i + d] = now_[6 * i + d] + (velocity_[6 * i + d] - then_[6 * i + d]);
@@ -513,6 +469,62 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
       s.torque = Vec3::Zero();
     }
   return solve_velocities(rows_, retry_, ctx.solver, iterations, ctx.params.converged);
+}
+
+int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
+  const SolverParams& p = ctx.params;
+  const int64_t n = ctx.bodies.count;
+  const size_t rows = rows_.size();
+  const double share = 1.0 / substeps;
+  // per body: the displacement and turn (m, rad) since its reference time and the mean
+  // velocity over the substeps (what the poses travel with); per row: the summed
+  // impulses (N s) of the substeps before the last
+  moved_.assign(6 * n, 0.0);
+  travel_.assign(6 * n, 0.0);
+  total_.assign(3 * rows, 0.0);
+  int sweeps = 0;
+  for (int s = 0; s < substeps; ++s) {
+    if (s > 0) {
+      // a rested body's share of the external change, then the warm start from the
+      // last substep's impulses (the spin rows start cold)
+      for (int64_t i = 0; i < n; ++i)
+        if (rested_[i])
+          for (int d = 0; d < 6; ++d)
+            velocity_[6 * i + d] += share * (now_[6 * i + d] - then_[6 * i + d]);
+      start_.assign(velocity_.begin(), velocity_.end());
+      for (SpinRow& spin : spins_) spin.torque = Vec3::Zero();
+      warm_start(rows_, ctx.solver);
+    }
+    // each row may approach by its separation now: the reference gap plus how far its
+    // two points moved along the normal in the substeps so far (no new detection)
+    for (ContactRow& r : rows_) {
+      double moved[3];
+      row_velocity(r, moved_.data(), moved);
+      const double separation = gap_[r.contact] + moved[0];
+      r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
+    }
+    sweeps += solve_velocities(rows_, manifolds_, ctx.solver, iterations, p.converged, &spins_,
+                               &plan_);
+    sweeps += hold_energy(ctx, iterations);
+    propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, p.shock_sweeps,
+                    p.shock_ratio);
+    // the poses travel with the substep's velocity for its share of the body's time
+    for (int64_t i = 0; i < n; ++i) {
+      const double h = (1.0 - fraction_[i]) * ctx.dt * share;
+      for (int d = 0; d < 6; ++d) {
+        moved_[6 * i + d] += h * velocity_[6 * i + d];
+        travel_[6 * i + d] += share * velocity_[6 * i + d];
+      }
+    }
+    for (size_t i = 0; i < rows && s + 1 < substeps; ++i) {
+      total_[3 * i] += rows_[i].normal;
+      total_[3 * i + 1] += rows_[i].tangent[0];
+      total_[3 * i + 2] += rows_[i].tangent[1];
+    }
+  }
+  // the step's allowances again, for the landing
+  for (ContactRow& r : rows_) r.allowance = allowance_[r.contact];
+  return sweeps;
 }
 
 void StepSolver::land(StepContext& ctx) {

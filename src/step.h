@@ -47,7 +47,15 @@
 //    last dt without a load), only while that lies in [1 / r, r] (r = warm_start_ratio)
 //    and the last step was itself not fresh (warm = false): otherwise every row starts
 //    cold, so no timing of the inputs can launch a resting body;
-// 5. iterate: sequential impulses, the normal rows of a manifold of 2-4 points solved as
+// 5. iterate, in S = ceil(dt / max_substep) substeps (at most max_substeps; soft_step, as
+//    Box2D v3's soft step without its soft push-out): each adds 1/S of the step's external
+//    change to the rested bodies (the first: in to_travel), warm starts from the last
+//    substep's impulses (the first: from the cache, 1/S of last step's), lets each row
+//    approach by its separation now (its gap at the reference time plus how far the
+//    substeps so far moved its two points along the normal: no new detection) over the
+//    substep, solves as below, and moves the poses by the substep's velocity; the poses
+//    travel with the substeps' mean velocity, the impulses are the substeps' sums.
+//    Each substep: sequential impulses, the normal rows of a manifold of 2-4 points solved as
 //    a block (more sweeps while the resting contacts are new; sqrt(k) times as many for a
 //    step of k times the last one's load (growth), up to warm_start_ratio: whose
 //    residual would sink the poses k^2 times as far; and at least depth_sweeps per level
@@ -58,15 +66,15 @@
 //    converge to: they cycle, and may stop where energy was gained; the frictionless
 //    solve is a projection, which never gains) (hold_energy); then shock propagation
 //    from the ground up (a heavy body on a light one);
-// 6. landing: the poses travel with the velocities solved so far; a speculative contact
+// 6. landing: the poses travel with the substeps' mean velocity; a speculative contact
 //    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
 //    is solved again with no allowance, for the velocities only, so it ends the step
 //    touching and with no approach left to bounce on next step (land);
 // 7. store impulses for the next step (without the impact stages' and landing's part);
 // 8. advance: impacted bodies from their time of impact with the travel velocity for the
-//    rest of the step, (1 - f) dt, their twist the mid-step one (travel - f / 2 external);
-//    persistent-only bodies from the previous pose for dt; the state's twist is the
-//    landed velocity;
+//    rest of the step, (1 - f) dt, their twist the mid-step one (velocity - f / 2
+//    external); persistent-only bodies from the previous pose for dt with the substeps'
+//    mean velocity; the state's twist is the landed velocity (of the last substep);
 // 9. split-impulse position pass: penetration beyond the slop predicted at the end of the
 //    step is pushed out (poses only, no velocity: no energy gain);
 // 10. report: normal impulse (with the impact stages' and landing's), friction impulse,
@@ -78,7 +86,6 @@
 
 #include <cstdint>
 #include <memory>
-#include <utility>
 #include <vector>
 
 #include "contact_cache.h"
@@ -160,6 +167,7 @@ struct StepContext {
 struct StepStats {
   int sweeps = 0;   // velocity sweeps done
   int64_t rows = 0; // contact points solved (the others were speculative, inactive)
+  int substeps = 1;  // substeps of the resting solve (StepSolver::soft_step)
 };
 
 class StepSolver {
@@ -182,16 +190,14 @@ class StepSolver {
  private:
   void reference_frame(StepContext& ctx);
   void prepare(StepContext& ctx);
-  double warm(StepContext& ctx);   // returns the fraction of persistent contacts cold
+  double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
+                                                 // contacts cold
   int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
-  void to_travel(StepContext& ctx);  // impacted bodies: + (1 - f) / 2 external change;
+  int soft_step(StepContext& ctx, int substeps, int iterations);   // returns the sweeps
+  void to_travel(StepContext& ctx, int substeps);  // impacted bodies: + (1 - f) / 2 external change;
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
   void land(StepContext& ctx);
-  // manifolds_ in two halves that share no movable body, then the rest, when there are at
-  // least parallel_manifolds of them: the movable bodies halved at their median along the
-  // axis of their largest extent
-  void split(StepContext& ctx);
   // the sweeps' plan_ of manifolds_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
@@ -216,6 +222,8 @@ class StepSolver {
   std::vector<double> now_;          // (N, 6) current twist (held, non-finite: 0)
   std::vector<double> then_;         // (N, 6) previous twist (held, non-finite: 0)
   std::vector<double> pseudo_;       // (N, 6) split-impulse pseudo velocity
+  std::vector<double> moved_;        // (N, 6) m, rad: displacement and turn (soft_step)
+  std::vector<double> total_;        // (rows, 3) N s: the substeps' summed impulses
   std::vector<double> start_;        // (N, 6) velocity before the warm start
   std::vector<double> later_;        // (N, 6) pre-solve velocity, rested bodies' current
   std::vector<int32_t> island_;      // (N,) union-find parent (hold_energy)
@@ -229,6 +237,7 @@ class StepSolver {
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
+  std::vector<double> span_;         // s: the time a row's allowance spans (> 0)
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
   std::vector<double> cached_normal_, cached_friction_, impact_work_, landing_;
@@ -239,9 +248,6 @@ class StepSolver {
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
-  std::vector<int8_t> side_;         // (N,) split: half of each movable body, -1 immovable
-  std::vector<std::pair<double, int32_t>> keyed_;   // split: (position, body)
-  std::vector<Manifold> ordered_;    // split: scratch
   std::vector<int32_t> wave_;        // (N,) plan_sweeps: the last wave of each body
   std::vector<size_t> buckets_;      // plan_sweeps: scratch
   std::vector<Manifold> sorted_;     // plan_sweeps: scratch

@@ -31,8 +31,8 @@ Static bodies (and inactive ones, for this step) have zero inverse mass and
 inertia: their ``current`` twist is a kinematic velocity, their state is
 returned as given.
 
-With ``settings.max_substep`` > 0 a longer step is resolved as several substeps, each the
-above from the last substep's answer (``core.substeps``).
+The resting solve runs in ceil(dt / ``settings.max_substep``) substeps after the one
+detection (``StepSolver::soft_step``): a 30 Hz step is solved as 5 of 1/150 s.
 
 Islands at rest sleep (``core.sleep``, ``settings.sleeping``): a sleeping body is answered
 with its held pose and zero twist, left out of detection and solve, until something
@@ -52,7 +52,7 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
-from collres_ros.core import _native, substeps
+from collres_ros.core import _native
 from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.detection import Detection
 from collres_ros.core.rotation import slerp
@@ -169,49 +169,17 @@ class World:
         # (a sleeper's previous state is already its held one: its last answer)
         previous = _hold(previous, current, ~active if asleep is None else ~active & ~asleep)
         warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
-        # a long step in substeps of at most max_substep (core.substeps); a fresh one, or one
-        # without an active dynamic body (all asleep), whole
-        count = 1 if fresh or dt > self._settings.max_dt or not (self.dynamic & active).any() \
-            else substeps.count(dt, self._settings.max_substep)
-        self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0,
-                       'substeps': count}
+        self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0, 'substeps': 1}
         self.budget = (0, 0)
         rejected: list[Rejection] = []
-        if count == 1:
-            answer, report = self._substep(previous, current, active, dt, warm, rejected)
-        else:
-            answer, report = self._divided(previous, current, active, dt, warm, rejected, count)
+        answer, report = self._resolve(previous, current, active, dt, warm, rejected)
         report, sleeping, unchanged = self._settle(answer, report, active, dt, asleep)
         return StepResult(answer, report, rejected, sleeping, unchanged)
 
-    def _divided(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
-                 dt: float, warm: bool, rejected: list[Rejection], count: int
-                 ) -> tuple[BodyStates, ContactReport]:
-        """The step previous -> current in ``count`` (> 1) substeps (``core.substeps``):
-        each from the last answer advanced as the source integrates; bodies no substep
-        changed answered with their input as it was; the reports merged."""
-        free = self.dynamic & active       # the bodies the substeps integrate
-        h = dt / count
-        linear = (current.linear - previous.linear) / count
-        angular = (current.angular - previous.angular) / count
-        answer = previous
-        reports = []
-        touched = np.zeros(current.count, bool)    # bodies an answer changed
-        for k in range(1, count + 1):
-            goal = substeps.advanced(substeps.along(previous, current, k / count), answer,
-                                     free, linear, angular, h)
-            answer, report = self._substep(answer, goal, active, h, warm, rejected)
-            touched |= substeps.changed(answer, goal)
-            reports.append(report)
-        for name in ('position', 'orientation', 'linear', 'angular'):
-            getattr(answer, name)[~touched] = getattr(current, name)[~touched]
-        self.timing['rows'] = int(round(self.timing['rows'] / count))   # per substep
-        return answer, substeps.merge(reports)
-
-    def _substep(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
+    def _resolve(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
                  dt: float, warm: bool, rejected: list[Rejection]
                  ) -> tuple[BodyStates, ContactReport]:
-        """Detection and solve of one (sub)step previous -> current: the answer and its
+        """Detection and solve of the step previous -> current: the answer and its
         report; non-finite results refused are added to ``rejected``, times, sweeps and
         rows to ``timing``, the budget's drops to ``budget`` (the largest)."""
         started = time.perf_counter()
@@ -231,13 +199,15 @@ class World:
             return current.copy(), ContactReport.empty()
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
-        states, report, sweeps, rows = self._solve(previous, current, contacts, active, dt, warm)
+        states, report, sweeps, rows, substeps = self._solve(previous, current, contacts, active,
+                                                             dt, warm)
         self._hold_back(previous, states, active)
         # report: the final guard against non-finite output
         rejected += self._guard(states, current)
         self.timing['solve'] += time.perf_counter() - detected
         self.timing['iterations'] += sweeps
         self.timing['rows'] += rows
+        self.timing['substeps'] = substeps
         return states, report
 
     def _settle(self, states: BodyStates, report: ContactReport, active: np.ndarray,
@@ -252,10 +222,11 @@ class World:
 
     def _solve(self, previous: BodyStates, current: BodyStates, contacts: ContactSet,
                active: np.ndarray, dt: float, warm: bool
-               ) -> tuple[BodyStates, ContactReport, int, int]:
+               ) -> tuple[BodyStates, ContactReport, int, int, int]:
         """The compiled solver step on whole arrays (no copy when dtypes and layout fit).
 
-        Returns corrected states, the report, velocity sweeps done and solver rows.
+        Returns corrected states, the report, velocity sweeps done, solver rows and the
+        resting solve's substeps.
         """
         movable = self.dynamic & active
         out = BodyStates(*(np.array(a, np.float64, order='C') for a in _arrays(current)))
@@ -267,7 +238,7 @@ class World:
                                           contacts.piece_b),
                                np.empty(m), np.empty((m, 3)), np.empty(m, np.uint8))
         flat = (lambda array, dtype=np.float64: np.ascontiguousarray(array, dtype))
-        sweeps, rows = self._solver.step(
+        sweeps, rows, substeps = self._solver.step(
             previous=_arrays(previous), current=_arrays(current), out=_arrays(out),
             inv_mass=self.inv_mass * movable,
             inv_inertia_body=self.inv_inertia_body * movable[:, None, None],
@@ -283,7 +254,7 @@ class World:
             dt=float(dt), warm=warm, params=self._params, normal_impulse=report.normal_impulse,
             friction_impulse=report.friction_impulse, state=report.state,
             reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
-        return out, report, sweeps, rows
+        return out, report, sweeps, rows, substeps
 
     def _hold_back(self, previous: BodyStates, states: BodyStates, active: np.ndarray) -> None:
         """A body whose answer went deeper into a fixed shape than it was (by more than the
@@ -325,7 +296,7 @@ def solver_params(settings: SolverSettings) -> _native.SolverParams:
     """The compiled solver's parameters from the settings (combine rules by name)."""
     params = _native.SolverParams()
     for name in ('velocity_iterations', 'restitution_threshold', 'sticking_speed',
-                 'linear_slop', 'position_correction', 'max_correction'):
+                 'linear_slop', 'position_correction', 'max_correction', 'max_substep'):
         setattr(params, name, getattr(settings, name))
     for spec in SOLVER_TUNING:
         setattr(params, spec.name, spec.default)

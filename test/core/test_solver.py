@@ -105,24 +105,25 @@ def test_warm_start_reuses_impulses_and_forget_drops_them():
     floor = box('floor', (2.0, 2.0, 0.2), 1.0, static=True)
     cube = box('cube', (0.2, 0.2, 0.2), 1.0, mu_s=0.5, mu_k=0.5)
     corners = [[x, y, 0.0] for x in (-0.1, 0.1) for y in (-0.1, 0.1)]
+    # (240 Hz: one substep, whose sweeps show the warm start alone)
     # at rest on the floor before the step; gravity moved it g dt^2 into the floor since
-    contacts = contact_set(0, 1, corners, [0, 0, 1], -9.81 / 120 ** 2,
+    contacts = contact_set(0, 1, corners, [0, 0, 1], -9.81 / 240 ** 2,
                            kind=ContactKind.PERSISTENT)
     world = World([floor, cube], SolverSettings(velocity_iterations=4),
                   FixedContacts(contacts))
     rest = states([[0, 0, -0.1], [0, 0, 0.1]], np.zeros((2, 3)))
     fall = rest.copy()
-    fall.linear[1, 2] = -9.81 / 120
-    fall.position[1, 2] += fall.linear[1, 2] / 120
-    first = world.step(rest, fall, 1 / 120).report.normal_impulse.sum()
+    fall.linear[1, 2] = -9.81 / 240
+    fall.position[1, 2] += fall.linear[1, 2] / 240
+    first = world.step(rest, fall, 1 / 240).report.normal_impulse.sum()
     cold_sweeps = world.timing['iterations']
-    second = world.step(rest, fall, 1 / 120)
+    second = world.step(rest, fall, 1 / 240)
     warm_sweeps = world.timing['iterations']
     print('support impulse, step 1 and 2:', first, second.report.normal_impulse.sum(),
           'sweeps', cold_sweeps, warm_sweeps)
     # the second step starts from the first one's impulses: it has almost nothing to do
     assert warm_sweeps < cold_sweeps
-    assert second.report.normal_impulse.sum() == pytest.approx(9.81 / 120, rel=1e-4)
+    assert second.report.normal_impulse.sum() == pytest.approx(9.81 / 240, rel=1e-4)
     assert abs(second.states.linear[1, 2]) < 1e-4
     assert len(world._cache) == 4
     world.forget(np.array([1]))

@@ -12,12 +12,13 @@ per step and how many became solver rows, and the solve's cost per row per veloc
 in ns), each followed by a step on one thread (the same bits), timed apart: the ratio of
 the one-thread step to the default one is printed. The same pile is then
 settled and timed again at 30 Hz: the ratio of that step to the 120 Hz one is printed
-(a step four times longer should not cost much more). On the same 120 Hz final poses it
-times coal's own detection alone: the DynamicAABBTree broad phase and narrow phase of
-``collide`` (one contact per pair), the C++ calls only (the finite bodies in the tree,
-each half-space queried against it, as half-spaces in the tree miss pairs). Then MuJoCo
-(CG and Newton solvers), PyBullet and Rapier (``rapier3d``) step the same pile in the
-peers' throw-away venv (``--peer-venv``, default $COLLRES_PEER_VENV or
+(a step four times longer should not cost much more), and on a line of its own the 30 Hz
+step's detection and solve, points and rows, each against the 120 Hz one. On the same
+120 Hz final poses it times coal's own detection alone: the DynamicAABBTree broad phase
+and narrow phase of ``collide`` (one contact per pair), the C++ calls only (the finite
+bodies in the tree, each half-space queried against it, as half-spaces in the tree miss
+pairs). Then MuJoCo (CG and Newton solvers), PyBullet and Rapier (``rapier3d``) step the
+same pile in the peers' throw-away venv (``--peer-venv``, default $COLLRES_PEER_VENV or
 ~/.cache/collres_ros/peer-venv, outside the repository; set up with ``pip install mujoco
 pybullet rapier3d`` when one is missing), reporting ms per step and contact points per
 step. Ratios are ours / theirs in the same run. The table is also written as JSON
@@ -158,7 +159,9 @@ def ours(kind: str, size: int, steps: int, settle_s: float) -> dict:
             'solve_ms': [ms(timed['solve'], 50), ms(timed['solve'], 90)],
             'ns_per_row_sweep': float(np.median(per_row)),
             'step_30hz_ms': ms(slow['total'], 50),
+            'detect_30hz_ms': ms(slow['detect'], 50), 'solve_30hz_ms': ms(slow['solve'], 50),
             'one_thread_ms': ms(timed['one_thread'], 50),
+            'contacts_30hz': int(np.median(slow['contacts'])),
             'rows_30hz': int(np.median(slow['rows'])),
             'coal_ms': coal_ms, 'coal_contacts': coal_contacts,
             'largest_speed': float(np.abs(state.linear).max()),
@@ -342,6 +345,13 @@ def print_row(row: dict) -> None:
         f'{row["step_30hz_ms"] / row["step_ms"][0]:.2f}',
         f'{row["one_thread_ms"] / row["step_ms"][0]:.2f}', *[cell(v) for v in peer],
         *[ratio(v) for v in peer]), flush=True)
+    # where the 30 Hz step's extra cost goes: detection (pairs that moved too far to keep
+    # their stored points go to coal again) or the solve (more points become rows)
+    print(f'{"":>13} at 30 Hz: step {row["step_30hz_ms"]:.2f} = detect '
+          f'{row["detect_30hz_ms"]:.2f} ({row["detect_30hz_ms"] / row["detect_ms"][0]:.2f}x) '
+          f'+ solve {row["solve_30hz_ms"]:.2f} ({row["solve_30hz_ms"] / row["solve_ms"][0]:.2f}x)'
+          f', points/rows {row["contacts_30hz"]}/{row["rows_30hz"]} (rows '
+          f'{row["rows_30hz"] / max(row["rows"], 1):.2f}x)', flush=True)
 
 
 FORMAT = ('{:>6} {:>6} {:>13} {:>7} {:>7} {:>11} {:>14} {:>8} {:>7} {:>7} {:>7} {:>15} '

@@ -95,7 +95,11 @@ class BoxTree {
 };
 
 // True when the box reaches the half-space n.x <= offset grown by `pad` (m), n unit.
-bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad);
+inline bool box_reaches_plane(const Aabb& box, const Vec3& normal, double offset, double pad) {
+  const Vec3 centre = 0.5 * (box.lo + box.hi);
+  const Vec3 half = 0.5 * (box.hi - box.lo);
+  return centre.dot(normal) - half.dot(normal.cwiseAbs()) <= offset + pad;
+}
 
 // Which pairs of bodies may collide at all: category and mask bits as Box2D's filter and
 // Gazebo's collide_bitmask, plus a list of ignored pairs as MoveIt's allowed collision

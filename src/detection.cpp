@@ -272,9 +272,11 @@ void Detector::find_pairs() {
     const Vec3 normal0 = body.q0 * shape.plane_normal, normal1 = body.r1 * shape.plane_normal;
     const double offset0 = shape.plane_offset + normal0.dot(body.p0);
     const double offset1 = shape.plane_offset + normal1.dot(body.p1);
+    // a half-space that did not move has one test
+    const bool still = normal0 == normal1 && offset0 == offset1;
     for (std::size_t i = 0; i < finite_.size(); ++i) {
       if (box_reaches_plane(boxes_[i], normal0, offset0, pad) ||
-          box_reaches_plane(boxes_[i], normal1, offset1, pad)) {
+          (!still && box_reaches_plane(boxes_[i], normal1, offset1, pad))) {
         pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
       }
     }

@@ -113,18 +113,73 @@ std::size_t TypedCollide::operator()(const coal::CollisionGeometry& ga,
   return coal::ComputeCollision::operator()(ta, tb, request, result);
 }
 
+namespace {
+
+// the two node types of plain geometries (the kept solvers' index), or false
+bool node_types(const coal::CollisionGeometry& ga, const coal::CollisionGeometry& gb, int& a,
+                int& b) {
+  a = ga.getNodeType();
+  b = gb.getNodeType();
+  return ga.getObjectType() == coal::OT_GEOM && gb.getObjectType() == coal::OT_GEOM && a >= 0 &&
+         b >= 0 && a < coal::NODE_COUNT && b < coal::NODE_COUNT;
+}
+
+}  // namespace
+
 std::size_t PairQuery::collide(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                                const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                                const coal::CollisionRequest& request,
                                coal::CollisionResult& result) {
-  const int a = ga.getNodeType(), b = gb.getNodeType();
-  if (ga.getObjectType() != coal::OT_GEOM || gb.getObjectType() != coal::OT_GEOM || a < 0 ||
-      b < 0 || a >= coal::NODE_COUNT || b >= coal::NODE_COUNT) {
-    return coal::collide(&ga, ta, &gb, tb, request, result);
-  }
+  int a = 0, b = 0;
+  if (!node_types(ga, gb, a, b)) return coal::collide(&ga, ta, &gb, tb, request, result);
   std::unique_ptr<TypedCollide>& typed = collide_[a][b];
   if (!typed) typed = std::make_unique<TypedCollide>(&ga, &gb);
   return (*typed)(ga, ta, gb, tb, request, result);
+}
+
+double TypedDistance::operator()(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                                 const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                                 const coal::DistanceRequest& request,
+                                 coal::DistanceResult& result) {
+  o1 = &ga;
+  o2 = &gb;
+  solver.cached_guess = coal::Vec3s(1, 0, 0);
+  solver.support_func_cached_guess = coal::support_func_guess_t::Zero();
+  return coal::ComputeDistance::operator()(ta, tb, request, result);
+}
+
+void TypedPatch::operator()(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                            const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                            const coal::CollisionResult& collision,
+                            const coal::ContactPatchRequest& request,
+                            coal::ContactPatchResult& result) {
+  o1 = &ga;
+  o2 = &gb;
+  csolver.setSupportGuess(coal::support_func_guess_t::Zero());
+  coal::ComputeContactPatch::operator()(ta, tb, collision, request, result);
+}
+
+double PairQuery::distance_of(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                              const coal::CollisionGeometry& gb, const coal::Transform3s& tb) {
+  int a = 0, b = 0;
+  if (!node_types(ga, gb, a, b)) {
+    return coal::distance(&ga, ta, &gb, tb, distance_request_, distance_result_);
+  }
+  std::unique_ptr<TypedDistance>& typed = distance_[a][b];
+  if (!typed) typed = std::make_unique<TypedDistance>(&ga, &gb);
+  return (*typed)(ga, ta, gb, tb, distance_request_, distance_result_);
+}
+
+void PairQuery::patch(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                      const coal::CollisionGeometry& gb, const coal::Transform3s& tb) {
+  int a = 0, b = 0;
+  if (!node_types(ga, gb, a, b)) {
+    coal::computeContactPatch(&ga, ta, &gb, tb, result_, patch_request_, patch_result_);
+    return;
+  }
+  std::unique_ptr<TypedPatch>& typed = patch_[a][b];
+  if (!typed) typed = std::make_unique<TypedPatch>(&ga, &gb);
+  (*typed)(ga, ta, gb, tb, result_, patch_request_, patch_result_);
 }
 
 bool PairQuery::loaded_is_valid() const {
@@ -234,7 +289,7 @@ double PairQuery::distance(const coal::CollisionGeometry& ga, const coal::Transf
     return std::isfinite(c.penetration_depth) ? std::max(0.0, c.penetration_depth) : 0.0;
   }
   distance_result_.clear();
-  const double gap = coal::distance(&ga, ta, &gb, tb, distance_request_, distance_result_);
+  const double gap = distance_of(ga, ta, gb, tb);
   closest = {to_vec(distance_result_.nearest_points[0]),
              to_vec(distance_result_.nearest_points[1])};
   return std::max(0.0, gap);
@@ -247,14 +302,18 @@ void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transfor
   const coal::Contact& c = result_.getContact(0);
   patch_result_.clear();
   const coal::Transform3s moved(tb.getRotation(), tb.getTranslation() + loaded_shift_);
-  coal::computeContactPatch(&ga, ta, &gb, moved, result_, patch_request_, patch_result_);
+  patch(ga, ta, gb, moved);
   if (patch_result_.numContactPatches() > 0) {
     const coal::ContactPatch& patch = patch_result_.getContactPatch(0);
     if (patch.size() > 1) {
       const Vec3 normal = to_vec(c.normal);
       const Vec3 half = 0.5 * patch.penetration_depth * normal;
       polygon_.clear();
-      for (std::size_t k = 0; k < patch.size(); ++k) polygon_.push_back(to_vec(patch.getPoint(k)));
+      // each point in the world frame, as ContactPatch::getPoint gives it (whose range
+      // check builds a std::logic_error on every call, thrown or not)
+      for (const coal::Vec2s& point : patch.points()) {
+        polygon_.push_back(to_vec(patch.tf.transform(coal::Vec3s(point(0), point(1), 0.0))));
+      }
       reduce_manifold(polygon_, normal, keep_);
       // each point's own depth where the surface is known (boxes, half-spaces): a patch
       // gathers points within kPatchTolerance of the plane, and a tilted face's far

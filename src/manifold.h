@@ -57,6 +57,31 @@ class TypedCollide : public coal::ComputeCollision {
                          const coal::CollisionRequest& request, coal::CollisionResult& result);
 };
 
+// coal's distance for one pair of node types, kept as TypedCollide is: coal::distance builds
+// a GJK solver (and EPA its buffers for overlapping shapes) on every call. Each query
+// starts the solver's guesses as a new solver's: the same answer as coal::distance.
+class TypedDistance : public coal::ComputeDistance {
+ public:
+  using coal::ComputeDistance::ComputeDistance;
+  double operator()(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                    const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                    const coal::DistanceRequest& request, coal::DistanceResult& result);
+};
+
+// coal's contact patch for one pair of node types, kept: coal::computeContactPatch builds a
+// patch solver and reserves its three support sets on every call (most of a fresh
+// manifold's allocations). Each query starts the support guesses at zero (a new solver
+// leaves them unset; only a convex of many vertices reads them, as a first vertex for its
+// hill climb, whose support set does not depend on it).
+class TypedPatch : public coal::ComputeContactPatch {
+ public:
+  using coal::ComputeContactPatch::ComputeContactPatch;
+  void operator()(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                  const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                  const coal::CollisionResult& collision, const coal::ContactPatchRequest& request,
+                  coal::ContactPatchResult& result);
+};
+
 // Reusable coal requests and results for the queries on one pair at a time.
 class PairQuery {
  public:
@@ -110,7 +135,14 @@ class PairQuery {
   coal::ContactPatchResult patch_result_;
   std::vector<Vec3> polygon_;
   std::vector<int> keep_;
+  // coal's distance and contact patch, through the kept solvers of the two node types
+  double distance_of(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+                     const coal::CollisionGeometry& gb, const coal::Transform3s& tb);
+  void patch(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
+             const coal::CollisionGeometry& gb, const coal::Transform3s& tb);
   std::unique_ptr<TypedCollide> collide_[coal::NODE_COUNT][coal::NODE_COUNT];
+  std::unique_ptr<TypedDistance> distance_[coal::NODE_COUNT][coal::NODE_COUNT];
+  std::unique_ptr<TypedPatch> patch_[coal::NODE_COUNT][coal::NODE_COUNT];
   Vec3 loaded_shift_ = Vec3::Zero();  // m, B's step of the loaded contact (failed queries)
 };
 

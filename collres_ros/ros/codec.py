@@ -705,19 +705,20 @@ def contacts_message(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.nd
     # lengths (as in most scenes) they have one shape, written through one strided view
     rest = slice(1, count)
     uniform = count > 2 and all((x[rest] == x[1]).all() for x in (record, la, lb4, lpa4))
-    general = np.arange(1) if uniform else np.arange(count)
-    g = general
-    _contacts_general(buf, (pool, a[g], start[g]), (pool, b[g], start[g] + la[g]),
-                      (names, pa[g], start[g] + la[g] + lb4[g]),
-                      (names, pb[g], start[g] + la[g] + lb4[g] + lpa4[g]), block[g],
-                      {k: v[g] for k, v in columns.items()})
-    if uniform:
-        _contacts_uniform(buf, ((pool, a[rest], int(la[1])), (pool, b[rest], int(lb4[1])),
-                                (names, pa[rest], int(lpa4[1])),
+    if not uniform:
+        _contacts_general(buf, (pool, a, start), (pool, b, start + la),
+                          (names, pa, start + la + lb4), (names, pb, start + la + lb4 + lpa4),
+                          block, columns)
+        return Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
+    # the first record (its own phase) and the rest, each of one shape
+    for k in (slice(0, 1), rest):
+        i = k.start
+        _contacts_uniform(buf, ((pool, a[k], int(la[i])), (pool, b[k], int(lb4[i])),
+                                (names, pa[k], int(lpa4[i])),
                                 # the longest: shorter ones write zeros into the gap
-                                (names, pb[rest], int(4 * names.words[pb[rest]].max()))),
-                          int(start[1]), int(record[1]), int(block[1] - start[1]),
-                          {k: v[rest] for k, v in columns.items()})
+                                (names, pb[k], int(4 * names.words[pb[k]].max()))),
+                          int(start[i]), int(record[i]), int(block[i] - start[i]),
+                          {key: v[k] for key, v in columns.items()})
     return Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
 
 
@@ -770,7 +771,9 @@ def _contacts_uniform(buf: np.ndarray, strings: Sequence[tuple[NamePool, np.ndar
     records = buf[4 + start:4 + start + count * length].reshape(count, length)
     at = 0
     for pool, which, padded in strings:
-        records[:, at:at + padded] = pool.rows[which, :padded]
+        # one name in the pool (every piece name ''): the same bytes in every record
+        records[:, at:at + padded] = pool.rows[0, :padded] if len(pool.rows) == 1 \
+            else pool.rows[which, :padded]
         at += padded
     fields = records[:, block:block + 96]
     fields[:, 0:56].view('<f8')[:] = np.concatenate([col['point'], col['normal'],

@@ -144,5 +144,4 @@ PairFilter::PairFilter(int count, std::vector<std::uint64_t> group,
   ignored_.erase(std::unique(ignored_.begin(), ignored_.end()), ignored_.end());
 }
 
-
 }  // namespace collres

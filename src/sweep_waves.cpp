@@ -21,11 +21,21 @@ void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& r
     m.spin = own;
     waves = std::max(waves, own + 1);
   }
-  // stable counting sort by (wave, row count): bucket wave * 5 + count - 1 (counts 1 to
-  // 4; the last bucket of a wave for longer manifolds)
-  constexpr int kBuckets = 5;
-  auto bucket = [](const Manifold& m) {
-    return static_cast<size_t>(m.spin) * kBuckets + static_cast<size_t>(std::min(m.count, 5) - 1);
+  // stable counting sort by (wave, row count, speculative): bucket wave * 10 + 2 (count -
+  // 1) + speculative (counts 1 to 4; the last two buckets of a wave for longer manifolds).
+  // A speculative manifold (every row with a gap to close: allowance > 0) is the kind that
+  // carries no impulse (at 30 Hz about 60 % of a settled pile's rows): after the others
+  // of its row count, so that most wide groups are all of one kind and a group whose four
+  // lanes all stay idle costs only its approach test (solve_velocities)
+  constexpr int kKinds = 5, kBuckets = 2 * kKinds;
+  auto speculative = [&](const Manifold& m) {
+    for (int32_t i = m.first; i < m.first + m.count; ++i)
+      if (!(rows[i].allowance > 0.0)) return false;
+    return true;
+  };
+  auto bucket = [&](const Manifold& m) {
+    return static_cast<size_t>(m.spin) * kBuckets +
+           2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) + (speculative(m) ? 1 : 0);
   };
   start.assign(static_cast<size_t>(waves) * kBuckets + 1, 0);
   for (const Manifold& m : manifolds) ++start[bucket(m) + 1];
@@ -38,10 +48,11 @@ void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& r
   plan.waves.clear();
   size_t from = 0;
   for (int32_t l = 0; l < waves; ++l) {
-    size_t first[kBuckets + 1];
+    size_t first[kKinds + 1];   // row count k + 1's manifolds: [first[k], first[k + 1])
     first[0] = from;
-    for (int k = 0; k < kBuckets; ++k) first[k + 1] = start[static_cast<size_t>(l) * kBuckets + k];
-    from = first[kBuckets];
+    for (int k = 0; k < kKinds; ++k)
+      first[k + 1] = start[static_cast<size_t>(l) * kBuckets + 2 * static_cast<size_t>(k) + 1];
+    from = first[kKinds];
     SweepWave part;
     part.first = manifolds.size();
     for (int k = 0; k < 4; ++k) {

@@ -3,7 +3,7 @@
 Usage::
 
     .venv/bin/python bench/bench_rest.py [--kind mixed|cubes] [--size 1000] [--rate 30]
-        [--seconds 12] [--every 1] [--substep S] [--seed 1]
+        [--seconds 12] [--every 1] [--substep S] [--seed 1] [--why]
 
 The simulator's loop (semi-implicit Euler under gravity, each answer integrated for one
 period), sleeping on. Every ``--every`` s it prints: the bodies whose farthest point moves
@@ -12,6 +12,20 @@ answer (any pair, and into the floor: a detector of its own on the answered pose
 fastest approach left at a touching contact (the answered twists), solver rows and velocity
 sweeps per step and the step's median time, and the sleeping bodies; at the end the time
 the pile fell asleep. ``--substep``: ``solver.max_substep`` (s; default: the setting's).
+
+``--why``: how the pairs got deep. Every step, each pair of bodies whose overlap grew by
+more than 1 mm in the step (measured on the answers, by a probe with a 0.2 m margin, so
+pairs beyond the speculative margin count too) is put in one of four classes, and at the
+end the count and the millimetres grown per class are printed (with the pair's gap at the
+step's start: beyond the margin, within it, touching (overlapping by less than 2 mm) or
+deeper already):
+
+* ``missed``: the step's detection gave the pair no contact (its bodies fell into each
+  other from beyond the margin within the step);
+* ``impact``: the pair's own contact was an impact (IMPACT/TUNNELLED, or a persistent
+  contact that closed faster than the restitution threshold);
+* ``impact of a third``: a body of the pair had an impact with a third body in the step;
+* ``resting``: the pair's contacts were in the step and no impact touched it.
 """
 
 from __future__ import annotations
@@ -23,6 +37,7 @@ import numpy as np
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.detection import Detection
+from collres_ros.core.types import ContactKind, ContactState, StepResult
 from collres_ros.core.world import World
 
 from pile import PILES, integrate, make_pile  # noqa: I100
@@ -49,6 +64,59 @@ def figures(probe: Detection, state, dynamic: np.ndarray, radius: np.ndarray) ->
             else 0.0}
 
 
+GREW = 1e-3    # m: a pair whose overlap grew by more than this in one step is counted (--why)
+WIDE = 0.2     # m: the --why probe's margin (pairs that far apart have a gap)
+TOUCHING = 2e-3   # m: a pair overlapping less than this at a step's start is touching
+
+
+def pair_gaps(probe: Detection, state) -> dict[tuple[int, int], float]:
+    """Per pair of bodies (a < b), the least separation of the probe's contacts (m)."""
+    seen = probe.detect(state, state)
+    gaps: dict[tuple[int, int], float] = {}
+    for a, b, gap in zip(seen.body_a.tolist(), seen.body_b.tolist(), seen.separation.tolist()):
+        gaps[(a, b)] = min(gaps.get((a, b), gap), gap)
+    return gaps
+
+
+class Why:
+    """The --why classes of the overlaps that grew (see the module docstring)."""
+
+    def __init__(self, probe: Detection, margin: float, state) -> None:
+        self.probe, self.margin = probe, margin
+        self.gaps = pair_gaps(probe, state)
+        self.grown: dict[str, list[float]] = {}
+
+    def step(self, result: StepResult) -> None:
+        gaps = pair_gaps(self.probe, result.states)
+        contacts = result.report.contacts
+        impact = (contacts.kind != ContactKind.PERSISTENT) | (result.report.state ==
+                                                              ContactState.IMPACT)
+        pairs = set(zip(contacts.body_a.tolist(), contacts.body_b.tolist()))
+        own = set(zip(contacts.body_a[impact].tolist(), contacts.body_b[impact].tolist()))
+        struck = set(contacts.body_a[impact].tolist()) | set(contacts.body_b[impact].tolist())
+        for pair, gap in gaps.items():
+            before = self.gaps.get(pair, WIDE)
+            grew = min(before, 0.0) - gap
+            if gap >= 0.0 or grew <= GREW:
+                continue
+            cause = ('missed' if pair not in pairs else 'impact' if pair in own
+                     else 'impact of a third' if set(pair) & struck else 'resting')
+            start = ('beyond the margin' if before > self.margin else 'within the margin'
+                     if before > 0.0 else 'touching' if before > -TOUCHING else
+                     f'over {TOUCHING * 1e3:g} mm deep')
+            self.grown.setdefault(f'{cause}, at the start {start}', []).append(grew)
+        self.gaps = gaps
+
+    def table(self) -> str:
+        total = sum(sum(grown) for grown in self.grown.values())
+        lines = [f'overlaps that grew > {GREW * 1e3:g} mm in a step: '
+                 f'{sum(len(g) for g in self.grown.values())} times, {total * 1e3:.0f} mm']
+        for cause, grown in sorted(self.grown.items(), key=lambda item: -sum(item[1])):
+            lines.append(f'  {sum(grown) * 1e3:8.0f} mm ({100 * sum(grown) / total:4.1f} %) '
+                         f'in {len(grown):5d}: {cause}')
+        return '\n'.join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--kind', choices=PILES, default='mixed')
@@ -59,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--substep', type=float, default=SolverSettings().max_substep,
                         help='solver.max_substep, s')
     parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--why', action='store_true',
+                        help='classify how the overlaps grew (see the module docstring)')
     args = parser.parse_args(argv)
     dt = 1.0 / args.rate
     bodies, state = make_pile(args.size, seed=args.seed, kind=args.kind)
@@ -69,6 +139,8 @@ def main(argv: list[str] | None = None) -> int:
                        if b.shape == 'sphere' else 0.0 for b in bodies])
     steps = int(round(args.seconds * args.rate))
     every = max(1, int(round(args.every * args.rate)))
+    why = Why(Detection(world.specs, SolverSettings(sleeping=False, speculative_margin=WIDE)),
+              world.settings.speculative_margin, state) if args.why else None
     asleep_at, times, rows, sweeps = None, [], [], []
     for k in range(steps):
         current = integrate(state, dynamic, dt)
@@ -78,6 +150,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(world.timing['rows'])
         sweeps.append(world.timing['iterations'])
         state = result.states
+        if why is not None:
+            why.step(result)
         if asleep_at is None and result.sleeping[dynamic].all():
             asleep_at = (k + 1) * dt
         if (k + 1) % every == 0:
@@ -90,6 +164,8 @@ def main(argv: list[str] | None = None) -> int:
                   f'ms, asleep {int(result.sleeping[dynamic].sum())}', flush=True)
     print(f'{args.kind} {args.size} at {args.rate:g} Hz, max_substep {args.substep:g} s: '
           f'asleep after {asleep_at if asleep_at is None else round(asleep_at, 2)} s')
+    if why is not None:
+        print(why.table())
     return 0
 
 

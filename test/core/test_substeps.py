@@ -13,9 +13,10 @@ With the default settings:
   (the old core, one solve per step: the column fell 678 mm);
 * a body the solve does not touch ends the step at its input, bit for bit.
 
-(The mixed pile at 30 Hz still does not rest: its depth comes from pairs that fall into
-each other from beyond the speculative margin within one step, which a solve of the
-step's detected contacts cannot see; towers: test_stacks.py.)
+(The mixed pile at 30 Hz still does not rest: most of its depth grows at impacts, the
+pair's own or a third body's, and 1 % of it (200 bodies; 14 % at 1000) in pairs
+detection gave no contact (``bench/bench_rest.py --why``; test_fast_approach.py);
+towers: test_stacks.py.)
 """
 
 from __future__ import annotations

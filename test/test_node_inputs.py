@@ -46,6 +46,25 @@ def at_rest(stamp):
     return msg
 
 
+def both_sides_matched(node, peer):
+    """Every input matched on both sides (the peer's publisher has the node's subscription
+    and the node's subscription has the peer's publisher: a message sent before the reader
+    matched the writer can be lost), the node's answer matched both ways, and the node's
+    participant has discovered the per-body answer's reader (its publisher is made at the
+    first per-body step and matches the readers its participant knows then)."""
+    per_body = node.per_body_inputs
+    return (all(peer.connected(t) for t in peer.publishers)
+            and node._inputs[0].get_publisher_count() > 0
+            and per_body.ready.is_set()
+            and all(s.get_publisher_count() > 0 for s in per_body.node.subscriptions
+                    if s.topic_name.split('/')[2] in ('ball', 'box'))
+            and node._publisher('body_states/corrected',
+                                BodyStateArray).get_subscription_count() > 0
+            and all(s.get_publisher_count() > 0 for s in peer.node.subscriptions
+                    if s.topic_name == '/body_states/corrected')
+            and node.count_subscribers('bodies/ball/pose/corrected') > 0)
+
+
 def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
     """No executor spins this node (as when it is busy with a parameter change or a
     service): every body_states step and every per-body step is still answered."""
@@ -57,7 +76,7 @@ def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
         for name in ('ball', 'box'):
             peer.advertise(f'bodies/{name}/pose', PoseStamped)
             peer.advertise(f'bodies/{name}/twist', TwistStamped)
-        assert peer.wait(lambda: all(peer.connected(t) for t in peer.publishers), 30.0)
+        assert peer.wait(lambda: both_sides_matched(node, peer), 30.0)
         stamps = [T0 + k * DT for k in range(5)]
         for stamp in stamps:
             peer.publish('body_states', at_rest(stamp))

@@ -504,17 +504,28 @@ def _timings(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> dict[
     return {k: v / total for k, v in sums.items()} if total else {}
 
 
+def node_env(variant: str) -> dict[str, str]:
+    """The environment one ``--node-env`` variant adds to the node's process: 'default'
+    (nothing), or ``NAME=VALUE[,NAME=VALUE...]``."""
+    if variant == 'default':
+        return {}
+    return dict(item.split('=', 1) for item in variant.split(','))
+
+
 def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
-            server: str, mode: str, sleeping: str = 'on') -> dict[str, Any]:
-    """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo')."""
+            server: str, mode: str, sleeping: str = 'on',
+            variant: str = 'default') -> dict[str, Any]:
+    """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo'; the
+    node's process with the environment of ``variant``, see ``node_env``)."""
     scene, data = workdir / f'pile{count}_{sleeping}.yaml', workdir / f'input{count}.cdr'
     env = ros_env(args.domain)
     if server == 'node':
+        env.update(node_env(variant))
         command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
                    '--params-file', str(scene)]
     else:
         command = [sys.executable, __file__, '--role', 'echo', '--domain', str(args.domain)]
-    tag = f'{server}{count}{mode}{sleeping}'
+    tag = f'{server}{count}{mode}{sleeping}_{time.monotonic_ns()}'
     begin = time.monotonic()
     with open(workdir / f'{tag}.log', 'wb') as log:
         node = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT,
@@ -557,7 +568,8 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
     last = listener.diagnostics[-1][1] if listener.diagnostics else {}
     asleep = last.get('sleeping_bodies', '-')
     behind = last.get('outputs_skipped_behind', '-')
-    return {'server': server, 'mode': mode, 'bodies': count, 'rate': rate,
+    return {'server': server if variant == 'default' else f'{server} {variant}', 'mode': mode,
+            'bodies': count, 'rate': rate,
             'sleeping': sleeping if server == 'node' else '-', 'asleep': asleep,
             'startup_s': startup, 'lockstep': result['lockstep'], 'sent': len(sent),
             'answered': len(latencies), 'dropped': len(sent) - len(latencies), 'behind': behind,
@@ -663,6 +675,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--no-echo', action='store_true', help='skip the echo floor')
     parser.add_argument('--sleeping', nargs='+', default=['on'], choices=('on', 'off'),
                         help='solver.sleeping of the node (see the docstring)')
+    parser.add_argument('--node-env', nargs='+', default=['default'], dest='variants',
+                        metavar='VARIANT',
+                        help="the node's runs once per variant, interleaved: 'default' (the "
+                        "environment as it is) or NAME=VALUE[,NAME=VALUE...] added to the "
+                        "node's process only (e.g. RMW_FASTRTPS_PUBLICATION_MODE=SYNCHRONOUS)")
+    parser.add_argument('--repeat', type=int, default=1,
+                        help='runs of each (mode, sleeping, variant), interleaved')
     parser.add_argument('--json', help='also write the rows here')
     parser.add_argument('--start-only', type=int, default=0, metavar='RUNS',
                         help="only the node's start-up: RUNS first answers per size")
@@ -700,10 +719,12 @@ def main(argv: list[str] | None = None) -> int:
         for count, rate in zip(args.sizes, rates):
             prepare(count, rate, args, Path(tmp))
             start = first_answer(count, args, Path(tmp))[0]
-            runs = ([] if args.no_echo else [('echo', 'estimator', 'on')]) + \
-                [('node', mode, flag) for mode in args.modes for flag in args.sleeping]
-            for server, mode, flag in runs:
-                r = measure(count, rate, args, Path(tmp), server, mode, flag)
+            runs = ([] if args.no_echo else [('echo', 'estimator', 'on', 'default')]) + \
+                [('node', mode, flag, variant) for mode in args.modes
+                 for flag in args.sleeping for _ in range(args.repeat)
+                 for variant in args.variants]
+            for server, mode, flag, variant in runs:
+                r = measure(count, rate, args, Path(tmp), server, mode, flag, variant)
                 r['in_process_ms'] = in_process(
                     count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml', r['stepped'],
                     r['answered'])

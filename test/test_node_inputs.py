@@ -4,6 +4,7 @@ and what its start built is out of the garbage collector's passes (``ros/inputs.
 from __future__ import annotations
 
 import gc
+import time
 
 import pytest
 import rclpy
@@ -182,13 +183,19 @@ def test_steps_answered_while_a_newer_input_waits_skip_only_their_markers(node, 
             for stamp in stamps:
                 peer.publish('body_states', at_rest(stamp))
             assert peer.publishers['body_states'].wait_for_all_acked(Duration(seconds=20))
+            acked = time.time_ns()   # every input was received by the node's DDS before this
+            released = time.time_ns()   # and taken after this
         assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
                                   peer.messages('body_states/corrected')} >= set(stamps), 20.0)
         assert peer.wait(lambda: len(peer.messages('contacts')) >= 10, 20.0)
         assert peer.wait(lambda: len(peer.messages('contact_markers')) >= 1, 20.0)
         with node._lock:
             assert node.skipped_behind == 9
-            assert node.snapshot().extra['outputs_skipped_behind'] == 9
+            extra = node.snapshot().extra
+            assert extra['outputs_skipped_behind'] == 9
+        # every input waited from its reception (before ``acked``) past the lock's release
+        assert float(extra['queued_max_ms']) >= (released - acked) / 1e6
+        assert float(extra['queued_max_ms']) >= float(extra['time.queued_ms']) > 0.0
         assert [stamp_ns(m.header.stamp) for m in peer.messages('contacts')] == stamps
         markers = peer.messages('contact_markers')
         assert len(markers) == 1 and markers[0].markers

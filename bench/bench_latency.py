@@ -527,8 +527,8 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
     node's process with the environment of ``variant``, see ``node_env``)."""
     scene, data = workdir / f'pile{count}_{sleeping}.yaml', workdir / f'input{count}.cdr'
     env = ros_env(args.domain)
+    server_env = dict(env, **node_env(variant)) if server == 'node' else env   # its own only
     if server == 'node':
-        env.update(node_env(variant))
         command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
                    '--params-file', str(scene)]
     else:
@@ -536,7 +536,7 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
     tag = f'{server}{count}{mode}{sleeping}_{time.monotonic_ns()}'
     begin = time.monotonic()
     with open(workdir / f'{tag}.log', 'wb') as log:
-        node = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT,
+        node = subprocess.Popen(command, env=server_env, stdout=log, stderr=subprocess.STDOUT,
                                 start_new_session=True)
     listener = Listener(args.domain)
     out = workdir / f'sent{tag}.json'

@@ -86,8 +86,8 @@ from pile import integrate, make_pile  # noqa: E402
 SETTLE_DT = 1.0 / 120.0
 T0 = 1_000_000_000_000   # first stamp, ns
 PROBE_PERIOD = 0.02      # s between the start probe's inputs (``first_answer``)
-TIMING_KEYS = ('time.decode_ms', 'time.resolve_ms', 'time.world_ms', 'time.world_cpu_ms',
-               'time.encode_ms',
+TIMING_KEYS = ('time.queued_ms', 'time.decode_ms', 'time.resolve_ms', 'time.world_ms',
+               'time.world_cpu_ms', 'time.encode_ms',
                'time.publish_ms', 'callback_time_mean_ms', 'step_time_mean_ms',
                'answer_time_mean_ms')
 
@@ -368,9 +368,14 @@ class Listener:
         self.arrived: dict[int, int] = {}
         self.counts = {'contacts': 0, 'contact_markers': 0}
         self.diagnostics: list[tuple[int, dict[str, str]]] = []
+        from collres_ros.ros.inputs import InputServer, ServedElsewhere
+        # body_states/corrected: taken by a thread of its own (as the node takes its inputs),
+        # not by the executor that runs the other callbacks (contacts, markers: their Python
+        # callbacks, in the executor's thread, delayed answers by up to ~1 ms at 240 Hz)
         self.subscriptions = [
             self.node.create_subscription(BodyStateArray, 'body_states/corrected',
-                                          self._corrected, qos, raw=True),
+                                          self._corrected, qos, raw=True,
+                                          callback_group=ServedElsewhere()),
             self.node.create_subscription(ContactArray, 'contacts',
                                           lambda d: self._count('contacts'), qos, raw=True),
             self.node.create_subscription(MarkerArray, 'contact_markers',
@@ -380,6 +385,8 @@ class Listener:
                                           10)]
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self.server = InputServer(self.node, 'collres_bench_answers', lambda: [
+            (self.subscriptions[0], self._corrected)]).start()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
 
@@ -389,7 +396,7 @@ class Listener:
         except Exception:
             pass
 
-    def _corrected(self, data: bytes) -> None:
+    def _corrected(self, data: bytes, info: Any = None) -> None:
         self.arrived.setdefault(stamp_of(data), time.monotonic_ns())
 
     def _count(self, topic: str) -> None:
@@ -408,6 +415,7 @@ class Listener:
 
     def close(self) -> None:
         import rclpy
+        self.server.close()
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
@@ -504,20 +512,31 @@ def _timings(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> dict[
     return {k: v / total for k, v in sums.items()} if total else {}
 
 
+def node_env(variant: str) -> dict[str, str]:
+    """The environment one ``--node-env`` variant adds to the node's process: 'default'
+    (nothing), or ``NAME=VALUE[,NAME=VALUE...]``."""
+    if variant == 'default':
+        return {}
+    return dict(item.split('=', 1) for item in variant.split(','))
+
+
 def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
-            server: str, mode: str, sleeping: str = 'on') -> dict[str, Any]:
-    """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo')."""
+            server: str, mode: str, sleeping: str = 'on',
+            variant: str = 'default') -> dict[str, Any]:
+    """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo'; the
+    node's process with the environment of ``variant``, see ``node_env``)."""
     scene, data = workdir / f'pile{count}_{sleeping}.yaml', workdir / f'input{count}.cdr'
     env = ros_env(args.domain)
+    server_env = dict(env, **node_env(variant)) if server == 'node' else env   # its own only
     if server == 'node':
         command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
                    '--params-file', str(scene)]
     else:
         command = [sys.executable, __file__, '--role', 'echo', '--domain', str(args.domain)]
-    tag = f'{server}{count}{mode}{sleeping}'
+    tag = f'{server}{count}{mode}{sleeping}_{time.monotonic_ns()}'
     begin = time.monotonic()
     with open(workdir / f'{tag}.log', 'wb') as log:
-        node = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT,
+        node = subprocess.Popen(command, env=server_env, stdout=log, stderr=subprocess.STDOUT,
                                 start_new_session=True)
     listener = Listener(args.domain)
     out = workdir / f'sent{tag}.json'
@@ -555,9 +574,12 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
                  if s in listener.arrived]
     warm = latencies[len(latencies) // 10:] or latencies
     last = listener.diagnostics[-1][1] if listener.diagnostics else {}
+    queued_max = max((float(v['queued_max_ms']) for t, v in listener.diagnostics
+                      if t >= paced_from and 'queued_max_ms' in v), default=float('nan'))
     asleep = last.get('sleeping_bodies', '-')
     behind = last.get('outputs_skipped_behind', '-')
-    return {'server': server, 'mode': mode, 'bodies': count, 'rate': rate,
+    return {'server': server if variant == 'default' else f'{server} {variant}', 'mode': mode,
+            'bodies': count, 'rate': rate,
             'sleeping': sleeping if server == 'node' else '-', 'asleep': asleep,
             'startup_s': startup, 'lockstep': result['lockstep'], 'sent': len(sent),
             'answered': len(latencies), 'dropped': len(sent) - len(latencies), 'behind': behind,
@@ -566,7 +588,7 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
             'send_ms': result.get('send_ms', [float('nan')] * 2),
             'contacts_msgs': listener.counts['contacts'],
             'markers_msgs': listener.counts['contact_markers'],
-            'timings': timings, 'lock_timings': lock_timings,
+            'timings': timings, 'lock_timings': lock_timings, 'queued_max_ms': queued_max,
             # the node's steps: every input it answered, in order, with the answer it was
             # built from (an input lost in the node's queue was never stepped)
             'stepped': [(s, base) for s, base in result['inputs'] if s in listener.arrived]}
@@ -629,6 +651,8 @@ def in_process(count: int, rate: float, mode: str, scene: Path,
             if paced and k >= len(stepped) - last:   # the measured steps, one per period
                 time.sleep(max(0.0, period - (time.perf_counter() - begun)))
             begun = time.perf_counter()
+            if base not in answers:   # built from an answer this process did not receive
+                return float('nan'), float('nan')
             decoded = inputs.codec.decode(inputs.from_answer(stamp, answers[base]))
             for old in [s for s in answers if s < base]:   # bases only grow
                 del answers[old]
@@ -663,6 +687,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--no-echo', action='store_true', help='skip the echo floor')
     parser.add_argument('--sleeping', nargs='+', default=['on'], choices=('on', 'off'),
                         help='solver.sleeping of the node (see the docstring)')
+    parser.add_argument('--node-env', nargs='+', default=['default'], dest='variants',
+                        metavar='VARIANT',
+                        help="the node's runs once per variant, interleaved: 'default' (the "
+                        "environment as it is) or NAME=VALUE[,NAME=VALUE...] added to the "
+                        "node's process only (e.g. RMW_FASTRTPS_PUBLICATION_MODE=SYNCHRONOUS)")
+    parser.add_argument('--repeat', type=int, default=1,
+                        help='runs of each (mode, sleeping, variant), interleaved')
     parser.add_argument('--json', help='also write the rows here')
     parser.add_argument('--start-only', type=int, default=0, metavar='RUNS',
                         help="only the node's start-up: RUNS first answers per size")
@@ -693,17 +724,19 @@ def main(argv: list[str] | None = None) -> int:
           'callback ms | '
           'decode | resolve | World.step wall / CPU (in-process wall / CPU; paced CPU) | '
           'answer ms | '
-          'encode | publish | overhead ms |')
-    print('|---' * 21 + '|')
+          'encode | publish | overhead ms | queued mean / max ms |')
+    print('|---' * 22 + '|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         for count, rate in zip(args.sizes, rates):
             prepare(count, rate, args, Path(tmp))
             start = first_answer(count, args, Path(tmp))[0]
-            runs = ([] if args.no_echo else [('echo', 'estimator', 'on')]) + \
-                [('node', mode, flag) for mode in args.modes for flag in args.sleeping]
-            for server, mode, flag in runs:
-                r = measure(count, rate, args, Path(tmp), server, mode, flag)
+            runs = ([] if args.no_echo else [('echo', 'estimator', 'on', 'default')]) + \
+                [('node', mode, flag, variant) for mode in args.modes
+                 for flag in args.sleeping for _ in range(args.repeat)
+                 for variant in args.variants]
+            for server, mode, flag, variant in runs:
+                r = measure(count, rate, args, Path(tmp), server, mode, flag, variant)
                 r['in_process_ms'] = in_process(
                     count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml', r['stepped'],
                     r['answered'])
@@ -723,7 +756,9 @@ def main(argv: list[str] | None = None) -> int:
           '(median, thread CPU time beside; paced CPU: the same steps one per period, the CPU '
           "a step pays after other work, the node's reference, see in_process); "
           'answer: callback start to body_states/corrected published (the other outputs '
-          'follow: encode, publish); overhead = answer - World.step')
+          'follow: encode, publish); overhead = answer - World.step; queued: a body_states '
+          "input's wait from its reception by the node's DDS to its callback (the node's "
+          "time.queued_ms, mean, and the largest queued_max_ms of the paced run)")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1, default=str))
     return 0
@@ -747,7 +782,8 @@ def _print_row(r: dict[str, Any]) -> None:
           f'{_f(t, "answer_time_mean_ms")} | '
           f'{_f(t, "time.encode_ms")} | '
           f'{_f(t, "time.publish_ms")} | '
-          f'{"n/a" if overhead is None else f"{overhead:.2f}"} |', flush=True)
+          f'{"n/a" if overhead is None else f"{overhead:.2f}"} | '
+          f'{_f(t, "time.queued_ms")} / {r["queued_max_ms"]:.2f} |', flush=True)
 
 
 if __name__ == '__main__':

@@ -13,7 +13,8 @@ from __future__ import annotations
 import pytest
 from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
-from ros_harness import Peer, write_scene
+from diagnostic_msgs.msg import DiagnosticArray
+from ros_harness import Peer, node_publishers, write_scene
 
 from collres_ros.msg import BodyStateArray
 from collres_ros.ros import processes
@@ -61,15 +62,26 @@ def test_the_managed_node_answers_only_while_active(ros_domain, tmp_path):
         assert state() == State.PRIMARY_STATE_UNCONFIGURED
         assert publishers('/body_states/corrected') == 0
         peer.listen('body_states/corrected', BodyStateArray)
+        peer.listen('/diagnostics', DiagnosticArray)   # last: see ros_harness.node_and_peer
         peer.advertise('body_states', BodyStateArray)
+
+        def matched(active=True):
+            """Both sides of every match: the peer's publisher has the node's subscription,
+            the peer's reader the node's answer, and (``active``: an inactive node reports
+            nothing) the node's subscription the peer's publisher (its last /diagnostics
+            report; a step sent before can be lost)."""
+            return peer.connected('body_states') and any(
+                s.get_publisher_count() for s in peer.node.subscriptions
+                if s.topic_name == '/body_states/corrected') and (
+                    not active or node_publishers(peer) >= 1)
 
         transition(Transition.TRANSITION_CONFIGURE)
         assert state() == State.PRIMARY_STATE_INACTIVE
-        assert peer.wait(lambda: peer.connected('body_states')
-                         and publishers('/body_states/corrected') > 0, 30.0), node.output()
+        assert peer.wait(lambda: matched(active=False), 30.0), node.output()
         step(T0)                                   # inactive: dropped
         transition(Transition.TRANSITION_ACTIVATE)
         assert state() == State.PRIMARY_STATE_ACTIVE
+        assert peer.wait(matched, 30.0), node.output()
         step(T0 + DT)
         assert peer.wait(lambda: answered(T0 + DT), 10.0), f'no answer while active: ' \
                                                            f'{node.output()}'
@@ -88,9 +100,11 @@ def test_the_managed_node_answers_only_while_active(ros_domain, tmp_path):
         assert peer.wait(lambda: publishers('/body_states/corrected') == 0
                          and not peer.connected('body_states'), 20.0), 'cleanup kept topics'
 
+        with peer.lock:   # the reports of the first configuration
+            peer.received.pop('/diagnostics', None)
         transition(Transition.TRANSITION_CONFIGURE)
         transition(Transition.TRANSITION_ACTIVATE)
-        assert peer.wait(lambda: peer.connected('body_states'), 30.0)
+        assert peer.wait(matched, 30.0), node.output()
         step(T0 + 4 * DT)
         assert peer.wait(lambda: answered(T0 + 4 * DT), 10.0), node.output()
         print('answered', sorted((stamp_ns(m.header.stamp) - T0) // DT

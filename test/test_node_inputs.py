@@ -4,6 +4,7 @@ and what its start built is out of the garbage collector's passes (``ros/inputs.
 from __future__ import annotations
 
 import gc
+import time
 
 import pytest
 import rclpy
@@ -46,6 +47,25 @@ def at_rest(stamp):
     return msg
 
 
+def both_sides_matched(node, peer):
+    """Every input matched on both sides (the peer's publisher has the node's subscription
+    and the node's subscription has the peer's publisher: a message sent before the reader
+    matched the writer can be lost), the node's answer matched both ways, and the node's
+    participant has discovered the per-body answer's reader (its publisher is made at the
+    first per-body step and matches the readers its participant knows then)."""
+    per_body = node.per_body_inputs
+    return (all(peer.connected(t) for t in peer.publishers)
+            and node._inputs[0].get_publisher_count() > 0
+            and per_body.ready.is_set()
+            and all(s.get_publisher_count() > 0 for s in per_body.node.subscriptions
+                    if s.topic_name.split('/')[2] in ('ball', 'box'))
+            and node._publisher('body_states/corrected',
+                                BodyStateArray).get_subscription_count() > 0
+            and all(s.get_publisher_count() > 0 for s in peer.node.subscriptions
+                    if s.topic_name == '/body_states/corrected')
+            and node.count_subscribers('bodies/ball/pose/corrected') > 0)
+
+
 def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
     """No executor spins this node (as when it is busy with a parameter change or a
     service): every body_states step and every per-body step is still answered."""
@@ -57,7 +77,7 @@ def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
         for name in ('ball', 'box'):
             peer.advertise(f'bodies/{name}/pose', PoseStamped)
             peer.advertise(f'bodies/{name}/twist', TwistStamped)
-        assert peer.wait(lambda: all(peer.connected(t) for t in peer.publishers), 30.0)
+        assert peer.wait(lambda: both_sides_matched(node, peer), 30.0)
         stamps = [T0 + k * DT for k in range(5)]
         for stamp in stamps:
             peer.publish('body_states', at_rest(stamp))
@@ -163,13 +183,19 @@ def test_steps_answered_while_a_newer_input_waits_skip_only_their_markers(node, 
             for stamp in stamps:
                 peer.publish('body_states', at_rest(stamp))
             assert peer.publishers['body_states'].wait_for_all_acked(Duration(seconds=20))
+            acked = time.time_ns()   # every input was received by the node's DDS before this
+            released = time.time_ns()   # and taken after this
         assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
                                   peer.messages('body_states/corrected')} >= set(stamps), 20.0)
         assert peer.wait(lambda: len(peer.messages('contacts')) >= 10, 20.0)
         assert peer.wait(lambda: len(peer.messages('contact_markers')) >= 1, 20.0)
         with node._lock:
             assert node.skipped_behind == 9
-            assert node.snapshot().extra['outputs_skipped_behind'] == 9
+            extra = node.snapshot().extra
+            assert extra['outputs_skipped_behind'] == 9
+        # every input waited from its reception (before ``acked``) past the lock's release
+        assert float(extra['queued_max_ms']) >= (released - acked) / 1e6
+        assert float(extra['queued_max_ms']) >= float(extra['time.queued_ms']) > 0.0
         assert [stamp_ns(m.header.stamp) for m in peer.messages('contacts')] == stamps
         markers = peer.messages('contact_markers')
         assert len(markers) == 1 and markers[0].markers

@@ -41,7 +41,10 @@ as bytes built by ``messages.OutputEncoder``, the answer
 reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
 ``time.world_ms``, ``time.world_cpu_ms``: the thread's CPU time in it,
 ``answer_time_mean_ms``: to the answer published, then
-``time.encode_ms``, ``time.publish_ms``: the other outputs). Behind (a newer ``body_states``
+``time.encode_ms``, ``time.publish_ms``: the other outputs) and how long a ``body_states``
+input waited between its reception by the DDS and its callback (``time.queued_ms``, mean,
+``queued_max_ms``: a thread that waited for a core, for the lock or for the step before).
+Behind (a newer ``body_states``
 input waits when a step is answered), that step's markers are skipped and counted
 (``outputs_skipped_behind``); its answer, contacts, wrenches and ``/tf`` are always
 published: every input is answered, no contact event is lost, the node catches up sooner.
@@ -358,6 +361,13 @@ class CollresNode(Node):
         if not self.serves(info):
             return
         start = time.perf_counter()
+        received = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
+        if received > 0:   # from its reception by the DDS to its callback: waited, ns
+            waited = time.time_ns() - received
+            w = self._window
+            w['queued'] += waited * 1e-9
+            w['queued_max'] = max(w['queued_max'], waited * 1e-9)
+            w['queued_inputs'] += 1
         self.losses.count(names.STATES, info, self._inputs[0].get_publisher_count())
         try:
             decoded = self.states_codec.decode(data)
@@ -559,6 +569,8 @@ class CollresNode(Node):
                    'outputs_skipped_behind': self.skipped_behind,
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
                    'answer_time_mean_ms': mean('answer'),
+                   'time.queued_ms': f'{1e3 * w["queued"] / max(w["queued_inputs"], 1):.3f}',
+                   'queued_max_ms': f'{1e3 * w["queued_max"]:.3f}',
                    **{f'time.{key}_ms': mean(key) for key in TIMED},
                    **sleep_values(self.resolver)})
         self._window = self._new_window(now)
@@ -568,7 +580,7 @@ class CollresNode(Node):
     def _new_window(since: float) -> dict[str, float]:
         """Counters of one diagnostics period: steps, step times, callback parts (s)."""
         return {'steps': 0, 'time': 0.0, 'max': 0.0, 'callback': 0.0, 'answer': 0.0,
-                'since': since,
+                'since': since, 'queued': 0.0, 'queued_max': 0.0, 'queued_inputs': 0,
                 **{key: 0.0 for key in TIMED}}
 
     def _publish_diagnostics(self) -> None:

@@ -137,6 +137,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   touched_.assign(n, 0);
   impacted_.assign(n, 0);
   rested_.assign(n, 0);
+  supported_.assign(n, 0);
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);   // IMPACT or TUNNELLED
@@ -158,9 +159,52 @@ void StepSolver::reference_frame(StepContext& ctx) {
     touching_[k] = !detected && gap_[k] <= slop &&
                    normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -sticking;
     if (touching_[k]) rested_[a] = rested_[b] = 1;
+    if (!detected && gap_[k] <= slop &&
+        normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -threshold)
+      supported_[a] = supported_[b] = 1;
     touched_[a] = touched_[b] = 1;
   }
   for (int64_t i = 0; i < n; ++i) rested_[i] = rested_[i] && bodies.movable[i] != 0;
+  // a supported body (resting on something from the start) is held by its supports until
+  // an impact: its path over the step is its previous twist (x0 + s dt then, less any
+  // approach into what holds it, below), not the one
+  // its source integrated under the step's external change (through its supports, g dt^2
+  // at a step of 1/30 s: 11 mm); drift_: how much more a contact's separation grows over
+  // the step on the held paths than on the integrated ones (m, 0 without a supported
+  // body), and path_ the twists the bodies move with (supported: previous)
+  for (int64_t i = 0; i < n; ++i) supported_[i] = supported_[i] && bodies.movable[i] != 0;
+  path_.resize(6 * n);
+  for (int64_t i = 0; i < 6 * n; ++i)
+    path_[i] = supported_[i / 6] ? then_[i] : now_[i];
+  // held: a supported body does not move into what holds it (along the normal), a
+  // movable support taken as held still, an immovable or free one as it moves
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    const Vec3 normal = load3(c.normal + 3 * k);
+    if (!persistent(c.kind[k]) || gap_[k] > slop ||
+        normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) < -threshold)
+      continue;
+    for (const int64_t i : {a, b}) {
+      if (!supported_[i]) continue;
+      const int64_t other = i == a ? b : a;
+      const Vec3 into = i == b ? normal : Vec3(-normal);   // from the support to i
+      const Vec3 held = supported_[other] ? Vec3::Zero() : load3(path_.data() + 6 * other);
+      const double approach = dot(load3(path_.data() + 6 * i) - held, into);
+      if (approach < 0.0)
+        store3(path_.data() + 6 * i, load3(path_.data() + 6 * i) - approach * into);
+    }
+  }
+  drift_.assign(m, 0.0);
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    if (!supported_[a] && !supported_[b]) continue;
+    auto held = [&](int64_t i, const Vec3& r) {
+      if (!supported_[i]) return Vec3(Vec3::Zero());
+      return Vec3(travelled(previous, current, now_.data(), i, r, dt) -
+                  dt * (load3(path_.data() + 6 * i) + cross(load3(path_.data() + 6 * i + 3), r)));
+    };
+    drift_[k] = dot(held(a, ra_[k]) - held(b, rb_[k]), load3(c.normal + 3 * k));
+  }
   // the step's load: the momentum its external change gives each movable body (N s), and
   // its sum over the bodies in contact that had a load last step too, then and now
   load_.assign(n, 0.0);
@@ -180,12 +224,30 @@ void StepSolver::reference_frame(StepContext& ctx) {
     const bool detected = !persistent(c.kind[k]);
     const Vec3 normal = load3(c.normal + 3 * k);
     const double v_in = normal_speed(now_.data(), a, b, ra_[k], rb_[k], normal);
-    // a persistent contact that closes within the step faster than the threshold
-    bool closing = !detected && !touching_[k] && gap_[k] > 0.0 && c.separation[k] < 0.0 &&
+    // a persistent contact that closes within the step faster than the threshold (on the
+    // held paths: its separation at the end is drift_ more than detection's)
+    const double end = c.separation[k] + drift_[k];
+    bool closing = !detected && !touching_[k] && gap_[k] > 0.0 && end < 0.0 &&
                    v_in < -threshold;
     bool impact = detected || closing;
     double toi = detected ? c.toi[k] : 0.0;
-    if (closing) toi = gap_[k] / std::max(gap_[k] - c.separation[k], 1e-300);
+    if (closing) toi = gap_[k] / std::max(gap_[k] - end, 1e-300);
+    // a detected impact of a supported body: the time its rows reach their separation at
+    // detection's time of impact f on the held paths, f closed / (closed + drift) (its
+    // points close by closed over the step on the integrated paths); none within the step
+    // there: a persistent contact from the start, its gap then the one at the time of
+    // impact less what closed before it
+    if (detected && drift_[k] != 0.0) {
+      const double closed = allowance_[k], held = closed + drift_[k];
+      const double at = closed < 0.0 && held < 0.0 ? toi * closed / held : 2.0;
+      if (at > 1.0) {
+        gap_[k] = std::max(c.separation[k], 0.0) - toi * closed;
+        impact = false;
+        toi = 0.0;
+      } else {
+        toi = at;
+      }
+    }
     // a body resting on something from the start meets no impact that only the step's
     // external change brings (at the start its pair approached slower than the
     // threshold): after dropped inputs its source integrated it through its supports
@@ -194,7 +256,8 @@ void StepSolver::reference_frame(StepContext& ctx) {
         normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -threshold) {
       // a detected impact's rows touch (its corners: their separation) at the time of
       // impact, and closed by toi of the step's closing before
-      if (detected) gap_[k] = std::max(c.separation[k], 0.0) - toi * allowance_[k];
+      if (detected)
+        gap_[k] = std::max(c.separation[k], 0.0) - toi * (allowance_[k] + drift_[k]);
       impact = closing = false;
       toi = 0.0;
     }
@@ -219,11 +282,14 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // pre-solve velocity: at the time of impact for impacted bodies (the twist of a
     // state is the velocity over the step that led to it, at mid-step); for a body
     // touching something from the start, its previous twist (what it did while in
-    // contact: the step's external change is carried by the resting solve, to_travel);
-    // else current
+    // contact: the step's external change is carried by the resting solve, to_travel),
+    // also at its time of impact (held by its supports until then); else current
     for (int d = 0; d < 6; ++d) {
       double now = now_[6 * i + d], then = then_[6 * i + d], external = now - then;
-      velocity_[6 * i + d] = impacted_[i] ? now + (f - 0.5) * external : rested_[i] ? then : now;
+      velocity_[6 * i + d] = impacted_[i] ? (supported_[i] ? path_[6 * i + d]
+                                                           : now + (f - 0.5) * external)
+                             : rested_[i] ? then
+                                          : now;
     }
   }
   // speculative allowance: the gap at the later of the two bodies' reference times
@@ -234,7 +300,8 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // an impact's own rows touch at its time of impact; its speculative corners (detected
     // impact rows with a positive separation) are that far from touching then
     gap_[k] = impact_[k] ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
-                         : gap_[k] + closed * later;   // (a demoted impact: from the start)
+                         : gap_[k] + (closed + drift_[k]) * later;   // (a demoted impact:
+                                                                     // from the start)
     remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
     span_[k] = remaining;
     allowance_[k] = std::max(gap_[k], 0.0) / remaining;
@@ -660,9 +727,13 @@ void StepSolver::advance(StepContext& ctx) {
     }
     store3(out.linear + 3 * i, load3(end));
     store3(out.angular + 3 * i, load3(end + 3));
-    Vec3 start = x0 + f * (load3(current.position + 3 * i) - x0);
+    // (a supported body from its pose at f on its held path: its previous twist)
+    const double* held = path_.data() + 6 * i;
+    Vec3 start = supported_[i] ? Vec3(x0 + f * dt * load3(held))
+                               : Vec3(x0 + f * (load3(current.position + 3 * i) - x0));
     store3(out.position + 3 * i, start + tau * load3(mean));
-    Quat turned = slerp(q0, load4(current.orientation + 4 * i), f);
+    Quat turned = supported_[i] ? integrate(q0, load3(held + 3), f * dt)
+                                : slerp(q0, load4(current.orientation + 4 * i), f);
     store4(out.orientation + 4 * i, integrate(turned, load3(mean + 3), tau));
   }
 }

@@ -16,7 +16,12 @@
 //    sticking speed) touches from the start, and its movable bodies rest (rested). A
 //    body with an impact (IMPACT/TUNNELLED contact, or a persistent contact that closes
 //    faster than the restitution threshold during the step) is rewound to its earliest
-//    time of impact f and solved with the velocity it had then, except an impact of a
+//    time of impact f and solved with the velocity it had then (a supported body, one
+//    touching something from the start and approaching it then slower than the
+//    threshold, along its held path: its previous twist less any approach into what it
+//    touches, not the path its source integrated through its supports; its impacts are
+//    timed against that path, and one that does not close on it is a persistent contact
+//    from the start), except an impact of a
 //    rested body that its pair's previous twists do not make (slower than the
 //    threshold: only the step's external change brought it, as when the source integrated
 //    a resting pile through its supports), which is a persistent contact from the start
@@ -232,11 +237,16 @@ class StepSolver {
   std::vector<double> fraction_;     // (N,) reference fraction of the step
   std::vector<uint8_t> touched_, impacted_;
   std::vector<uint8_t> rested_;      // (N,) touching something from the start, no impact
+  std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
+                                     // until an impact: moves with its previous twist)
+  std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)
   std::vector<uint8_t> touching_;    // (M,) persistent, within the slop at the previous state
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
+  std::vector<double> drift_;        // m: how much more the separation grows over the step
+                                     // on the held paths than on the integrated ones
   std::vector<double> span_;         // s: the time a row's allowance spans (> 0)
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row

@@ -65,3 +65,35 @@ def test_a_column_dropped_apart_lands_without_sinking_into_itself(rate: float) -
     # landed: a column, each cube one edge above the one below (within the overlap allowed)
     assert np.allclose(np.diff(heights), SIZE, atol=OVERLAP)
     assert deepest < OVERLAP
+
+
+@pytest.mark.parametrize('rate', [30.0, 120.0])
+@pytest.mark.parametrize('gap', [0.045, 0.057, 0.065])   # m: the impact at 0.35-0.95 of a step
+def test_a_box_sliding_on_a_floor_strikes_a_box_resting_there(rate: float, gap: float) -> None:
+    """Two equal boxes on a frictionless floor, one sliding at v0 into the other (e): the
+    struck box leaves at (1 + e) / 2 v0, the striker keeps (1 - e) / 2 v0, and neither
+    sinks into the floor nor rises from it. Both rest on the floor when they meet, so the
+    solve must not rewind them along the path their source integrated under gravity
+    (through the floor: 7-11 mm at 30 Hz): the hold-back against fixed shapes then held
+    them where they were, at rest, and the impact was lost (on b64680e both boxes stopped
+    dead, 0.00 m/s, at 30 and at 120 Hz)."""
+    e, v0 = 0.5, 1.0
+    floor = BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)
+    boxes = [box(name, (SIZE,) * 3, 1.0, e=e) for name in ('striker', 'struck')]
+    start = states([[0.0, 0.0, 0.0], [0.0, 0.0, SIZE / 2], [SIZE + gap, 0.0, SIZE / 2]],
+                   [[0.0, 0.0, 0.0], [v0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    sim = Simulation([floor] + boxes, start, rate, SolverSettings(sleeping=False))
+    struck, lowest, highest = False, SIZE, 0.0
+    for _ in range(int(round(0.4 * rate))):
+        contacts = sim.step().report.contacts
+        struck |= bool(((contacts.body_a == 1) & (contacts.body_b == 2)
+                        & (contacts.kind != ContactKind.PERSISTENT)).any())
+        lowest = min(lowest, float(sim.state.position[1:, 2].min()))
+        highest = max(highest, float(sim.state.position[1:, 2].max()))
+    after = sim.state.linear[1:, 0]
+    print(f'{rate:g} Hz, gap {gap * 1e3:.0f} mm: after {after.round(4)} m/s (law '
+          f'{(1 - e) / 2 * v0:.3f}, {(1 + e) / 2 * v0:.3f}); heights '
+          f'{(lowest - SIZE / 2) * 1e3:.3f} .. {(highest - SIZE / 2) * 1e3:.3f} mm')
+    assert struck
+    np.testing.assert_allclose(after, [(1 - e) / 2 * v0, (1 + e) / 2 * v0], atol=0.01 * v0)
+    assert lowest > SIZE / 2 - 5e-4 and highest < SIZE / 2 + 5e-4

@@ -30,7 +30,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Optional, Protocol, Sequence
 
 import numpy as np
 
@@ -39,7 +39,7 @@ from collres_ros.core.types import (
     BodyInput, BodySpec, BodyStates, CollisionFilter, ContactReport, InputBatch,
     Rejection)
 from collres_ros.core.validation import (
-    NO_STAMP, NameIndex, check_inputs, check_stamps, stale_bodies)
+    NO_STAMP, NameIndex, StampCheck, check_inputs, check_stamps, stale_bodies)
 
 if TYPE_CHECKING:
     from collres_ros.core.world import World
@@ -304,7 +304,8 @@ class Resolver:
                             else result.sleeping[rows] & ~bad,
                             number=self.number, unchanged=result.unchanged, values=values)
 
-    def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
+    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int
+                ) -> list[Rejection]:
         resets = []
         for k in np.flatnonzero(history.backwards):
             name = self.names[index[k]]

@@ -2,7 +2,9 @@
 
 ``Resolver`` is the one place that calls ``World.step``; the node, the offline
 sim and the replay tool all go through it, so they give the same answers.
-It keeps every body's last good (corrected) state and stamp, and:
+It keeps every body's last good (corrected) state and stamp, the states as one (N, 13)
+array of rows (position, orientation, linear, angular: the wire's order), so that a step's
+gathers, scatters and copies are one array operation each, whatever N; and it:
 
 * validates the inputs (``validation.check_inputs``); a refused body is held
   at its last good state (inactive: infinite mass this step) and reported;
@@ -28,7 +30,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Optional, Protocol, Sequence
 
 import numpy as np
 
@@ -37,7 +39,7 @@ from collres_ros.core.types import (
     BodyInput, BodySpec, BodyStates, CollisionFilter, ContactReport, InputBatch,
     Rejection)
 from collres_ros.core.validation import (
-    NO_STAMP, NameIndex, check_inputs, check_stamps, stale_bodies)
+    NO_STAMP, NameIndex, StampCheck, check_inputs, check_stamps, stale_bodies)
 
 if TYPE_CHECKING:
     from collres_ros.core.world import World
@@ -78,6 +80,9 @@ class ResolvedStep:
     number: int = 0                   # the resolver's steps so far, this one included
     # the report is step ``number - 1``'s, array for array (``StepResult.unchanged``)
     unchanged: bool = False
+    # (K, 13) the corrected states as rows (position, orientation, linear, angular: the
+    # wire's order); ``states`` are its column views
+    values: np.ndarray = field(default_factory=lambda: np.zeros((0, 13)))
 
     def contact_names(self, k: int) -> tuple[str, str]:
         """Body names (A, B) of contact ``k``."""
@@ -128,8 +133,9 @@ class Resolver:
             world = World(self.bodies, self._settings, collision_filter=collision_filter)
         self.world = world
         self.number = 0   # steps resolved (never reset: ``ResolvedStep.number``)
-        self._params_state = (initial if initial is not None
-                              else BodyStates.zeros(len(self.bodies))).copy()
+        # (N, 13) the params states as rows (position, orientation, linear, angular)
+        self._params_values = np.concatenate(_arrays(
+            initial if initial is not None else BodyStates.zeros(len(self.bodies))), axis=1)
         self.reset()
 
     @classmethod
@@ -139,6 +145,13 @@ class Resolver:
         return cls(scene.bodies, scene.solver, world=world, world_frame=scene.world_frame,
                    initial=scene.initial, stale_timeout=scene.node.stale_timeout,
                    collision_filter=scene.collision_filter)
+
+    @property
+    def state(self) -> BodyStates:
+        """Every body's last good (corrected) state, or its params state before its first
+        input: world frame, views of the resolver's (N, 13) rows (position, orientation,
+        linear, angular), read-only by contract."""
+        return _states(self._values)
 
     # --- runtime changes (take effect on the next step) -------------------------------------
 
@@ -175,7 +188,7 @@ class Resolver:
 
     def reset(self) -> None:
         """Forget all history: every body back to its params state, never seen."""
-        self.state = self._params_state.copy()
+        self._values = self._params_values.copy()
         self.last_stamp = np.full(len(self.bodies), NO_STAMP, np.int64)
         self.previous_step_ns = NO_STAMP
         self.totals: Counter[str] = Counter()
@@ -203,7 +216,7 @@ class Resolver:
         history = check_stamps(self.last_stamp[rows], stamp_ns,
                                int(settings.max_dt * 1e9), self.previous_step_ns)
         fresh = history.fresh
-        entered = [checked.position, checked.orientation, checked.linear, checked.angular]
+        entered = checked.values             # (K, 13) the accepted inputs, world frame
         twist_in_body = checked.twist_in_body
         resets: list[Rejection] = []
         if fresh.any() or history.repeated.any():   # not the stream's usual step
@@ -214,18 +227,16 @@ class Resolver:
             resets = self._resets(checked.index, history, stamp_ns)
             use = ~history.repeated
             if not use.all():
-                index, fresh, entered = index[use], fresh[use], [a[use] for a in entered]
+                index, fresh, entered = index[use], fresh[use], entered[use]
                 twist_in_body, rows = twist_in_body[use], index
 
-        # 2. previous and current states of all N bodies
-        current = self.state.copy()
-        for target, values in zip(_arrays(current), entered):
-            target[rows] = values
-        previous = self.state.copy()
+        # 2. previous and current states of all N bodies: (N, 13) rows, one array each
+        current = self._values.copy()
+        current[rows] = entered
+        previous = self._values.copy()
         if fresh.any():   # previous = current: nothing moved before a fresh start
             restart = index[fresh]
-            for target, source in zip(_arrays(previous), _arrays(current)):
-                target[restart] = source[restart]
+            previous[restart] = current[restart]
             self.world.forget(restart)
         active = ~self.dynamic
         active[rows] = True
@@ -237,15 +248,16 @@ class Resolver:
         # 3. the world step
         world_start, world_cpu = time.perf_counter(), time.thread_time()
         with np.errstate(over='ignore', invalid='ignore'):   # the guard below reports it
-            result = self.world.step(previous, current, dt, active, fresh=not usable)
+            result = self.world.step(_states(previous), _states(current), dt, active,
+                                     fresh=not usable)
         world_time = time.perf_counter() - world_start
         world_cpu = time.thread_time() - world_cpu
-        out = result.states
+        out = np.concatenate(_arrays(result.states), axis=1)   # (N, 13)
         # one guard, one report: a body the world repaired or that is still non-finite (a
         # finite sum of every number is the usual step's whole test)
         repaired = {r.body for r in result.rejected if r.reason == 'non_finite_result'}
-        if repaired or not np.isfinite(sum(float(a.sum()) for a in _arrays(out))):
-            bad = ~np.isfinite(np.concatenate(_arrays(out), axis=1)[index]).all(axis=1)
+        if repaired or not np.isfinite(out.sum()):
+            bad = ~np.isfinite(out[index]).all(axis=1)
             if repaired:
                 bad |= np.isin(self._name_array[index], list(repaired))
             for i in index[bad]:
@@ -257,12 +269,11 @@ class Resolver:
         rejected += [r for r in result.rejected if r.reason != 'non_finite_result']
 
         # 4. keep the corrected states as the history of the next step
-        good, held = (index[~bad], index[bad]) if bad.any() else (rows, None)
-        for kept, corrected, entered_now in zip(_arrays(self.state), _arrays(out),
-                                                _arrays(current)):
-            kept[good] = corrected[good]
-            if held is not None:
-                kept[held] = entered_now[held]
+        if bad.any():
+            self._values[index[~bad]] = out[index[~bad]]
+            self._values[index[bad]] = current[index[bad]]
+        else:
+            self._values[rows] = out[rows]
         self.last_stamp[rows] = stamp_ns
         self.previous_step_ns = stamp_ns
 
@@ -282,18 +293,19 @@ class Resolver:
         if rejected or resets:
             self.totals.update(r.reason for r in rejected + resets)
         names = self._name_array[rows].tolist()
-        states = BodyStates(*(a[rows].copy() for a in _arrays(self.state)))
-        return ResolvedStep(stamp_ns, names, index, states, twist_in_body,
+        values = self._values[rows].copy()   # (K, 13) the answer's rows
+        return ResolvedStep(stamp_ns, names, index, _states(values), twist_in_body,
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)] if stale.any()
                             else [], dt,
                             time.perf_counter() - start, world_time, world_cpu,
-                            np.concatenate([self.state.position, self.state.orientation], 1),
-                            budget, np.zeros(len(index), bool) if result.sleeping is None
+                            self._values[:, 0:7].copy(), budget,
+                            np.zeros(len(index), bool) if result.sleeping is None
                             else result.sleeping[rows] & ~bad,
-                            number=self.number, unchanged=result.unchanged)
+                            number=self.number, unchanged=result.unchanged, values=values)
 
-    def _resets(self, index: np.ndarray, history: Any, stamp_ns: int) -> list[Rejection]:
+    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int
+                ) -> list[Rejection]:
         resets = []
         for k in np.flatnonzero(history.backwards):
             name = self.names[index[k]]
@@ -312,3 +324,9 @@ class Resolver:
 def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The four arrays of ``states`` (position, orientation, linear, angular), in place."""
     return states.position, states.orientation, states.linear, states.angular
+
+
+def _states(values: np.ndarray) -> BodyStates:
+    """BodyStates whose four arrays are the column views of (N, 13) ``values`` (position,
+    orientation, linear, angular): writes to either are writes to both."""
+    return BodyStates(values[:, 0:3], values[:, 3:7], values[:, 7:10], values[:, 10:13])

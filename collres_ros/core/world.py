@@ -163,6 +163,9 @@ class World:
         ``SOLVER_TUNING`` ``warm_start_ratio``.
         """
         active = np.ones(current.count, bool) if active is None else np.asarray(active, bool)
+        # one contiguous float64 copy of an array that is not (e.g. a column view of the
+        # resolver's (N, 13) rows), here, rather than one per compiled call below
+        previous, current = _contiguous(previous), _contiguous(current)
         asleep = None
         if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
             current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
@@ -315,6 +318,15 @@ def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     """(position, orientation, linear, angular), float64 and C-contiguous (copied only if not)."""
     return tuple(np.ascontiguousarray(a, np.float64) for a in (  # type: ignore[return-value]
         states.position, states.orientation, states.linear, states.angular))
+
+
+def _contiguous(states: BodyStates) -> BodyStates:
+    """``states`` itself when its four arrays are C-contiguous float64, else a copy that is."""
+    arrays = (states.position, states.orientation, states.linear, states.angular)
+    if all(isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous
+           for a in arrays):
+        return states
+    return BodyStates(*(np.ascontiguousarray(a, np.float64) for a in arrays))
 
 
 def _hold(previous: BodyStates, current: BodyStates, held: np.ndarray) -> BodyStates:

@@ -182,15 +182,14 @@ class OutputEncoder:
 
     def corrected(self, step: ResolvedStep) -> bytes:
         """body_states/corrected: the accepted bodies, world frame, at the step stamp."""
-        return self.states.encode(step.stamp_ns, self.world_frame, step.names,
-                                  state_values(step.states), step.sleeping)
+        return self.states.encode(step.stamp_ns, self.world_frame, step.names, step.values,
+                                  step.sleeping)
 
     def per_body(self, step: ResolvedStep) -> list[tuple[str, str, bytes]]:
         """bodies/<name>/{pose,twist}/corrected; twists back in the frame they came in."""
         s = step.states
-        poses = codec.encode_stamped(step.stamp_ns, self.world_frame,
-                                     np.concatenate([s.position, s.orientation], axis=1))
-        twist = np.concatenate([s.linear, s.angular], axis=1)
+        poses = codec.encode_stamped(step.stamp_ns, self.world_frame, step.values[:, 0:7])
+        twist = step.values[:, 7:13].copy()
         body = np.flatnonzero(step.twist_in_body)
         if len(body):
             rotation = to_matrix(s.orientation[body])                     # body -> world

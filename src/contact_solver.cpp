@@ -365,12 +365,29 @@ struct Progress {
   double change = 0.0, largest = 0.0;
 };
 
+// +0 (not -0: a row holding -0 would be rewritten +0 by its update)
+inline bool positive_zero(double x) { return x == 0.0 && !std::signbit(x); }
+
 // One sweep's update of one manifold (its rows; its spin row's load), twists at hand.
 double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
                       std::vector<SpinRow>* spins, Progress& progress) {
   const size_t lo = static_cast<size_t>(manifold.first);
   const size_t hi = lo + static_cast<size_t>(manifold.count);
   const int k = manifold.count;
+  // every row idle: no impulse held (+0) and none approaching beyond its allowance, so its
+  // update would change nothing (solve_block's idle answer, solve_normal's max(0 - m q, 0)
+  // = +0, solve_friction's empty cone): done, as solve_group's idle groups (a speculative
+  // manifold that did not activate)
+  bool idle = true;
+  for (size_t i = lo; i < hi && idle; ++i) {
+    const ContactRow& r = rows[i];
+    idle = positive_zero(r.normal) && positive_zero(r.tangent[0]) &&
+           positive_zero(r.tangent[1]) && relative(r, t, 0, r.n) + r.allowance >= 0.0;
+  }
+  if (idle) {
+    if (spins != nullptr && manifold.spin >= 0) (*spins)[manifold.spin].load = 0.0;
+    return 0.0;
+  }
   double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
   if (step >= 0.0) {
     for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], t));

@@ -946,7 +946,8 @@ void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
   for (size_t group = 0; group < plan.wave_groups.back(); ++group) {
     const WideGroup& g = plan.groups[group];
     for (int l = 0; l < kLanes; ++l) {
-      const ContactRow* r = &rows[static_cast<size_t>(manifolds[g.manifold + static_cast<size_t>(l)].first)];
+      const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+      const ContactRow* r = &rows[static_cast<size_t>(m.first)];
       WideRow* w = &plan.wide_rows[g.row];
       for (int i = 0; i < g.count; ++i) {
         w[i].allowance[l] = r[i].allowance;

@@ -314,6 +314,10 @@ void row_velocity(const ContactRow& row, const double* v, double out[3]) {
   for (int k = 0; k < 3; ++k) out[k] = relative(row, v, k, direction(row, k));
 }
 
+double normal_velocity(const ContactRow& row, const double* v) {
+  return relative(row, v, 0, row.n);
+}
+
 void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
                  double sticking_speed, double mu_static, double mu_kinetic) {
   tangent_basis(row.n, row.t1, row.t2);
@@ -361,12 +365,29 @@ struct Progress {
   double change = 0.0, largest = 0.0;
 };
 
+// +0 (not -0: a row holding -0 would be rewritten +0 by its update)
+inline bool positive_zero(double x) { return x == 0.0 && !std::signbit(x); }
+
 // One sweep's update of one manifold (its rows; its spin row's load), twists at hand.
 double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
                       std::vector<SpinRow>* spins, Progress& progress) {
   const size_t lo = static_cast<size_t>(manifold.first);
   const size_t hi = lo + static_cast<size_t>(manifold.count);
   const int k = manifold.count;
+  // every row idle: no impulse held (+0) and none approaching beyond its allowance, so its
+  // update would change nothing (solve_block's idle answer, solve_normal's max(0 - m q, 0)
+  // = +0, solve_friction's empty cone): done, as solve_group's idle groups (a speculative
+  // manifold that did not activate)
+  bool idle = true;
+  for (size_t i = lo; i < hi && idle; ++i) {
+    const ContactRow& r = rows[i];
+    idle = positive_zero(r.normal) && positive_zero(r.tangent[0]) &&
+           positive_zero(r.tangent[1]) && relative(r, t, 0, r.n) + r.allowance >= 0.0;
+  }
+  if (idle) {
+    if (spins != nullptr && manifold.spin >= 0) (*spins)[manifold.spin].load = 0.0;
+    return 0.0;
+  }
   double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
   if (step >= 0.0) {
     for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], t));
@@ -414,8 +435,8 @@ typedef int64_t Mask __attribute__((vector_size(32), aligned(32)));
 #define WIDE inline __attribute__((always_inline))
 
 WIDE Lanes splat(double x) { return Lanes{x, x, x, x}; }
-WIDE Lanes pick(Mask m, Lanes a, Lanes b) {   // m ? a : b, lane by lane
-  return (Lanes)((m & (Mask)a) | (~m & (Mask)b));
+WIDE Lanes pick(Mask m, Lanes a, Lanes b) {   // m ? a : b, lane by lane (m: 0 or -1)
+  return m ? a : b;   // (one blend where the target has one, e.g. the AVX2 clone)
 }
 WIDE Lanes maximum(Lanes a, Lanes b) { return pick(a < b, b, a); }   // std::max(a, b)
 WIDE Lanes magnitude(Lanes a) {                                        // std::fabs
@@ -560,7 +581,7 @@ __attribute__((target_clones("avx2", "default")))
 #endif
 void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, double* v,
-                 std::vector<SpinRow>* spins, Progress& progress) {
+                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, Progress& progress) {
   const int k = g.count;
   WideTwists t(v, g);
   // every lane idle: no impulse held (+0 bits) and no row approaching beyond its
@@ -575,9 +596,13 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
               ((Mask)w[i].tangent[1] == zero) &
               (relative(w[i], t, 0, w[i].n) + w[i].allowance >= 0.0);
     if (!any(~idle)) {
-      for (int l = 0; l < kLanes; ++l) {
-        const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
-        if (spins != nullptr && spin >= 0) (*spins)[spin].load = 0.0;
+      if (spin_lanes != nullptr) {
+        spin_lanes->load = splat(0.0);
+      } else {
+        for (int l = 0; l < kLanes; ++l) {
+          const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
+          if (spins != nullptr && spin >= 0) (*spins)[spin].load = 0.0;
+        }
       }
       return;
     }
@@ -670,15 +695,17 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
     if (k >= 3 && any(face)) {
       const Lanes zero = splat(0.0), one = splat(1.0);
       Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
-      int idx[kLanes][4], members[kLanes];
+      int idx[kLanes][4], members[kLanes], sets[kLanes];
       Mask tried = {0, 0, 0, 0};
       for (int l = 0; l < kLanes; ++l) {
         members[l] = 0;
+        sets[l] = 0;
         if (!face[l]) continue;
         int carrying = 0;
         for (int i = 0; i < k; ++i) carrying |= w[i].normal[l] > 0.0 ? 1 << i : 0;
         if (carrying == (1 << k) - 1) continue;   // (the all-active set: failed above)
         tried[l] = -1;
+        sets[l] = carrying;
         for (int i = 0; i < k; ++i)
           if (carrying & (1 << i)) idx[l][members[l]++] = i;
       }
@@ -736,9 +763,8 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
         for (int i = 0; i < k; ++i) {   // the rows left out: no approach
           Lanes w_i = q[i];
           for (int j = 0; j < k; ++j) w_i += g.delassus[i][j] * xs[j];
-          Mask in = {0, 0, 0, 0};
-          for (int l = 0; l < kLanes; ++l)
-            for (int r = 0; r < members[l]; ++r) in[l] |= idx[l][r] == i ? -1 : 0;
+          Mask in;   // row i in the lane's set
+          for (int l = 0; l < kLanes; ++l) in[l] = (sets[l] >> i) & 1 ? -1 : 0;
           ok &= in | (w_i >= -1e-12 * (1.0 + magnitude(q[i])));
         }
         for (int i = 0; i < k; ++i) {   // take_block
@@ -775,20 +801,24 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
   for (int l = 0; l < kLanes; ++l) {
     progress.change = std::max(progress.change, step[l]);
     progress.largest = std::max(progress.largest, largest[l]);
+  }
+  if (spin_lanes != nullptr) {
+    spin_lanes->load = load;
+    return;
+  }
+  for (int l = 0; l < kLanes; ++l) {
     const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
     if (spins != nullptr && spin >= 0) (*spins)[spin].load = load[l];
   }
 }
 
-// solve_spin() on the spin rows of a wide group (all four lanes; `load` each lane's
+// solve_spin() on the spin rows of a wide group (all four lanes, WideSpin::load their
 // SpinRow::load); returns the change over the lever per lane
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 __attribute__((target_clones("avx2", "default")))
 #endif
-void solve_wide_spin(WideSpin& s, const WideGroup& g, const std::vector<SpinRow>& spins,
-                     double* v, Progress& progress) {
-  Lanes normal;
-  for (int l = 0; l < kLanes; ++l) normal[l] = spins[s.spin[l]].load;
+void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progress) {
+  const Lanes normal = s.load;
   const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |
                     (s.torque[2] != 0.0);
   if (!any(held)) return;
@@ -848,7 +878,8 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, const std::vector<SpinRow>
 #undef WIDE
 
 // The plan's wide groups and their rows from the manifolds and rows (plan.groups,
-// wide_rows, wave_groups).
+// wide_rows, wave_groups): the fields that stay as prepared for the whole step (once per
+// plan); refresh_groups writes the others.
 void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, const double* inv_mass) {
   // (sized, not cleared: every field below is written, and growing a vector of these
@@ -903,18 +934,31 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
           w.kt[e][l] = c.kt[e];
         }
         w.normal_mass[l] = c.normal_mass;
-        w.allowance[l] = c.allowance;
-        w.mu[l] = c.mu;
-        w.normal[l] = c.normal;
-        w.tangent[0][l] = c.tangent[0];
-        w.tangent[1][l] = c.tangent[1];
       }
     }
   }
 }
 
-// The wide rows' impulses back into the rows.
-// (pack_groups' spin rows)
+// The wide rows' fields that change between calls of solve_velocities in a step (the
+// substeps' allowances, impulses, a friction coefficient hold_energy set to 0).
+void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
+                    const std::vector<Manifold>& manifolds) {
+  for (size_t group = 0; group < plan.wave_groups.back(); ++group) {
+    const WideGroup& g = plan.groups[group];
+    for (int l = 0; l < kLanes; ++l) {
+      const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+      const ContactRow* r = &rows[static_cast<size_t>(m.first)];
+      WideRow* w = &plan.wide_rows[g.row];
+      for (int i = 0; i < g.count; ++i) {
+        w[i].allowance[l] = r[i].allowance;
+        w[i].mu[l] = r[i].mu;
+      }
+      rows_to_lane(r, g.count, w, l);
+    }
+  }
+}
+
+// (pack_groups' spin rows: the fields that stay as prepared; refresh_spins the others)
 void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
                 const std::vector<SpinRow>* spins) {
   const size_t group_count = plan.wave_groups.back();
@@ -931,7 +975,6 @@ void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
       const SpinRow& r = (*spins)[w.spin[l]];
       for (int e = 0; e < 3; ++e) {
         w.n[e][l] = r.n[e];
-        w.torque[e][l] = r.torque[e];
         for (int c = 0; c < 3; ++c) {
           w.inv_a[e][c][l] = r.inv_a(e, c);
           w.inv_b[e][c][l] = r.inv_b(e, c);
@@ -940,6 +983,18 @@ void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
       }
       w.k_n[l] = r.k_n;
       w.lever[l] = r.lever;
+    }
+  }
+}
+
+// (refresh_groups' spin rows: the substeps start them cold, hold_energy may zero a limit)
+void refresh_spins(SweepPlan& plan, const std::vector<SpinRow>& spins) {
+  for (size_t group = 0; group < plan.wave_groups.back(); ++group) {
+    WideSpin& w = plan.spin_groups[group];
+    if (w.spin[0] < 0) continue;
+    for (int l = 0; l < kLanes; ++l) {
+      const SpinRow& r = spins[w.spin[l]];
+      for (int e = 0; e < 3; ++e) w.torque[e][l] = r.torque[e];
       w.roll[l] = r.roll;
       w.twist[l] = r.twist;
     }
@@ -976,7 +1031,7 @@ void solve_spin_waves(SweepPlan& plan, std::vector<SpinRow>& spins,
     for (size_t group = plan.wave_groups[l]; group < plan.wave_groups[l + 1]; ++group) {
       const WideGroup& g = plan.groups[group];
       if (plan.spin_groups[group].spin[0] >= 0) {
-        solve_wide_spin(plan.spin_groups[group], g, spins, v, progress);
+        solve_wide_spin(plan.spin_groups[group], g, v, progress);
       } else {
         for (int lane = 0; lane < kLanes; ++lane) one(g.manifold + static_cast<size_t>(lane));
       }
@@ -993,8 +1048,13 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
   const size_t count = manifolds.size(), spin_count = spins != nullptr ? spins->size() : 0;
   const bool wide = plan != nullptr && plan->wide;
   if (wide) {
-    pack_groups(*plan, rows, manifolds, bodies.inv_mass);
-    pack_spins(*plan, manifolds, spins);
+    if (!plan->packed) {
+      pack_groups(*plan, rows, manifolds, bodies.inv_mass);
+      pack_spins(*plan, manifolds, spins);
+      plan->packed = true;
+    }
+    refresh_groups(*plan, rows, manifolds);
+    if (spins != nullptr) refresh_spins(*plan, *spins);
   }
   double* v = bodies.velocity;
   // wave l's part [lo, hi) of its work: its wide groups, then its manifolds one by one
@@ -1004,8 +1064,12 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     const size_t first = wide ? span.wide_end : span.first;
     for (size_t item = lo; item < hi; ++item) {
       if (item < groups) {
-        WideGroup& g = plan->groups[plan->wave_groups[l] + item];
-        solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, progress);
+        const size_t group = plan->wave_groups[l] + item;
+        WideGroup& g = plan->groups[group];
+        WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[group].spin[0] >= 0
+                                   ? &plan->spin_groups[group] : nullptr;
+        solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, spin_lanes,
+                    progress);
       } else {
         solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
                         bodies, spins, progress);

@@ -208,11 +208,13 @@ struct WideGroup {
 
 // The spin rows (SpinRow) of a wide group's four manifolds in lanes: the fields
 // solve_spin reads and writes, same units and signs; `spin` the SpinRows they stand for
-// (all four, or the group's spin rows are solved one by one).
+// (all four, or the group's spin rows are solved one by one). `load` is kept here, not in
+// the SpinRows (the group's row update writes it, its spin update reads it).
 struct WideSpin {
   int32_t spin[kLanes] = {-1, -1, -1, -1};
   Lanes n[3], inv_a[3][3], inv_b[3][3], inv_ab[3][3];
   Lanes k_n, lever, roll, twist, torque[3];
+  Lanes load;
 };
 
 // How the velocity sweeps visit the manifolds (sweep_waves.h builds it): wave by wave,
@@ -236,6 +238,9 @@ struct SweepPlan {
   std::vector<size_t> wave_groups;      // groups of wave w: [wave_groups[w], [w + 1])
   std::vector<WideSpin> spin_groups;    // per group: its manifolds' spin rows, in lanes
                                         // (spin -1 in a lane: none, one by one)
+  bool packed = false;                  // groups and spin_groups hold the prepared rows'
+                                        // constant fields (the first solve_velocities of
+                                        // a plan packs them; wave_manifolds clears this)
 };
 
 // Sequential impulses over the manifolds: normal clamped >= 0 against the speculative
@@ -301,6 +306,8 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
 
 // Relative velocity of a row along n, t1, t2 (m/s) for velocities v (N, 6).
 void row_velocity(const ContactRow& row, const double* v, double out[3]);
+// Its normal part alone (m/s, < 0: approaching; the same bits as row_velocity's out[0]).
+double normal_velocity(const ContactRow& row, const double* v);
 
 // Friction impulse of a row as a world vector (N s, on B): impact stages and resting solve.
 inline Vec3 friction_world(const ContactRow& row) {

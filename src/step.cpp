@@ -565,9 +565,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
     // each row may approach by its separation now: the reference gap plus how far its
     // two points moved along the normal in the substeps so far (no new detection)
     for (ContactRow& r : rows_) {
-      double moved[3];
-      row_velocity(r, moved_.data(), moved);
-      const double separation = gap_[r.contact] + moved[0];
+      const double separation = gap_[r.contact] + normal_velocity(r, moved_.data());
       r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
     }
     sweeps += solve_velocities(rows_, manifolds_, ctx.solver, iterations, p.converged, &spins_,

@@ -46,6 +46,7 @@ void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& r
   // rest one by one (counts 1..4's remainders, then longer manifolds)
   manifolds.clear();
   plan.waves.clear();
+  plan.packed = false;
   size_t from = 0;
   for (int32_t l = 0; l < waves; ++l) {
     size_t first[kKinds + 1];   // row count k + 1's manifolds: [first[k], first[k + 1])

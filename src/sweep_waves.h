@@ -22,7 +22,8 @@ namespace collres {
 // Reorders `manifolds` wave by wave (SweepPlan's layout: within a wave, wide groups of
 // kLanes manifolds of one row count 1..4 first, then the rest one by one; within a row
 // count the speculative manifolds, every row with allowance > 0, last) and renames each
-// row's ContactRow::manifold; fills plan.waves (its other fields are left as they are).
+// row's ContactRow::manifold; fills plan.waves and clears plan.packed (its other fields
+// are left as they are).
 // `inv_mass` (N,) 1/kg: 0 for immovable bodies. `wave`, `start` and `sorted` are scratch.
 void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& rows,
                     const double* inv_mass, int64_t body_count, SweepPlan& plan,

@@ -51,8 +51,8 @@ def both_sides_matched(node, peer):
     """Every input matched on both sides (the peer's publisher has the node's subscription
     and the node's subscription has the peer's publisher: a message sent before the reader
     matched the writer can be lost), the node's answer matched both ways, and the node's
-    participant has discovered the per-body answer's reader (its publisher is made at the
-    first per-body step and matches the readers its participant knows then)."""
+    per-body answer's publisher has matched the peer's reader (an answer goes only to a
+    topic with a subscriber)."""
     per_body = node.per_body_inputs
     return (all(peer.connected(t) for t in peer.publishers)
             and node._inputs[0].get_publisher_count() > 0
@@ -63,7 +63,7 @@ def both_sides_matched(node, peer):
                                 BodyStateArray).get_subscription_count() > 0
             and all(s.get_publisher_count() > 0 for s in peer.node.subscriptions
                     if s.topic_name == '/body_states/corrected')
-            and node.count_subscribers('bodies/ball/pose/corrected') > 0)
+            and per_body.publishers['ball'][0].get_subscription_count() > 0)
 
 
 def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
@@ -84,14 +84,61 @@ def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
         assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
                                   peer.messages('body_states/corrected')} >= set(stamps), 20.0)
         per_body = T0 + 10 * DT
-        for body in at_rest(per_body).bodies:
-            pose, twist = PoseStamped(pose=body.pose), TwistStamped(twist=body.twist)
-            for message in (pose, twist):
-                message.header.frame_id, message.header.stamp = 'world', to_stamp(per_body)
-            peer.publish(f'bodies/{body.name}/pose', pose)
-            peer.publish(f'bodies/{body.name}/twist', twist)
+        per_body_step(peer, per_body)
         assert peer.wait(lambda: any(stamp_ns(m.header.stamp) == per_body for m in
                                      peer.messages('bodies/ball/pose/corrected')), 20.0)
+    finally:
+        peer.close()
+
+
+def per_body_step(peer, stamp):
+    """Both bodies' pose and twist at ``stamp``, at rest (one per-body step)."""
+    for body in at_rest(stamp).bodies:
+        pose, twist = PoseStamped(pose=body.pose), TwistStamped(twist=body.twist)
+        for message in (pose, twist):
+            message.header.frame_id, message.header.stamp = 'world', to_stamp(stamp)
+        peer.publish(f'bodies/{body.name}/pose', pose)
+        peer.publish(f'bodies/{body.name}/twist', twist)
+
+
+def test_a_per_body_answer_goes_only_to_a_topic_with_a_subscriber(node, ros_domain):
+    """Of the four per-body answer topics (ball, box; pose, twist) a peer subscribes to one:
+    it gets every step's answer and nothing else is published. Then it subscribes to a
+    second: from the step after its match on, that one is answered too."""
+    per_body = node.per_body_inputs
+    peer = Peer(ros_domain)
+    try:
+        peer.listen('bodies/ball/pose/corrected', PoseStamped)
+        for name in ('ball', 'box'):
+            peer.advertise(f'bodies/{name}/pose', PoseStamped)
+            peer.advertise(f'bodies/{name}/twist', TwistStamped)
+        assert peer.wait(lambda: all(peer.connected(t) for t in peer.publishers)
+                         and per_body.ready.is_set()
+                         and all(s.get_publisher_count() > 0
+                                 for s in per_body.node.subscriptions
+                                 if s.topic_name.split('/')[2] in ('ball', 'box'))
+                         and per_body.publishers['ball'][0].get_subscription_count() > 0,
+                         30.0)
+        first = [T0 + k * DT for k in range(5)]
+        for stamp in first:
+            per_body_step(peer, stamp)
+        assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
+                                  peer.messages('bodies/ball/pose/corrected')} >= set(first),
+                         20.0)
+        assert peer.wait(lambda: per_body.published >= len(first), 5.0)
+        assert per_body.published == len(first)   # 4 x 5 when every topic is published
+        peer.listen('bodies/box/twist/corrected', TwistStamped)
+        assert peer.wait(lambda: per_body.publishers['box'][1].get_subscription_count() > 0
+                         and all(s.get_publisher_count() > 0 for s in peer.node.subscriptions),
+                         30.0)
+        then = [T0 + k * DT for k in range(5, 8)]
+        for stamp in then:
+            per_body_step(peer, stamp)
+        assert peer.wait(lambda: {stamp_ns(m.header.stamp) for m in
+                                  peer.messages('bodies/box/twist/corrected')} == set(then),
+                         20.0)
+        assert peer.wait(lambda: per_body.published >= len(first) + 2 * len(then), 5.0)
+        assert per_body.published == len(first) + 2 * len(then)
     finally:
         peer.close()
 

@@ -19,9 +19,13 @@ is there, subscription by subscription, and hands each to its callback as
   ``ServedElsewhere`` callback group, which the executor neither waits on nor runs; the
   server takes them.
 * ``PerBodyInputs``: ``bodies/<name>/pose`` and ``twist`` of every body, on a node of their
-  own (``<node>_per_body``, same namespace), created by the server's thread (2000 of them
-  take a second or more; ``body_states`` is served meanwhile). The batched path's wait set
-  holds one subscription whatever the body count.
+  own (``<node>_per_body``, same namespace), created by the server's thread with the answers'
+  publishers (``bodies/<name>/{pose,twist}/corrected``; 4000 entities at 1000 bodies take
+  seconds, ``body_states`` is served meanwhile). The batched path's wait set holds one
+  subscription whatever the body count. A per-body answer goes out only on a topic that
+  has a subscriber now: the publishers exist before the first per-body step, so a
+  subscriber matched then gets every answer, and an unsubscribed answer is neither encoded
+  nor published (``publish``).
 
 The executor keeps what is not on the hot path: parameters, services, the diagnostics
 timer. A failure in a server's thread ends the node as one in the main thread would
@@ -35,9 +39,10 @@ import traceback
 from functools import partial
 from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
 
+import numpy as np
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from rclpy.callback_groups import CallbackGroup
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidTopicNameException
 from rclpy.executors import ExternalShutdownException, ShutdownException
 from rclpy.guard_condition import GuardCondition
@@ -47,6 +52,8 @@ from rclpy.node import Node
 from collres_ros.ros import names, qos
 
 if TYPE_CHECKING:
+    from collres_ros.core.pipeline import ResolvedStep
+    from collres_ros.ros.messages import OutputEncoder
     from collres_ros.ros.node import CollresNode
 
 WAIT_TIMEOUT_NS = 100_000_000   # an idle server checks the context this often
@@ -149,14 +156,16 @@ class InputServer:
 
 
 class PerBodyInputs:
-    """The ``bodies/<name>/pose`` and ``twist`` subscriptions: a node of their own
+    """The ``bodies/<name>/pose`` and ``twist`` subscriptions and the per-body answers'
+    publishers (``bodies/<name>/{pose,twist}/corrected``): a node of their own
     (``<node>_per_body``, same namespace) served by an ``InputServer``; each message goes
-    to ``CollresNode.on_part``.
+    to ``CollresNode.on_part``; ``publish`` sends a per-body step's answers.
 
-    The subscriptions have no default QoS-event handlers (rclpy's incompatible-QoS
-    warning). QoS overrides are read as for every topic
-    (``qos_overrides./bodies/<name>/pose.subscription.depth``) and declared on the node
-    where set (``qos.overridden``).
+    The subscriptions and publishers have no default QoS-event handlers (rclpy's
+    incompatible-QoS warning). QoS overrides are read as for every topic
+    (``qos_overrides./bodies/<name>/pose.subscription.depth``,
+    ``qos_overrides./bodies/<name>/pose/corrected.publisher.depth``) and declared on the
+    node where set (``qos.overridden``).
     """
 
     def __init__(self, owner: 'CollresNode', body_names: Sequence[str]) -> None:
@@ -165,18 +174,19 @@ class PerBodyInputs:
                          context=owner.context, start_parameter_services=False,
                          automatically_declare_parameters_from_overrides=False)
         # (message type, topic, callback, QoS profile: None for the default one, made in the
-        # server's thread; 2000 profiles took 40 ms of a 1000-body start)
+        # server's thread; 2000 profiles took 40 ms of a 1000-body start); per answer topic
+        # (body, kind, message type, topic, profile or None)
         self._wanted = []
+        self._answers = []
         try:
             for name in body_names:
                 for kind, message, topic in (('pose', PoseStamped, names.pose_topic(name)),
                                              ('twist', TwistStamped, names.twist_topic(name))):
-                    resolved = self.node.resolve_topic_name(topic)
-                    profile = qos.overridden(owner, resolved, 'subscription',
-                                             owner.state_qos()) \
-                        if qos.is_overridden(owner, resolved, 'subscription') else None
                     self._wanted.append((message, topic, partial(owner.on_part, name, kind),
-                                         profile))
+                                         self._profile(topic, 'subscription')))
+                    answer = topic + '/corrected'
+                    self._answers.append((name, kind, message, answer,
+                                          self._profile(answer, 'publisher')))
         except InvalidTopicNameException as error:   # a long name in a long namespace
             self.node.destroy_node()
             raise ValueError(f'bodies: a topic name is invalid in namespace '
@@ -185,15 +195,35 @@ class PerBodyInputs:
         except BaseException:
             self.node.destroy_node()
             raise
+        # body name -> (pose answer's publisher, twist answer's publisher), made with the
+        # subscriptions
+        self.publishers: dict[str, tuple[Any, Any]] = {}
+        self.published = 0   # per-body answers published, all steps
         self.server = InputServer(owner, 'collres_per_body', self._subscribe)
-        self.ready = self.server.ready   # every subscription exists (after ``server.start``)
+        self.ready = self.server.ready   # every topic exists (after ``server.start``)
+
+    def _profile(self, topic: str, entity: str) -> Any:
+        """The overridden QoS profile of ``topic`` for ``entity``, None when not overridden."""
+        resolved = self.node.resolve_topic_name(topic)
+        return qos.overridden(self.owner, resolved, entity, self.owner.state_qos()) \
+            if qos.is_overridden(self.owner, resolved, entity) else None
 
     @property
     def failure(self) -> Optional[BaseException]:
         return self.server.failure
 
     def _subscribe(self) -> list[Served]:
-        """The subscriptions, created in the server's thread (stops early when closed)."""
+        """The answers' publishers, then the subscriptions, created in the server's thread
+        (stops early when closed): a peer that sees a subscription finds its answer's
+        publisher there already."""
+        made: dict[str, list[Any]] = {}
+        for name, kind, message, topic, profile in self._answers:
+            if self.server.closing:
+                return []
+            made.setdefault(name, []).append(self.node.create_publisher(
+                message, topic, profile or self.owner.state_qos(),
+                event_callbacks=PublisherEventCallbacks(use_default_callbacks=False)))
+        self.publishers = {name: (pose, twist) for name, (pose, twist) in made.items()}
         served = []
         for message, topic, callback, profile in self._wanted:
             if self.server.closing:
@@ -202,10 +232,24 @@ class PerBodyInputs:
                 message, topic, callback, profile or self.owner.state_qos(), raw=True,
                 event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)),
                 callback))
-        self.owner.get_logger().info(f'per-body inputs: {len(served)} topics subscribed')
+        self.owner.get_logger().info(f'per-body inputs: {len(served)} topics subscribed, '
+                                     f'{len(self._answers)} answer topics advertised')
         return served
 
+    def publish(self, step: 'ResolvedStep', encoder: 'OutputEncoder') -> None:
+        """A per-body step's answers, each on its topic only while that topic has a
+        subscriber (checked at this step: 0.5 us a topic), the others neither encoded nor
+        published."""
+        pairs = [self.publishers[name] for name in step.names]
+        wanted = np.array([[p.handle.get_subscription_count() > 0 for p in pair]
+                           for pair in pairs], bool).reshape(len(pairs), 2)
+        if not wanted.any():
+            return
+        for k, kind, data in encoder.per_body_wanted(step, wanted):
+            pairs[k][kind].publish(data)
+            self.published += 1
+
     def close(self) -> None:
-        """Stop the thread, then free the subscriptions and the node."""
+        """Stop the thread, then free the subscriptions, the publishers and the node."""
         self.server.close()
         self.node.destroy_node()

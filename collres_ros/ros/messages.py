@@ -187,21 +187,35 @@ class OutputEncoder:
 
     def per_body(self, step: ResolvedStep) -> list[tuple[str, str, bytes]]:
         """bodies/<name>/{pose,twist}/corrected; twists back in the frame they came in."""
+        every = np.ones((len(step.names), 2), bool)
+        return [(pose_topic(step.names[k], True), POSE_TYPE, data) if kind == 0 else
+                (twist_topic(step.names[k], True), TWIST_TYPE, data)
+                for k, kind, data in self.per_body_wanted(step, every)]
+
+    def per_body_wanted(self, step: ResolvedStep, wanted: np.ndarray
+                        ) -> list[tuple[int, int, bytes]]:
+        """The per-body answers ``wanted`` ((len(step.names), 2) bools: pose, twist) asks
+        for, as (row of ``step.names``, 0 pose or 1 twist, bytes), by row then pose first;
+        only those are encoded. Twists go back in the frame they came in."""
         s = step.states
-        poses = codec.encode_stamped(step.stamp_ns, self.world_frame, step.values[:, 0:7])
-        twist = step.values[:, 7:13].copy()
-        body = np.flatnonzero(step.twist_in_body)
+        rows = np.flatnonzero(wanted.any(axis=1))
+        poses = codec.encode_stamped(step.stamp_ns, self.world_frame,
+                                     step.values[rows, 0:7])
+        twist = step.values[rows, 7:13]   # a copy (rows taken)
+        body = np.flatnonzero(step.twist_in_body[rows])
         if len(body):
-            rotation = to_matrix(s.orientation[body])                     # body -> world
-            twist[body, 0:3] = np.einsum('kji,kj->ki', rotation, s.linear[body])
-            twist[body, 3:6] = np.einsum('kji,kj->ki', rotation, s.angular[body])
+            rotation = to_matrix(s.orientation[rows[body]])              # body -> world
+            twist[body, 0:3] = np.einsum('kji,kj->ki', rotation, s.linear[rows[body]])
+            twist[body, 3:6] = np.einsum('kji,kj->ki', rotation, s.angular[rows[body]])
         twists = codec.encode_stamped(step.stamp_ns, self.world_frame, twist)
-        for k in body:
-            twists[k] = codec.encode_twist(step.stamp_ns, step.names[k], twist[k])
+        for j in body:
+            twists[j] = codec.encode_twist(step.stamp_ns, step.names[rows[j]], twist[j])
         out = []
-        for name, pose, tw in zip(step.names, poses, twists):
-            out.append((pose_topic(name, True), POSE_TYPE, pose))
-            out.append((twist_topic(name, True), TWIST_TYPE, tw))
+        for j, k in enumerate(rows):
+            if wanted[k, 0]:
+                out.append((int(k), 0, poses[j]))
+            if wanted[k, 1]:
+                out.append((int(k), 1, twists[j]))
         return out
 
     def contacts(self, step: ResolvedStep) -> bytes:

@@ -19,8 +19,8 @@ Topics (relative names): in ``body_states`` (BodyStateArray, one step per
 message) and ``bodies/<name>/pose`` + ``bodies/<name>/twist`` (a step when
 every non-stale dynamic body has both for one stamp, see ``sync.py``); out
 ``body_states/corrected``, ``bodies/<name>/{pose,twist}/corrected`` (for
-per-body steps), ``contacts``, ``contact_markers`` and ``body_markers`` (built
-only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
+per-body steps), ``contacts``, ``contact_markers`` and ``body_markers`` (each of these
+built only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
 ``contact_wrench``), ``bodies/<name>/in_contact`` (with ``contact_state``), ``/tf``
 (with ``publish_tf``, where tf2_msgs is installed), ``/diagnostics``; the service
 ``get_contacts`` answers the last step's contacts (``ros/contact_sensing.py``). The inputs
@@ -435,6 +435,8 @@ class CollresNode(Node):
         # the answer first: the control loop waiting for it does not wait for the rest
         self._publisher(names.CORRECTED_STATES, BodyStateArray).publish(
             self.encoder.corrected(step))
+        if per_body and self.scene.node.per_body_outputs:   # to the subscribed topics only
+            self.per_body_inputs.publish(step, self.encoder)
         answered = time.perf_counter()
         # behind: a newer body_states input waits already; this step's pictures (contact
         # and body markers) are skipped and counted, so the node catches up sooner; its
@@ -447,7 +449,7 @@ class CollresNode(Node):
         node = self.scene.node
         bodies = self._publisher(names.BODY_MARKERS, MarkerArray).get_subscription_count() > 0
         outputs = self.encoder.encode(
-            step, per_body and node.per_body_outputs, node.marker_lifetime,
+            step, False, node.marker_lifetime,
             markers=markers and not more, contacts=contacts,
             wrenches=node.contact_wrench,
             body_markers=node.body_markers_period if bodies and not more else None,
@@ -492,7 +494,7 @@ class CollresNode(Node):
     def _publisher(self, topic: str, kind: type) -> Any:
         publisher = self._publishers_by_topic.get(topic)
         if publisher is None:
-            if topic.startswith(names.BODIES):   # per body: see PerBodyInputs
+            if topic.startswith(names.BODIES):   # per body (contact_wrench): as PerBodyInputs
                 profile = qos.overridden(self, self.resolve_topic_name(topic), 'publisher',
                                          self.state_qos())
                 publisher = self.create_publisher(kind, topic, profile, event_callbacks=(
@@ -567,6 +569,7 @@ class CollresNode(Node):
                    **{f'messages_refused.{k}': v for k, v in sorted(self.refused.items())},
                    'contacts_total': totals['contacts'],
                    'outputs_skipped_behind': self.skipped_behind,
+                   'per_body_answers_published': self.per_body_inputs.published,
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
                    'answer_time_mean_ms': mean('answer'),
                    'time.queued_ms': f'{1e3 * w["queued"] / max(w["queued_inputs"], 1):.3f}',

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace collres {
 namespace {
@@ -449,6 +450,27 @@ WIDE Lanes root(Lanes a) {
 }
 WIDE bool any(Mask m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 
+// Four rows of four to four columns (a 4x4 transpose: lane l of column c is row l's c):
+// a body's twist read or written four numbers at once (one load or store per lane, not
+// one per number), the same values
+WIDE void transpose(const Lanes* row, Lanes* column) {
+  const Mask even = {0, 4, 2, 6}, odd = {1, 5, 3, 7}, low = {0, 1, 4, 5}, high = {2, 3, 6, 7};
+  const Lanes t0 = __builtin_shuffle(row[0], row[1], even);
+  const Lanes t1 = __builtin_shuffle(row[0], row[1], odd);
+  const Lanes t2 = __builtin_shuffle(row[2], row[3], even);
+  const Lanes t3 = __builtin_shuffle(row[2], row[3], odd);
+  column[0] = __builtin_shuffle(t0, t2, low);
+  column[1] = __builtin_shuffle(t1, t3, low);
+  column[2] = __builtin_shuffle(t0, t2, high);
+  column[3] = __builtin_shuffle(t1, t3, high);
+}
+// numbers [at, at + 4) of each lane's body's twist (v: 6 per body), as four columns
+WIDE void load_lanes(const double* v, const int32_t* body, int at, Lanes* column) {
+  Lanes row[kLanes];
+  for (int l = 0; l < kLanes; ++l) std::memcpy(&row[l], v + 6 * body[l] + at, sizeof(Lanes));
+  transpose(row, column);
+}
+
 struct WideVec {
   Lanes x, y, z;
 };
@@ -822,12 +844,13 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
   const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |
                     (s.torque[2] != 0.0);
   if (!any(held)) return;
-  Lanes wa[3], wb[3];
-  for (int l = 0; l < kLanes; ++l)
-    for (int e = 0; e < 3; ++e) {
-      wa[e][l] = v[6 * g.a[l] + 3 + e];
-      wb[e][l] = v[6 * g.b[l] + 3 + e];
-    }
+  // each lane's (v_z, w) of A and of B (numbers 2 to 5 of a twist: in bounds for the
+  // last body, where 3 to 6 would not be); wa, wb the angular velocities
+  Lanes twist_a[4], twist_b[4];
+  load_lanes(v, g.a, 2, twist_a);
+  load_lanes(v, g.b, 2, twist_b);
+  Lanes* const wa = twist_a + 1;
+  Lanes* const wb = twist_b + 1;
   auto dot3 = [](const Lanes* a, const Lanes* b) __attribute__((always_inline)) {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
   };
@@ -865,12 +888,17 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
   mul3(s.inv_a, change, turn_a);
   mul3(s.inv_b, change, turn_b);
   const Lanes size = pick(moved, root(dot3(change, change)) / s.lever, zero);
+  for (int e = 0; e < 3; ++e) {
+    wa[e] -= turn_a[e];
+    wb[e] += turn_b[e];
+  }
+  Lanes row_a[kLanes], row_b[kLanes];   // each lane's (v_z, w) back, v_z as it was read
+  transpose(twist_a, row_a);
+  transpose(twist_b, row_b);
   for (int l = 0; l < kLanes; ++l) {
     if (!moved[l]) continue;
-    if (g.write_a[l])
-      for (int e = 0; e < 3; ++e) v[6 * g.a[l] + 3 + e] = wa[e][l] - turn_a[e][l];
-    if (g.write_b[l])
-      for (int e = 0; e < 3; ++e) v[6 * g.b[l] + 3 + e] = wb[e][l] + turn_b[e][l];
+    if (g.write_a[l]) std::memcpy(v + 6 * g.a[l] + 2, &row_a[l], sizeof(Lanes));
+    if (g.write_b[l]) std::memcpy(v + 6 * g.b[l] + 2, &row_b[l], sizeof(Lanes));
     progress.change = std::max(progress.change, size[l]);
   }
 }

@@ -464,6 +464,30 @@ WIDE void transpose(const Lanes* row, Lanes* column) {
   column[2] = __builtin_shuffle(t0, t2, high);
   column[3] = __builtin_shuffle(t1, t3, high);
 }
+// numbers at and at + 1 of each lane's body's twist (v: 6 per body), as two columns
+// (lanes 0 and 2 read into one vector, 1 and 3 into another, then interleaved)
+WIDE void load_pair(const double* v, const int32_t* body, int at, Lanes& first,
+                    Lanes& second) {
+  Lanes even, odd;   // (first, second) of lanes 0 and 2; of lanes 1 and 3
+  char* e = reinterpret_cast<char*>(&even);
+  char* o = reinterpret_cast<char*>(&odd);
+  std::memcpy(e, v + 6 * body[0] + at, 2 * sizeof(double));
+  std::memcpy(e + 2 * sizeof(double), v + 6 * body[2] + at, 2 * sizeof(double));
+  std::memcpy(o, v + 6 * body[1] + at, 2 * sizeof(double));
+  std::memcpy(o + 2 * sizeof(double), v + 6 * body[3] + at, 2 * sizeof(double));
+  first = __builtin_shuffle(even, odd, (Mask){0, 4, 2, 6});
+  second = __builtin_shuffle(even, odd, (Mask){1, 5, 3, 7});
+}
+// load_pair's inverse: pairs[l] holds lane l's (first, second) in its half l / 2 of
+// pairs[l % 2]
+WIDE void pair_rows(Lanes first, Lanes second, Lanes* pairs) {
+  pairs[0] = __builtin_shuffle(first, second, (Mask){0, 4, 2, 6});
+  pairs[1] = __builtin_shuffle(first, second, (Mask){1, 5, 3, 7});
+}
+WIDE void store_pair(double* at, const Lanes* pairs, int l) {
+  std::memcpy(at, reinterpret_cast<const char*>(&pairs[l % 2]) + (l / 2) * 2 * sizeof(double),
+              2 * sizeof(double));
+}
 // numbers [at, at + 4) of each lane's body's twist (v: 6 per body), as four columns
 WIDE void load_lanes(const double* v, const int32_t* body, int at, Lanes* column) {
   Lanes row[kLanes];
@@ -480,14 +504,12 @@ WIDE Lanes dot(const WideVec& a, const Lanes* b) { return a.x * b[0] + a.y * b[1
 struct WideTwists {
   WideVec va, wa, vb, wb;
   WIDE WideTwists(const double* v, const WideGroup& g) {
-    for (int l = 0; l < kLanes; ++l) {
-      const double* a = v + 6 * g.a[l];
-      const double* b = v + 6 * g.b[l];
-      va.x[l] = a[0], va.y[l] = a[1], va.z[l] = a[2];
-      wa.x[l] = a[3], wa.y[l] = a[4], wa.z[l] = a[5];
-      vb.x[l] = b[0], vb.y[l] = b[1], vb.z[l] = b[2];
-      wb.x[l] = b[3], wb.y[l] = b[4], wb.z[l] = b[5];
-    }
+    load_pair(v, g.a, 0, va.x, va.y);
+    load_pair(v, g.a, 2, va.z, wa.x);
+    load_pair(v, g.a, 4, wa.y, wa.z);
+    load_pair(v, g.b, 0, vb.x, vb.y);
+    load_pair(v, g.b, 2, vb.z, wb.x);
+    load_pair(v, g.b, 4, wb.y, wb.z);
   }
   WIDE Twists lane(int l) const {
     Twists t;
@@ -504,17 +526,18 @@ struct WideTwists {
     wb.x[l] = t.wb.x(), wb.y[l] = t.wb.y(), wb.z[l] = t.wb.z();
   }
   WIDE void store(double* v, const WideGroup& g) const {
+    Lanes a[3][2], b[3][2];   // pair_rows of numbers (0, 1), (2, 3), (4, 5)
+    pair_rows(va.x, va.y, a[0]);
+    pair_rows(va.z, wa.x, a[1]);
+    pair_rows(wa.y, wa.z, a[2]);
+    pair_rows(vb.x, vb.y, b[0]);
+    pair_rows(vb.z, wb.x, b[1]);
+    pair_rows(wb.y, wb.z, b[2]);
     for (int l = 0; l < kLanes; ++l) {
-      if (g.write_a[l]) {
-        double* a = v + 6 * g.a[l];
-        a[0] = va.x[l], a[1] = va.y[l], a[2] = va.z[l];
-        a[3] = wa.x[l], a[4] = wa.y[l], a[5] = wa.z[l];
-      }
-      if (g.write_b[l]) {
-        double* b = v + 6 * g.b[l];
-        b[0] = vb.x[l], b[1] = vb.y[l], b[2] = vb.z[l];
-        b[3] = wb.x[l], b[4] = wb.y[l], b[5] = wb.z[l];
-      }
+      if (g.write_a[l])
+        for (int p = 0; p < 3; ++p) store_pair(v + 6 * g.a[l] + 2 * p, a[p], l);
+      if (g.write_b[l])
+        for (int p = 0; p < 3; ++p) store_pair(v + 6 * g.b[l] + 2 * p, b[p], l);
     }
   }
 };

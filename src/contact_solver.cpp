@@ -464,34 +464,42 @@ WIDE void transpose(const Lanes* row, Lanes* column) {
   column[2] = __builtin_shuffle(t0, t2, high);
   column[3] = __builtin_shuffle(t1, t3, high);
 }
+typedef double Pair __attribute__((vector_size(16)));
+WIDE Lanes load4(const double* at) {
+  Lanes r;
+  std::memcpy(&r, at, sizeof(r));
+  return r;
+}
+WIDE Pair load2(const double* at) {
+  Pair r;
+  std::memcpy(&r, at, sizeof(r));
+  return r;
+}
+WIDE void store2(double* at, Pair p) { std::memcpy(at, &p, sizeof(p)); }
 // numbers at and at + 1 of each lane's body's twist (v: 6 per body), as two columns
 // (lanes 0 and 2 read into one vector, 1 and 3 into another, then interleaved)
 WIDE void load_pair(const double* v, const int32_t* body, int at, Lanes& first,
                     Lanes& second) {
-  Lanes even, odd;   // (first, second) of lanes 0 and 2; of lanes 1 and 3
-  char* e = reinterpret_cast<char*>(&even);
-  char* o = reinterpret_cast<char*>(&odd);
-  std::memcpy(e, v + 6 * body[0] + at, 2 * sizeof(double));
-  std::memcpy(e + 2 * sizeof(double), v + 6 * body[2] + at, 2 * sizeof(double));
-  std::memcpy(o, v + 6 * body[1] + at, 2 * sizeof(double));
-  std::memcpy(o + 2 * sizeof(double), v + 6 * body[3] + at, 2 * sizeof(double));
+  const Lanes even = __builtin_shufflevector(load2(v + 6 * body[0] + at),
+                                             load2(v + 6 * body[2] + at), 0, 1, 2, 3);
+  const Lanes odd = __builtin_shufflevector(load2(v + 6 * body[1] + at),
+                                            load2(v + 6 * body[3] + at), 0, 1, 2, 3);
   first = __builtin_shuffle(even, odd, (Mask){0, 4, 2, 6});
   second = __builtin_shuffle(even, odd, (Mask){1, 5, 3, 7});
 }
-// load_pair's inverse: pairs[l] holds lane l's (first, second) in its half l / 2 of
-// pairs[l % 2]
+// load_pair's inverse: pairs[l % 2] holds lane l's (first, second) in its half l / 2
 WIDE void pair_rows(Lanes first, Lanes second, Lanes* pairs) {
   pairs[0] = __builtin_shuffle(first, second, (Mask){0, 4, 2, 6});
   pairs[1] = __builtin_shuffle(first, second, (Mask){1, 5, 3, 7});
 }
 WIDE void store_pair(double* at, const Lanes* pairs, int l) {
-  std::memcpy(at, reinterpret_cast<const char*>(&pairs[l % 2]) + (l / 2) * 2 * sizeof(double),
-              2 * sizeof(double));
+  const Lanes& p = pairs[l % 2];
+  store2(at, l / 2 == 0 ? __builtin_shufflevector(p, p, 0, 1) : __builtin_shufflevector(p, p, 2, 3));
 }
 // numbers [at, at + 4) of each lane's body's twist (v: 6 per body), as four columns
 WIDE void load_lanes(const double* v, const int32_t* body, int at, Lanes* column) {
-  Lanes row[kLanes];
-  for (int l = 0; l < kLanes; ++l) std::memcpy(&row[l], v + 6 * body[l] + at, sizeof(Lanes));
+  const Lanes row[kLanes] = {load4(v + 6 * body[0] + at), load4(v + 6 * body[1] + at),
+                             load4(v + 6 * body[2] + at), load4(v + 6 * body[3] + at)};
   transpose(row, column);
 }
 
@@ -533,11 +541,14 @@ struct WideTwists {
     pair_rows(vb.x, vb.y, b[0]);
     pair_rows(vb.z, wb.x, b[1]);
     pair_rows(wb.y, wb.z, b[2]);
+#pragma GCC unroll 4   // (l a constant: each half stored straight from its register)
     for (int l = 0; l < kLanes; ++l) {
+      double* const at_a = v + 6 * g.a[l];
+      double* const at_b = v + 6 * g.b[l];
       if (g.write_a[l])
-        for (int p = 0; p < 3; ++p) store_pair(v + 6 * g.a[l] + 2 * p, a[p], l);
+        for (int p = 0; p < 3; ++p) store_pair(at_a + 2 * p, a[p], l);
       if (g.write_b[l])
-        for (int p = 0; p < 3; ++p) store_pair(v + 6 * g.b[l] + 2 * p, b[p], l);
+        for (int p = 0; p < 3; ++p) store_pair(at_b + 2 * p, b[p], l);
     }
   }
 };
@@ -920,8 +931,10 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
   transpose(twist_b, row_b);
   for (int l = 0; l < kLanes; ++l) {
     if (!moved[l]) continue;
-    if (g.write_a[l]) std::memcpy(v + 6 * g.a[l] + 2, &row_a[l], sizeof(Lanes));
-    if (g.write_b[l]) std::memcpy(v + 6 * g.b[l] + 2, &row_b[l], sizeof(Lanes));
+    double* const at_a = v + 6 * g.a[l] + 2;
+    double* const at_b = v + 6 * g.b[l] + 2;
+    if (g.write_a[l]) std::memcpy(at_a, &row_a[l], sizeof(Lanes));
+    if (g.write_b[l]) std::memcpy(at_b, &row_b[l], sizeof(Lanes));
     progress.change = std::max(progress.change, size[l]);
   }
 }

@@ -454,15 +454,14 @@ WIDE bool any(Mask m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 // a body's twist read or written four numbers at once (one load or store per lane, not
 // one per number), the same values
 WIDE void transpose(const Lanes* row, Lanes* column) {
-  const Mask even = {0, 4, 2, 6}, odd = {1, 5, 3, 7}, low = {0, 1, 4, 5}, high = {2, 3, 6, 7};
-  const Lanes t0 = __builtin_shuffle(row[0], row[1], even);
-  const Lanes t1 = __builtin_shuffle(row[0], row[1], odd);
-  const Lanes t2 = __builtin_shuffle(row[2], row[3], even);
-  const Lanes t3 = __builtin_shuffle(row[2], row[3], odd);
-  column[0] = __builtin_shuffle(t0, t2, low);
-  column[1] = __builtin_shuffle(t1, t3, low);
-  column[2] = __builtin_shuffle(t0, t2, high);
-  column[3] = __builtin_shuffle(t1, t3, high);
+  const Lanes t0 = __builtin_shufflevector(row[0], row[1], 0, 4, 2, 6);
+  const Lanes t1 = __builtin_shufflevector(row[0], row[1], 1, 5, 3, 7);
+  const Lanes t2 = __builtin_shufflevector(row[2], row[3], 0, 4, 2, 6);
+  const Lanes t3 = __builtin_shufflevector(row[2], row[3], 1, 5, 3, 7);
+  column[0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+  column[1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+  column[2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+  column[3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
 }
 typedef double Pair __attribute__((vector_size(16)));
 WIDE Lanes load4(const double* at) {
@@ -484,17 +483,18 @@ WIDE void load_pair(const double* v, const int32_t* body, int at, Lanes& first,
                                              load2(v + 6 * body[2] + at), 0, 1, 2, 3);
   const Lanes odd = __builtin_shufflevector(load2(v + 6 * body[1] + at),
                                             load2(v + 6 * body[3] + at), 0, 1, 2, 3);
-  first = __builtin_shuffle(even, odd, (Mask){0, 4, 2, 6});
-  second = __builtin_shuffle(even, odd, (Mask){1, 5, 3, 7});
+  first = __builtin_shufflevector(even, odd, 0, 4, 2, 6);
+  second = __builtin_shufflevector(even, odd, 1, 5, 3, 7);
 }
 // load_pair's inverse: pairs[l % 2] holds lane l's (first, second) in its half l / 2
 WIDE void pair_rows(Lanes first, Lanes second, Lanes* pairs) {
-  pairs[0] = __builtin_shuffle(first, second, (Mask){0, 4, 2, 6});
-  pairs[1] = __builtin_shuffle(first, second, (Mask){1, 5, 3, 7});
+  pairs[0] = __builtin_shufflevector(first, second, 0, 4, 2, 6);
+  pairs[1] = __builtin_shufflevector(first, second, 1, 5, 3, 7);
 }
 WIDE void store_pair(double* at, const Lanes* pairs, int l) {
   const Lanes& p = pairs[l % 2];
-  store2(at, l / 2 == 0 ? __builtin_shufflevector(p, p, 0, 1) : __builtin_shufflevector(p, p, 2, 3));
+  store2(at, l / 2 == 0 ? __builtin_shufflevector(p, p, 0, 1)
+                        : __builtin_shufflevector(p, p, 2, 3));
 }
 // numbers [at, at + 4) of each lane's body's twist (v: 6 per body), as four columns
 WIDE void load_lanes(const double* v, const int32_t* body, int at, Lanes* column) {

@@ -477,12 +477,12 @@ WIDE Pair load2(const double* at) {
 WIDE void store2(double* at, Pair p) { std::memcpy(at, &p, sizeof(p)); }
 // numbers at and at + 1 of each lane's body's twist (v: 6 per body), as two columns
 // (lanes 0 and 2 read into one vector, 1 and 3 into another, then interleaved)
-WIDE void load_pair(const double* v, const int32_t* body, int at, Lanes& first,
+WIDE void load_pair(const double* v, const int64_t* offset, int at, Lanes& first,
                     Lanes& second) {
-  const Lanes even = __builtin_shufflevector(load2(v + 6 * body[0] + at),
-                                             load2(v + 6 * body[2] + at), 0, 1, 2, 3);
-  const Lanes odd = __builtin_shufflevector(load2(v + 6 * body[1] + at),
-                                            load2(v + 6 * body[3] + at), 0, 1, 2, 3);
+  const Lanes even = __builtin_shufflevector(load2(v + offset[0] + at),
+                                             load2(v + offset[2] + at), 0, 1, 2, 3);
+  const Lanes odd = __builtin_shufflevector(load2(v + offset[1] + at),
+                                            load2(v + offset[3] + at), 0, 1, 2, 3);
   first = __builtin_shufflevector(even, odd, 0, 4, 2, 6);
   second = __builtin_shufflevector(even, odd, 1, 5, 3, 7);
 }
@@ -497,9 +497,9 @@ WIDE void store_pair(double* at, const Lanes* pairs, int l) {
                         : __builtin_shufflevector(p, p, 2, 3));
 }
 // numbers [at, at + 4) of each lane's body's twist (v: 6 per body), as four columns
-WIDE void load_lanes(const double* v, const int32_t* body, int at, Lanes* column) {
-  const Lanes row[kLanes] = {load4(v + 6 * body[0] + at), load4(v + 6 * body[1] + at),
-                             load4(v + 6 * body[2] + at), load4(v + 6 * body[3] + at)};
+WIDE void load_lanes(const double* v, const int64_t* offset, int at, Lanes* column) {
+  const Lanes row[kLanes] = {load4(v + offset[0] + at), load4(v + offset[1] + at),
+                             load4(v + offset[2] + at), load4(v + offset[3] + at)};
   transpose(row, column);
 }
 
@@ -512,12 +512,12 @@ WIDE Lanes dot(const WideVec& a, const Lanes* b) { return a.x * b[0] + a.y * b[1
 struct WideTwists {
   WideVec va, wa, vb, wb;
   WIDE WideTwists(const double* v, const WideGroup& g) {
-    load_pair(v, g.a, 0, va.x, va.y);
-    load_pair(v, g.a, 2, va.z, wa.x);
-    load_pair(v, g.a, 4, wa.y, wa.z);
-    load_pair(v, g.b, 0, vb.x, vb.y);
-    load_pair(v, g.b, 2, vb.z, wb.x);
-    load_pair(v, g.b, 4, wb.y, wb.z);
+    load_pair(v, g.offset_a, 0, va.x, va.y);
+    load_pair(v, g.offset_a, 2, va.z, wa.x);
+    load_pair(v, g.offset_a, 4, wa.y, wa.z);
+    load_pair(v, g.offset_b, 0, vb.x, vb.y);
+    load_pair(v, g.offset_b, 2, vb.z, wb.x);
+    load_pair(v, g.offset_b, 4, wb.y, wb.z);
   }
   WIDE Twists lane(int l) const {
     Twists t;
@@ -543,8 +543,8 @@ struct WideTwists {
     pair_rows(wb.y, wb.z, b[2]);
 #pragma GCC unroll 4   // (l a constant: each half stored straight from its register)
     for (int l = 0; l < kLanes; ++l) {
-      double* const at_a = v + 6 * g.a[l];
-      double* const at_b = v + 6 * g.b[l];
+      double* const at_a = v + g.offset_a[l];
+      double* const at_b = v + g.offset_b[l];
       if (g.write_a[l])
         for (int p = 0; p < 3; ++p) store_pair(at_a + 2 * p, a[p], l);
       if (g.write_b[l])
@@ -881,8 +881,8 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
   // each lane's (v_z, w) of A and of B (numbers 2 to 5 of a twist: in bounds for the
   // last body, where 3 to 6 would not be); wa, wb the angular velocities
   Lanes twist_a[4], twist_b[4];
-  load_lanes(v, g.a, 2, twist_a);
-  load_lanes(v, g.b, 2, twist_b);
+  load_lanes(v, g.offset_a, 2, twist_a);
+  load_lanes(v, g.offset_b, 2, twist_b);
   Lanes* const wa = twist_a + 1;
   Lanes* const wb = twist_b + 1;
   auto dot3 = [](const Lanes* a, const Lanes* b) __attribute__((always_inline)) {
@@ -931,8 +931,8 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
   transpose(twist_b, row_b);
   for (int l = 0; l < kLanes; ++l) {
     if (!moved[l]) continue;
-    double* const at_a = v + 6 * g.a[l] + 2;
-    double* const at_b = v + 6 * g.b[l] + 2;
+    double* const at_a = v + g.offset_a[l] + 2;
+    double* const at_b = v + g.offset_b[l] + 2;
     if (g.write_a[l]) std::memcpy(at_a, &row_a[l], sizeof(Lanes));
     if (g.write_b[l]) std::memcpy(at_b, &row_b[l], sizeof(Lanes));
     progress.change = std::max(progress.change, size[l]);
@@ -968,8 +968,8 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
     WideGroup& g = plan.groups[group];
     for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
-      g.a[l] = m.a;
-      g.b[l] = m.b;
+      g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
+      g.offset_b[l] = 6 * static_cast<int64_t>(m.b);
       g.write_a[l] = inv_mass[m.a] > 0.0;
       g.write_b[l] = inv_mass[m.b] > 0.0;
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];

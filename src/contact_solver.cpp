@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace collres {
 namespace {
@@ -449,6 +450,59 @@ WIDE Lanes root(Lanes a) {
 }
 WIDE bool any(Mask m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
 
+// Four rows of four to four columns (a 4x4 transpose: lane l of column c is row l's c):
+// a body's twist read or written four numbers at once (one load or store per lane, not
+// one per number), the same values
+WIDE void transpose(const Lanes* row, Lanes* column) {
+  const Lanes t0 = __builtin_shufflevector(row[0], row[1], 0, 4, 2, 6);
+  const Lanes t1 = __builtin_shufflevector(row[0], row[1], 1, 5, 3, 7);
+  const Lanes t2 = __builtin_shufflevector(row[2], row[3], 0, 4, 2, 6);
+  const Lanes t3 = __builtin_shufflevector(row[2], row[3], 1, 5, 3, 7);
+  column[0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+  column[1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+  column[2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+  column[3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+}
+typedef double Pair __attribute__((vector_size(16)));
+WIDE Lanes load4(const double* at) {
+  Lanes r;
+  std::memcpy(&r, at, sizeof(r));
+  return r;
+}
+WIDE Pair load2(const double* at) {
+  Pair r;
+  std::memcpy(&r, at, sizeof(r));
+  return r;
+}
+WIDE void store2(double* at, Pair p) { std::memcpy(at, &p, sizeof(p)); }
+// numbers at and at + 1 of each lane's body's twist (v: 6 per body), as two columns
+// (lanes 0 and 2 read into one vector, 1 and 3 into another, then interleaved)
+WIDE void load_pair(const double* v, const int64_t* offset, int at, Lanes& first,
+                    Lanes& second) {
+  const Lanes even = __builtin_shufflevector(load2(v + offset[0] + at),
+                                             load2(v + offset[2] + at), 0, 1, 2, 3);
+  const Lanes odd = __builtin_shufflevector(load2(v + offset[1] + at),
+                                            load2(v + offset[3] + at), 0, 1, 2, 3);
+  first = __builtin_shufflevector(even, odd, 0, 4, 2, 6);
+  second = __builtin_shufflevector(even, odd, 1, 5, 3, 7);
+}
+// load_pair's inverse: pairs[l % 2] holds lane l's (first, second) in its half l / 2
+WIDE void pair_rows(Lanes first, Lanes second, Lanes* pairs) {
+  pairs[0] = __builtin_shufflevector(first, second, 0, 4, 2, 6);
+  pairs[1] = __builtin_shufflevector(first, second, 1, 5, 3, 7);
+}
+WIDE void store_pair(double* at, const Lanes* pairs, int l) {
+  const Lanes& p = pairs[l % 2];
+  store2(at, l / 2 == 0 ? __builtin_shufflevector(p, p, 0, 1)
+                        : __builtin_shufflevector(p, p, 2, 3));
+}
+// numbers [at, at + 4) of each lane's body's twist (v: 6 per body), as four columns
+WIDE void load_lanes(const double* v, const int64_t* offset, int at, Lanes* column) {
+  const Lanes row[kLanes] = {load4(v + offset[0] + at), load4(v + offset[1] + at),
+                             load4(v + offset[2] + at), load4(v + offset[3] + at)};
+  transpose(row, column);
+}
+
 struct WideVec {
   Lanes x, y, z;
 };
@@ -458,14 +512,12 @@ WIDE Lanes dot(const WideVec& a, const Lanes* b) { return a.x * b[0] + a.y * b[1
 struct WideTwists {
   WideVec va, wa, vb, wb;
   WIDE WideTwists(const double* v, const WideGroup& g) {
-    for (int l = 0; l < kLanes; ++l) {
-      const double* a = v + 6 * g.a[l];
-      const double* b = v + 6 * g.b[l];
-      va.x[l] = a[0], va.y[l] = a[1], va.z[l] = a[2];
-      wa.x[l] = a[3], wa.y[l] = a[4], wa.z[l] = a[5];
-      vb.x[l] = b[0], vb.y[l] = b[1], vb.z[l] = b[2];
-      wb.x[l] = b[3], wb.y[l] = b[4], wb.z[l] = b[5];
-    }
+    load_pair(v, g.offset_a, 0, va.x, va.y);
+    load_pair(v, g.offset_a, 2, va.z, wa.x);
+    load_pair(v, g.offset_a, 4, wa.y, wa.z);
+    load_pair(v, g.offset_b, 0, vb.x, vb.y);
+    load_pair(v, g.offset_b, 2, vb.z, wb.x);
+    load_pair(v, g.offset_b, 4, wb.y, wb.z);
   }
   WIDE Twists lane(int l) const {
     Twists t;
@@ -482,17 +534,21 @@ struct WideTwists {
     wb.x[l] = t.wb.x(), wb.y[l] = t.wb.y(), wb.z[l] = t.wb.z();
   }
   WIDE void store(double* v, const WideGroup& g) const {
+    Lanes a[3][2], b[3][2];   // pair_rows of numbers (0, 1), (2, 3), (4, 5)
+    pair_rows(va.x, va.y, a[0]);
+    pair_rows(va.z, wa.x, a[1]);
+    pair_rows(wa.y, wa.z, a[2]);
+    pair_rows(vb.x, vb.y, b[0]);
+    pair_rows(vb.z, wb.x, b[1]);
+    pair_rows(wb.y, wb.z, b[2]);
+#pragma GCC unroll 4   // (l a constant: each half stored straight from its register)
     for (int l = 0; l < kLanes; ++l) {
-      if (g.write_a[l]) {
-        double* a = v + 6 * g.a[l];
-        a[0] = va.x[l], a[1] = va.y[l], a[2] = va.z[l];
-        a[3] = wa.x[l], a[4] = wa.y[l], a[5] = wa.z[l];
-      }
-      if (g.write_b[l]) {
-        double* b = v + 6 * g.b[l];
-        b[0] = vb.x[l], b[1] = vb.y[l], b[2] = vb.z[l];
-        b[3] = wb.x[l], b[4] = wb.y[l], b[5] = wb.z[l];
-      }
+      double* const at_a = v + g.offset_a[l];
+      double* const at_b = v + g.offset_b[l];
+      if (g.write_a[l])
+        for (int p = 0; p < 3; ++p) store_pair(at_a + 2 * p, a[p], l);
+      if (g.write_b[l])
+        for (int p = 0; p < 3; ++p) store_pair(at_b + 2 * p, b[p], l);
     }
   }
 };
@@ -822,12 +878,13 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
   const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |
                     (s.torque[2] != 0.0);
   if (!any(held)) return;
-  Lanes wa[3], wb[3];
-  for (int l = 0; l < kLanes; ++l)
-    for (int e = 0; e < 3; ++e) {
-      wa[e][l] = v[6 * g.a[l] + 3 + e];
-      wb[e][l] = v[6 * g.b[l] + 3 + e];
-    }
+  // each lane's (v_z, w) of A and of B (numbers 2 to 5 of a twist: in bounds for the
+  // last body, where 3 to 6 would not be); wa, wb the angular velocities
+  Lanes twist_a[4], twist_b[4];
+  load_lanes(v, g.offset_a, 2, twist_a);
+  load_lanes(v, g.offset_b, 2, twist_b);
+  Lanes* const wa = twist_a + 1;
+  Lanes* const wb = twist_b + 1;
   auto dot3 = [](const Lanes* a, const Lanes* b) __attribute__((always_inline)) {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
   };
@@ -865,12 +922,19 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
   mul3(s.inv_a, change, turn_a);
   mul3(s.inv_b, change, turn_b);
   const Lanes size = pick(moved, root(dot3(change, change)) / s.lever, zero);
+  for (int e = 0; e < 3; ++e) {
+    wa[e] -= turn_a[e];
+    wb[e] += turn_b[e];
+  }
+  Lanes row_a[kLanes], row_b[kLanes];   // each lane's (v_z, w) back, v_z as it was read
+  transpose(twist_a, row_a);
+  transpose(twist_b, row_b);
   for (int l = 0; l < kLanes; ++l) {
     if (!moved[l]) continue;
-    if (g.write_a[l])
-      for (int e = 0; e < 3; ++e) v[6 * g.a[l] + 3 + e] = wa[e][l] - turn_a[e][l];
-    if (g.write_b[l])
-      for (int e = 0; e < 3; ++e) v[6 * g.b[l] + 3 + e] = wb[e][l] + turn_b[e][l];
+    double* const at_a = v + g.offset_a[l] + 2;
+    double* const at_b = v + g.offset_b[l] + 2;
+    if (g.write_a[l]) std::memcpy(at_a, &row_a[l], sizeof(Lanes));
+    if (g.write_b[l]) std::memcpy(at_b, &row_b[l], sizeof(Lanes));
     progress.change = std::max(progress.change, size[l]);
   }
 }
@@ -904,8 +968,8 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
     WideGroup& g = plan.groups[group];
     for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
-      g.a[l] = m.a;
-      g.b[l] = m.b;
+      g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
+      g.offset_b[l] = 6 * static_cast<int64_t>(m.b);
       g.write_a[l] = inv_mass[m.a] > 0.0;
       g.write_b[l] = inv_mass[m.b] > 0.0;
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];

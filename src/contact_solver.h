@@ -198,7 +198,8 @@ struct WideRow {
 struct WideGroup {
   size_t manifold = 0, row = 0;
   int count = 0;
-  int32_t a[kLanes] = {}, b[kLanes] = {};   // body indices
+  int64_t offset_a[kLanes] = {}, offset_b[kLanes] = {};   // 6 * body index: the first of
+                                                         // its twist's numbers in velocity
   bool write_a[kLanes] = {}, write_b[kLanes] = {};   // movable: its twist is stored
   Lanes ma, mb;                  // 1/kg
   Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)

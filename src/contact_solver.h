@@ -299,11 +299,16 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     std::vector<Manifold>& blocks, std::vector<int32_t>& members,
                     std::vector<double>& work);
 
-// Split-impulse push-out: pseudo velocities (N, 6, zeroed here) that give each row its
-// `push` normal speed; rows with push 0 keep the pseudo motion from driving them deeper.
-// Returns false (pseudo untouched, zero) when no row asks for a push.
+// Split-impulse push-out: pseudo velocities (N, 6, zeroed here; m/s and rad/s) that give
+// each row its `push` normal speed (m/s); rows with push 0 keep the pseudo motion from
+// driving them deeper. A row between two contact levels (`level`: from the immovable
+// bodies up, -1: none) whose upper body is at least `ratio` times heavier than the lower
+// one moves the upper body only, as shock propagation: the push does not drive a light
+// body into what holds it up (a fixed floor). Returns false (pseudo untouched, zero) when
+// no row asks for a push.
 bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
-                     double* pseudo, int iterations);
+                     const std::vector<int32_t>& level, double ratio, double* pseudo,
+                     int iterations);
 
 // Relative velocity of a row along n, t1, t2 (m/s) for velocities v (N, 6).
 void row_velocity(const ContactRow& row, const double* v, double out[3]);

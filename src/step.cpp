@@ -752,7 +752,9 @@ void StepSolver::push_out(StepContext& ctx) {
                             p.max_correction);
     r.push = depth / dt;
   }
-  if (!solve_positions(rows_, ctx.solver, pseudo_.data(), p.position_iterations)) return;
+  if (!solve_positions(rows_, ctx.solver, level_, p.shock_ratio, pseudo_.data(),
+                       p.position_iterations))
+    return;
   for (int64_t i = 0; i < bodies.count; ++i) {
     const double* w = pseudo_.data() + 6 * i;
     if (!touched_[i] || (w[0] == 0.0 && w[1] == 0.0 && w[2] == 0.0 && w[3] == 0.0 &&

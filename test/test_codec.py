@@ -251,6 +251,42 @@ def test_contact_array_encodes_as_rclpy(case) -> None:
     assert alone == zero_filled(bytes(serialize_message(msg)), 'collres_ros/msg/ContactArray')
 
 
+@SETTINGS
+@given(contact_arrays(), contact_arrays(), st.randoms(use_true_random=False))
+def test_contacts_of_the_same_pairs_rewritten_in_place_are_a_fresh_encoding(
+        case, other, rng) -> None:
+    """One ``ContactsEncoder`` writes a message of the last message's pairs into that
+    message's buffer (numbers and stamps only): every message of a sequence that keeps,
+    changes and returns to a set of pairs, with new numbers, stamps and states each time,
+    is the bytes ``encode_contacts`` gives it from scratch."""
+    stamp, frame, pool, pieces, a, b, pa, pb, v, toi, state = case
+    names, piece_names = codec.NamePool(pool), codec.NamePool(pieces)
+    encoder = codec.ContactsEncoder()
+    other_pairs = other[4:8] if len(pool) == len(other[2]) and len(pieces) == len(other[3]) \
+        else (b, a, pb, pa)
+    same = (a, b, pa, pb)
+    # the same pairs; another body_b only; other pieces only; other pairs; the same again
+    sequence = [same, same, (a, np.roll(b, 1), pa, pb), (a, b, np.roll(pa, 1), pb), same,
+                (a, b, pa, np.roll(pb, 1)), other_pairs, same, same]
+    for k, (ia, ib, ipa, ipb) in enumerate(sequence):
+        count = len(ia)
+        order = rng.sample(range(len(v)), len(v)) if len(v) else []
+        values = (v[order] if len(v) else v)[:count] + k
+        if len(values) < count:   # the other pairs have more rows: numbers of their own
+            values = np.resize(values if len(values) else np.ones((1, 11)), (count, 11))
+        times = (np.resize(toi, count) if len(toi) else np.zeros(count, np.int64)) - k
+        states = (np.resize(state, count) if len(state) else np.zeros(count, np.uint8)) + k
+        now = stamp + k * 10_000_000
+        got = encoder.message(now, frame, names, ia, ib, values[:, 0:3], values[:, 3:6],
+                              values[:, 6], times, values[:, 7], values[:, 8:11],
+                              states.astype(np.uint8), (piece_names, ipa, ipb)).data()
+        fresh = codec.encode_contacts(now, frame, names, ia, ib, values[:, 0:3],
+                                      values[:, 3:6], values[:, 6], times, values[:, 7],
+                                      values[:, 8:11], states.astype(np.uint8),
+                                      (piece_names, ipa, ipb))
+        assert got == fresh, k
+
+
 @st.composite
 def marker_specs(draw):
     specs = []

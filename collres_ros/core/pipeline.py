@@ -230,12 +230,15 @@ class Resolver:
                 index, fresh, entered = index[use], fresh[use], entered[use]
                 twist_in_body, rows = twist_in_body[use], index
 
-        # 2. previous and current states of all N bodies: (N, 13) rows, one array each
+        # 2. previous and current states of all N bodies: (N, 13) rows, one array each;
+        # previous is the history itself unless a fresh start changes it (the world only
+        # reads it)
         current = self._values.copy()
         current[rows] = entered
-        previous = self._values.copy()
+        previous = self._values
         if fresh.any():   # previous = current: nothing moved before a fresh start
             restart = index[fresh]
+            previous = previous.copy()
             previous[restart] = current[restart]
             self.world.forget(restart)
         active = ~self.dynamic
@@ -292,7 +295,8 @@ class Resolver:
             self.totals['contact_budget'] += 1   # steps over the budget
         if rejected or resets:
             self.totals.update(r.reason for r in rejected + resets)
-        names = self._name_array[rows].tolist()
+        names = list(self.names[rows]) if isinstance(rows, slice) else \
+            self._name_array[rows].tolist()
         values = self._values[rows].copy()   # (K, 13) the answer's rows
         return ResolvedStep(stamp_ns, names, index, _states(values), twist_in_body,
                             self.names, report, toi_ns, rejected, resets,

@@ -360,22 +360,31 @@ class CollresNode(Node):
     def _take_states(self, data: bytes, info: Any) -> None:
         if not self.serves(info):
             return
-        start = time.perf_counter()
+        start, taken_ns = time.perf_counter(), time.time_ns()
+        try:
+            try:
+                decoded = self.states_codec.decode(data)
+            except codec.DecodeError as refusal:
+                self._refuse(refusal, 'body_states')
+                return
+            batch = InputBatch(decoded.names, decoded.values, decoded.frame_id,
+                               decoded.frame_id)
+            self._step(decoded.stamp_ns, batch, False, start)
+        finally:   # the input's bookkeeping, once its answer is out
+            self._count_input(info, taken_ns)
+
+    def _count_input(self, info: Any, taken_ns: int) -> None:
+        """A ``body_states`` input taken at ``taken_ns`` (system time): how long it waited
+        between its reception by the DDS and its callback, and the inputs lost before it
+        (``losses.py``; the publisher count is an rmw query, 50 us a step in the node)."""
         received = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
         if received > 0:   # from its reception by the DDS to its callback: waited, ns
-            waited = time.time_ns() - received
+            waited = (taken_ns - received) * 1e-9
             w = self._window
-            w['queued'] += waited * 1e-9
-            w['queued_max'] = max(w['queued_max'], waited * 1e-9)
+            w['queued'] += waited
+            w['queued_max'] = max(w['queued_max'], waited)
             w['queued_inputs'] += 1
         self.losses.count(names.STATES, info, self._inputs[0].get_publisher_count())
-        try:
-            decoded = self.states_codec.decode(data)
-        except codec.DecodeError as refusal:
-            self._refuse(refusal, 'body_states')
-            return
-        batch = InputBatch(decoded.names, decoded.values, decoded.frame_id, decoded.frame_id)
-        self._step(decoded.stamp_ns, batch, False, start)
 
     def serves(self, info: Any) -> bool:
         """Whether an input is served: while serving, and received after serving began (a

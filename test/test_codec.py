@@ -332,6 +332,36 @@ def test_marker_array_encodes_as_rclpy(case) -> None:
     assert ours == zero_filled(theirs, 'visualization_msgs/msg/MarkerArray')
 
 
+@SETTINGS
+@given(marker_specs(), marker_specs())
+def test_markers_of_new_points_rewritten_in_place_are_a_fresh_encoding(case, other) -> None:
+    """One ``MarkersEncoder`` writes markers that differ from its last ones only in their
+    points' and colours' values into the last message's buffer: every message of a sequence
+    that moves the points, changes a lifetime, a point count or every marker, and moves the
+    points again, is the bytes ``encode_markers`` gives it from scratch."""
+    import dataclasses
+    stamp, frame, specs = case
+
+    def moved(markers, k):   # the same markers, other points and colours
+        return [dataclasses.replace(m, points=m.points[::-1] + k, colors=m.colors[::-1] / 2)
+                for m in markers]
+
+    def changed(markers, **fields):   # the first marker's fields changed
+        return [dataclasses.replace(markers[0], **fields)] + markers[1:] if markers \
+            else markers
+    first = specs[0] if specs else None
+    sequence = [specs, moved(specs, 1), moved(specs, 2),
+                changed(specs, lifetime_ns=first.lifetime_ns + 1) if first else specs,
+                moved(specs, 3),
+                changed(specs, points=np.zeros((len(first.points) + 1, 3))) if first
+                else specs, other[2], moved(other[2], 4), specs, moved(specs, -1)]
+    encoder = codec.MarkersEncoder()
+    for k, markers in enumerate(sequence):
+        now = stamp + k * 10_000_000
+        assert encoder.message(now, frame, markers).data() == \
+            codec.encode_markers(now, frame, markers), k
+
+
 # --- refusals ---------------------------------------------------------------------------------
 
 def _states(names, stamp=5 * 10**9) -> bytes:

@@ -595,10 +595,14 @@ class Restampable:
     def restamped(self, stamps_ns: int | np.ndarray) -> bytes:
         """The message with its stamps set to ``stamps_ns`` (ns: one for all, or one per
         stamp in the order of ``stamps``; negative times clamp to 0)."""
+        self.stamp(stamps_ns)
+        return self.data()
+
+    def stamp(self, stamps_ns: int | np.ndarray) -> None:
+        """Set the stamps in place (``restamped``)."""
         ns = np.maximum(np.asarray(stamps_ns, np.int64), 0)
         self._words[self.stamps] = ns // NS_PER_S
         self._words[self.stamps + 1] = (ns % NS_PER_S).astype(np.uint32).view(np.int32)
-        return self.data()
 
 
 # --- ContactArray -----------------------------------------------------------------------------
@@ -932,10 +936,33 @@ def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) 
 def markers_message(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
                     ) -> Restampable:
     """``encode_markers`` as a ``Restampable``: its stamps are each marker's header's."""
+    return _markers_shape(stamp_ns, frame_id, markers).message
+
+
+@dataclass
+class _MarkersShape:
+    """A MarkerArray's bytes and where each marker's ``points`` and ``colors`` sit in them."""
+
+    key: tuple[Any, ...]        # frame and every field but the points' and colours' values
+    message: Restampable
+    points_at: list[int]        # byte of each marker's first point (float64), -1: none
+    colors_at: list[int]        # byte of each marker's first colour (float32), -1: none
+
+
+def _markers_key(frame_id: str, markers: Sequence[MarkerSpec]) -> tuple[Any, ...]:
+    """What fixes a MarkerArray's bytes but the values of its points and colours."""
+    return (frame_id, *((m.action, m.type, m.ns, m.id, int(m.lifetime_ns),
+                         _MARKER_BODY.pack(*m.pose, *m.scale, *m.color, 0, 0, 0),
+                         0 if m.points is None else len(m.points),
+                         0 if m.colors is None else len(m.colors)) for m in markers))
+
+
+def _markers_shape(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
+                   ) -> _MarkersShape:
     buf = bytearray(ENCAPSULATION)
     buf += _U32.pack(len(markers))
     header = _STAMP.pack(*stamp_parts(stamp_ns)) + string_bytes(frame_id)
-    stamps = []
+    stamps, points_at, colors_at = [], [], []
     for m in markers:
         _pad(buf, 4)
         stamps.append((len(buf) - 4) // 4)
@@ -950,15 +977,50 @@ def markers_message(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
         points = () if m.points is None else m.points
         _pad(buf, 4)
         buf += _U32.pack(len(points))
+        points_at.append(-1)
         if len(points):
             _pad(buf, 8)
+            points_at[-1] = len(buf)
             buf += np.ascontiguousarray(points, '<f8').tobytes()
         colors = () if m.colors is None else m.colors
         _pad(buf, 4)
         buf += _U32.pack(len(colors))
+        colors_at.append(-1)
         if len(colors):
+            colors_at[-1] = len(buf)
             buf += np.ascontiguousarray(colors, '<f4').tobytes()
         buf += _MARKER_TAIL
     size = len(buf)
     buf += bytes(-(size - 4) % 4)
-    return Restampable(np.frombuffer(buf, np.uint8), size, np.array(stamps, np.int64))
+    message = Restampable(np.frombuffer(buf, np.uint8), size, np.array(stamps, np.int64))
+    return _MarkersShape(_markers_key(frame_id, markers), message, points_at, colors_at)
+
+
+class MarkersEncoder:
+    """``markers_message`` that remembers its last message: markers that differ from the
+    last ones only in the values of their points and colours (the same markers, lifetimes
+    and point counts: a settled pile's contacts, step after step) are written into the last
+    message's buffer, points, colours and stamps only. The same bytes as a message built
+    anew. The last message's buffer is written in place: take its bytes first."""
+
+    def __init__(self) -> None:
+        self._last: Optional[_MarkersShape] = None
+
+    def message(self, stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
+                ) -> Restampable:
+        shape = self._last
+        if shape is None or shape.key != _markers_key(frame_id, markers):
+            shape = self._last = _markers_shape(stamp_ns, frame_id, markers)
+            return shape.message
+        buf = shape.message.buffer
+        for m, points, colors in zip(markers, shape.points_at, shape.colors_at):
+            if points >= 0:
+                count = 3 * len(m.points)
+                buf[points:points + 8 * count].view('<f8')[:] = \
+                    np.asarray(m.points, float).reshape(-1)
+            if colors >= 0:
+                count = 4 * len(m.colors)
+                buf[colors:colors + 4 * count].view('<f4')[:] = \
+                    np.asarray(m.colors, '<f4').reshape(-1)
+        shape.message.stamp(stamp_ns)
+        return shape.message

@@ -164,6 +164,7 @@ class OutputEncoder:
         self._last: dict[str, tuple[int, float, codec.Restampable]] = {}
         # contacts of the last message's pairs: their numbers written into its buffer
         self._contacts = codec.ContactsEncoder()
+        self._markers = codec.MarkersEncoder()   # markers likewise
 
     def body_markers(self, step: ResolvedStep, period: float, lifetime: float
                      ) -> Optional[bytes]:
@@ -251,7 +252,7 @@ class OutputEncoder:
         reused = self._reused(MARKERS, step, lifetime)
         if reused is not None:
             return reused.restamped(step.stamp_ns)
-        message = codec.markers_message(step.stamp_ns, self.world_frame,
+        message = self._markers.message(step.stamp_ns, self.world_frame,
                                         contact_marker_specs(step, lifetime))
         self._last[MARKERS] = (step.number, lifetime, message)
         return message.data()

@@ -189,8 +189,11 @@ class CollresNode(Node):
         self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame,
                                               self.scene.bodies)
         self.refused: Counter[str] = Counter()   # inputs refused before the resolver
-        # bodies/<name>/in_contact (with contact_state) and the get_contacts service
-        self.contact_sensing = ContactSensing(self, body_names, self.encoder.contacts)
+        # bodies/<name>/in_contact (with contact_state) and the get_contacts service; the
+        # service runs in the executor's thread, outside the step's lock: an encoder of its
+        # own (the step's writes its last messages in place)
+        self.contact_sensing = ContactSensing(self, body_names, messages.OutputEncoder(
+            body_names, self.scene.world_frame, self.scene.bodies).contacts)
         self._configure_contact_state()
         statics = [b.name for b in self.scene.bodies if b.static]
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]

@@ -251,6 +251,42 @@ def test_contact_array_encodes_as_rclpy(case) -> None:
     assert alone == zero_filled(bytes(serialize_message(msg)), 'collres_ros/msg/ContactArray')
 
 
+@SETTINGS
+@given(contact_arrays(), contact_arrays(), st.randoms(use_true_random=False))
+def test_contacts_of_the_same_pairs_rewritten_in_place_are_a_fresh_encoding(
+        case, other, rng) -> None:
+    """One ``ContactsEncoder`` writes a message of the last message's pairs into that
+    message's buffer (numbers and stamps only): every message of a sequence that keeps,
+    changes and returns to a set of pairs, with new numbers, stamps and states each time,
+    is the bytes ``encode_contacts`` gives it from scratch."""
+    stamp, frame, pool, pieces, a, b, pa, pb, v, toi, state = case
+    names, piece_names = codec.NamePool(pool), codec.NamePool(pieces)
+    encoder = codec.ContactsEncoder()
+    other_pairs = other[4:8] if len(pool) == len(other[2]) and len(pieces) == len(other[3]) \
+        else (b, a, pb, pa)
+    same = (a, b, pa, pb)
+    # the same pairs; another body_b only; other pieces only; other pairs; the same again
+    sequence = [same, same, (a, np.roll(b, 1), pa, pb), (a, b, np.roll(pa, 1), pb), same,
+                (a, b, pa, np.roll(pb, 1)), other_pairs, same, same]
+    for k, (ia, ib, ipa, ipb) in enumerate(sequence):
+        count = len(ia)
+        order = rng.sample(range(len(v)), len(v)) if len(v) else []
+        values = (v[order] if len(v) else v)[:count] + k
+        if len(values) < count:   # the other pairs have more rows: numbers of their own
+            values = np.resize(values if len(values) else np.ones((1, 11)), (count, 11))
+        times = (np.resize(toi, count) if len(toi) else np.zeros(count, np.int64)) - k
+        states = (np.resize(state, count) if len(state) else np.zeros(count, np.uint8)) + k
+        now = stamp + k * 10_000_000
+        got = encoder.message(now, frame, names, ia, ib, values[:, 0:3], values[:, 3:6],
+                              values[:, 6], times, values[:, 7], values[:, 8:11],
+                              states.astype(np.uint8), (piece_names, ipa, ipb)).data()
+        fresh = codec.encode_contacts(now, frame, names, ia, ib, values[:, 0:3],
+                                      values[:, 3:6], values[:, 6], times, values[:, 7],
+                                      values[:, 8:11], states.astype(np.uint8),
+                                      (piece_names, ipa, ipb))
+        assert got == fresh, k
+
+
 @st.composite
 def marker_specs(draw):
     specs = []
@@ -294,6 +330,36 @@ def test_marker_array_encodes_as_rclpy(case) -> None:
         msg.markers.append(m)
     theirs = bytes(serialize_message(msg))
     assert ours == zero_filled(theirs, 'visualization_msgs/msg/MarkerArray')
+
+
+@SETTINGS
+@given(marker_specs(), marker_specs())
+def test_markers_of_new_points_rewritten_in_place_are_a_fresh_encoding(case, other) -> None:
+    """One ``MarkersEncoder`` writes markers that differ from its last ones only in their
+    points' and colours' values into the last message's buffer: every message of a sequence
+    that moves the points, changes a lifetime, a point count or every marker, and moves the
+    points again, is the bytes ``encode_markers`` gives it from scratch."""
+    import dataclasses
+    stamp, frame, specs = case
+
+    def moved(markers, k):   # the same markers, other points and colours
+        return [dataclasses.replace(m, points=m.points[::-1] + k, colors=m.colors[::-1] / 2)
+                for m in markers]
+
+    def changed(markers, **fields):   # the first marker's fields changed
+        return [dataclasses.replace(markers[0], **fields)] + markers[1:] if markers \
+            else markers
+    first = specs[0] if specs else None
+    sequence = [specs, moved(specs, 1), moved(specs, 2),
+                changed(specs, lifetime_ns=first.lifetime_ns + 1) if first else specs,
+                moved(specs, 3),
+                changed(specs, points=np.zeros((len(first.points) + 1, 3))) if first
+                else specs, other[2], moved(other[2], 4), specs, moved(specs, -1)]
+    encoder = codec.MarkersEncoder()
+    for k, markers in enumerate(sequence):
+        now = stamp + k * 10_000_000
+        assert encoder.message(now, frame, markers).data() == \
+            codec.encode_markers(now, frame, markers), k
 
 
 # --- refusals ---------------------------------------------------------------------------------

@@ -35,14 +35,14 @@ def stack() -> tuple[list[BodySpec], BodyStates]:
 
 def test_restamped_outputs_are_the_fresh_encoding(monkeypatch) -> None:
     built = {'contacts': 0, 'markers': 0}
-    contacts_message, markers_message = codec.contacts_message, codec.markers_message
+    contacts_message, markers_message = codec.ContactsEncoder.message, codec.markers_message
 
     def counting(kind, build):
         def wrapped(*args, **kwargs):
             built[kind] += 1
             return build(*args, **kwargs)
         return wrapped
-    monkeypatch.setattr(codec, 'contacts_message', counting('contacts', contacts_message))
+    monkeypatch.setattr(codec.ContactsEncoder, 'message', counting('contacts', contacts_message))
     monkeypatch.setattr(codec, 'markers_message', counting('markers', markers_message))
 
     bodies, state = stack()

@@ -230,12 +230,15 @@ class Resolver:
                 index, fresh, entered = index[use], fresh[use], entered[use]
                 twist_in_body, rows = twist_in_body[use], index
 
-        # 2. previous and current states of all N bodies: (N, 13) rows, one array each
+        # 2. previous and current states of all N bodies: (N, 13) rows, one array each;
+        # previous is the history itself unless a fresh start changes it (the world only
+        # reads it)
         current = self._values.copy()
         current[rows] = entered
-        previous = self._values.copy()
+        previous = self._values
         if fresh.any():   # previous = current: nothing moved before a fresh start
             restart = index[fresh]
+            previous = previous.copy()
             previous[restart] = current[restart]
             self.world.forget(restart)
         active = ~self.dynamic
@@ -265,15 +268,18 @@ class Resolver:
                                           f'{self.names[i]}: the solver produced a non-finite '
                                           'state; the input is passed through'))
         else:
-            bad = np.zeros(len(index), bool)
+            bad = None   # every result finite
         rejected += [r for r in result.rejected if r.reason != 'non_finite_result']
 
-        # 4. keep the corrected states as the history of the next step
-        if bad.any():
+        # 4. keep the corrected states as the history of the next step; the answer's rows
+        if bad is not None and bad.any():
             self._values[index[~bad]] = out[index[~bad]]
             self._values[index[bad]] = current[index[bad]]
+            values = self._values[rows].copy()   # (K, 13)
         else:
-            self._values[rows] = out[rows]
+            bad = None
+            values = out[rows]   # (K, 13), of this step's own array
+            self._values[rows] = values
         self.last_stamp[rows] = stamp_ns
         self.previous_step_ns = stamp_ns
 
@@ -292,8 +298,8 @@ class Resolver:
             self.totals['contact_budget'] += 1   # steps over the budget
         if rejected or resets:
             self.totals.update(r.reason for r in rejected + resets)
-        names = self._name_array[rows].tolist()
-        values = self._values[rows].copy()   # (K, 13) the answer's rows
+        names = list(self.names[rows]) if isinstance(rows, slice) else \
+            self._name_array[rows].tolist()
         return ResolvedStep(stamp_ns, names, index, _states(values), twist_in_body,
                             self.names, report, toi_ns, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)] if stale.any()
@@ -301,6 +307,7 @@ class Resolver:
                             time.perf_counter() - start, world_time, world_cpu,
                             self._values[:, 0:7].copy(), budget,
                             np.zeros(len(index), bool) if result.sleeping is None
+                            else result.sleeping[rows] if bad is None
                             else result.sleeping[rows] & ~bad,
                             number=self.number, unchanged=result.unchanged, values=values)
 

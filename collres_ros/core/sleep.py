@@ -91,7 +91,8 @@ class Sleep:
                dt: float, fresh: bool) -> tuple[BodyStates, np.ndarray, np.ndarray]:
         """Wake what must wake, then (current, active, asleep): sleepers' current states
         replaced by their held state (previous pose, zero twist) and marked inactive."""
-        if fresh or self._last_active is None or not np.array_equal(active, self._last_active):
+        last = self._last_active
+        if fresh or last is None or len(last) != len(active) or not (active == last).all():
             self.wake_all()            # a clock jump, a body added or removed
         self._last_active = active.copy()
         kinematic = self._no_kinematic

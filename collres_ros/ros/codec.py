@@ -595,10 +595,14 @@ class Restampable:
     def restamped(self, stamps_ns: int | np.ndarray) -> bytes:
         """The message with its stamps set to ``stamps_ns`` (ns: one for all, or one per
         stamp in the order of ``stamps``; negative times clamp to 0)."""
+        self.stamp(stamps_ns)
+        return self.data()
+
+    def stamp(self, stamps_ns: int | np.ndarray) -> None:
+        """Set the stamps in place (``restamped``)."""
         ns = np.maximum(np.asarray(stamps_ns, np.int64), 0)
         self._words[self.stamps] = ns // NS_PER_S
         self._words[self.stamps + 1] = (ns % NS_PER_S).astype(np.uint32).view(np.int32)
-        return self.data()
 
 
 # --- ContactArray -----------------------------------------------------------------------------
@@ -667,18 +671,60 @@ def contacts_message(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.nd
                      ) -> 'Restampable':
     """``encode_contacts`` as a ``Restampable``: its stamps are the header's, then each
     contact's time_of_impact."""
+    return ContactsEncoder().message(stamp_ns, frame_id, pool, body_a, body_b, point, normal,
+                                     depth, toi_ns, normal_impulse, friction_impulse, state,
+                                     pieces)
+
+
+@dataclass
+class _ContactsShape:
+    """Where everything of a ContactArray of these pairs sits: its names written, its
+    numbers and stamps still to write (``_contacts_fields``)."""
+
+    frame_id: str
+    pool: NamePool
+    pieces: Optional[NamePool]
+    a: np.ndarray             # (M,) int64 body_a, body_b, piece_a, piece_b indices
+    b: np.ndarray
+    pa: np.ndarray
+    pb: np.ndarray
+    message: 'Restampable'    # the buffer: header, count, names, padding
+    block: np.ndarray         # (M,) int64: byte of each record's numbers, after the header
+    # records 1.. of one shape (names that pad to the same lengths): (first byte, record
+    # length, its numbers' offset in it) of record 0 and of the rest; None: not uniform
+    uniform: Optional[tuple[tuple[int, int, int], tuple[int, int, int]]]
+
+    def fits(self, frame_id: str, pool: NamePool, a: np.ndarray, b: np.ndarray,
+             pieces: tuple[NamePool, np.ndarray, np.ndarray] | None) -> bool:
+        """Whether a message of these pairs has this shape (the same strings in order)."""
+        if frame_id != self.frame_id or pool is not self.pool or len(a) != len(self.a) \
+                or (pieces is None) != (self.pieces is None):
+            return False
+        if pieces is not None and (pieces[0] is not self.pieces
+                                   or not np.array_equal(pieces[1], self.pa)
+                                   or not np.array_equal(pieces[2], self.pb)):
+            return False
+        return bool((a == self.a).all() and (b == self.b).all())
+
+
+def _contacts_shape(frame_id: str, pool: NamePool, a: np.ndarray, b: np.ndarray,
+                    pieces: tuple[NamePool, np.ndarray, np.ndarray] | None) -> _ContactsShape:
+    """The shape of a ContactArray of the pairs ``a``, ``b`` (int64 body indices into
+    ``pool``) and ``pieces``: its buffer with the header (stamp 0), the count, every name
+    and zero padding written."""
     w = Writer()
-    w.header(stamp_ns, frame_id)
-    count = int(len(body_a))
+    w.header(0, frame_id)
+    count = int(len(a))
     w.u32(count)
-    if count == 0:
-        return Restampable(np.frombuffer(w.bytes(), np.uint8).copy(), len(w.buf),
-                           np.array([0], np.int64))
-    a = np.asarray(body_a, np.int64)
-    b = np.asarray(body_b, np.int64)
     names, pa, pb = pieces if pieces is not None else (
         NO_PIECES, np.zeros(count, np.int64), np.zeros(count, np.int64))
-    pa, pb = np.asarray(pa, np.int64), np.asarray(pb, np.int64)
+    pa, pb = np.array(pa, np.int64), np.array(pb, np.int64)
+    piece_pool = None if pieces is None else names
+    if count == 0:
+        empty = Restampable(np.frombuffer(w.bytes(), np.uint8).copy(), len(w.buf),
+                            np.array([0], np.int64))
+        return _ContactsShape(frame_id, pool, piece_pool, a.copy(), b.copy(), pa, pb, empty,
+                              np.zeros(0, np.int64), None)
     s0 = w.offset                                          # 4-aligned
     la = 4 * pool.words[a]                                 # body_a, padded to 4
     lb4 = 4 * pool.words[b]                                # body_b, padded to 4
@@ -694,32 +740,71 @@ def contacts_message(stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.nd
     buf = np.zeros(4 + 8 * ((size - 4 + 7) // 8) + 8, np.uint8)
     head = np.frombuffer(bytes(w.buf), np.uint8)
     buf[:len(head)] = head
-    columns = dict(point=np.asarray(point, float).reshape(count, 3),
-                   normal=np.asarray(normal, float).reshape(count, 3),
-                   depth=np.asarray(depth, float).reshape(count, 1),
-                   toi=np.maximum(np.asarray(toi_ns, np.int64), 0),
-                   impulse=np.asarray(normal_impulse, float).reshape(count, 1),
-                   friction=np.asarray(friction_impulse, float).reshape(count, 3),
-                   state=np.asarray(state, np.uint8))
+    message = Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
     # records after the first one all start at 4 mod 8: when their names pad to the same
     # lengths (as in most scenes) they have one shape, written through one strided view
     rest = slice(1, count)
     uniform = count > 2 and all((x[rest] == x[1]).all() for x in (record, la, lb4, lpa4))
     if not uniform:
-        _contacts_general(buf, (pool, a, start), (pool, b, start + la),
-                          (names, pa, start + la + lb4), (names, pb, start + la + lb4 + lpa4),
-                          block, columns)
-        return Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
+        words = buf[4:4 + 4 * ((len(buf) - 4) // 4)].view('<u4')
+        for string_pool, which, at in ((pool, a, start), (pool, b, start + la),
+                                       (names, pa, start + la + lb4),
+                                       (names, pb, start + la + lb4 + lpa4)):
+            _gather_words(words, at // 4, string_pool, which)
+        return _ContactsShape(frame_id, pool, piece_pool, a.copy(), b.copy(), pa, pb, message,
+                              block, None)
     # the first record (its own phase) and the rest, each of one shape
+    geometry = []
     for k in (slice(0, 1), rest):
         i = k.start
-        _contacts_uniform(buf, ((pool, a[k], int(la[i])), (pool, b[k], int(lb4[i])),
-                                (names, pa[k], int(lpa4[i])),
-                                # the longest: shorter ones write zeros into the gap
-                                (names, pb[k], int(4 * names.words[pb[k]].max()))),
-                          int(start[i]), int(record[i]), int(block[i] - start[i]),
-                          {key: v[k] for key, v in columns.items()})
-    return Restampable(buf, size, np.concatenate([[0], (block + 56) // 4]))
+        _contacts_names(buf, ((pool, a[k], int(la[i])), (pool, b[k], int(lb4[i])),
+                              (names, pa[k], int(lpa4[i])),
+                              # the longest: shorter ones write zeros into the gap
+                              (names, pb[k], int(4 * names.words[pb[k]].max()))),
+                        int(start[i]), int(record[i]))
+        geometry.append((int(start[i]), int(record[i]), int(block[i] - start[i])))
+    return _ContactsShape(frame_id, pool, piece_pool, a.copy(), b.copy(), pa, pb, message,
+                          block, (geometry[0], geometry[1]))
+
+
+class ContactsEncoder:
+    """``contacts_message`` that remembers the shape of its last message: a message of the
+    same pairs in the same order (body and piece indices: a settled pile's contacts, step
+    after step) is written into the last one's buffer, its numbers and stamps only (its
+    names, offsets and padding are as they were). The same bytes as a message built anew.
+
+    The last message's buffer is written in place: take its bytes (``Restampable.data``)
+    before the next call.
+    """
+
+    def __init__(self) -> None:
+        self._last: Optional[_ContactsShape] = None
+
+    def message(self, stamp_ns: int, frame_id: str, pool: NamePool, body_a: np.ndarray,
+                body_b: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                depth: np.ndarray, toi_ns: np.ndarray, normal_impulse: np.ndarray,
+                friction_impulse: np.ndarray, state: np.ndarray,
+                pieces: tuple[NamePool, np.ndarray, np.ndarray] | None = None
+                ) -> 'Restampable':
+        """The ContactArray of ``encode_contacts``' arguments, as a ``Restampable``."""
+        a = np.asarray(body_a, np.int64)
+        b = np.asarray(body_b, np.int64)
+        shape = self._last
+        if shape is None or not shape.fits(frame_id, pool, a, b, pieces):
+            shape = self._last = _contacts_shape(frame_id, pool, a, b, pieces)
+        buf = shape.message.buffer
+        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_ns))
+        count = len(a)
+        if count:
+            _contacts_fields(buf, shape, dict(
+                point=np.asarray(point, float).reshape(count, 3),
+                normal=np.asarray(normal, float).reshape(count, 3),
+                depth=np.asarray(depth, float).reshape(count, 1),
+                toi=np.maximum(np.asarray(toi_ns, np.int64), 0),
+                impulse=np.asarray(normal_impulse, float).reshape(count, 1),
+                friction=np.asarray(friction_impulse, float).reshape(count, 3),
+                state=np.asarray(state, np.uint8)))
+        return shape.message
 
 
 def upgrade_contacts(data: bytes) -> bytes:
@@ -743,29 +828,9 @@ def upgrade_contacts(data: bytes) -> bytes:
                            v[:, 8:11], np.array(state, np.uint8))
 
 
-def _contacts_general(buf: np.ndarray, *strings_and: Any) -> None:
-    """Contact records anywhere: names gathered word by word, fields scattered.
-    ``strings_and``: four (pool, indices, byte offsets) of the record's strings, then the
-    block offsets and the columns."""
-    *strings, block, col = strings_and
-    words = buf[4:4 + 4 * ((len(buf) - 4) // 4)].view('<u4')
-    for pool, which, start in strings:
-        _gather_words(words, start // 4, pool, which)
-    f8 = _doubles(buf)
-    j = block // 8
-    f8[j[:, None] + np.arange(7)] = np.concatenate([col['point'], col['normal'],
-                                                    col['depth']], axis=1)
-    f8[j[:, None] + np.arange(8, 12)] = np.concatenate([col['impulse'], col['friction']],
-                                                       axis=1)
-    i4 = buf[4:4 + 4 * ((len(buf) - 4) // 4)].view('<i4')
-    i4[(block + 56) // 4] = col['toi'] // NS_PER_S
-    i4[(block + 60) // 4] = col['toi'] % NS_PER_S
-    buf[4 + block + 96] = col['state']
-
-
-def _contacts_uniform(buf: np.ndarray, strings: Sequence[tuple[NamePool, np.ndarray, int]],
-                      start: int, length: int, block: int, col: dict[str, np.ndarray]) -> None:
-    """Contact records of one shape (``length`` bytes, block at ``block``) from ``start``;
+def _contacts_names(buf: np.ndarray, strings: Sequence[tuple[NamePool, np.ndarray, int]],
+                    start: int, length: int) -> None:
+    """The strings of contact records of one shape (``length`` bytes each) from ``start``;
     ``strings``: the record's four (pool, indices, padded length) in order."""
     count = len(strings[0][1])
     records = buf[4 + start:4 + start + count * length].reshape(count, length)
@@ -775,14 +840,38 @@ def _contacts_uniform(buf: np.ndarray, strings: Sequence[tuple[NamePool, np.ndar
         records[:, at:at + padded] = pool.rows[0, :padded] if len(pool.rows) == 1 \
             else pool.rows[which, :padded]
         at += padded
-    fields = records[:, block:block + 96]
-    fields[:, 0:56].view('<f8')[:] = np.concatenate([col['point'], col['normal'],
-                                                     col['depth']], axis=1)
-    stamps = fields[:, 56:64].view('<i4')
-    stamps[:, 0] = col['toi'] // NS_PER_S
-    stamps[:, 1] = col['toi'] % NS_PER_S
-    fields[:, 64:96].view('<f8')[:] = np.concatenate([col['impulse'], col['friction']], axis=1)
-    records[:, block + 96] = col['state']
+
+
+def _contacts_fields(buf: np.ndarray, shape: _ContactsShape, col: dict[str, np.ndarray]
+                     ) -> None:
+    """The numbers of every contact record of ``shape`` (its names are written): through
+    one strided view per run of records of one shape, else scattered."""
+    if shape.uniform is None:
+        f8 = _doubles(buf)
+        j = shape.block // 8
+        f8[j[:, None] + np.arange(7)] = np.concatenate([col['point'], col['normal'],
+                                                        col['depth']], axis=1)
+        f8[j[:, None] + np.arange(8, 12)] = np.concatenate([col['impulse'], col['friction']],
+                                                           axis=1)
+        i4 = buf[4:4 + 4 * ((len(buf) - 4) // 4)].view('<i4')
+        i4[(shape.block + 56) // 4] = col['toi'] // NS_PER_S
+        i4[(shape.block + 60) // 4] = col['toi'] % NS_PER_S
+        buf[4 + shape.block + 96] = col['state']
+        return
+    head = np.concatenate([col['point'], col['normal'], col['depth']], axis=1)
+    tail = np.concatenate([col['impulse'], col['friction']], axis=1)
+    sec, nanosec = col['toi'] // NS_PER_S, col['toi'] % NS_PER_S
+    count = len(head)
+    for k, (start, length, block) in zip((slice(0, 1), slice(1, count)), shape.uniform):
+        n = k.stop - k.start
+        records = buf[4 + start:4 + start + n * length].reshape(n, length)
+        fields = records[:, block:block + 96]
+        fields[:, 0:56].view('<f8')[:] = head[k]
+        stamps = fields[:, 56:64].view('<i4')
+        stamps[:, 0] = sec[k]
+        stamps[:, 1] = nanosec[k]
+        fields[:, 64:96].view('<f8')[:] = tail[k]
+        records[:, block + 96] = col['state'][k]
 
 
 # --- MarkerArray ------------------------------------------------------------------------------
@@ -847,10 +936,33 @@ def encode_markers(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]) 
 def markers_message(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
                     ) -> Restampable:
     """``encode_markers`` as a ``Restampable``: its stamps are each marker's header's."""
+    return _markers_shape(stamp_ns, frame_id, markers).message
+
+
+@dataclass
+class _MarkersShape:
+    """A MarkerArray's bytes and where each marker's ``points`` and ``colors`` sit in them."""
+
+    key: tuple[Any, ...]        # frame and every field but the points' and colours' values
+    message: Restampable
+    points_at: list[int]        # byte of each marker's first point (float64), -1: none
+    colors_at: list[int]        # byte of each marker's first colour (float32), -1: none
+
+
+def _markers_key(frame_id: str, markers: Sequence[MarkerSpec]) -> tuple[Any, ...]:
+    """What fixes a MarkerArray's bytes but the values of its points and colours."""
+    return (frame_id, *((m.action, m.type, m.ns, m.id, int(m.lifetime_ns),
+                         _MARKER_BODY.pack(*m.pose, *m.scale, *m.color, 0, 0, 0),
+                         0 if m.points is None else len(m.points),
+                         0 if m.colors is None else len(m.colors)) for m in markers))
+
+
+def _markers_shape(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
+                   ) -> _MarkersShape:
     buf = bytearray(ENCAPSULATION)
     buf += _U32.pack(len(markers))
     header = _STAMP.pack(*stamp_parts(stamp_ns)) + string_bytes(frame_id)
-    stamps = []
+    stamps, points_at, colors_at = [], [], []
     for m in markers:
         _pad(buf, 4)
         stamps.append((len(buf) - 4) // 4)
@@ -865,15 +977,50 @@ def markers_message(stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
         points = () if m.points is None else m.points
         _pad(buf, 4)
         buf += _U32.pack(len(points))
+        points_at.append(-1)
         if len(points):
             _pad(buf, 8)
+            points_at[-1] = len(buf)
             buf += np.ascontiguousarray(points, '<f8').tobytes()
         colors = () if m.colors is None else m.colors
         _pad(buf, 4)
         buf += _U32.pack(len(colors))
+        colors_at.append(-1)
         if len(colors):
+            colors_at[-1] = len(buf)
             buf += np.ascontiguousarray(colors, '<f4').tobytes()
         buf += _MARKER_TAIL
     size = len(buf)
     buf += bytes(-(size - 4) % 4)
-    return Restampable(np.frombuffer(buf, np.uint8), size, np.array(stamps, np.int64))
+    message = Restampable(np.frombuffer(buf, np.uint8), size, np.array(stamps, np.int64))
+    return _MarkersShape(_markers_key(frame_id, markers), message, points_at, colors_at)
+
+
+class MarkersEncoder:
+    """``markers_message`` that remembers its last message: markers that differ from the
+    last ones only in the values of their points and colours (the same markers, lifetimes
+    and point counts: a settled pile's contacts, step after step) are written into the last
+    message's buffer, points, colours and stamps only. The same bytes as a message built
+    anew. The last message's buffer is written in place: take its bytes first."""
+
+    def __init__(self) -> None:
+        self._last: Optional[_MarkersShape] = None
+
+    def message(self, stamp_ns: int, frame_id: str, markers: Sequence[MarkerSpec]
+                ) -> Restampable:
+        shape = self._last
+        if shape is None or shape.key != _markers_key(frame_id, markers):
+            shape = self._last = _markers_shape(stamp_ns, frame_id, markers)
+            return shape.message
+        buf = shape.message.buffer
+        for m, points, colors in zip(markers, shape.points_at, shape.colors_at):
+            if points >= 0:
+                count = 3 * len(m.points)
+                buf[points:points + 8 * count].view('<f8')[:] = \
+                    np.asarray(m.points, float).reshape(-1)
+            if colors >= 0:
+                count = 4 * len(m.colors)
+                buf[colors:colors + 4 * count].view('<f4')[:] = \
+                    np.asarray(m.colors, '<f4').reshape(-1)
+        shape.message.stamp(stamp_ns)
+        return shape.message

@@ -162,6 +162,9 @@ class OutputEncoder:
         # its markers, the message): a step whose report is that step's (``ResolvedStep.
         # unchanged``: a sleeping pile's held contacts) only restamps it
         self._last: dict[str, tuple[int, float, codec.Restampable]] = {}
+        # contacts of the last message's pairs: their numbers written into its buffer
+        self._contacts = codec.ContactsEncoder()
+        self._markers = codec.MarkersEncoder()   # markers likewise
 
     def body_markers(self, step: ResolvedStep, period: float, lifetime: float
                      ) -> Optional[bytes]:
@@ -229,7 +232,7 @@ class OutputEncoder:
         pieces = None if self.piece_names is None else (
             self.piece_names, self.piece_start[c.body_a] + piece_a,
             self.piece_start[c.body_b] + piece_b)
-        message = codec.contacts_message(step.stamp_ns, self.world_frame, self.names,
+        message = self._contacts.message(step.stamp_ns, self.world_frame, self.names,
                                          c.body_a, c.body_b, c.point, c.normal, c.depth,
                                          step.toi_ns, r.normal_impulse, r.friction_impulse,
                                          r.state, pieces)
@@ -249,7 +252,7 @@ class OutputEncoder:
         reused = self._reused(MARKERS, step, lifetime)
         if reused is not None:
             return reused.restamped(step.stamp_ns)
-        message = codec.markers_message(step.stamp_ns, self.world_frame,
+        message = self._markers.message(step.stamp_ns, self.world_frame,
                                         contact_marker_specs(step, lifetime))
         self._last[MARKERS] = (step.number, lifetime, message)
         return message.data()

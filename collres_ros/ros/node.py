@@ -189,8 +189,11 @@ class CollresNode(Node):
         self.encoder = messages.OutputEncoder(body_names, self.scene.world_frame,
                                               self.scene.bodies)
         self.refused: Counter[str] = Counter()   # inputs refused before the resolver
-        # bodies/<name>/in_contact (with contact_state) and the get_contacts service
-        self.contact_sensing = ContactSensing(self, body_names, self.encoder.contacts)
+        # bodies/<name>/in_contact (with contact_state) and the get_contacts service; the
+        # service runs in the executor's thread, outside the step's lock: an encoder of its
+        # own (the step's writes its last messages in place)
+        self.contact_sensing = ContactSensing(self, body_names, messages.OutputEncoder(
+            body_names, self.scene.world_frame, self.scene.bodies).contacts)
         self._configure_contact_state()
         statics = [b.name for b in self.scene.bodies if b.static]
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]
@@ -360,22 +363,31 @@ class CollresNode(Node):
     def _take_states(self, data: bytes, info: Any) -> None:
         if not self.serves(info):
             return
-        start = time.perf_counter()
+        start, taken_ns = time.perf_counter(), time.time_ns()
+        try:
+            try:
+                decoded = self.states_codec.decode(data)
+            except codec.DecodeError as refusal:
+                self._refuse(refusal, 'body_states')
+                return
+            batch = InputBatch(decoded.names, decoded.values, decoded.frame_id,
+                               decoded.frame_id)
+            self._step(decoded.stamp_ns, batch, False, start)
+        finally:   # the input's bookkeeping, once its answer is out
+            self._count_input(info, taken_ns)
+
+    def _count_input(self, info: Any, taken_ns: int) -> None:
+        """A ``body_states`` input taken at ``taken_ns`` (system time): how long it waited
+        between its reception by the DDS and its callback, and the inputs lost before it
+        (``losses.py``; the publisher count is an rmw query, 50 us a step in the node)."""
         received = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
         if received > 0:   # from its reception by the DDS to its callback: waited, ns
-            waited = time.time_ns() - received
+            waited = (taken_ns - received) * 1e-9
             w = self._window
-            w['queued'] += waited * 1e-9
-            w['queued_max'] = max(w['queued_max'], waited * 1e-9)
+            w['queued'] += waited
+            w['queued_max'] = max(w['queued_max'], waited)
             w['queued_inputs'] += 1
         self.losses.count(names.STATES, info, self._inputs[0].get_publisher_count())
-        try:
-            decoded = self.states_codec.decode(data)
-        except codec.DecodeError as refusal:
-            self._refuse(refusal, 'body_states')
-            return
-        batch = InputBatch(decoded.names, decoded.values, decoded.frame_id, decoded.frame_id)
-        self._step(decoded.stamp_ns, batch, False, start)
 
     def serves(self, info: Any) -> bool:
         """Whether an input is served: while serving, and received after serving began (a

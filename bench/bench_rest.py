@@ -11,7 +11,10 @@ faster than 0.05 m/s (Box2D's sleep speed) and the fastest, the deepest penetrat
 answer (any pair, and into the floor: a detector of its own on the answered poses), the
 fastest approach left at a touching contact (the answered twists), solver rows and velocity
 sweeps per step and the step's median time, and the sleeping bodies; at the end the time
-the pile fell asleep. ``--substep``: ``solver.max_substep`` (s; default: the setting's).
+the pile fell asleep, and the steps in which a body answered asleep in that step and the one
+before had moved between them (more than 1e-9 m at its bounding radius) with the largest
+such move (none since a woken island's still time restarts). ``--substep``:
+``solver.max_substep`` (s; default: the setting's).
 
 ``--why``: how the pairs got deep. Every step, each pair of bodies whose overlap grew by
 more than 1 mm in the step (measured on the answers, by a probe with a 0.2 m margin, so
@@ -62,6 +65,15 @@ def figures(probe: Detection, state, dynamic: np.ndarray, radius: np.ndarray) ->
             else 0.0,
             'approach': float(max(0.0, -normal_speed[touching].min())) if touching.any()
             else 0.0}
+
+
+def asleep_move(before, after, radius: np.ndarray) -> np.ndarray:
+    """(N,) m each body moved between two answers: the larger of its shift and its turn
+    (2 |dq| rad, the quaternions' sign aligned) times its bounding radius."""
+    shift = np.linalg.norm(after.position - before.position, axis=1)
+    q, q0 = after.orientation, before.orientation
+    turn = 2.0 * np.minimum(np.linalg.norm(q - q0, axis=1), np.linalg.norm(q + q0, axis=1))
+    return np.maximum(shift, turn * radius)
 
 
 GREW = 1e-3    # m: a pair whose overlap grew by more than this in one step is counted (--why)
@@ -142,6 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     why = Why(Detection(world.specs, SolverSettings(sleeping=False, speculative_margin=WIDE)),
               world.settings.speculative_margin, state) if args.why else None
     asleep_at, times, rows, sweeps = None, [], [], []
+    was = np.zeros(len(bodies), bool)
+    moved_steps, moved_most = 0, 0.0   # steps with a body answered asleep twice that moved
     for k in range(steps):
         current = integrate(state, dynamic, dt)
         start = time.perf_counter()
@@ -149,6 +163,11 @@ def main(argv: list[str] | None = None) -> int:
         times.append(time.perf_counter() - start)
         rows.append(world.timing['rows'])
         sweeps.append(world.timing['iterations'])
+        now = result.sleeping & dynamic
+        moved = asleep_move(state, result.states, radius)[was & now].max(initial=0.0)
+        moved_steps += moved > 1e-9
+        moved_most = max(moved_most, moved)
+        was = now
         state = result.states
         if why is not None:
             why.step(result)
@@ -163,7 +182,9 @@ def main(argv: list[str] | None = None) -> int:
                   f'{np.mean(sweeps[-every:]):5.1f}, step {np.median(times[-every:]) * 1e3:6.1f} '
                   f'ms, asleep {int(result.sleeping[dynamic].sum())}', flush=True)
     print(f'{args.kind} {args.size} at {args.rate:g} Hz, max_substep {args.substep:g} s: '
-          f'asleep after {asleep_at if asleep_at is None else round(asleep_at, 2)} s')
+          f'asleep after {asleep_at if asleep_at is None else round(asleep_at, 2)} s; answered '
+          f'asleep in two consecutive steps and moved: {moved_steps} of {steps} steps, up to '
+          f'{moved_most * 1e3:.3f} mm')
     if why is not None:
         print(why.table())
     return 0

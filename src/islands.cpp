@@ -173,12 +173,13 @@ int Islands::update(double* out_linear, double* out_angular,
   for (int i = 0; i < n; ++i) parent_[i] = i;
   std::vector<std::int64_t> touched;   // sleeping islands a movable body leaned on
   for (std::int64_t k = 0; k < m; ++k) {
-    if (!(normal_impulse[k] > 0.0)) continue;
     const int i = static_cast<int>(a[k]), j = static_cast<int>(b[k]);
     if (i < 0 || j < 0 || i >= n || j >= n) continue;
     if (movable[i] && movable[j]) {
       const int ri = find(i), rj = find(j);
       if (ri != rj) parent_[std::max(ri, rj)] = std::min(ri, rj);
+    } else if (!(normal_impulse[k] > 0.0)) {
+      continue;
     } else if (movable[i] && asleep_[j]) {
       touched.push_back(island_[j]);
     } else if (movable[j] && asleep_[i]) {
@@ -218,8 +219,9 @@ int Islands::update(double* out_linear, double* out_angular,
     std::sort(touched.begin(), touched.end());
     for (int i = 0; i < n; ++i) {
       if (asleep_[i] && std::binary_search(touched.begin(), touched.end(), island_[i])) {
-        asleep_[i] = 0;   // its still time is kept: nothing says it moved, and an island
-        island_[i] = -1;  // that leans on it joins it and sleeps with it when ready
+        asleep_[i] = 0;   // awake from the next step, its still time restarts: the solve
+        island_[i] = -1;  // may move it, so it sleeps again only after time_to_sleep awake
+        timer_[i] = 0.0;
       }
     }
   }

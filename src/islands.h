@@ -1,8 +1,11 @@
 // Islands and sleep: a settled group of bodies costs no detection and no solve.
 //
-// As Box2D v3 and Jolt: bodies joined by contacts that carried impulse this step form an
-// island (static, kinematic and inactive bodies never join one: they do not pass motion
-// on); each dynamic body has a sleep timer, the time its speed has stayed below
+// As Box2D v3 and Jolt: bodies joined by this step's contacts form an island, whether or
+// not a contact carried impulse (touching or within the speculative margin, as Box2D v3's
+// touching manifolds, which include its speculative points: a pile whose contacts carry
+// impulse only now and then is one island, not pieces that fall asleep one by one and wake
+// each other); static, kinematic and inactive bodies never join one (they do not pass
+// motion on); each dynamic body has a sleep timer, the time its speed has stayed below
 // `threshold` (speed of its farthest point, |v| + |w| r, m/s, r its bounding radius about
 // the centre of mass); an island whose bodies have all been still for `time_to_sleep`
 // (s) falls asleep. Awake islands are rebuilt every step (union-find over the step's
@@ -78,12 +81,14 @@ class Islands {
            const std::uint8_t* active, const std::uint8_t* kinematic, double dt);
 
   // After the solve: islands of the `movable` bodies (awake, active, dynamic) joined by the
-  // M contacts (a, b) with normal impulse > 0, timers from the answers' twists, islands all
+  // M contacts (a, b) (any normal impulse), timers from the answers' twists, islands all
   // still for time_to_sleep fall asleep (their answer's twist is zeroed: the held state).
   // A contact with impulse between a movable body and a sleeper wakes the sleeper's island
-  // (from the next step) and keeps its bodies' still time (so that an island resting against
-  // a smaller one that fell asleep first joins it and sleeps with it, instead of waking it
-  // again and again). Returns the bodies that fell asleep.
+  // from the next step, its bodies' still time restarting as every woken body's does (Box2D
+  // v3): it is solved from then on and may move (a lower body sinks under the new load), so
+  // it sleeps again only after time_to_sleep awake, with the island that leaned on it, and
+  // a body answered asleep in two consecutive steps has not moved between them (while
+  // time_to_sleep >= dt). Returns the bodies that fell asleep.
   int update(double* out_linear, double* out_angular,
              const std::uint8_t* movable, const std::int64_t* a, const std::int64_t* b,
              const double* normal_impulse, std::int64_t m, double dt);

@@ -1,7 +1,8 @@
 """Sleeping islands: bodies at rest cost no detection and no solve (``src/islands.h``).
 
-Bodies joined by contacts that carried impulse form islands (static, kinematic and
-inactive bodies never join one). A body is still while the speed of its farthest point,
+Bodies joined by the step's contacts (touching or within the speculative margin, impulse or
+not, as Box2D v3's touching manifolds) form islands (static, kinematic and inactive bodies
+never join one). A body is still while the speed of its farthest point,
 |v| + |w| r (r its bounding radius about the centre of mass, m/s), stays below
 ``sleep_threshold``; an island whose bodies have all been still for ``time_to_sleep`` (s)
 falls asleep. A sleeping body is answered with its held pose (its last answer, the
@@ -16,7 +17,12 @@ It wakes, in the step:
   (a pose the input velocity cannot reach from the held pose within the threshold);
 * when the swept bounds of a moving body (kinematic, or awake and faster than the
   threshold, or jolted beyond it) touch its island, before detection: no impact is missed;
-* after a step in which an awake body leaned on it (a contact with impulse);
+* after a step in which an awake body leaned on it (a contact with impulse): answered
+  asleep (held) in that step, solved from the next.
+
+A woken body's still time restarts: it sleeps again only after ``time_to_sleep`` awake, so
+a body answered asleep in two consecutive steps has the same pose in both (while
+``time_to_sleep`` >= dt).
 * everything wakes on a body added, removed or reset, a material, filter or settings
   change, and a step without a usable previous one (a clock jump).
 

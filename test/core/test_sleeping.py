@@ -353,3 +353,40 @@ def test_a_pile_falls_asleep_and_stays_asleep_across_dropped_inputs(style: str) 
         assert result.sleeping[dynamic].all()
     np.testing.assert_array_equal(sim.state.position, held.position)
     np.testing.assert_array_equal(sim.state.orientation, held.orientation)
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_a_body_answered_asleep_twice_in_a_row_has_not_moved(seed: int) -> None:
+    """A pile of 200 cubes streamed at 30 Hz: a body answered asleep in two consecutive steps has
+    the same pose in both (within 1e-9 m, at its bounding radius for a turn), and the pile
+    still falls asleep within 5 s and stays so. An island woken by an awake body leaning on
+    it is solved (it may sink) from the next step, and sleeps again only after
+    ``time_to_sleep`` awake; before, its still time was kept and it fell asleep again in the
+    step it was solved in, answered asleep both times (cubes 200: 5 steps, up to 1.4 mm)."""
+    bodies, initial = make_pile(200, seed=seed, kind='cubes')
+    sim = Simulation(bodies, initial, 30.0)
+    dynamic = sim.world.dynamic
+    reach = np.array([0.5 * np.linalg.norm(b.size) if b.shape == 'box' else
+                      b.size[0] if b.shape == 'sphere' else 0.0 for b in bodies])
+    was = np.zeros(len(bodies), bool)
+    last = sim.state.copy()
+    asleep_at, moved = None, []
+    for k in range(int(6.0 * 30.0)):
+        result = sim.step()
+        now = result.sleeping & dynamic
+        both = was & now
+        shift = np.linalg.norm(result.states.position - last.position, axis=1)
+        q, q0 = result.states.orientation, last.orientation   # the turn: 2 |dq| rad
+        turn = 2.0 * np.minimum(np.linalg.norm(q - q0, axis=1),
+                                np.linalg.norm(q + q0, axis=1)) * reach
+        worst = np.maximum(shift, turn)[both].max(initial=0.0)
+        if worst > 1e-9:
+            moved.append((k, int((np.maximum(shift, turn)[both] > 1e-9).sum()), worst))
+        if asleep_at is None and now[dynamic].all():
+            asleep_at = (k + 1) / 30.0
+        was, last = now, result.states.copy()
+    print(f'cubes 200 (seed {seed}) at 30 Hz: asleep after {asleep_at} s; answered asleep '
+          f'twice and moved (step, bodies, m): {moved[:5]}')
+    assert not moved
+    assert asleep_at is not None and asleep_at <= 5.0
+    assert was[dynamic].all()

@@ -173,6 +173,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("position_correction", &SolverParams::position_correction)
       .def_readwrite("max_correction", &SolverParams::max_correction)
       .def_readwrite("converged", &SolverParams::converged)
+      .def_readwrite("activation_margin", &SolverParams::activation_margin)
       .def_readwrite("cold_extra", &SolverParams::cold_extra)
       .def_readwrite("balanced_friction", &SolverParams::balanced_friction)
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)

@@ -63,6 +63,10 @@ struct SolverParams {
   double max_correction = 0.2;          // m: largest push-out per step
   double converged = 1e-6;              // a sweep changing every impulse by less than this
                                         // times the largest normal impulse ends iterating
+  double activation_margin = 0.1;       // m/s: a manifold idle and separating faster than
+                                        // its allowance by more than this is left out of
+                                        // the sweeps until the answer reaches it
+                                        // (StepSolver::admit)
   double cold_extra = 1.0;              // extra sweeps (x velocity_iterations) when every
                                         // persistent contact is new (nothing to warm start)
   double balanced_friction = 1e-3;      // net friction / net normal impulse of a pair below

@@ -222,7 +222,8 @@ void bind_solver(py::module_& m) {
           view(m, 2) = manifolds[m].count;
         }
         return out;
-      }, "The last step's manifolds in sweep order: (body a, body b, rows) each.")
+      }, "The last step's swept manifolds (those its active set let in) in sweep order: "
+         "(body a, body b, rows) each.")
       .def_property_readonly("helped", [](const StepSolver& solver) {
         return py::make_tuple(solver.helped(), solver.chunks_run());
       }, "Chunks of the waves' second halves run so far: (by the second thread, in all).")

@@ -8,7 +8,8 @@ cubes and spheres, ``cubes`` only) and size: build the pile, let it settle with 
 core and a semi-implicit Euler integrator at 120 Hz, then time ``--steps`` more
 steps of World.step on the default threads (``SOLVER_TUNING`` ``threads``: 2; median and
 90th percentile of the whole step and of its detection and solve phases; contact points
-per step and how many became solver rows, how many points carried a normal impulse, and
+per step and how many became solver rows, how many of those the velocity sweeps visited
+(the active set: StepSolver::sweep), how many points carried a normal impulse, and
 the solve's cost per row per velocity sweep in ns), each followed by a step on one thread
 (the same bits), timed apart: the ratio of the one-thread step to the default one is
 printed. The same pile is then
@@ -121,7 +122,7 @@ def settled_steps(kind: str, size: int, steps: int, settle_s: float, dt: float):
     for _ in range(int(settle_s / dt)):
         state = world.step(state, integrate(state, world.dynamic, dt), dt).states
     timed = {key: [] for key in ('total', 'detect', 'solve', 'contacts', 'rows', 'sweeps',
-                                 'carrying', 'one_thread')}
+                                 'carrying', 'swept', 'one_thread')}
     default_threads = world._params.threads
     for k in range(2 * steps):
         # every other step on one thread (the same bits: SOLVER_TUNING threads), timed apart
@@ -139,6 +140,8 @@ def settled_steps(kind: str, size: int, steps: int, settle_s: float, dt: float):
         timed['contacts'].append(result.report.contacts.count)
         timed['rows'].append(world.timing['rows'])
         timed['carrying'].append(int(np.count_nonzero(result.report.normal_impulse > 0.0)))
+        # rows in the velocity sweeps (the manifolds the active set let in by the step's end)
+        timed['swept'].append(int(world._solver.sweep_bodies[:, 2].sum()))
         timed['sweeps'].append(world.timing['iterations'])
         state = result.states
     world._params.threads = default_threads
@@ -167,6 +170,8 @@ def ours(kind: str, size: int, steps: int, settle_s: float) -> dict:
             'rows_30hz': int(np.median(slow['rows'])),
             'carrying': int(np.median(timed['carrying'])),
             'carrying_30hz': int(np.median(slow['carrying'])),
+            'swept': int(np.median(timed['swept'])),
+            'swept_30hz': int(np.median(slow['swept'])),
             'coal_ms': coal_ms, 'coal_contacts': coal_contacts,
             'largest_speed': float(np.abs(state.linear).max()),
             '_scene': describe(bodies, state)}
@@ -356,7 +361,8 @@ def print_row(row: dict) -> None:
           f'+ solve {row["solve_30hz_ms"]:.2f} ({row["solve_30hz_ms"] / row["solve_ms"][0]:.2f}x)'
           f', points/rows {row["contacts_30hz"]}/{row["rows_30hz"]} (rows '
           f'{row["rows_30hz"] / max(row["rows"], 1):.2f}x); rows carrying impulse '
-          f'{row["carrying_30hz"]} against {row["carrying"]} at 120 Hz', flush=True)
+          f'{row["carrying_30hz"]} against {row["carrying"]} at 120 Hz; rows swept '
+          f'{row["swept_30hz"]} against {row["swept"]}', flush=True)
 
 
 FORMAT = ('{:>6} {:>6} {:>13} {:>7} {:>7} {:>11} {:>14} {:>8} {:>7} {:>7} {:>7} {:>15} '

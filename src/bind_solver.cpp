@@ -173,6 +173,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("position_correction", &SolverParams::position_correction)
       .def_readwrite("max_correction", &SolverParams::max_correction)
       .def_readwrite("converged", &SolverParams::converged)
+      .def_readwrite("activation_margin", &SolverParams::activation_margin)
       .def_readwrite("cold_extra", &SolverParams::cold_extra)
       .def_readwrite("balanced_friction", &SolverParams::balanced_friction)
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)
@@ -221,7 +222,8 @@ void bind_solver(py::module_& m) {
           view(m, 2) = manifolds[m].count;
         }
         return out;
-      }, "The last step's manifolds in sweep order: (body a, body b, rows) each.")
+      }, "The last step's swept manifolds (those its active set let in) in sweep order: "
+         "(body a, body b, rows) each.")
       .def_property_readonly("helped", [](const StepSolver& solver) {
         return py::make_tuple(solver.helped(), solver.chunks_run());
       }, "Chunks of the waves' second halves run so far: (by the second thread, in all).")

@@ -637,7 +637,8 @@ __attribute__((target_clones("avx2", "default")))
 #endif
 void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, double* v,
-                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, Progress& progress) {
+                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
+                 Progress& progress) {
   const int k = g.count;
   WideTwists t(v, g);
   // every lane idle: no impulse held (+0 bits) and no row approaching beyond its
@@ -766,45 +767,76 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
           if (carrying & (1 << i)) idx[l][members[l]++] = i;
       }
       if (any(tried)) {
-        for (int r = 0; r < 4; ++r) {
-          for (int c = 0; c < 5; ++c) e[r][c] = zero;
-          diagonal[r] = one;
-        }
-        for (int l = 0; l < kLanes; ++l) {
-          const int m = members[l];
-          for (int r = 0; r < 4; ++r) {
-            if (r >= m) {
-              e[r][r][l] = 1.0;
-              continue;
-            }
-            for (int c = 0; c < m; ++c) e[r][c][l] = g.delassus[idx[l][r]][idx[l][c]][l];
-            e[r][4][l] = -q[idx[l][r]][l];
-            diagonal[r][l] = g.delassus[idx[l][r]][idx[l][r]][l];
-          }
-        }
+        for (int r = 0; r < 4; ++r) e[r][4] = zero;   // the right-hand side, -q of the set
+        for (int l = 0; l < kLanes; ++l)
+          for (int r = 0; r < members[l]; ++r) e[r][4][l] = -q[idx[l][r]][l];
+        bool replay = kept != nullptr;
+        for (int l = 0; l < kLanes && replay; ++l) replay = !tried[l] || kept->set[l] == sets[l];
         Mask ok = tried;
-        for (int c = 0; c < 4; ++c) {
-          // partial pivoting: the first row below c of strictly larger magnitude
-          Lanes best = magnitude(e[c][c]);
-          Lanes pivot = splat(static_cast<double>(c));
-          for (int r = c + 1; r < 4; ++r) {
-            const Mask larger = magnitude(e[r][c]) > best;
-            best = pick(larger, magnitude(e[r][c]), best);
-            pivot = pick(larger, splat(static_cast<double>(r)), pivot);
-          }
-          ok &= ~(best <= 1e-9 * magnitude(diagonal[c]) + 1e-300);
-          for (int r = c + 1; r < 4; ++r) {
-            const Mask swap = pivot == static_cast<double>(r);
-            for (int j = 0; j < 5; ++j) {
-              const Lanes upper = e[c][j];
-              e[c][j] = pick(swap, e[r][j], upper);
-              e[r][j] = pick(swap, upper, e[r][j]);
+        if (replay) {
+          // the kept elimination on the right-hand side alone (its swaps and multiples)
+          ok &= (Mask)kept->usable;
+          for (int c = 0; c < 4; ++c) {
+            for (int r = c + 1; r < 4; ++r) {
+              const Mask swap = kept->pivot[c] == static_cast<double>(r);
+              const Lanes upper = e[c][4];
+              e[c][4] = pick(swap, e[r][4], upper);
+              e[r][4] = pick(swap, upper, e[r][4]);
+            }
+            for (int r = 0; r < 4; ++r) {
+              if (r == c) continue;
+              e[r][4] -= kept->factor[c][r] * e[c][4];
             }
           }
+          for (int r = 0; r < 4; ++r) e[r][r] = kept->diagonal[r];
+        } else {
           for (int r = 0; r < 4; ++r) {
-            if (r == c) continue;
-            const Lanes f = e[r][c] / e[c][c];
-            for (int j = c; j < 5; ++j) e[r][j] -= f * e[c][j];
+            for (int c = 0; c < 4; ++c) e[r][c] = zero;
+            diagonal[r] = one;
+          }
+          for (int l = 0; l < kLanes; ++l) {
+            const int m = members[l];
+            for (int r = 0; r < 4; ++r) {
+              if (r >= m) {
+                e[r][r][l] = 1.0;
+                continue;
+              }
+              for (int c = 0; c < m; ++c) e[r][c][l] = g.delassus[idx[l][r]][idx[l][c]][l];
+              diagonal[r][l] = g.delassus[idx[l][r]][idx[l][r]][l];
+            }
+          }
+          Mask usable = (Mask){-1, -1, -1, -1};
+          for (int c = 0; c < 4; ++c) {
+            // partial pivoting: the first row below c of strictly larger magnitude
+            Lanes best = magnitude(e[c][c]);
+            Lanes pivot = splat(static_cast<double>(c));
+            for (int r = c + 1; r < 4; ++r) {
+              const Mask larger = magnitude(e[r][c]) > best;
+              best = pick(larger, magnitude(e[r][c]), best);
+              pivot = pick(larger, splat(static_cast<double>(r)), pivot);
+            }
+            usable &= ~(best <= 1e-9 * magnitude(diagonal[c]) + 1e-300);
+            for (int r = c + 1; r < 4; ++r) {
+              const Mask swap = pivot == static_cast<double>(r);
+              for (int j = 0; j < 5; ++j) {
+                const Lanes upper = e[c][j];
+                e[c][j] = pick(swap, e[r][j], upper);
+                e[r][j] = pick(swap, upper, e[r][j]);
+              }
+            }
+            for (int r = 0; r < 4; ++r) {
+              if (r == c) continue;
+              const Lanes f = e[r][c] / e[c][c];
+              for (int j = c; j < 5; ++j) e[r][j] -= f * e[c][j];
+              if (kept != nullptr) kept->factor[c][r] = f;
+            }
+            if (kept != nullptr) kept->pivot[c] = pivot;
+          }
+          ok &= usable;
+          if (kept != nullptr) {   // kept for the next sweeps (lanes not tried: none)
+            for (int r = 0; r < 4; ++r) kept->diagonal[r] = e[r][r];
+            kept->usable = (Lanes)usable;
+            for (int l = 0; l < kLanes; ++l) kept->set[l] = tried[l] ? sets[l] : -1;
           }
         }
         Lanes xs[4] = {zero, zero, zero, zero};   // by row of the block
@@ -964,6 +996,9 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
     plan.wave_groups.push_back(next);
   }
   if (plan.wide_rows.size() < row_count) plan.wide_rows.resize(row_count);
+  if (plan.faces.size() < group_count) plan.faces.resize(group_count);
+  for (size_t group = 0; group < group_count; ++group)   // (new groups: nothing kept)
+    for (int l = 0; l < kLanes; ++l) plan.faces[group].set[l] = -1;
   for (size_t group = 0; group < group_count; ++group) {
     WideGroup& g = plan.groups[group];
     for (int l = 0; l < kLanes; ++l) {
@@ -1133,7 +1168,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
         WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[group].spin[0] >= 0
                                    ? &plan->spin_groups[group] : nullptr;
         solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, spin_lanes,
-                    progress);
+                    g.count >= 3 ? &plan->faces[group] : nullptr, progress);
       } else {
         solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
                         bodies, spins, progress);

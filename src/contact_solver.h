@@ -63,6 +63,10 @@ struct SolverParams {
   double max_correction = 0.2;          // m: largest push-out per step
   double converged = 1e-6;              // a sweep changing every impulse by less than this
                                         // times the largest normal impulse ends iterating
+  double activation_margin = 0.1;       // m/s: a manifold idle and separating faster than
+                                        // its allowance by more than this is left out of
+                                        // the sweeps until the answer reaches it
+                                        // (StepSolver::admit)
   double cold_extra = 1.0;              // extra sweeps (x velocity_iterations) when every
                                         // persistent contact is new (nothing to warm start)
   double balanced_friction = 1e-3;      // net friction / net normal impulse of a pair below
@@ -207,6 +211,21 @@ struct WideGroup {
   Lanes invertible;              // 1 where Manifold::invertible, else 0
 };
 
+// A face group's (3 or 4 rows) elimination of its lanes' carrying sets (solve_group, when
+// the all-active answer does not fit), kept from one sweep to the next: its pivots,
+// multipliers and eliminated diagonal depend only on each lane's set and the group's
+// Delassus matrices (the same for the whole plan), so while every lane that needs it asks
+// for the set kept, the right-hand side alone is eliminated with them: the same operations
+// on it, the same bits.
+struct WideFace {
+  int set[kLanes] = {-1, -1, -1, -1};   // per lane the carrying set kept (bit i: row i),
+                                        // -1: none
+  Lanes pivot[4];                       // column c: the row swapped into place (as double)
+  Lanes factor[4][4];                   // [c][r]: row c's multiple taken from row r != c
+  Lanes diagonal[4];                    // the eliminated matrix's diagonal
+  Lanes usable;                         // all bits set where every pivot passed its test
+};
+
 // The spin rows (SpinRow) of a wide group's four manifolds in lanes: the fields
 // solve_spin reads and writes, same units and signs; `spin` the SpinRows they stand for
 // (all four, or the group's spin rows are solved one by one). `load` is kept here, not in
@@ -239,6 +258,7 @@ struct SweepPlan {
   std::vector<size_t> wave_groups;      // groups of wave w: [wave_groups[w], [w + 1])
   std::vector<WideSpin> spin_groups;    // per group: its manifolds' spin rows, in lanes
                                         // (spin -1 in a lane: none, one by one)
+  std::vector<WideFace> faces;          // per group: its kept elimination (3 or 4 rows)
   bool packed = false;                  // groups and spin_groups hold the prepared rows'
                                         // constant fields (the first solve_velocities of
                                         // a plan packs them; wave_manifolds clears this)

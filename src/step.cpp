@@ -372,8 +372,9 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_block(block, &rows_[first_row]);
     }
   }
-  // the sweeps visit detection's order wave by wave (wide groups, two threads; the same
-  // bits)
+  // none in the sweeps yet (admit lets them in; the plan follows them)
+  in_.assign(manifolds_.size(), 0);
+  swept_.clear();
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0 (in manifold order)
@@ -405,9 +406,77 @@ void StepSolver::prepare(StepContext& ctx) {
   }
 }
 
+bool StepSolver::admit(StepContext& ctx, double margin) {
+  const double* v = velocity_.data();
+  bool grew = false;
+  for (size_t m = 0; m < manifolds_.size(); ++m) {
+    if (in_[m]) continue;
+    const Manifold& manifold = manifolds_[m];
+    bool out = true;
+    for (int32_t i = manifold.first; i < manifold.first + manifold.count && out; ++i) {
+      const ContactRow& r = rows_[i];
+      out = r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0 &&
+            !std::signbit(r.normal) && !std::signbit(r.tangent[0]) &&
+            !std::signbit(r.tangent[1]) && normal_velocity(r, v) + r.allowance > margin;
+    }
+    if (manifold.spin >= 0) {
+      const Vec3& torque = spins_[manifold.spin].torque;
+      out = out && torque.x() == 0.0 && torque.y() == 0.0 && torque.z() == 0.0;
+    }
+    if (out) continue;
+    in_[m] = 1;
+    grew = true;
+  }
+  if (!grew) return false;
+  // the swept manifolds in detection's order, then in waves
+  swept_.clear();
+  for (size_t m = 0; m < manifolds_.size(); ++m)
+    if (in_[m]) swept_.push_back(manifolds_[m]);
+  plan_sweeps(ctx);
+  return true;
+}
+
+int StepSolver::sweep(StepContext& ctx, int iterations) {
+  const SolverParams& p = ctx.params;
+  admit(ctx, p.activation_margin);
+  // what the sweeps start from: they start again from it with the manifolds let in, so
+  // that the answer is the bits of sweeping every manifold whenever the ones left out stay
+  // idle throughout (in the sweeps of all of them a manifold idle at each visit changes
+  // nothing)
+  from_velocity_.assign(velocity_.begin(), velocity_.end());
+  from_impulse_.resize(3 * rows_.size());
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    from_impulse_[3 * i] = rows_[i].normal;
+    from_impulse_[3 * i + 1] = rows_[i].tangent[0];
+    from_impulse_[3 * i + 2] = rows_[i].tangent[1];
+  }
+  from_spin_.resize(4 * spins_.size());
+  for (size_t i = 0; i < spins_.size(); ++i) {
+    for (int d = 0; d < 3; ++d) from_spin_[4 * i + d] = spins_[i].torque[d];
+    from_spin_[4 * i + 3] = spins_[i].load;
+  }
+  int sweeps = 0;
+  for (;;) {
+    sweeps += solve_velocities(rows_, swept_, ctx.solver, iterations, p.converged, &spins_,
+                               &plan_);
+    if (!admit(ctx, 0.0)) break;
+    std::copy(from_velocity_.begin(), from_velocity_.end(), velocity_.begin());
+    for (size_t i = 0; i < rows_.size(); ++i) {
+      rows_[i].normal = from_impulse_[3 * i];
+      rows_[i].tangent[0] = from_impulse_[3 * i + 1];
+      rows_[i].tangent[1] = from_impulse_[3 * i + 2];
+    }
+    for (size_t i = 0; i < spins_.size(); ++i) {
+      spins_[i].torque = Vec3(from_spin_[4 * i], from_spin_[4 * i + 1], from_spin_[4 * i + 2]);
+      spins_[i].load = from_spin_[4 * i + 3];
+    }
+  }
+  return sweeps;
+}
+
 void StepSolver::plan_sweeps(StepContext& ctx) {
   const SolverParams& p = ctx.params;
-  wave_manifolds(manifolds_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_, wave_,
+  wave_manifolds(swept_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_, wave_, of_,
                  buckets_, sorted_);
   plan_.wide = p.wide_rows;
   plan_.parallel = static_cast<size_t>(std::max(p.parallel_wave, 1));
@@ -568,8 +637,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
       const double separation = gap_[r.contact] + normal_velocity(r, moved_.data());
       r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
     }
-    sweeps += solve_velocities(rows_, manifolds_, ctx.solver, iterations, p.converged, &spins_,
-                               &plan_);
+    sweeps += sweep(ctx, iterations);
     sweeps += hold_energy(ctx, iterations);
     propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, p.shock_sweeps,
                     p.shock_ratio);
@@ -610,8 +678,7 @@ void StepSolver::land(StepContext& ctx) {
   if (!any) return;
   // every row again, the landing ones without allowance: the velocities (not the poses,
   // which travel_ holds) leave the touching contacts at rest along their normals
-  solve_velocities(rows_, manifolds_, ctx.solver, p.velocity_iterations, p.converged, &spins_,
-                   &plan_);
+  sweep(ctx, p.velocity_iterations);
   for (size_t i = 0; i < rows_.size(); ++i) {
     ContactRow& r = rows_[i];
     r.landing = r.normal - landing_[i];     // reported, not warm started

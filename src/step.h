@@ -60,7 +60,10 @@
 //    substeps so far moved its two points along the normal: no new detection) over the
 //    substep, solves as below, and moves the poses by the substep's velocity; the poses
 //    travel with the substeps' mean velocity, the impulses are the substeps' sums.
-//    Each substep: sequential impulses, the normal rows of a manifold of 2-4 points solved as
+//    Each substep: sequential impulses over the manifolds that can carry something (an
+//    active set with verification: those idle and separating beyond their allowance are
+//    left out while the solved velocities leave them so, StepSolver::sweep), the normal
+//    rows of a manifold of 2-4 points solved as
 //    a block (more sweeps while the resting contacts are new; sqrt(k) times as many for a
 //    step of k times the last one's load (growth), up to warm_start_ratio: whose
 //    residual would sink the poses k^2 times as far; and at least depth_sweeps per level
@@ -185,9 +188,10 @@ class StepSolver {
                  ContactsOut& report);
 
   ContactCache& cache() { return cache_; }
-  // the last step's order of its velocity sweeps (waves, wide groups)
+  // the last step's order of its velocity sweeps (waves, wide groups) and the manifolds
+  // it sweeps, in that order (those admit let in by the end of the step)
   const SweepPlan& plan() const { return plan_; }
-  const std::vector<Manifold>& manifolds() const { return manifolds_; }   // in that order
+  const std::vector<Manifold>& manifolds() const { return swept_; }
   // chunks of the waves' second halves run so far: by the second thread, in all
   uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
   uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
@@ -202,8 +206,23 @@ class StepSolver {
   void to_travel(StepContext& ctx, int substeps);  // impacted bodies: + (1 - f) / 2 external change;
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
+  // The manifolds the sweeps visit (active set with verification): a manifold is left out
+  // while every row of it is idle, no impulse held (+0) and separating faster than its
+  // allowance by more than `margin` (m/s), and its spin row holds no torque: its update
+  // would change nothing. admit lets in each manifold left out that is no longer so
+  // (monotone within a step) and plans the sweeps again; returns true when one came in.
+  // sweep solves the swept manifolds (solve_velocities, `iterations` sweeps) after
+  // admitting by activation_margin, then admits by margin 0 every manifold the solved
+  // velocities drive beyond its allowance (or that gained impulse) and, if one came in,
+  // solves again from the velocities and impulses it started from, until none: every
+  // manifold left out is idle in the answer (it carries nothing and approaches no faster
+  // than its allowance), and the answer is the bits of sweeping all of them whenever the
+  // ones left out stay idle throughout (a manifold idle at each visit changes nothing).
+  // Returns the sweeps done (every round's).
+  bool admit(StepContext& ctx, double margin);
+  int sweep(StepContext& ctx, int iterations);
   void land(StepContext& ctx);
-  // the sweeps' plan_ of manifolds_: waves (sweep_waves.h), wide groups, threads
+  // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
   void report(StepContext& ctx);
@@ -254,11 +273,19 @@ class StepSolver {
   std::vector<uint8_t> found_;
   std::vector<ContactRow> rows_, shock_rows_;
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
+                                                     // (manifolds_ in detection's order)
+  std::vector<Manifold> swept_;      // the manifolds in the sweeps, in plan_'s order
+  std::vector<uint8_t> in_;          // (manifolds_) 1: in the sweeps this step (admit)
+  std::vector<double> from_velocity_, from_impulse_, from_spin_;   // what sweep started
+                                     // from: velocities (N, 6), the rows' normal and
+                                     // friction impulses (rows, 3), the spin rows' torque
+                                     // and load (spins, 4)
   std::vector<Manifold> retry_;      // manifolds of the islands solved again (hold_energy)
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
   std::vector<int32_t> wave_;        // (N,) plan_sweeps: the last wave of each body
+  std::vector<int32_t> of_;          // plan_sweeps: the wave of each manifold
   std::vector<size_t> buckets_;      // plan_sweeps: scratch
   std::vector<Manifold> sorted_;     // plan_sweeps: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;

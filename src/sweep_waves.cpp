@@ -4,21 +4,22 @@
 
 namespace collres {
 
-void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& rows,
+void wave_manifolds(std::vector<Manifold>& manifolds, const std::vector<ContactRow>& rows,
                     const double* inv_mass, int64_t body_count, SweepPlan& plan,
-                    std::vector<int32_t>& wave, std::vector<size_t>& start,
-                    std::vector<Manifold>& sorted) {
+                    std::vector<int32_t>& wave, std::vector<int32_t>& of,
+                    std::vector<size_t>& start, std::vector<Manifold>& sorted) {
   const size_t count = manifolds.size();
-  // each manifold's wave, kept in its `spin` field meanwhile (the spin rows are named
-  // after the waves, StepSolver::prepare); wave[body]: the last wave that moved it
+  // each manifold's wave (of[index]); wave[body]: the last wave that moved it
   wave.assign(static_cast<size_t>(body_count), -1);
+  of.resize(count);
   int32_t waves = 0;
-  for (Manifold& m : manifolds) {
+  for (size_t index = 0; index < count; ++index) {
+    const Manifold& m = manifolds[index];
     const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
     const int32_t own = std::max(move_a ? wave[m.a] : -1, move_b ? wave[m.b] : -1) + 1;
     if (move_a) wave[m.a] = own;
     if (move_b) wave[m.b] = own;
-    m.spin = own;
+    of[index] = own;
     waves = std::max(waves, own + 1);
   }
   // stable counting sort by (wave, row count, speculative): bucket wave * 10 + 2 (count -
@@ -33,15 +34,17 @@ void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& r
       if (!(rows[i].allowance > 0.0)) return false;
     return true;
   };
-  auto bucket = [&](const Manifold& m) {
-    return static_cast<size_t>(m.spin) * kBuckets +
+  auto bucket = [&](size_t index) {
+    const Manifold& m = manifolds[index];
+    return static_cast<size_t>(of[index]) * kBuckets +
            2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) + (speculative(m) ? 1 : 0);
   };
   start.assign(static_cast<size_t>(waves) * kBuckets + 1, 0);
-  for (const Manifold& m : manifolds) ++start[bucket(m) + 1];
+  for (size_t index = 0; index < count; ++index) ++start[bucket(index) + 1];
   for (size_t i = 0; i + 1 < start.size(); ++i) start[i + 1] += start[i];
   sorted.resize(count);
-  for (const Manifold& m : manifolds) sorted[start[bucket(m)]++] = m;   // (start: ends now)
+  for (size_t index = 0; index < count; ++index)
+    sorted[start[bucket(index)]++] = manifolds[index];   // (start: ends now)
   // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then the
   // rest one by one (counts 1..4's remainders, then longer manifolds)
   manifolds.clear();
@@ -70,12 +73,6 @@ void wave_manifolds(std::vector<Manifold>& manifolds, std::vector<ContactRow>& r
     manifolds.insert(manifolds.end(), sorted.begin() + first[4], sorted.begin() + first[5]);
     part.end = manifolds.size();
     plan.waves.push_back(part);
-  }
-  for (Manifold& m : manifolds) m.spin = -1;
-  for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds[index];
-    for (int32_t i = m.first; i < m.first + m.count; ++i)
-      rows[i].manifold = static_cast<int32_t>(index);
   }
 }
 

@@ -1,7 +1,8 @@
 // Islands bindings: the sleep state of the bodies (islands.h).
 //
 // Arrays are taken as they are (no conversion, no copy): C-contiguous numpy arrays of the
-// documented dtype and shape, outputs writable, or a TypeError / ValueError names it.
+// documented dtype and shape, outputs writable, or a TypeError / ValueError names it; body
+// states may be strided views (float_rows, bindings.h).
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
 
@@ -32,15 +33,20 @@ T* array_data(const py::array& array, const char* name, std::vector<py::ssize_t>
   return static_cast<T*>(const_cast<void*>(array.data()));
 }
 
-SleepStates sleep_states(const py::tuple& t, py::ssize_t n, const char* name) {
+// Body states (position, orientation, linear, angular), each float64 rows of (n, width):
+// C-contiguous, or strided views gathered into `scratch` (float_rows).
+struct StatesIn {
+  SleepStates view;
+  std::vector<double> scratch[4];
+};
+
+void sleep_states(const py::tuple& t, py::ssize_t n, const char* name, StatesIn& in) {
   if (t.size() != 4) throw py::value_error(std::string(name) + ": (position, orientation, "
                                            "linear, angular) expected");
-  SleepStates v;
-  v.position = array_data<double>(t[0], name, {n, 3});
-  v.orientation = array_data<double>(t[1], name, {n, 4});
-  v.linear = array_data<double>(t[2], name, {n, 3});
-  v.angular = array_data<double>(t[3], name, {n, 3});
-  return v;
+  in.view.position = float_rows(t[0], n, 3, name, in.scratch[0]);
+  in.view.orientation = float_rows(t[1], n, 4, name, in.scratch[1]);
+  in.view.linear = float_rows(t[2], n, 3, name, in.scratch[2]);
+  in.view.angular = float_rows(t[3], n, 3, name, in.scratch[3]);
 }
 
 }  // namespace
@@ -65,12 +71,13 @@ void bind_islands(py::module_& m) {
       .def("wake", [](Islands& islands, const py::tuple& previous, const py::tuple& current,
                       const py::array& active, const py::array& kinematic, double dt) {
              const py::ssize_t n = islands.count();
-             SleepStates p = sleep_states(previous, n, "previous");
-             SleepStates c = sleep_states(current, n, "current");
+             StatesIn p, c;
+             sleep_states(previous, n, "previous", p);
+             sleep_states(current, n, "current", c);
              const auto* act = array_data<std::uint8_t>(active, "active", {n});
              const auto* kin = array_data<std::uint8_t>(kinematic, "kinematic", {n});
              py::gil_scoped_release release;
-             return islands.wake(p, c, act, kin, dt);
+             return islands.wake(p.view, c.view, act, kin, dt);
            }, py::arg("previous"), py::arg("current"), py::arg("active"),
            py::arg("kinematic"), py::arg("dt"))
       .def("update", [](Islands& islands, const py::array& out_linear,
@@ -78,15 +85,22 @@ void bind_islands(py::module_& m) {
                         const py::array& a, const py::array& b,
                         const py::array& normal_impulse, double dt) {
              const py::ssize_t n = islands.count();
-             auto* lin = array_data<double>(out_linear, "out_linear", {n, 3}, true);
-             auto* ang = array_data<double>(out_angular, "out_angular", {n, 3}, true);
+             std::vector<double> scratch[2];
+             double* lin = float_rows(out_linear, n, 3, "out_linear", scratch[0], true);
+             double* ang = float_rows(out_angular, n, 3, "out_angular", scratch[1], true);
              const auto* mov = array_data<std::uint8_t>(movable, "movable", {n});
              const py::ssize_t m = a.ndim() == 1 ? a.shape(0) : -1;
              const auto* pa = array_data<std::int64_t>(a, "body_a", {m});
              const auto* pb = array_data<std::int64_t>(b, "body_b", {m});
              const auto* pi = array_data<double>(normal_impulse, "normal_impulse", {m});
-             py::gil_scoped_release release;
-             return islands.update(lin, ang, mov, pa, pb, pi, m, dt);
+             int fell;
+             {
+               py::gil_scoped_release release;
+               fell = islands.update(lin, ang, mov, pa, pb, pi, m, dt);
+             }
+             scatter_rows(out_linear, lin);
+             scatter_rows(out_angular, ang);
+             return fell;
            }, py::arg("out_linear"), py::arg("out_angular"), py::arg("movable"),
            py::arg("body_a"), py::arg("body_b"), py::arg("normal_impulse"), py::arg("dt"))
       .def_property_readonly("sleeping_bodies", &Islands::sleeping_bodies)

@@ -3,10 +3,54 @@
 // Bindings only bind: every function they expose is implemented in the stage sources
 // (contact_solver, step, broad_phase, manifold, time_of_impact, islands). Arrays cross as numpy
 // arrays without copies (C-contiguous float64 / int64, checked, never converted), and
-// the GIL is released while C++ works on them.
+// the GIL is released while C++ works on them. Body states may also come as strided views
+// (the resolver's (N, 13) rows, column blocks of them): ``float_rows`` gathers those.
 #pragma once
 
+#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+// The numbers of `array`, a float64 (count, width) array, row by row: its own data when it is
+// C-contiguous, else (a strided view, e.g. columns 0-2 of the resolver's (N, 13) state rows)
+// a copy gathered into `scratch` (write one back with `scatter_rows`). A TypeError /
+// ValueError names `name` when its dtype, shape or (`out`) writability does not fit.
+inline double* float_rows(const pybind11::array& array, pybind11::ssize_t count,
+                          pybind11::ssize_t width, const char* name,
+                          std::vector<double>& scratch, bool out = false) {
+  namespace py = pybind11;
+  if (!array.dtype().is(py::dtype::of<double>()))
+    throw py::type_error(std::string(name) + ": wrong dtype " +
+                         py::str(array.dtype()).cast<std::string>() + ", float64 expected");
+  if (array.ndim() != 2 || array.shape(0) != count || array.shape(1) != width)
+    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(count) +
+                          ", " + std::to_string(width) + ")");
+  if (out && !array.writeable()) throw py::value_error(std::string(name) + ": read-only");
+  if (array.flags() & py::array::c_style)
+    return static_cast<double*>(const_cast<void*>(array.data()));
+  scratch.resize(static_cast<size_t>(count * width));
+  const char* base = static_cast<const char*>(array.data());
+  for (py::ssize_t i = 0; i < count; ++i)
+    for (py::ssize_t j = 0; j < width; ++j)
+      std::memcpy(&scratch[static_cast<size_t>(i * width + j)],
+                  base + i * array.strides(0) + j * array.strides(1), sizeof(double));
+  return scratch.data();
+}
+
+// Writes `data` (a float_rows copy of `array`) back into `array`; nothing when `data` is
+// the array's own.
+inline void scatter_rows(const pybind11::array& array, const double* data) {
+  char* base = static_cast<char*>(const_cast<void*>(array.data()));
+  if (data == reinterpret_cast<const double*>(base)) return;
+  const auto count = array.shape(0), width = array.shape(1);
+  for (pybind11::ssize_t i = 0; i < count; ++i)
+    for (pybind11::ssize_t j = 0; j < width; ++j)
+      std::memcpy(base + i * array.strides(0) + j * array.strides(1), &data[i * width + j],
+                  sizeof(double));
+}
 
 // The solver half: combine rules, the contact cache and the solver step (bind_solver.cpp).
 void bind_solver(pybind11::module_& m);

@@ -2,7 +2,8 @@
 //
 // Arrays are taken as they are (no conversion, no copy): each must be a C-contiguous
 // numpy array of the documented dtype and shape, outputs writable, or a TypeError /
-// ValueError names it. The step releases the GIL while it runs.
+// ValueError names it; body states may be strided views (float_rows, bindings.h). The step
+// releases the GIL while it runs.
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
 
@@ -38,15 +39,27 @@ T* checked(const py::array& array, const char* name, std::vector<py::ssize_t> sh
 }
 
 
-BodyStatesView states_view(const py::tuple& t, py::ssize_t n, const char* name) {
+// Body states (position, orientation, linear, angular), each float64 rows of (n, width):
+// C-contiguous, or strided views gathered into `scratch` (float_rows; written back after the
+// step for `out`).
+struct States {
+  py::array arrays[4];
+  double* data[4] = {nullptr, nullptr, nullptr, nullptr};
+  std::vector<double> scratch[4];
+};
+
+void states_of(const py::tuple& t, py::ssize_t n, const char* name, States& s, bool out) {
   if (t.size() != 4) throw py::value_error(std::string(name) + ": (position, orientation, "
                                            "linear, angular) expected");
-  BodyStatesView v;
-  v.position = checked<double>(t[0], name, {n, 3});
-  v.orientation = checked<double>(t[1], name, {n, 4});
-  v.linear = checked<double>(t[2], name, {n, 3});
-  v.angular = checked<double>(t[3], name, {n, 3});
-  return v;
+  const py::ssize_t width[4] = {3, 4, 3, 3};
+  for (int i = 0; i < 4; ++i) {
+    s.arrays[i] = py::array(py::object(t[i]));
+    s.data[i] = float_rows(s.arrays[i], n, width[i], name, s.scratch[i], out);
+  }
+}
+
+BodyStatesView states_view(const States& s) {
+  return BodyStatesView{s.data[0], s.data[1], s.data[2], s.data[3]};
 }
 
 py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::tuple& current,
@@ -64,13 +77,14 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
                       const py::array& reported_kind) {
   const py::ssize_t n = inv_mass.ndim() == 1 ? inv_mass.shape(0) : -1;
   const py::ssize_t m = a.ndim() == 1 ? a.shape(0) : -1;
-  BodyStatesView prev = states_view(previous, n, "previous");
-  BodyStatesView cur = states_view(current, n, "current");
-  BodyStatesView o = states_view(out_states, n, "out");
-  BodyStatesOut out{const_cast<double*>(o.position), const_cast<double*>(o.orientation),
-                    const_cast<double*>(o.linear), const_cast<double*>(o.angular)};
-  for (int i = 0; i < 4; ++i)
-    if (!py::array(out_states[i]).writeable()) throw py::value_error("out: read-only");
+  States previous_states, current_states, out_states_;
+  states_of(previous, n, "previous", previous_states, false);
+  states_of(current, n, "current", current_states, false);
+  states_of(out_states, n, "out", out_states_, true);
+  const BodyStatesView prev = states_view(previous_states);
+  const BodyStatesView cur = states_view(current_states);
+  BodyStatesOut out{out_states_.data[0], out_states_.data[1], out_states_.data[2],
+                    out_states_.data[3]};
   BodyProperties bodies;
   bodies.count = n;
   bodies.inv_mass = checked<double>(inv_mass, "inv_mass", {n});
@@ -119,6 +133,7 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
     py::gil_scoped_release release;
     stats = solver.step(prev, cur, bodies, c, dt, warm, params, out, r);
   }
+  for (int i = 0; i < 4; ++i) scatter_rows(out_states_.arrays[i], out_states_.data[i]);
   return py::make_tuple(stats.sweeps, stats.rows, stats.substeps);
 }
 

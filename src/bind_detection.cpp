@@ -1,4 +1,5 @@
-// Detection bindings: collres::Detector over numpy arrays (no logic here).
+// Detection bindings: collres::Detector over numpy arrays (no logic here); poses may be
+// strided views (float_rows, bindings.h).
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
 
@@ -17,19 +18,7 @@ namespace py = pybind11;
 
 namespace {
 
-using Array = py::array_t<double, py::array::c_style>;
 using Mask = py::array_t<std::uint8_t, py::array::c_style>;
-
-// A C-contiguous float64 array of shape (count, width), checked, never converted.
-const double* rows_of(const py::array& array, py::ssize_t count, py::ssize_t width,
-                      const char* name) {
-  if (!py::isinstance<Array>(array) || array.ndim() != 2 || array.shape(0) != count ||
-      array.shape(1) != width) {
-    throw py::value_error(std::string(name) + ": expected a C-contiguous float64 array of "
-                          "shape (" + std::to_string(count) + ", " + std::to_string(width) + ")");
-  }
-  return static_cast<const double*>(array.data());
-}
 
 // A numpy array that owns a moved-in std::vector (no copy).
 template <class T>
@@ -39,26 +28,31 @@ py::array owned(std::vector<T>&& data, std::vector<py::ssize_t> shape) {
   return py::array_t<T>(shape, holder->data(), free);
 }
 
-collres::StepPoses poses_of(const collres::Detector& detector, const py::array& p0,
-                            const py::array& q0, const py::array& p1, const py::array& q1,
-                            const py::array& linear, const py::array& angular,
-                            const std::optional<py::array>& active) {
-  const py::ssize_t n = detector.count();
+// A step's poses and twists: float64 (N, 3) / (N, 4) rows, C-contiguous or strided views
+// gathered into `scratch` (float_rows, bindings.h), and the (N,) uint8 active mask.
+struct Poses {
   collres::StepPoses poses;
+  std::vector<double> scratch[6];
+};
+
+void poses_of(const collres::Detector& detector, const py::array& p0, const py::array& q0,
+              const py::array& p1, const py::array& q1, const py::array& linear,
+              const py::array& angular, const std::optional<py::array>& active, Poses& out) {
+  const py::ssize_t n = detector.count();
+  collres::StepPoses& poses = out.poses;
   poses.count = detector.count();
-  poses.p0 = rows_of(p0, n, 3, "p0");
-  poses.q0 = rows_of(q0, n, 4, "q0");
-  poses.p1 = rows_of(p1, n, 3, "p1");
-  poses.q1 = rows_of(q1, n, 4, "q1");
-  poses.linear = rows_of(linear, n, 3, "linear");
-  poses.angular = rows_of(angular, n, 3, "angular");
+  poses.p0 = float_rows(p0, n, 3, "p0", out.scratch[0]);
+  poses.q0 = float_rows(q0, n, 4, "q0", out.scratch[1]);
+  poses.p1 = float_rows(p1, n, 3, "p1", out.scratch[2]);
+  poses.q1 = float_rows(q1, n, 4, "q1", out.scratch[3]);
+  poses.linear = float_rows(linear, n, 3, "linear", out.scratch[4]);
+  poses.angular = float_rows(angular, n, 3, "angular", out.scratch[5]);
   if (active) {
     if (!py::isinstance<Mask>(*active) || active->ndim() != 1 || active->shape(0) != n) {
       throw py::value_error("active: expected a C-contiguous uint8 array of shape (N,)");
     }
     poses.active = static_cast<const std::uint8_t*>(active->data());
   }
-  return poses;
 }
 
 }  // namespace
@@ -198,8 +192,9 @@ void bind_detection(py::module_& m) {
               const py::array& angular, const std::optional<py::array>& active,
               int threads) {
              if (threads < 1 || threads > 2) throw py::value_error("threads: 1 or 2");
-             const collres::StepPoses poses = poses_of(d, p0, q0, p1, q1, linear, angular,
-                                                       active);
+             Poses in;
+             poses_of(d, p0, q0, p1, q1, linear, angular, active, in);
+             const collres::StepPoses& poses = in.poses;
              collres::ContactRows rows;
              {
                py::gil_scoped_release release;
@@ -227,8 +222,9 @@ void bind_detection(py::module_& m) {
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,
               const py::array& angular, const std::optional<py::array>& active) {
-             const collres::StepPoses poses = poses_of(d, p0, q0, p1, q1, linear, angular,
-                                                       active);
+             Poses in;
+             poses_of(d, p0, q0, p1, q1, linear, angular, active, in);
+             const collres::StepPoses& poses = in.poses;
              std::vector<double> fraction;
              {
                py::gil_scoped_release release;
@@ -246,8 +242,9 @@ void bind_detection(py::module_& m) {
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,
               const py::array& angular, const std::optional<py::array>& active) {
-             const collres::StepPoses poses = poses_of(d, p0, q0, p1, q1, linear, angular,
-                                                       active);
+             Poses in;
+             poses_of(d, p0, q0, p1, q1, linear, angular, active, in);
+             const collres::StepPoses& poses = in.poses;
              std::vector<std::pair<int, int>> pairs;
              {
                py::gil_scoped_release release;

@@ -31,16 +31,23 @@ class FakeWorld:
     def forget(self, bodies: np.ndarray) -> None:
         self.forgotten.append([int(i) for i in bodies])
 
-    def step(self, previous: BodyStates, current: BodyStates, dt: float,
+    def step(self, previous: np.ndarray, current: np.ndarray, dt: float,
              active: Optional[np.ndarray] = None, fresh: bool = False) -> StepResult:
-        self.calls.append({'previous': previous.copy(), 'current': current.copy(), 'dt': dt,
-                           'fresh': fresh,
+        """``previous``, ``current``: (N, 13) rows, as the resolver gives them."""
+        self.calls.append({'previous': states_of(previous.copy()),
+                           'current': states_of(current.copy()), 'dt': dt, 'fresh': fresh,
                            'active': None if active is None else active.copy(),
                            'settings': self.settings})
-        out = current.copy()
+        values = current.copy()
+        out = states_of(values)
         if self.hook is not None:
             self.hook(out)
-        return StepResult(out, self.report)
+        return StepResult(out, self.report, values=values)
+
+
+def states_of(values: np.ndarray) -> BodyStates:
+    """BodyStates whose arrays are the column views of (N, 13) ``values``."""
+    return BodyStates(values[:, 0:3], values[:, 3:7], values[:, 7:10], values[:, 10:13])
 
 
 def one_contact(a: int, b: int, toi: float) -> ContactReport:
@@ -56,14 +63,13 @@ class GuardingWorld(FakeWorld):
     """A FakeWorld that guards its output as ``World`` does: a non-finite body is repaired
     (it keeps ``current``) and reported once as ``non_finite_result``."""
 
-    def step(self, previous: BodyStates, current: BodyStates, dt: float,
+    def step(self, previous: np.ndarray, current: np.ndarray, dt: float,
              active: Optional[np.ndarray] = None, fresh: bool = False) -> StepResult:
         result = super().step(previous, current, dt, active, fresh)
-        out = result.states
-        rows = np.concatenate([out.position, out.orientation, out.linear, out.angular], axis=1)
+        rows = result.values
+        assert rows is not None
         rejected = []
         for i in np.flatnonzero(~np.isfinite(rows).all(axis=1)):
-            for name in ('position', 'orientation', 'linear', 'angular'):
-                getattr(out, name)[i] = getattr(current, name)[i]
+            rows[i] = current[i]
             rejected.append(Rejection(self.bodies[i].name, 'non_finite_result', 'input kept'))
-        return StepResult(out, result.report, rejected)
+        return StepResult(result.states, result.report, rejected, values=rows)

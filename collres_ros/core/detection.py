@@ -132,7 +132,8 @@ class Detection:
     @staticmethod
     def _arrays(previous: BodyStates, current: BodyStates,
                 active: np.ndarray | None) -> tuple:
-        as_rows = (lambda a: np.ascontiguousarray(a, dtype=np.float64))
+        # float64 as they are: strided views (of (N, 13) rows) are gathered by the binding
+        as_rows = (lambda a: np.asarray(a, dtype=np.float64))
         mask = None if active is None else np.ascontiguousarray(active, dtype=np.uint8)
         return (as_rows(previous.position), as_rows(previous.orientation),
                 as_rows(current.position), as_rows(current.orientation),

@@ -251,11 +251,10 @@ class Resolver:
         # 3. the world step
         world_start, world_cpu = time.perf_counter(), time.thread_time()
         with np.errstate(over='ignore', invalid='ignore'):   # the guard below reports it
-            result = self.world.step(_states(previous), _states(current), dt, active,
-                                     fresh=not usable)
+            result = self.world.step(previous, current, dt, active, fresh=not usable)
         world_time = time.perf_counter() - world_start
         world_cpu = time.thread_time() - world_cpu
-        out = np.concatenate(_arrays(result.states), axis=1)   # (N, 13)
+        out = result.values   # (N, 13)
         # one guard, one report: a body the world repaired or that is still non-finite (a
         # finite sum of every number is the usual step's whole test)
         repaired = {r.body for r in result.rejected if r.reason == 'non_finite_result'}

@@ -93,33 +93,32 @@ class Sleep:
                 'sleeping_islands': self._native.sleeping_islands,
                 'awake_islands': self._native.awake_islands}
 
-    def before(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
-               dt: float, fresh: bool) -> tuple[BodyStates, np.ndarray, np.ndarray]:
+    def before(self, previous: np.ndarray, current: np.ndarray, active: np.ndarray,
+               dt: float, fresh: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Wake what must wake, then (current, active, asleep): sleepers' current states
-        replaced by their held state (previous pose, zero twist) and marked inactive."""
+        replaced by their held state (previous pose, zero twist) and marked inactive.
+        ``previous``, ``current``: (N, 13) rows (position, orientation, linear, angular)."""
         last = self._last_active
-        if fresh or last is None or len(last) != len(active) or not (active == last).all():
+        if fresh or last is None or len(last) != len(active) or not np.array_equal(active,
+                                                                                   last):
             self.wake_all()            # a clock jump, a body added or removed
-        self._last_active = active.copy()
+            self._last_active = active.copy()
         kinematic = self._no_kinematic
         if self._native.sleeping_bodies and len(self._static):
-            k = self._static
-            moved = active[k] & (
-                (previous.position[k] != current.position[k]).any(1)
-                | (previous.orientation[k] != current.orientation[k]).any(1)
-                | (current.linear[k] != 0.0).any(1) | (current.angular[k] != 0.0).any(1))
-            kinematic = self._no_kinematic.copy()
-            kinematic[k] = moved
-        self._native.wake(_rows(previous), _rows(current), active.astype(np.uint8), kinematic,
-                          float(dt))
-        asleep = self._native.asleep.astype(bool)
+            k = self._static     # moved, or a kinematic velocity
+            moved = active[k] & ((previous[k, 0:7] != current[k, 0:7]).any(1)
+                                 | (current[k, 7:13] != 0.0).any(1))
+            if moved.any():
+                kinematic = self._no_kinematic.copy()
+                kinematic[k] = moved
+        self._native.wake(_columns(previous), _columns(current), active.view(np.uint8),
+                          kinematic, float(dt))
+        asleep = self._native.asleep.view(bool)
         if not asleep.any():
             return current, active, asleep
-        rows = asleep[:, None]
-        held = BodyStates(np.where(rows, previous.position, current.position),
-                          np.where(rows, previous.orientation, current.orientation),
-                          np.where(rows, 0.0, current.linear),
-                          np.where(rows, 0.0, current.angular))
+        held = current.copy()
+        held[asleep, 0:7] = previous[asleep, 0:7]
+        held[asleep, 7:13] = 0.0
         return held, active & ~asleep, asleep
 
     def after(self, out: BodyStates, movable: np.ndarray, report: ContactReport, dt: float,
@@ -134,7 +133,7 @@ class Sleep:
                             np.ascontiguousarray(contacts.body_a, np.int64),
                             np.ascontiguousarray(contacts.body_b, np.int64),
                             np.ascontiguousarray(report.normal_impulse, np.float64), float(dt))
-        now = self._native.asleep.astype(bool)
+        now = self._native.asleep.view(bool)
         sleeping = asleep | now
         # the held contacts are those of the bodies asleep after the last step: all still
         # answered as asleep unless an island woke before this step's detection
@@ -183,6 +182,7 @@ def _joined(a: ContactReport, b: ContactReport) -> ContactReport:
                          np.concatenate([a.state, b.state]))
 
 
-def _rows(states: BodyStates) -> tuple[np.ndarray, ...]:
-    return tuple(np.ascontiguousarray(a, np.float64) for a in (
-        states.position, states.orientation, states.linear, states.angular))
+def _columns(values: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(position, orientation, linear, angular): the column views of (N, 13) ``values``
+    (the binding gathers them)."""
+    return values[:, 0:3], values[:, 3:7], values[:, 7:10], values[:, 10:13]

@@ -199,6 +199,9 @@ class StepResult:
     # the report is the last step's, array for array (every island that touches anything
     # asleep, the same ones held: ``core.sleep``): what was built from the last one holds
     unchanged: bool = False
+    # (N, 13) the corrected states as rows (position, orientation, linear, angular);
+    # ``states`` are its column views (None: ``states`` stand alone)
+    values: np.ndarray | None = None
 
 
 SHAPE_KINDS = ('sphere', 'box', 'capsule', 'cylinder', 'cone', 'plane', 'convex', 'triangle')

@@ -148,12 +148,14 @@ class World:
         self._cache.forget(np.asarray(bodies, np.int64).ravel())
         self.sleep.wake_all()
 
-    def step(self, previous: BodyStates, current: BodyStates, dt: float,
-             active: np.ndarray | None = None, fresh: bool = False) -> StepResult:
+    def step(self, previous: BodyStates | np.ndarray, current: BodyStates | np.ndarray,
+             dt: float, active: np.ndarray | None = None, fresh: bool = False) -> StepResult:
         """Resolve the contacts of the step previous -> current (dt > 0, s).
 
         ``previous``/``current``: all N bodies, world frame, before resolution
-        (validated by the caller). ``active`` (N,) bool, False = quarantined:
+        (validated by the caller), as BodyStates or as (N, 13) float64 rows (position,
+        orientation, linear, angular: the resolver's, read only, never copied whole; the
+        compiled calls read their column views). ``active`` (N,) bool, False = quarantined:
         held at ``current`` with zero twist and infinite mass this step, its
         output state is ``current`` unchanged. Returns corrected states of all
         bodies, the solved contacts and non-finite results that were refused.
@@ -162,30 +164,35 @@ class World:
         than ``settings.max_dt`` or one whose dt differs from the last by more than
         ``SOLVER_TUNING`` ``warm_start_ratio``.
         """
-        active = np.ones(current.count, bool) if active is None else np.asarray(active, bool)
-        # one contiguous float64 copy of an array that is not (e.g. a column view of the
-        # resolver's (N, 13) rows), here, rather than one per compiled call below
-        previous, current = _contiguous(previous), _contiguous(current)
+        previous, current = _rows(previous), _rows(current)
+        active = np.ones(len(current), bool) if active is None else np.asarray(active, bool)
         asleep = None
         if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
             current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
-        # (a sleeper's previous state is already its held one: its last answer)
-        previous = _hold(previous, current, ~active if asleep is None else ~active & ~asleep)
+        # held (inactive) bodies: previous = current (a sleeper's previous state is already
+        # its held one: its last answer)
+        held = ~active if asleep is None else ~active & ~asleep
+        if held.any():
+            previous = previous.copy()
+            previous[held] = current[held]
         warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
         self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0, 'substeps': 1}
         self.budget = (0, 0)
         rejected: list[Rejection] = []
-        answer, report = self._resolve(previous, current, active, dt, warm, rejected)
+        values, report = self._resolve(previous, current, active, dt, warm, rejected)
+        answer = _states(values)
         report, sleeping, unchanged = self._settle(answer, report, active, dt, asleep)
-        return StepResult(answer, report, rejected, sleeping, unchanged)
+        return StepResult(answer, report, rejected, sleeping, unchanged, values)
 
-    def _resolve(self, previous: BodyStates, current: BodyStates, active: np.ndarray,
-                 dt: float, warm: bool, rejected: list[Rejection]
-                 ) -> tuple[BodyStates, ContactReport]:
-        """Detection and solve of the step previous -> current: the answer and its
-        report; non-finite results refused are added to ``rejected``, times, sweeps and
-        rows to ``timing``, the budget's drops to ``budget`` (the largest)."""
+    def _resolve(self, previous_rows: np.ndarray, current_rows: np.ndarray,
+                 active: np.ndarray, dt: float, warm: bool, rejected: list[Rejection]
+                 ) -> tuple[np.ndarray, ContactReport]:
+        """Detection and solve of the step previous -> current ((N, 13) rows): the
+        answer's (N, 13) rows and its report; non-finite results refused are added to
+        ``rejected``, times, sweeps and rows to ``timing``, the budget's drops to
+        ``budget`` (the largest)."""
         started = time.perf_counter()
+        previous, current = _states(previous_rows), _states(current_rows)
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
         if (self.dynamic & active).any():
@@ -199,19 +206,21 @@ class World:
         self.timing['detect'] += detected - started
         if contacts.count == 0:
             self._cache.clear()
-            return current.copy(), ContactReport.empty()
+            return current_rows.copy(), ContactReport.empty()
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
-        states, report, sweeps, rows, substeps = self._solve(previous, current, contacts, active,
-                                                             dt, warm)
+        values = current_rows.copy()   # the answer, solved in place
+        states = _states(values)
+        report, sweeps, rows, substeps = self._solve(previous, current, states, contacts,
+                                                     active, dt, warm)
         self._hold_back(previous, states, active)
         # report: the final guard against non-finite output
-        rejected += self._guard(states, current)
+        rejected += self._guard(values, current_rows)
         self.timing['solve'] += time.perf_counter() - detected
         self.timing['iterations'] += sweeps
         self.timing['rows'] += rows
         self.timing['substeps'] = substeps
-        return states, report
+        return values, report
 
     def _settle(self, states: BodyStates, report: ContactReport, active: np.ndarray,
                 dt: float, asleep: np.ndarray | None
@@ -223,16 +232,17 @@ class World:
             return report, None, False
         return self.sleep.after(states, self.dynamic & active, report, dt, asleep)
 
-    def _solve(self, previous: BodyStates, current: BodyStates, contacts: ContactSet,
-               active: np.ndarray, dt: float, warm: bool
-               ) -> tuple[BodyStates, ContactReport, int, int, int]:
-        """The compiled solver step on whole arrays (no copy when dtypes and layout fit).
+    def _solve(self, previous: BodyStates, current: BodyStates, out: BodyStates,
+               contacts: ContactSet, active: np.ndarray, dt: float, warm: bool
+               ) -> tuple[ContactReport, int, int, int]:
+        """The compiled solver step on whole arrays (no copy when dtypes and layout fit; the
+        states' column views of (N, 13) rows are gathered by the binding): corrects ``out``
+        (a copy of ``current``) in place.
 
-        Returns corrected states, the report, velocity sweeps done, solver rows and the
-        resting solve's substeps.
+        Returns the report, velocity sweeps done, solver rows and the resting solve's
+        substeps.
         """
         movable = self.dynamic & active
-        out = BodyStates(*(np.array(a, np.float64, order='C') for a in _arrays(current)))
         m = contacts.count
         report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
                                           contacts.normal, contacts.separation, np.empty(m),
@@ -257,7 +267,7 @@ class World:
             dt=float(dt), warm=warm, params=self._params, normal_impulse=report.normal_impulse,
             friction_impulse=report.friction_impulse, state=report.state,
             reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
-        return out, report, sweeps, rows, substeps
+        return report, sweeps, rows, substeps
 
     def _hold_back(self, previous: BodyStates, states: BodyStates, active: np.ndarray) -> None:
         """A body whose answer went deeper into a fixed shape than it was (by more than the
@@ -278,14 +288,14 @@ class World:
                                          f[:, 0])
         states.linear[held], states.angular[held] = 0.0, 0.0
 
-    def _guard(self, states: BodyStates, current: BodyStates) -> list[Rejection]:
-        """Bodies with a non-finite result keep their current input state; report them."""
-        bad = ~(np.isfinite(states.position).all(1) & np.isfinite(states.orientation).all(1)
-                & np.isfinite(states.linear).all(1) & np.isfinite(states.angular).all(1))
+    def _guard(self, values: np.ndarray, current: np.ndarray) -> list[Rejection]:
+        """Bodies with a non-finite result ((N, 13) rows ``values``) keep their current input
+        state; report them."""
+        if np.isfinite(values).all():   # the usual step
+            return []
         rejected = []
-        for i in np.flatnonzero(bad):
-            states.position[i], states.orientation[i] = current.position[i], current.orientation[i]
-            states.linear[i], states.angular[i] = current.linear[i], current.angular[i]
+        for i in np.flatnonzero(~np.isfinite(values).all(1)):
+            values[i] = current[i]
             rejected.append(Rejection(self.specs[i].name, 'non_finite_result',
                                       'the solver produced a non-finite state; input kept'))
         return rejected
@@ -315,28 +325,24 @@ def combine(a: np.ndarray, b: np.ndarray, rule: str) -> np.ndarray:
 
 
 def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(position, orientation, linear, angular), float64 and C-contiguous (copied only if not)."""
-    return tuple(np.ascontiguousarray(a, np.float64) for a in (  # type: ignore[return-value]
-        states.position, states.orientation, states.linear, states.angular))
+    """(position, orientation, linear, angular), as they are (views of (N, 13) rows)."""
+    return states.position, states.orientation, states.linear, states.angular
 
 
-def _contiguous(states: BodyStates) -> BodyStates:
-    """``states`` itself when its four arrays are C-contiguous float64, else a copy that is."""
-    arrays = (states.position, states.orientation, states.linear, states.angular)
-    if all(isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous
-           for a in arrays):
+def _rows(states: BodyStates | np.ndarray) -> np.ndarray:
+    """(N, 13) float64 rows (position, orientation, linear, angular): ``states`` itself when
+    it is such an array, else one new array of its four."""
+    if isinstance(states, np.ndarray) and states.dtype == np.float64:
         return states
-    return BodyStates(*(np.ascontiguousarray(a, np.float64) for a in arrays))
+    if isinstance(states, np.ndarray):
+        return np.asarray(states, np.float64)
+    return np.concatenate([np.asarray(a, np.float64).reshape(-1, k) for a, k in zip(
+        _arrays(states), (3, 4, 3, 3))], axis=1)
 
 
-def _hold(previous: BodyStates, current: BodyStates, held: np.ndarray) -> BodyStates:
-    """Previous states with the held (inactive) bodies set to their current state."""
-    if not held.any():
-        return previous
-    out = previous.copy()
-    out.position[held], out.orientation[held] = current.position[held], current.orientation[held]
-    out.linear[held], out.angular[held] = current.linear[held], current.angular[held]
-    return out
+def _states(values: np.ndarray) -> BodyStates:
+    """BodyStates whose four arrays are the column views of (N, 13) ``values``."""
+    return BodyStates(values[:, 0:3], values[:, 3:7], values[:, 7:10], values[:, 10:13])
 
 
 def _finite(contacts: ContactSet) -> ContactSet:

@@ -219,7 +219,7 @@ class Resolver:
         entered = checked.values             # (K, 13) the accepted inputs, world frame
         twist_in_body = checked.twist_in_body
         resets: list[Rejection] = []
-        if fresh.any() or history.repeated.any():   # not the stream's usual step
+        if not history.usual and (fresh.any() or history.repeated.any()):   # not the usual step
             for k in np.flatnonzero(history.repeated):
                 name = self.names[checked.index[k]]
                 rejected.append(Rejection(name, 'repeated_stamp',
@@ -236,7 +236,7 @@ class Resolver:
         current = self._values.copy()
         current[rows] = entered
         previous = self._values
-        if fresh.any():   # previous = current: nothing moved before a fresh start
+        if not history.usual and fresh.any():   # previous = current: nothing moved before
             restart = index[fresh]
             previous = previous.copy()
             previous[restart] = current[restart]
@@ -286,7 +286,10 @@ class Resolver:
         report = result.report
         toi = np.asarray(report.contacts.toi, float)
         span_ns = step_ns if usable else 0
-        toi_ns = stamp_ns - np.rint((1.0 - toi) * span_ns).astype(np.int64)
+        if span_ns and toi.any():
+            toi_ns = stamp_ns - np.rint((1.0 - toi) * span_ns).astype(np.int64)
+        else:   # every contact from the step's start (persistent, held asleep)
+            toi_ns = np.full(len(toi), stamp_ns - span_ns, np.int64)
         stale = stale_bodies(self.last_stamp, stamp_ns, int(self.stale_timeout * 1e9),
                              self.dynamic)
         self.totals['steps'] += 1

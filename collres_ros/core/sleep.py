@@ -99,8 +99,7 @@ class Sleep:
         replaced by their held state (previous pose, zero twist) and marked inactive.
         ``previous``, ``current``: (N, 13) rows (position, orientation, linear, angular)."""
         last = self._last_active
-        if fresh or last is None or len(last) != len(active) or not np.array_equal(active,
-                                                                                   last):
+        if fresh or last is None or len(last) != len(active) or not (active == last).all():
             self.wake_all()            # a clock jump, a body added or removed
             self._last_active = active.copy()
         kinematic = self._no_kinematic

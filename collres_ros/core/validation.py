@@ -113,6 +113,7 @@ class NameIndex:
         self.plain = False   # the last list looked up: every name known, none repeated
         # the last list's index as a slice, when it is consecutive scene rows in order
         self.span: slice | None = None
+        self.none = np.zeros(0, bool)   # (K,) False, read-only: a mask for the last list
 
     def lookup(self, names: Sequence[str]) -> tuple[np.ndarray, Counter[str] | None]:
         """(K,) index of each name (-1: unknown; read-only) and the repeated names' counts
@@ -127,6 +128,8 @@ class NameIndex:
             run = len(index) > 0 and self.plain and bool(
                 (index == np.arange(index[0], index[0] + len(index))).all())
             self.span = slice(int(index[0]), int(index[0]) + len(index)) if run else None
+            self.none = np.zeros(len(index), bool)
+            self.none.flags.writeable = False
         return self._answer
 
 
@@ -151,15 +154,15 @@ def check_inputs(inputs: Sequence[BodyInput] | InputBatch,
     # would refuse nothing): every name known and once, the world frame, every number
     # within its limit (NaN and Inf are not), then unit quaternions (the limit keeps their
     # squares finite)
-    if lookup.plain and isinstance(batch.frame_id, str) and batch.frame_id in world \
+    if lookup.plain and count and isinstance(batch.frame_id, str) and batch.frame_id in world \
             and isinstance(batch.twist_frame_id, str) and batch.twist_frame_id in world \
             and (np.abs(numbers) <= _LIMITS).all():
         norm = _norms(quaternion)
-        if (np.abs(norm - 1.0) <= min(quaternion_tolerance, 0.5)).all():
+        if np.abs(norm - 1.0).max() <= min(quaternion_tolerance, 0.5):
             values = numbers.copy()
             values[:, 3:7] /= norm[:, None]
-            return CheckedInputs.of(np.array(index), values, np.zeros(count, bool), [],
-                                    lookup.span)
+            # the index and the mask are the lookup's, read-only
+            return CheckedInputs.of(index, values, lookup.none, [], lookup.span)
     duplicate = np.array([repeats[n] > 1 for n in names], bool) if repeats \
         else np.zeros(count, bool)
     if isinstance(batch.frame_id, str):
@@ -209,11 +212,10 @@ def _norms(quaternion: np.ndarray) -> np.ndarray:
     """(K,) norms of (K, 4) rows, bit for bit ``np.linalg.norm(quaternion, axis=1)`` (its
     sum of squares in the same order: x, y, z, w), column by column: a reduction along rows
     of four strided numbers costs numpy 3x more."""
-    q = quaternion
-    total = q[:, 0] * q[:, 0]
-    total += q[:, 1] * q[:, 1]
-    total += q[:, 2] * q[:, 2]
-    total += q[:, 3] * q[:, 3]
+    square = quaternion * quaternion
+    total = square[:, 0] + square[:, 1]
+    total += square[:, 2]
+    total += square[:, 3]
     return np.sqrt(total, out=total)
 
 
@@ -252,6 +254,7 @@ class StampCheck:
     fresh: np.ndarray       # start fresh: previous = current, warm start forgotten
     backwards: np.ndarray   # stamp < last stamp (subset of fresh)
     gap: np.ndarray         # stamp - last > max_dt (subset of fresh)
+    usual: bool = False     # the stream's usual step: every mask all False
 
 
 def check_stamps(last_stamp: np.ndarray, stamp_ns: int, max_dt_ns: int,
@@ -265,15 +268,22 @@ def check_stamps(last_stamp: np.ndarray, stamp_ns: int, max_dt_ns: int,
     """
     if previous_step_ns != NO_STAMP and 0 < stamp_ns - previous_step_ns <= max_dt_ns \
             and (last_stamp == previous_step_ns).all():   # the stream's usual step
-        none = np.zeros(len(last_stamp), bool)
-        none.flags.writeable = False
-        return StampCheck(none, none, none, none)
+        none = _NONE.get(len(last_stamp))
+        if none is None:
+            if len(_NONE) > 16:
+                _NONE.clear()
+            none = _NONE[len(last_stamp)] = np.zeros(len(last_stamp), bool)
+            none.flags.writeable = False
+        return StampCheck(none, none, none, none, usual=True)
     seen = last_stamp != NO_STAMP
     repeated = seen & (last_stamp == stamp_ns)
     backwards = seen & (last_stamp > stamp_ns)
     gap = seen & (stamp_ns - last_stamp > max_dt_ns)
     fresh = ~repeated & (~seen | backwards | gap | (last_stamp != previous_step_ns))
     return StampCheck(repeated, fresh, backwards, gap)
+
+
+_NONE: dict[int, np.ndarray] = {}   # (K,) False, read-only, by K: the usual step's masks
 
 
 def stale_bodies(last_stamp: np.ndarray, stamp_ns: int, timeout_ns: int,

@@ -195,18 +195,18 @@ class World:
         previous, current = _states(previous_rows), _states(current_rows)
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
-        if (self.dynamic & active).any():
-            contacts = _finite(self._collision.detect(previous, current, active,
-                                                      self._params.threads))
-            budget = self._collision.budget
-            self.budget = (max(self.budget[0], budget[0]), max(self.budget[1], budget[1]))
-        else:
-            contacts = ContactSet.empty()
+        if not (self.dynamic & active).any():
+            self._cache.clear()
+            return current_rows.copy(), NO_CONTACTS
+        contacts = _finite(self._collision.detect(previous, current, active,
+                                                  self._params.threads))
+        budget = self._collision.budget
+        self.budget = (max(self.budget[0], budget[0]), max(self.budget[1], budget[1]))
         detected = time.perf_counter()
         self.timing['detect'] += detected - started
         if contacts.count == 0:
             self._cache.clear()
-            return current_rows.copy(), ContactReport.empty()
+            return current_rows.copy(), NO_CONTACTS
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
         values = current_rows.copy()   # the answer, solved in place
@@ -300,6 +300,9 @@ class World:
                                       'the solver produced a non-finite state; input kept'))
         return rejected
 
+
+# the report of a step without contacts (its arrays are empty: shared by every such step)
+NO_CONTACTS = ContactReport.empty()
 
 MATERIALS = ('restitution', 'static_friction', 'kinetic_friction', 'rolling_resistance',
              'torsional_friction')

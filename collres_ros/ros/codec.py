@@ -44,7 +44,7 @@ message that does not match is parsed field by field.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Optional, Sequence
 
 import numpy as np
@@ -251,8 +251,13 @@ class DecodedStates:
     frame_id: str
     names: list[str]
     values: np.ndarray   # (K, 13) float64: position, orientation (x, y, z, w), linear, angular
-    sleeping: np.ndarray  # (K,) bool: the ``sleeping`` flags (False where the field is absent)
+    flags: np.ndarray = field(repr=False)   # (K,) uint8 the flags (empty: legacy)
     legacy: bool = False  # written before BodyState had ``sleeping`` (old bags)
+
+    @property
+    def sleeping(self) -> np.ndarray:
+        """(K,) bool: the ``sleeping`` flags (False where the field is absent)."""
+        return self.flags != 0 if not self.legacy else np.zeros(len(self.names), bool)
 
 
 @dataclass
@@ -269,6 +274,21 @@ class _Layout:
     #                          floats, padding, flags)
     legacy: bool             # bodies without the ``sleeping`` field (written before it existed)
     expected: np.ndarray     # template[check]: what a message of this layout has there
+    # the same test as 8-byte words of the float64 view (byte 4 + 8 i): the words that hold
+    # checked bytes, a mask of those bytes and the template's masked words; checked bytes
+    # after the last whole word (``tail``) one by one; bytes 0-1 (the encapsulation) are
+    # the Reader's
+    words: np.ndarray
+    word_mask: np.ndarray
+    word_expected: np.ndarray
+    tail: np.ndarray
+
+    def matches(self, data: Any, raw: np.ndarray) -> bool:
+        """Whether message bytes ``data`` (``raw``: their uint8 view, at least ``size``
+        long) have this layout's names, frame and lengths, as ``check`` says."""
+        words = np.frombuffer(data, '<u8', (len(data) - 4) // 8, 4)
+        return bool(((words[self.words] & self.word_mask) == self.word_expected).all()) and (
+            not len(self.tail) or bool((raw[self.tail] == self.template[self.tail]).all()))
 
 
 def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) -> _Layout:
@@ -299,8 +319,17 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
     flag_bytes = np.array(flags, np.int64)
     keep[flag_bytes] = False
     check = np.flatnonzero(keep)
+    whole = (size - 4) // 8   # whole words of the float64 view
+    inside = check[(check >= 4) & (check < 4 + 8 * whole)]
+    word = (inside - 4) // 8
+    mask = np.zeros(whole, np.uint64)
+    np.bitwise_or.at(mask, word, np.left_shift(np.uint64(0xFF),
+                                               (8 * ((inside - 4) % 8)).astype(np.uint64)))
+    words = np.unique(word)
+    template_words = np.frombuffer(template.tobytes(), '<u8', whole, 4)
     return _Layout(frame_id, list(names), size, template, rows, flag_bytes, check, legacy,
-                   template[check])
+                   template[check], words, mask[words], template_words[words] & mask[words],
+                   check[check >= 4 + 8 * whole])
 
 
 def _doubles(buffer: Any) -> np.ndarray:
@@ -369,7 +398,7 @@ class StatesCodec:
         raw = np.frombuffer(data, np.uint8)
         for size in range(len(data), len(data) - 4, -1) if len(data) % 4 == 0 else (len(data),):
             for layout in self._by_size.get(size, ()):
-                if (raw[layout.check] == layout.expected).all() and padded_to(data, size):
+                if layout.matches(data, raw) and padded_to(data, size):
                     return self._decoded(stamp, layout, data, raw)
         frame_id = reader.string()
         count = reader.u32()
@@ -405,10 +434,8 @@ class StatesCodec:
 
     @staticmethod
     def _decoded(stamp: int, layout: _Layout, data: bytes, raw: np.ndarray) -> DecodedStates:
-        sleeping = raw[layout.flags] != 0 if not layout.legacy else \
-            np.zeros(len(layout.names), bool)
         return DecodedStates(stamp, layout.frame_id, layout.names, _doubles(data)[layout.rows],
-                             sleeping, layout.legacy)
+                             raw[layout.flags], layout.legacy)
 
 
 def _parse_bodies(reader: Reader, frame_id: str, count: int, raw: np.ndarray,

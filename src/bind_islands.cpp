@@ -98,8 +98,10 @@ void bind_islands(py::module_& m) {
                py::gil_scoped_release release;
                fell = islands.update(lin, ang, mov, pa, pb, pi, m, dt);
              }
-             scatter_rows(out_linear, lin);
-             scatter_rows(out_angular, ang);
+             if (fell) {   // only the bodies that fell asleep were written (zero twist)
+               scatter_rows(out_linear, lin);
+               scatter_rows(out_angular, ang);
+             }
              return fell;
            }, py::arg("out_linear"), py::arg("out_angular"), py::arg("movable"),
            py::arg("body_a"), py::arg("body_b"), py::arg("normal_impulse"), py::arg("dt"))

@@ -614,6 +614,7 @@ class Restampable:
     def __init__(self, buffer: np.ndarray, size: int, stamps: np.ndarray) -> None:
         self.buffer, self.size = buffer, size
         self.stamps = np.asarray(stamps, np.int64)
+        self._nanosec = self.stamps + 1   # the words of their nanoseconds
         self._words = buffer[4:4 + 4 * ((len(buffer) - 4) // 4)].view('<i4')
 
     def data(self) -> bytes:
@@ -627,9 +628,10 @@ class Restampable:
 
     def stamp(self, stamps_ns: int | np.ndarray) -> None:
         """Set the stamps in place (``restamped``)."""
-        ns = np.maximum(np.asarray(stamps_ns, np.int64), 0)
-        self._words[self.stamps] = ns // NS_PER_S
-        self._words[self.stamps + 1] = (ns % NS_PER_S).astype(np.uint32).view(np.int32)
+        # (nanoseconds < 1e9 fit the int32 words as they are, as uint32 would)
+        sec, nanosec = np.divmod(np.maximum(np.asarray(stamps_ns, np.int64), 0), NS_PER_S)
+        self._words[self.stamps] = sec
+        self._words[self._nanosec] = nanosec
 
 
 # --- ContactArray -----------------------------------------------------------------------------

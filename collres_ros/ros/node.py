@@ -461,7 +461,7 @@ class CollresNode(Node):
         node = self.scene.node
         bodies = self._publisher(names.BODY_MARKERS, MarkerArray).get_subscription_count() > 0
         outputs = self.encoder.encode(
-            step, False, node.marker_lifetime,
+            step, per_body=False, marker_lifetime=node.marker_lifetime,
             markers=markers and not more, contacts=contacts,
             wrenches=node.contact_wrench,
             body_markers=node.body_markers_period if bodies and not more else None,

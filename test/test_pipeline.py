@@ -9,7 +9,7 @@ import pytest
 from fake_world import FakeWorld, GuardingWorld, one_contact
 
 from collres_ros.core.pipeline import FRESH_DT, Resolver
-from collres_ros.core.types import BodyInput
+from collres_ros.core.types import BodyInput, BodyStates
 from collres_ros.ros.params import scene_from_values
 
 MS = 1_000_000  # ns
@@ -303,3 +303,44 @@ def test_inputs_in_scene_order_and_shuffled_give_the_same_answers():
         runs.append(outputs)
     assert sum(1 for o in runs[0] if o[2]) > 0, 'no contact: nothing was resolved'
     assert runs[0] == runs[1]
+
+
+def test_the_world_answers_the_resolvers_rows_as_it_answers_separate_arrays():
+    """World.step takes the resolver's (N, 13) rows as they are (the compiled detection,
+    solve, hold-back and sleep islands read their column views): a stack of boxes dropped
+    on a floor, stepped from rows and from four separate C-contiguous arrays per state,
+    gives the same bits every step, awake, in contact, and asleep."""
+    from collres_ros.core.world import World
+    values = {'bodies': ['floor'] + [f'box{k}' for k in range(4)],
+              'body.floor.shape': 'box', 'body.floor.size': [4.0, 4.0, 0.2],
+              'body.floor.static': True, 'body.floor.position': [0.0, 0.0, -0.1]}
+    for k in range(4):
+        values[f'body.box{k}.shape'] = 'box'
+        values[f'body.box{k}.size'] = [0.2, 0.2, 0.2]
+        values[f'body.box{k}.position'] = [0.03 * k, 0.0, 0.1 + 0.21 * k + 0.02]
+    s = scene_from_values(values)
+    worlds = [World(s.bodies, s.solver), World(s.bodies, s.solver)]
+    rows = np.concatenate([s.initial.position, s.initial.orientation, s.initial.linear,
+                           s.initial.angular], axis=1)
+    dynamic = worlds[0].dynamic
+    dt, gravity = 1.0 / 60.0, np.array([0.0, 0.0, -9.81])
+    asleep = contacts = 0
+    for _ in range(150):
+        current = rows.copy()
+        current[dynamic, 7:10] += gravity * dt
+        current[dynamic, 0:3] += current[dynamic, 7:10] * dt
+        from_rows = worlds[0].step(rows, current, dt)
+        columns = ((0, 3), (3, 7), (7, 10), (10, 13))
+        arrays = [np.ascontiguousarray(rows[:, a:b]) for a, b in columns]
+        now = [np.ascontiguousarray(current[:, a:b]) for a, b in columns]
+        from_arrays = worlds[1].step(BodyStates(*arrays), BodyStates(*now), dt)
+        assert from_rows.values.tobytes() == from_arrays.values.tobytes()
+        assert (from_rows.sleeping == from_arrays.sleeping).all()
+        for name in ('normal_impulse', 'friction_impulse', 'state'):
+            assert getattr(from_rows.report, name).tobytes() == \
+                getattr(from_arrays.report, name).tobytes()
+        rows = from_rows.values
+        asleep += int(from_rows.sleeping.any())
+        contacts += int(from_rows.report.contacts.count > 0)
+    assert contacts > 100 and asleep > 10            # both paths were taken
+    assert abs(rows[dynamic, 2].min() - 0.1) < 0.01   # the stack rests on the floor

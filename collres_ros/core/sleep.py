@@ -104,9 +104,10 @@ class Sleep:
             self._last_active = active.copy()
         kinematic = self._no_kinematic
         if self._native.sleeping_bodies and len(self._static):
-            k = self._static     # moved, or a kinematic velocity
-            moved = active[k] & ((previous[k, 0:7] != current[k, 0:7]).any(1)
-                                 | (current[k, 7:13] != 0.0).any(1))
+            k = self._static     # moved, or a kinematic velocity: a non-zero change of
+            change = current[k]  # pose (finite numbers: a - b is 0 only where a == b) or twist
+            change[:, 0:7] -= previous[k, 0:7]
+            moved = active[k] & change.any(1)
             if moved.any():
                 kinematic = self._no_kinematic.copy()
                 kinematic[k] = moved

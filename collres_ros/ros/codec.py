@@ -269,6 +269,7 @@ class _Layout:
     size: int                # bytes, with the encapsulation header
     template: np.ndarray     # (size rounded up to 4 + 8k,) uint8: stamp 0, floats 0
     rows: np.ndarray         # (K, 13) int64: index of each double in the float64 view
+    first: np.ndarray        # (K,) int64: each body's first (``rows[:, 0]``; see _states_of)
     flags: np.ndarray        # (K,) int64: byte of each ``sleeping`` flag (empty: legacy)
     check: np.ndarray        # positions that must equal the template (not options, stamp,
     #                          floats, padding, flags)
@@ -327,7 +328,7 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
                                                (8 * ((inside - 4) % 8)).astype(np.uint64)))
     words = np.unique(word)
     template_words = np.frombuffer(template.tobytes(), '<u8', whole, 4)
-    return _Layout(frame_id, list(names), size, template, rows, flag_bytes, check, legacy,
+    return _Layout(frame_id, list(names), size, template, rows, first, flag_bytes, check, legacy,
                    template[check], words, mask[words], template_words[words] & mask[words],
                    check[check >= 4 + 8 * whole])
 
@@ -335,6 +336,16 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
 def _doubles(buffer: Any) -> np.ndarray:
     """The float64 view of a message buffer, element i at byte 4 + 8 i (aligned doubles)."""
     return np.frombuffer(buffer, '<f8', (len(buffer) - 4) // 8, 4)
+
+
+def _states_of(buffer: Any) -> np.ndarray:
+    """Every run of 13 doubles of a message buffer's float64 view (``_doubles``), as an
+    (n - 12, 13) view whose rows overlap (strides 8, 8): row i is doubles i .. i + 12, so a
+    body's state is row ``_Layout.first``, and K of them are gathered or scattered by K
+    indices (not 13 K)."""
+    count = (len(buffer) - 4) // 8
+    return np.ndarray((max(count - STATE_DOUBLES + 1, 0), STATE_DOUBLES), '<f8', buffer,
+                      4, (8, 8))
 
 
 class StatesCodec:
@@ -384,7 +395,7 @@ class StatesCodec:
         buf = layout.template.copy()
         _STAMP.pack_into(buf, 4, *stamp_parts(stamp_ns))
         if len(names):
-            _doubles(buf)[layout.rows] = np.asarray(values, float).reshape(-1, STATE_DOUBLES)
+            _states_of(buf)[layout.first] = np.asarray(values, float).reshape(-1, STATE_DOUBLES)
             if sleeping is not None:
                 buf[layout.flags] = np.asarray(sleeping, bool)
         return buf[:layout.size].tobytes()
@@ -434,7 +445,7 @@ class StatesCodec:
 
     @staticmethod
     def _decoded(stamp: int, layout: _Layout, data: bytes, raw: np.ndarray) -> DecodedStates:
-        return DecodedStates(stamp, layout.frame_id, layout.names, _doubles(data)[layout.rows],
+        return DecodedStates(stamp, layout.frame_id, layout.names, _states_of(data)[layout.first],
                              raw[layout.flags], layout.legacy)
 
 

@@ -134,6 +134,10 @@ class Resolver:
         self.world = world
         self.number = 0   # steps resolved (never reset: ``ResolvedStep.number``)
         # (N, 13) the params states as rows (position, orientation, linear, angular)
+        self._no_stale = np.zeros(len(self.bodies), bool)
+        self._no_stale.flags.writeable = False
+        self._covered: tuple[object, bool] = (None, False)   # the last rows, and whether
+        #                                                     they hold every dynamic body
         self._params_values = np.concatenate(_arrays(
             initial if initial is not None else BodyStates.zeros(len(self.bodies))), axis=1)
         self.reset()
@@ -290,8 +294,10 @@ class Resolver:
             toi_ns = stamp_ns - np.rint((1.0 - toi) * span_ns).astype(np.int64)
         else:   # every contact from the step's start (persistent, held asleep)
             toi_ns = np.full(len(toi), stamp_ns - span_ns, np.int64)
-        stale = stale_bodies(self.last_stamp, stamp_ns, int(self.stale_timeout * 1e9),
-                             self.dynamic)
+        # a body stamped now is not stale: when the step's input holds every dynamic body,
+        # none is (a stream's usual step)
+        stale = self._no_stale if self._covers_dynamic(rows) else stale_bodies(
+            self.last_stamp, stamp_ns, int(self.stale_timeout * 1e9), self.dynamic)
         self.totals['steps'] += 1
         self.number += 1
         self.totals['contacts'] += report.contacts.count
@@ -312,6 +318,15 @@ class Resolver:
                             else result.sleeping[rows] if bad is None
                             else result.sleeping[rows] & ~bad,
                             number=self.number, unchanged=result.unchanged, values=values)
+
+    def _covers_dynamic(self, rows: np.ndarray | slice) -> bool:
+        """Whether the scene rows ``rows`` (an input's, the same object step after step for
+        the same names) hold every dynamic body."""
+        if self._covered[0] is not rows:
+            held = np.zeros(len(self.bodies), bool)
+            held[rows] = True
+            self._covered = (rows, not (self.dynamic & ~held).any())
+        return self._covered[1]
 
     def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int
                 ) -> list[Rejection]:

@@ -164,6 +164,8 @@ void bind_solver(py::module_& m) {
       .def_readwrite("impact_sweeps", &SolverParams::impact_sweeps)
       .def_readwrite("impact_converged", &SolverParams::impact_converged)
       .def_readwrite("position_iterations", &SolverParams::position_iterations)
+      .def_readwrite("fixed_sweeps", &SolverParams::fixed_sweeps)
+      .def_readwrite("deep_sweeps", &SolverParams::deep_sweeps)
       .def_readwrite("shock_sweeps", &SolverParams::shock_sweeps)
       .def_readwrite("shock_ratio", &SolverParams::shock_ratio)
       .def_readwrite("depth_sweeps", &SolverParams::depth_sweeps)

@@ -1417,7 +1417,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
 
 bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
                      const std::vector<int32_t>& level, double ratio, double* pseudo,
-                     int iterations, int fixed_sweeps, int deep_sweeps) {
+                     int iterations, int fixed_sweeps, int deep_sweeps, double deep_push) {
   std::fill(pseudo, pseudo + 6 * bodies.count, 0.0);
   bool any = false;
   for (ContactRow& r : rows) {
@@ -1463,7 +1463,7 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
     for (int it = 0; it < count; ++it)
       for (ContactRow& r : rows) {
         const bool immovable = r.ma == 0.0 || r.mb == 0.0;
-        if (fixed ? immovable : !immovable && r.push > 0.0) solve(r, !fixed);
+        if (fixed ? immovable : !immovable && r.push > deep_push) solve(r, !fixed);
       }
   };
   for (int it = 0; it < iterations; ++it)

@@ -8,12 +8,14 @@ Usage::
 The simulator's loop (semi-implicit Euler under gravity, each answer integrated for one
 period), sleeping on. Every ``--every`` s it prints: the bodies whose farthest point moves
 faster than 0.05 m/s (Box2D's sleep speed) and the fastest, the deepest penetration of the
-answer (any pair, and into the floor: a detector of its own on the answered poses), the
-fastest approach left at a touching contact (the answered twists), solver rows and velocity
-sweeps per step and the step's median time, and the sleeping bodies; at the end the time
-the pile fell asleep, and the steps in which a body answered asleep in that step and the one
-before had moved between them (more than 1e-9 m at its bounding radius) with the largest
-such move (none since a woken island's still time restarts). ``--substep``:
+answer (any pair, into the floor, and between two dynamic bodies: a detector of its own on
+the answered poses), the fastest approach left at a touching contact (the answered twists),
+solver rows and velocity sweeps per step and the step's median time, and the sleeping
+bodies; at the end the time the pile fell asleep, the steps in which a body answered
+asleep in that step and the one before had moved between them (more than 1e-9 m at its
+bounding radius) with the largest such move (none since a woken island's still time
+restarts), and the depths into the floor and between bodies at the end and the deepest of
+each at any report. ``--substep``:
 ``solver.max_substep`` (s; default: the setting's).
 
 ``--why``: how the pairs got deep. Every step, each pair of bodies whose overlap grew by
@@ -47,22 +49,25 @@ from pile import PILES, integrate, make_pile  # noqa: I100
 
 
 def figures(probe: Detection, state, dynamic: np.ndarray, radius: np.ndarray) -> dict:
-    """Speeds (m/s, farthest point), deepest penetration (m), the fastest approach left at
-    a contact within 1 mm (m/s)."""
+    """Speeds (m/s, farthest point), deepest penetration (m: of any pair, into the floor,
+    and between two dynamic bodies), the fastest approach left at a contact within 1 mm
+    (m/s)."""
     speed = np.linalg.norm(state.linear, axis=1) + np.linalg.norm(state.angular, axis=1) * radius
     speed = np.where(dynamic, speed, 0.0)
     seen = probe.detect(state, state)
     if seen.count == 0:
-        return {'speed': speed, 'deepest': 0.0, 'floor': 0.0, 'approach': 0.0}
+        return {'speed': speed, 'deepest': 0.0, 'floor': 0.0, 'pair': 0.0, 'approach': 0.0}
     a, b, point = seen.body_a, seen.body_b, seen.point
     va = state.linear[a] + np.cross(state.angular[a], point - state.position[a])
     vb = state.linear[b] + np.cross(state.angular[b], point - state.position[b])
     normal_speed = np.einsum('ij,ij->i', vb - va, seen.normal)
     touching = seen.separation < 1e-3
     on_floor = (a == 0) | (b == 0)
+    between = dynamic[a] & dynamic[b]
     return {'speed': speed, 'deepest': float(max(0.0, -seen.separation.min())),
             'floor': float(max(0.0, -seen.separation[on_floor].min())) if on_floor.any()
             else 0.0,
+            'pair': float(max(0.0, -seen.separation[between].min())) if between.any() else 0.0,
             'approach': float(max(0.0, -normal_speed[touching].min())) if touching.any()
             else 0.0}
 
@@ -154,6 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     why = Why(Detection(world.specs, SolverSettings(sleeping=False, speculative_margin=WIDE)),
               world.settings.speculative_margin, state) if args.why else None
     asleep_at, times, rows, sweeps = None, [], [], []
+    worst = {'floor': 0.0, 'pair': 0.0}   # the deepest at any report
     was = np.zeros(len(bodies), bool)
     moved_steps, moved_most = 0, 0.0   # steps with a body answered asleep twice that moved
     for k in range(steps):
@@ -175,16 +181,22 @@ def main(argv: list[str] | None = None) -> int:
             asleep_at = (k + 1) * dt
         if (k + 1) % every == 0:
             f = figures(probe, state, dynamic, radius)
+            worst = {key: max(value, f[key]) for key, value in worst.items()}
             print(f't {(k + 1) * dt:5.2f} s: {int((f["speed"] > 0.05).sum()):4d} faster than '
                   f'0.05 m/s (fastest {f["speed"].max():.3f}), deepest {f["deepest"] * 1e3:6.2f} '
-                  f'mm, into the floor {f["floor"] * 1e3:5.2f} mm, approach left '
-                  f'{f["approach"]:.3f} m/s, rows {np.mean(rows[-every:]):6.0f}, sweeps '
-                  f'{np.mean(sweeps[-every:]):5.1f}, step {np.median(times[-every:]) * 1e3:6.1f} '
-                  f'ms, asleep {int(result.sleeping[dynamic].sum())}', flush=True)
+                  f'mm, into the floor {f["floor"] * 1e3:5.2f} mm, between bodies '
+                  f'{f["pair"] * 1e3:5.2f} mm, approach left {f["approach"]:.3f} m/s, rows '
+                  f'{np.mean(rows[-every:]):6.0f}, sweeps {np.mean(sweeps[-every:]):5.1f}, step '
+                  f'{np.median(times[-every:]) * 1e3:6.1f} ms, asleep '
+                  f'{int(result.sleeping[dynamic].sum())}', flush=True)
     print(f'{args.kind} {args.size} at {args.rate:g} Hz, max_substep {args.substep:g} s: '
           f'asleep after {asleep_at if asleep_at is None else round(asleep_at, 2)} s; answered '
           f'asleep in two consecutive steps and moved: {moved_steps} of {steps} steps, up to '
           f'{moved_most * 1e3:.3f} mm')
+    if steps >= every:
+        print(f'at the end: into the floor {f["floor"] * 1e3:.2f} mm, between bodies '
+              f'{f["pair"] * 1e3:.2f} mm; deepest at any report: into the floor '
+              f'{worst["floor"] * 1e3:.2f} mm, between bodies {worst["pair"] * 1e3:.2f} mm')
     if why is not None:
         print(why.table())
     return 0

@@ -1214,6 +1214,31 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
   return done;
 }
 
+// The row as its upper body sees it while the lower one is held by what it rests on
+// (shock propagation, the push-out's one-sided rows): the lower body's inverse mass and
+// inverse inertia zeroed, the normal and friction effective masses recomputed. False when
+// the upper body cannot move along the normal (the row then does nothing).
+static bool hold_lower(ContactRow& r, bool upper_b) {
+  if (upper_b) {
+    r.ma = 0.0;
+    for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3::Zero();
+  } else {
+    r.mb = 0.0;
+    for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3::Zero();
+  }
+  double k_n = r.ma + r.mb + dot(r.ang_a[0], r.dw_a[0]) + dot(r.ang_b[0], r.dw_b[0]);
+  if (!(k_n > kTiny)) return false;
+  r.normal_mass = 1.0 / k_n;
+  auto block = [&](int i, int j) {
+    return (i == j ? r.ma + r.mb : 0.0) + dot(r.ang_a[i], r.dw_a[j]) +
+           dot(r.ang_b[i], r.dw_b[j]);
+  };
+  r.kt[0] = block(1, 1);
+  r.kt[1] = block(1, 2) + block(2, 1);
+  r.kt[2] = block(2, 2);
+  return true;
+}
+
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<int32_t>& order,
                      std::vector<ContactRow>& scratch, int sweeps, double ratio) {
@@ -1237,24 +1262,7 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
   scratch.clear();
   for (int32_t index : order) {
     ContactRow r = rows[index];
-    bool upper_b = level[r.b] > level[r.a];
-    if (upper_b) {
-      r.ma = 0.0;
-      for (int k = 0; k < 3; ++k) r.dw_a[k] = Vec3::Zero();
-    } else {
-      r.mb = 0.0;
-      for (int k = 0; k < 3; ++k) r.dw_b[k] = Vec3::Zero();
-    }
-    double k_n = r.ma + r.mb + dot(r.ang_a[0], r.dw_a[0]) + dot(r.ang_b[0], r.dw_b[0]);
-    if (!(k_n > kTiny)) continue;
-    r.normal_mass = 1.0 / k_n;
-    auto block = [&](int i, int j) {
-      return (i == j ? r.ma + r.mb : 0.0) + dot(r.ang_a[i], r.dw_a[j]) +
-             dot(r.ang_b[i], r.dw_b[j]);
-    };
-    r.kt[0] = block(1, 1);
-    r.kt[1] = block(1, 2) + block(2, 1);
-    r.kt[2] = block(2, 2);
+    if (!hold_lower(r, level[r.b] > level[r.a])) continue;
     r.contact = index;               // (the row it stands for, while it is a copy)
     scratch.push_back(r);
   }
@@ -1417,7 +1425,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
 
 bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
                      const std::vector<int32_t>& level, double ratio, double* pseudo,
-                     int iterations) {
+                     int iterations, int fixed_sweeps, int deep_sweeps, double deep_push) {
   std::fill(pseudo, pseudo + 6 * bodies.count, 0.0);
   bool any = false;
   for (ContactRow& r : rows) {
@@ -1425,39 +1433,41 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
     any = any || r.push > 0.0;
   }
   if (!any) return false;
-  for (int it = 0; it < iterations; ++it) {
-    for (ContactRow& r : rows) {
-      // a row between two levels whose upper body is at least `ratio` times heavier than
-      // the lower one pushes the upper body only (as propagate_shock): the lower one is
-      // held by what it rests on, so the push cannot drive it into that
-      const int32_t la = level[r.a], lb = level[r.b];
-      const bool upper_b = la >= 0 && lb > la, upper_a = lb >= 0 && la > lb;
-      const double inv_upper = upper_b ? r.mb : r.ma, inv_lower = upper_b ? r.ma : r.mb;
-      const bool shock = (upper_a || upper_b) && inv_lower > 0.0 && inv_upper * ratio <= inv_lower;
-      double k = r.normal_mass;
-      if (shock) {
-        const double k_n = upper_b ? r.mb + dot(r.ang_b[0], r.dw_b[0])
-                                   : r.ma + dot(r.ang_a[0], r.dw_a[0]);
-        if (!(k_n > kTiny)) continue;
-        k = 1.0 / k_n;
-      }
-      const double v_n = relative(r, pseudo, 0, r.n);
-      const double updated = std::max(r.pseudo + k * (r.push - v_n), 0.0);
-      const double delta = updated - r.pseudo;
-      r.pseudo = updated;
-      if (delta == 0.0) continue;
-      if (!shock) {
-        apply(r, pseudo, 0, r.n, delta);
-      } else if (upper_b) {
-        double* vb = pseudo + 6 * r.b;
-        store3(vb, load3(vb) + (delta * r.mb) * r.n);
-        store3(vb + 3, load3(vb + 3) + delta * r.dw_b[0]);
-      } else {
-        double* va = pseudo + 6 * r.a;
-        store3(va, load3(va) - (delta * r.ma) * r.n);
-        store3(va + 3, load3(va + 3) - delta * r.dw_a[0]);
-      }
+  auto solve = [&](ContactRow& r, bool deep) {
+    // a row between two levels whose upper body is at least `ratio` times heavier than
+    // the lower one (any row between two levels in the deep sweeps) pushes the upper body
+    // only (as propagate_shock): the lower one is held by what it rests on, so the push
+    // cannot drive it into that
+    const int32_t la = level[r.a], lb = level[r.b];
+    const bool upper_b = la >= 0 && lb > la, upper_a = lb >= 0 && la > lb;
+    const double inv_upper = upper_b ? r.mb : r.ma, inv_lower = upper_b ? r.ma : r.mb;
+    const bool shock = (upper_a || upper_b) && inv_lower > 0.0 &&
+                       (deep || inv_upper * ratio <= inv_lower);
+    ContactRow held;
+    if (shock) {
+      held = r;
+      if (!hold_lower(held, upper_b)) return;
     }
+    const ContactRow& seen = shock ? held : r;
+    const double v_n = relative(seen, pseudo, 0, seen.n);
+    const double updated = std::max(r.pseudo + seen.normal_mass * (r.push - v_n), 0.0);
+    const double delta = updated - r.pseudo;
+    r.pseudo = updated;
+    if (delta != 0.0) apply(seen, pseudo, 0, seen.n, delta);
+  };
+  auto sweeps = [&](int count, bool fixed) {
+    for (int it = 0; it < count; ++it)
+      for (ContactRow& r : rows) {
+        const bool immovable = r.ma == 0.0 || r.mb == 0.0;
+        if (fixed ? immovable : !immovable && r.push > deep_push) solve(r, !fixed);
+      }
+  };
+  for (int it = 0; it < iterations; ++it)
+    for (ContactRow& r : rows) solve(r, false);
+  sweeps(fixed_sweeps, true);
+  if (deep_sweeps > 0) {
+    sweeps(deep_sweeps, false);
+    sweeps(fixed_sweeps, true);
   }
   return true;
 }

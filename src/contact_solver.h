@@ -53,6 +53,9 @@ struct SolverParams {
   int impact_sweeps = 100;              // most sweeps per impact stage
   double impact_converged = 1e-10;      // relative impulse change that ends an impact stage
   int position_iterations = 1;          // split-impulse sweeps
+  int fixed_sweeps = 4;                 // push-out sweeps of the rows on immovable bodies
+  int deep_sweeps = 16;                 // push-out sweeps of the deep rows between movables
+  double deep_overlap = 1e-3;           // m: ... those overlapping beyond the slop by more
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double shock_ratio = 4.0;             // ... only under a body this many times heavier
   double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack
@@ -324,11 +327,17 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
 // driving them deeper. A row between two contact levels (`level`: from the immovable
 // bodies up, -1: none) whose upper body is at least `ratio` times heavier than the lower
 // one moves the upper body only, as shock propagation: the push does not drive a light
-// body into what holds it up (a fixed floor). Returns false (pseudo untouched, zero) when
-// no row asks for a push.
+// body into what holds it up (a fixed floor). The sweeps: `iterations` over every row,
+// then `fixed_sweeps` over the rows on an immovable body (a fixed shape or a sleeper:
+// what the sweep before pushed into it is pushed back out), `deep_sweeps` over the rows
+// between two movable bodies that ask for a push above `deep_push` (m/s; the deep
+// overlaps those left), each row between two levels moving its upper body only whatever
+// the masses (the lower one was just put back on what holds it), and `fixed_sweeps` over
+// the rows on immovable bodies again (when deep_sweeps > 0). Returns false (pseudo
+// untouched, zero) when no row asks for a push.
 bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
                      const std::vector<int32_t>& level, double ratio, double* pseudo,
-                     int iterations);
+                     int iterations, int fixed_sweeps, int deep_sweeps, double deep_push);
 
 // Relative velocity of a row along n, t1, t2 (m/s) for velocities v (N, 6).
 void row_velocity(const ContactRow& row, const double* v, double out[3]);

@@ -895,11 +895,13 @@ void Detector::speculate(Lane& lane, int a, int b, const Vec3& normal, const Poi
       // within the patch's band about the deepest point's gap: a corner of the manifold
       // already, or one beside the partner's face (the patch holds the face's points)
       const bool known = skip_known && std::fabs(height - gap) < kPatchTolerance;
-      // on the partner: its projection within the partner's box (grown by the margin)
+      // on the partner: its projection within the partner's box (grown by the margin); a
+      // plane has no box (it is unbounded: every corner is over it)
       const Vec3 local = r_partner.transpose() * (q + height * towards - p_partner);
       const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
-      const bool over = (local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
-                        (local.array() <= (shapes_[partner].local_hi + grow).array()).all();
+      const bool over = shapes_[partner].kind == ShapeKind::plane ||
+                        ((local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
+                         (local.array() <= (shapes_[partner].local_hi + grow).array()).all());
       if (!known && over) lane.heights.emplace_back(height, static_cast<int>(k));
     }
     std::sort(lane.heights.begin(), lane.heights.end());

@@ -820,7 +820,8 @@ void StepSolver::push_out(StepContext& ctx) {
     r.push = depth / dt;
   }
   if (!solve_positions(rows_, ctx.solver, level_, p.shock_ratio, pseudo_.data(),
-                       p.position_iterations))
+                       p.position_iterations, p.fixed_sweeps, p.deep_sweeps,
+                       p.position_correction * p.deep_overlap / dt))
     return;
   for (int64_t i = 0; i < bodies.count; ++i) {
     const double* w = pseudo_.data() + 6 * i;

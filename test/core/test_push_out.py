@@ -11,6 +11,8 @@ bec965b it sank 10.2 mm into the floor at 30 Hz and stayed there, and 14.8 mm at
 where the heavy cube then went through it. A row between two
 contact levels whose upper body is at least ``shock_ratio`` (4) times heavier than the
 lower one now moves the upper body only, as shock propagation does in the velocity solve.
+Equal masses: after that sweep, sweeps over the rows on the floor push the lowest body back
+out, and sweeps over the deep rows between bodies lift the ones above.
 """
 
 from __future__ import annotations
@@ -52,18 +54,15 @@ def test_a_heavy_cube_overlapping_a_light_one_does_not_push_it_into_the_floor(ra
     assert abs(sim.state.position[1:, :2]).max() < 1e-3   # neither slid off
 
 
-@pytest.mark.xfail(strict=True, reason='equal masses share the push: one sweep drives the '
-                   'lowest cube into the floor (2.97 mm at 30 Hz); see its docstring')
 def test_a_column_of_equal_cubes_overlapping_does_not_push_the_lowest_into_the_floor(
         ) -> None:
     """Five equal 1 kg cubes, each overlapping the one below by 10 mm, released at rest on
-    a fixed floor at 30 Hz: the lowest one should stay within the slop (+ 1 mm) of the
-    floor while the overlaps are pushed out. Equal masses are below ``shock_ratio``, so
-    every pair row shares its push by the masses and the single sweep drives the lowest
-    cube into the floor (bec965b and now: 2.97 mm at most, 0.13 mm after 6 s). Moving only
-    the upper body of every row that would push a body into the fixed shape it rests on
-    passes this (0.003 mm) but left a 200-body pile awake with overlaps of 50 mm (the
-    README's rest paragraphs)."""
+    a fixed floor at 30 Hz: the lowest one stays within the slop (+ 1 mm) of the floor
+    while the overlaps are pushed out. Equal masses are below ``shock_ratio``, so the sweep
+    of every row shares each pair's push by the masses and drives the lowest cube into the
+    floor (3540a22: 2.97 mm at most, a strict xfail there); the sweeps over the rows on the
+    floor (``fixed_sweeps``) push it back out, and those over the deep rows between the
+    cubes (``deep_sweeps``, upper body only) lift the cubes above: 0.000 mm."""
     count, rate = 5, 30.0
     floor = BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True,
                      static_friction=0.6, kinetic_friction=0.4)

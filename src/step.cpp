@@ -386,6 +386,8 @@ void StepSolver::prepare(StepContext& ctx) {
     reach_[2 * m + 1] = reach_b;
   }
   islands_ = false;
+  known_ = false;
+  speed_.resize(rows_.size());
   swept_.clear();
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
@@ -418,6 +420,19 @@ void StepSolver::prepare(StepContext& ctx) {
   }
 }
 
+bool StepSolver::idle(const Manifold& manifold) const {
+  for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i) {
+    const ContactRow& r = rows_[i];
+    if (!(r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0 &&
+          !std::signbit(r.normal) && !std::signbit(r.tangent[0]) &&
+          !std::signbit(r.tangent[1])))
+      return false;
+  }
+  if (manifold.spin < 0) return true;
+  const Vec3& torque = spins_[manifold.spin].torque;
+  return torque.x() == 0.0 && torque.y() == 0.0 && torque.z() == 0.0;
+}
+
 void StepSolver::block(size_t manifold) {
   if (blocked_[manifold]) return;
   prepare_block(manifolds_[manifold], &rows_[static_cast<size_t>(manifolds_[manifold].first)]);
@@ -427,7 +442,10 @@ void StepSolver::block(size_t manifold) {
 bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
   const double* v = velocity_.data();
   const int64_t n = ctx.bodies.count;
-  if (verify) {   // each body's change of speed since the sweeps' start
+  // the check at a sweep's start knows the last sweep's start (from_velocity_) after the
+  // first of the step
+  const bool known = verify || known_;
+  if (known) {    // each body's change of speed since the (last) sweeps' start
     change_.resize(2 * n);
     for (int64_t i = 0; i < n; ++i) {
       const double* now = v + 6 * i;
@@ -440,19 +458,34 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
   for (size_t m = 0; m < manifolds_.size(); ++m) {
     if (in_[m]) continue;
     const Manifold& manifold = manifolds_[m];
-    if (verify) {
-      // a row's normal speed changed by at most |dv_a| + |dw_a| |r_a| + (the same on B)
-      // (its impulses and spin torque are as at the start: it was not swept)
+    // a row's normal speed changed by at most |dv_a| + |dw_a| |r_a| + (the same on B)
+    double bound = 0.0;
+    if (known) {
       const double* ca = change_.data() + 2 * manifold.a;
       const double* cb = change_.data() + 2 * manifold.b;
-      const double bound = ca[0] + ca[1] * reach_[2 * m] + cb[0] + cb[1] * reach_[2 * m + 1];
-      if (bound + 1e-9 <= 0.5 * slack_[m]) continue;
+      bound = ca[0] + ca[1] * reach_[2 * m] + cb[0] + cb[1] * reach_[2 * m + 1];
+    }
+    // after the sweeps: its impulses and spin torque are as at the start (not swept)
+    if (verify && bound + 1e-9 <= 0.5 * slack_[m]) continue;
+    if (known && !verify && idle(manifold)) {
+      // at a sweep's start: each row's normal speed at the last start (or a bound below
+      // it) less the bound, plus its allowance now
+      double least = std::numeric_limits<double>::infinity();
+      for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
+        least = std::min(least, speed_[i] - bound + rows_[i].allowance);
+      if (least > margin + 1e-9) {   // still out (its test's answer is known)
+        for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
+          speed_[i] -= bound;
+        slack_[m] = least;
+        continue;
+      }
     }
     bool out = true;
     double slack = std::numeric_limits<double>::infinity();
     for (int32_t i = manifold.first; i < manifold.first + manifold.count && out; ++i) {
       const ContactRow& r = rows_[i];
-      const double free = normal_velocity(r, v) + r.allowance;
+      const double speed = normal_velocity(r, v), free = speed + r.allowance;
+      if (!verify) speed_[i] = speed;
       out = r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0 &&
             !std::signbit(r.normal) && !std::signbit(r.tangent[0]) &&
             !std::signbit(r.tangent[1]) && free > margin;
@@ -470,6 +503,7 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
     block(m);
     grew = true;
   }
+  known_ = true;
   if (!grew) return false;
   // the swept manifolds in detection's order, then in waves
   swept_.clear();

@@ -224,6 +224,7 @@ class StepSolver {
   // cannot have taken half its slack_ (its test's answer is known: still out)
   bool admit(StepContext& ctx, double margin, bool verify);
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
+  bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
   int sweep(StepContext& ctx, int iterations);
   void land(StepContext& ctx);
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
@@ -291,6 +292,12 @@ class StepSolver {
   // (m); (N, 2) each body's change of linear and angular speed since (m/s, rad/s): the
   // check after the sweeps skips a manifold whose rows cannot have closed by half of it
   std::vector<double> slack_, reach_, change_;
+  // (rows) a row's normal speed at the last sweeps' start, or a bound below it (m/s), for
+  // a manifold left out then; the check at a sweep's start skips a manifold whose rows
+  // stay beyond the margin with the bodies' changes of speed since (known_: after the
+  // step's first check)
+  std::vector<double> speed_;
+  bool known_ = false;
   std::vector<double> from_velocity_, from_impulse_, from_spin_;   // what sweep started
                                      // from: velocities (N, 6), the rows' normal and
                                      // friction impulses (rows, 3), the spin rows' torque

@@ -467,7 +467,8 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
     }
     // after the sweeps: its impulses and spin torque are as at the start (not swept)
     if (verify && bound + 1e-9 <= 0.5 * slack_[m]) continue;
-    if (known && !verify && idle(manifold)) {
+    const bool quiet = idle(manifold);
+    if (known && !verify && quiet) {
       // at a sweep's start: each row's normal speed at the last start (or a bound below
       // it) less the bound, plus its allowance now
       double least = std::numeric_limits<double>::infinity();
@@ -480,20 +481,14 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
         continue;
       }
     }
-    bool out = true;
+    bool out = quiet;
     double slack = std::numeric_limits<double>::infinity();
     for (int32_t i = manifold.first; i < manifold.first + manifold.count && out; ++i) {
       const ContactRow& r = rows_[i];
       const double speed = normal_velocity(r, v), free = speed + r.allowance;
       if (!verify) speed_[i] = speed;
-      out = r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0 &&
-            !std::signbit(r.normal) && !std::signbit(r.tangent[0]) &&
-            !std::signbit(r.tangent[1]) && free > margin;
+      out = free > margin;
       slack = std::min(slack, free);
-    }
-    if (manifold.spin >= 0) {
-      const Vec3& torque = spins_[manifold.spin].torque;
-      out = out && torque.x() == 0.0 && torque.y() == 0.0 && torque.z() == 0.0;
     }
     if (out) {
       if (!verify) slack_[m] = slack;

@@ -219,9 +219,12 @@ class StepSolver {
   // than its allowance), and the answer is the bits of sweeping all of them whenever the
   // ones left out stay idle throughout (a manifold idle at each visit changes nothing).
   // Returns the sweeps done (every round's).
-  // `verify`: the check after the sweeps (margin 0), against the velocities the sweeps
-  // started from (from_velocity_); a manifold is skipped when the bodies' changes since
-  // cannot have taken half its slack_ (its test's answer is known: still out)
+  // Neither check tests a manifold whose answer is known: `verify` (the check after the
+  // sweeps, margin 0) passes over one whose bodies' changes of speed since the sweeps'
+  // start (from_velocity_) cannot have taken half its slack_ then; the check at a sweep's
+  // start (verify false), over one left out at the last start that holds no impulse and
+  // whose rows' speed_ less those changes, plus their allowances now, stay beyond the
+  // margin. Both answers are the test's (still out): the same bits.
   bool admit(StepContext& ctx, double margin, bool verify);
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
   bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "sweep_waves.h"
@@ -126,6 +127,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   load_twists(previous, bodies, then_.data());
   ra_.resize(m);
   rb_.resize(m);
+  before_.resize(m);
   gap_.resize(m);
   toi_.resize(m);
   impact_.resize(m);
@@ -154,13 +156,12 @@ void StepSolver::reference_frame(StepContext& ctx) {
                               travelled(previous, current, now_.data(), a, ra_[k], dt), normal);
     gap_[k] = c.separation[k] - closed;
     allowance_[k] = closed;           // (kept here for the loops below)
+    before_[k] = normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal);
     // touching at the previous state (within the slop) and not approaching then: in
     // contact from the start of the step; its bodies rest on it unless they have an impact
-    touching_[k] = !detected && gap_[k] <= slop &&
-                   normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -sticking;
+    touching_[k] = !detected && gap_[k] <= slop && before_[k] >= -sticking;
     if (touching_[k]) rested_[a] = rested_[b] = 1;
-    if (!detected && gap_[k] <= slop &&
-        normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -threshold)
+    if (!detected && gap_[k] <= slop && before_[k] >= -threshold)
       supported_[a] = supported_[b] = 1;
     touched_[a] = touched_[b] = 1;
   }
@@ -181,9 +182,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const Vec3 normal = load3(c.normal + 3 * k);
-    if (!persistent(c.kind[k]) || gap_[k] > slop ||
-        normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) < -threshold)
-      continue;
+    if (!persistent(c.kind[k]) || gap_[k] > slop || before_[k] < -threshold) continue;
     for (const int64_t i : {a, b}) {
       if (!supported_[i]) continue;
       const int64_t other = i == a ? b : a;
@@ -252,8 +251,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // external change brings (at the start its pair approached slower than the
     // threshold): after dropped inputs its source integrated it through its supports
     // into what lies below them; the contact is speculative from the start instead
-    if (impact && (rested_[a] || rested_[b]) &&
-        normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal) >= -threshold) {
+    if (impact && (rested_[a] || rested_[b]) && before_[k] >= -threshold) {
       // a detected impact's rows touch (its corners: their separation) at the time of
       // impact, and closed by toi of the step's closing before
       if (detected)
@@ -369,11 +367,27 @@ void StepSolver::prepare(StepContext& ctx) {
       block.b = rows_[first_row].b;
       block.first = first_row;
       block.count = count;
-      prepare_block(block, &rows_[first_row]);
     }
   }
-  // none in the sweeps yet (admit lets them in; the plan follows them)
+  // none in the sweeps yet (admit lets them in; the plan follows them), no block prepared
+  // (only a manifold solved needs one: block())
   in_.assign(manifolds_.size(), 0);
+  blocked_.assign(manifolds_.size(), 0);
+  slack_.assign(manifolds_.size(), 0.0);
+  reach_.resize(2 * manifolds_.size());
+  for (size_t m = 0; m < manifolds_.size(); ++m) {
+    const Manifold& manifold = manifolds_[m];
+    double reach_a = 0.0, reach_b = 0.0;
+    for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i) {
+      reach_a = std::max(reach_a, length(rows_[i].ra));
+      reach_b = std::max(reach_b, length(rows_[i].rb));
+    }
+    reach_[2 * m] = reach_a;
+    reach_[2 * m + 1] = reach_b;
+  }
+  islands_ = false;
+  known_ = false;
+  speed_.resize(rows_.size());
   swept_.clear();
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
@@ -406,27 +420,85 @@ void StepSolver::prepare(StepContext& ctx) {
   }
 }
 
-bool StepSolver::admit(StepContext& ctx, double margin) {
+bool StepSolver::idle(const Manifold& manifold) const {
+  for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i) {
+    const ContactRow& r = rows_[i];
+    if (!(r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0 &&
+          !std::signbit(r.normal) && !std::signbit(r.tangent[0]) &&
+          !std::signbit(r.tangent[1])))
+      return false;
+  }
+  if (manifold.spin < 0) return true;
+  const Vec3& torque = spins_[manifold.spin].torque;
+  return torque.x() == 0.0 && torque.y() == 0.0 && torque.z() == 0.0;
+}
+
+void StepSolver::block(size_t manifold) {
+  if (blocked_[manifold]) return;
+  prepare_block(manifolds_[manifold], &rows_[static_cast<size_t>(manifolds_[manifold].first)]);
+  blocked_[manifold] = 1;
+}
+
+bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
   const double* v = velocity_.data();
+  const int64_t n = ctx.bodies.count;
+  // the check at a sweep's start knows the last sweep's start (from_velocity_) after the
+  // first of the step
+  const bool known = verify || known_;
+  if (known) {    // each body's change of speed since the (last) sweeps' start
+    change_.resize(2 * n);
+    for (int64_t i = 0; i < n; ++i) {
+      const double* now = v + 6 * i;
+      const double* from = from_velocity_.data() + 6 * i;
+      change_[2 * i] = length(Vec3(now[0] - from[0], now[1] - from[1], now[2] - from[2]));
+      change_[2 * i + 1] = length(Vec3(now[3] - from[3], now[4] - from[4], now[5] - from[5]));
+    }
+  }
   bool grew = false;
   for (size_t m = 0; m < manifolds_.size(); ++m) {
     if (in_[m]) continue;
     const Manifold& manifold = manifolds_[m];
-    bool out = true;
+    // a row's normal speed changed by at most |dv_a| + |dw_a| |r_a| + (the same on B)
+    double bound = 0.0;
+    if (known) {
+      const double* ca = change_.data() + 2 * manifold.a;
+      const double* cb = change_.data() + 2 * manifold.b;
+      bound = ca[0] + ca[1] * reach_[2 * m] + cb[0] + cb[1] * reach_[2 * m + 1];
+    }
+    // after the sweeps: its impulses and spin torque are as at the start (not swept)
+    if (verify && bound + 1e-9 <= 0.5 * slack_[m]) continue;
+    const bool quiet = idle(manifold);
+    if (known && !verify && quiet) {
+      // at a sweep's start: each row's normal speed at the last start (or a bound below
+      // it) less the bound, plus its allowance now
+      double least = std::numeric_limits<double>::infinity();
+      for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
+        least = std::min(least, speed_[i] - bound + rows_[i].allowance);
+      if (least > margin + 1e-9) {   // still out (its test's answer is known)
+        for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
+          speed_[i] -= bound;
+        slack_[m] = least;
+        continue;
+      }
+    }
+    bool out = quiet;
+    double slack = std::numeric_limits<double>::infinity();
     for (int32_t i = manifold.first; i < manifold.first + manifold.count && out; ++i) {
       const ContactRow& r = rows_[i];
-      out = r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0 &&
-            !std::signbit(r.normal) && !std::signbit(r.tangent[0]) &&
-            !std::signbit(r.tangent[1]) && normal_velocity(r, v) + r.allowance > margin;
+      const double speed = normal_velocity(r, v), free = speed + r.allowance;
+      if (!verify) speed_[i] = speed;
+      out = free > margin;
+      slack = std::min(slack, free);
     }
-    if (manifold.spin >= 0) {
-      const Vec3& torque = spins_[manifold.spin].torque;
-      out = out && torque.x() == 0.0 && torque.y() == 0.0 && torque.z() == 0.0;
+    if (out) {
+      if (!verify) slack_[m] = slack;
+      continue;
     }
-    if (out) continue;
     in_[m] = 1;
+    block(m);
     grew = true;
   }
+  known_ = true;
   if (!grew) return false;
   // the swept manifolds in detection's order, then in waves
   swept_.clear();
@@ -438,7 +510,7 @@ bool StepSolver::admit(StepContext& ctx, double margin) {
 
 int StepSolver::sweep(StepContext& ctx, int iterations) {
   const SolverParams& p = ctx.params;
-  admit(ctx, p.activation_margin);
+  admit(ctx, p.activation_margin, false);
   // what the sweeps start from: they start again from it with the manifolds let in, so
   // that the answer is the bits of sweeping every manifold whenever the ones left out stay
   // idle throughout (in the sweeps of all of them a manifold idle at each visit changes
@@ -459,7 +531,7 @@ int StepSolver::sweep(StepContext& ctx, int iterations) {
   for (;;) {
     sweeps += solve_velocities(rows_, swept_, ctx.solver, iterations, p.converged, &spins_,
                                &plan_);
-    if (!admit(ctx, 0.0)) break;
+    if (!admit(ctx, 0.0, true)) break;
     std::copy(from_velocity_.begin(), from_velocity_.end(), velocity_.begin());
     for (size_t i = 0; i < rows_.size(); ++i) {
       rows_[i].normal = from_impulse_[3 * i];
@@ -546,18 +618,24 @@ void StepSolver::to_travel(StepContext& ctx, int substeps) {
 int StepSolver::hold_energy(StepContext& ctx, int iterations) {
   const int64_t n = ctx.bodies.count;
   const double* inv_mass = ctx.bodies.inv_mass;
-  // islands: bodies joined by rows between two movable bodies (union-find, by index)
-  island_.resize(n);
-  for (int64_t i = 0; i < n; ++i) island_[i] = static_cast<int32_t>(i);
-  auto root = [&](int32_t i) {
-    while (island_[i] != i) i = island_[i] = island_[island_[i]];
-    return i;
-  };
-  for (const ContactRow& r : rows_) {
-    if (r.ma == 0.0 || r.mb == 0.0) continue;
-    const int32_t x = root(r.a), y = root(r.b);
-    if (x != y) island_[std::max(x, y)] = std::min(x, y);
+  // islands: bodies joined by rows between two movable bodies (union-find, by index; the
+  // rows stay for the step, so found once), each body's entry its root (least index)
+  if (!islands_) {
+    island_.resize(n);
+    for (int64_t i = 0; i < n; ++i) island_[i] = static_cast<int32_t>(i);
+    auto find = [&](int32_t i) {
+      while (island_[i] != i) i = island_[i] = island_[island_[i]];
+      return i;
+    };
+    for (const ContactRow& r : rows_) {
+      if (r.ma == 0.0 || r.mb == 0.0) continue;
+      const int32_t x = find(r.a), y = find(r.b);
+      if (x != y) island_[std::max(x, y)] = std::min(x, y);
+    }
+    for (int64_t i = 0; i < n; ++i) island_[i] = find(static_cast<int32_t>(i));
+    islands_ = true;
   }
+  auto root = [&](int32_t i) { return island_[i]; };
   // kinetic energy change of each island (J) and the scale it is judged against; an
   // island pushed by a moving immovable body (driven, kinematic) may gain: not judged
   gain_.assign(2 * n, 0.0);
@@ -587,8 +665,12 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
     return gain_[2 * x + 1] >= 0.0 && gain_[2 * x] > 1e-10 * gain_[2 * x + 1] + 1e-300;
   };
   retry_.clear();
-  for (const Manifold& m : manifolds_)
-    if (gained(inv_mass[m.a] > 0.0 ? m.a : m.b)) retry_.push_back(m);
+  for (size_t m = 0; m < manifolds_.size(); ++m) {
+    const Manifold& manifold = manifolds_[m];
+    if (!gained(inv_mass[manifold.a] > 0.0 ? manifold.a : manifold.b)) continue;
+    block(m);
+    retry_.push_back(manifold);
+  }
   if (retry_.empty()) return 0;
   // those islands again from their pre-solve velocities, without friction
   for (int64_t i = 0; i < n; ++i)

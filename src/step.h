@@ -219,7 +219,15 @@ class StepSolver {
   // than its allowance), and the answer is the bits of sweeping all of them whenever the
   // ones left out stay idle throughout (a manifold idle at each visit changes nothing).
   // Returns the sweeps done (every round's).
-  bool admit(StepContext& ctx, double margin);
+  // Neither check tests a manifold whose answer is known: `verify` (the check after the
+  // sweeps, margin 0) passes over one whose bodies' changes of speed since the sweeps'
+  // start (from_velocity_) cannot have taken half its slack_ then; the check at a sweep's
+  // start (verify false), over one left out at the last start that holds no impulse and
+  // whose rows' speed_ less those changes, plus their allowances now, stay beyond the
+  // margin. Both answers are the test's (still out): the same bits.
+  bool admit(StepContext& ctx, double margin, bool verify);
+  void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
+  bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
   int sweep(StepContext& ctx, int iterations);
   void land(StepContext& ctx);
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
@@ -250,7 +258,9 @@ class StepSolver {
   std::vector<double> total_;        // (rows, 3) N s: the substeps' summed impulses
   std::vector<double> start_;        // (N, 6) velocity before the warm start
   std::vector<double> later_;        // (N, 6) pre-solve velocity, rested bodies' current
-  std::vector<int32_t> island_;      // (N,) union-find parent (hold_energy)
+  std::vector<int32_t> island_;      // (N,) island root (hold_energy; the rows' islands,
+                                     // found at its first call of a step)
+  bool islands_ = false;             // island_ holds this step's islands
   std::vector<double> gain_;         // (N, 2) J, per island root: the energy change, the
                                      // energy before (-1: driven, not judged)
   std::vector<double> fraction_;     // (N,) reference fraction of the step
@@ -263,6 +273,8 @@ class StepSolver {
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;
+  std::vector<double> before_;       // m/s: normal speed at the previous twists (< 0
+                                     // approaching; reference_frame)
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
   std::vector<double> drift_;        // m: how much more the separation grows over the step
                                      // on the held paths than on the integrated ones
@@ -276,6 +288,19 @@ class StepSolver {
                                                      // (manifolds_ in detection's order)
   std::vector<Manifold> swept_;      // the manifolds in the sweeps, in plan_'s order
   std::vector<uint8_t> in_;          // (manifolds_) 1: in the sweeps this step (admit)
+  std::vector<uint8_t> blocked_;     // (manifolds_) 1: prepare_block done (at admission,
+                                     // or for hold_energy's retry)
+  // (manifolds_) for a manifold left out at a sweep's start: its least normal speed plus
+  // allowance then (m/s, > the margin), and the largest lever of its rows on A and on B
+  // (m); (N, 2) each body's change of linear and angular speed since (m/s, rad/s): the
+  // check after the sweeps skips a manifold whose rows cannot have closed by half of it
+  std::vector<double> slack_, reach_, change_;
+  // (rows) a row's normal speed at the last sweeps' start, or a bound below it (m/s), for
+  // a manifold left out then; the check at a sweep's start skips a manifold whose rows
+  // stay beyond the margin with the bodies' changes of speed since (known_: after the
+  // step's first check)
+  std::vector<double> speed_;
+  bool known_ = false;
   std::vector<double> from_velocity_, from_impulse_, from_spin_;   // what sweep started
                                      // from: velocities (N, 6), the rows' normal and
                                      // friction impulses (rows, 3), the spin rows' torque

@@ -1433,41 +1433,54 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
     any = any || r.push > 0.0;
   }
   if (!any) return false;
-  auto solve = [&](ContactRow& r, bool deep) {
-    // a row between two levels whose upper body is at least `ratio` times heavier than
-    // the lower one (any row between two levels in the deep sweeps) pushes the upper body
-    // only (as propagate_shock): the lower one is held by what it rests on, so the push
-    // cannot drive it into that
+  // each swept row as its sweeps see it, found once: the row itself, or (a row between
+  // two levels whose upper body is at least `ratio` times heavier than the lower one, any
+  // row between two levels in the deep sweeps) a copy with the lower body held, so that it
+  // pushes the upper body only (as propagate_shock): the lower one is held by what it
+  // rests on, so the push cannot drive it into that. A held row that cannot move its upper
+  // body along the normal is left out (it does nothing).
+  std::vector<ContactRow> held;
+  auto seen = [&](std::vector<std::pair<int32_t, int32_t>>& out, int32_t i, bool deep) {
+    const ContactRow& r = rows[static_cast<size_t>(i)];
     const int32_t la = level[r.a], lb = level[r.b];
     const bool upper_b = la >= 0 && lb > la, upper_a = lb >= 0 && la > lb;
     const double inv_upper = upper_b ? r.mb : r.ma, inv_lower = upper_b ? r.ma : r.mb;
-    const bool shock = (upper_a || upper_b) && inv_lower > 0.0 &&
-                       (deep || inv_upper * ratio <= inv_lower);
-    ContactRow held;
-    if (shock) {
-      held = r;
-      if (!hold_lower(held, upper_b)) return;
+    if (!((upper_a || upper_b) && inv_lower > 0.0 && (deep || inv_upper * ratio <= inv_lower))) {
+      out.emplace_back(i, -1);
+      return;
     }
-    const ContactRow& seen = shock ? held : r;
-    const double v_n = relative(seen, pseudo, 0, seen.n);
-    const double updated = std::max(r.pseudo + seen.normal_mass * (r.push - v_n), 0.0);
-    const double delta = updated - r.pseudo;
-    r.pseudo = updated;
-    if (delta != 0.0) apply(seen, pseudo, 0, seen.n, delta);
+    ContactRow copy = r;
+    if (!hold_lower(copy, upper_b)) return;
+    out.emplace_back(i, static_cast<int32_t>(held.size()));
+    held.push_back(copy);
   };
-  auto sweeps = [&](int count, bool fixed) {
+  // (row, its held copy or -1): every row; the rows on an immovable body; the deep rows
+  std::vector<std::pair<int32_t, int32_t>> every, fixed, deep;
+  for (int32_t i = 0; i < static_cast<int32_t>(rows.size()); ++i) {
+    const ContactRow& r = rows[static_cast<size_t>(i)];
+    const bool immovable = r.ma == 0.0 || r.mb == 0.0;
+    seen(every, i, false);
+    if (immovable && fixed_sweeps > 0 && !every.empty() && every.back().first == i)
+      fixed.push_back(every.back());
+    if (!immovable && deep_sweeps > 0 && r.push > deep_push) seen(deep, i, true);
+  }
+  auto sweeps = [&](const std::vector<std::pair<int32_t, int32_t>>& swept, int count) {
     for (int it = 0; it < count; ++it)
-      for (ContactRow& r : rows) {
-        const bool immovable = r.ma == 0.0 || r.mb == 0.0;
-        if (fixed ? immovable : !immovable && r.push > deep_push) solve(r, !fixed);
+      for (const auto& [i, h] : swept) {
+        ContactRow& r = rows[static_cast<size_t>(i)];
+        const ContactRow& as = h < 0 ? r : held[static_cast<size_t>(h)];
+        const double v_n = relative(as, pseudo, 0, as.n);
+        const double updated = std::max(r.pseudo + as.normal_mass * (r.push - v_n), 0.0);
+        const double delta = updated - r.pseudo;
+        r.pseudo = updated;
+        if (delta != 0.0) apply(as, pseudo, 0, as.n, delta);
       }
   };
-  for (int it = 0; it < iterations; ++it)
-    for (ContactRow& r : rows) solve(r, false);
-  sweeps(fixed_sweeps, true);
+  sweeps(every, iterations);
+  sweeps(fixed, fixed_sweeps);
   if (deep_sweeps > 0) {
-    sweeps(deep_sweeps, false);
-    sweeps(fixed_sweeps, true);
+    sweeps(deep, deep_sweeps);
+    sweeps(fixed, fixed_sweeps);
   }
   return true;
 }

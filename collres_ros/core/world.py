@@ -25,7 +25,8 @@ time (both world frame, before resolution) to corrected current states:
 * last, a body whose motion from its previous pose to its answer goes deeper into
   a fixed shape than it was, by more than the slop (a body that turns far in a step
   takes its corners along arcs the rows do not follow), is held at the latest pose of
-  that motion before, at rest (``Detection.hold_back``, as Box2D v3's continuous step).
+  that motion before, at rest (``Detection.hold_back``, as Box2D v3's continuous step); a
+  sphere keeps its twist (no corner of it follows an arc).
 
 Static bodies (and inactive ones, for this step) have zero inverse mass and
 inertia: their ``current`` twist is a kinematic velocity, their state is
@@ -92,6 +93,7 @@ class World:
         self.inv_mass = np.array([p[0] for p in props], dtype=float)           # (N,) 1/kg
         self.inv_inertia_body = np.array([p[1] for p in props]).reshape(-1, 3, 3)
         self.dynamic = np.array([not s.static for s in self.specs]) & (self.inv_mass > 0.0)
+        self._round = np.array([s.shape == 'sphere' for s in self.specs], bool)
         self.restitution = np.array([s.restitution for s in self.specs], dtype=float)
         self.static_friction = np.array([s.static_friction for s in self.specs], dtype=float)
         self.kinetic_friction = np.array([s.kinetic_friction for s in self.specs], dtype=float)
@@ -272,8 +274,8 @@ class World:
     def _hold_back(self, previous: BodyStates, states: BodyStates, active: np.ndarray) -> None:
         """A body whose answer went deeper into a fixed shape than it was (by more than the
         slop) along its motion from ``previous`` is held at the latest pose of that motion
-        before, its twist kept (``Detection.hold_back``); a hand-made detector (tests)
-        knows no shapes to hold it against."""
+        before, at rest, a sphere with its twist (``Detection.hold_back``); a hand-made
+        detector (tests) knows no shapes to hold it against."""
         hold_back = getattr(self._collision, 'hold_back', None)
         if hold_back is None:
             return
@@ -286,7 +288,11 @@ class World:
             states.position[held] - previous.position[held])
         states.orientation[held] = slerp(previous.orientation[held], states.orientation[held],
                                          f[:, 0])
-        states.linear[held], states.angular[held] = 0.0, 0.0
+        # at rest, but for a sphere: its surface turns in place (no corner follows an arc),
+        # so its twist is kept (an impact within the step that sent it on into a wall keeps
+        # its energy: the next step meets the wall)
+        turns = held[~self._round[held]]
+        states.linear[turns], states.angular[turns] = 0.0, 0.0
 
     def _guard(self, values: np.ndarray, current: np.ndarray) -> list[Rejection]:
         """Bodies with a non-finite result ((N, 13) rows ``values``) keep their current input

@@ -107,11 +107,19 @@ def test_impact_result_is_independent_of_body_and_contact_order(order, reverse):
                                    reference.states.angular[body], atol=1e-9)
 
 
+NEAR_A_LATE_IMPACT = ('the resting solve measures a speculative row from the later of its two '
+                      'bodies\' reference times, and a body without an impact closes in on its '
+                      'partner\'s late impact twice (issue 14, bench/bench_laws.py gas)')
+
+
 @pytest.mark.slow
-def test_elastic_gas_in_a_closed_box_keeps_its_energy():
+@pytest.mark.parametrize('rate', [pytest.param(120.0, marks=pytest.mark.xfail(
+    strict=True, reason=NEAR_A_LATE_IMPACT)), 240.0])
+def test_elastic_gas_in_a_closed_box_keeps_its_energy(rate):
     """40 frictionless spheres (e = 1) in a closed box for 5 s without gravity: the kinetic
     energy stays within 1 %, never above +0.5 %. The restitution threshold is set to
-    0.05 m/s: slower approaches are inelastic by the threshold's definition."""
+    0.05 m/s: slower approaches are inelastic by the threshold's definition. (At 120 Hz
+    it loses 21 %: balls near a late impact are stopped short of it inelastically.)"""
     rng = np.random.default_rng(3)
     side, r, t = 1.0, 0.05, 0.2
     outer = side + 2 * t
@@ -124,10 +132,10 @@ def test_elastic_gas_in_a_closed_box_keeps_its_energy():
     balls = [sphere(f'b{i}', r, 1.0, e=1.0) for i in range(40)]
     initial = states(wall_at + ((grid - grid.mean(0)) * 0.22).tolist(),
                      np.r_[np.zeros((6, 3)), rng.normal(0.0, 1.5, (40, 3))])
-    sim = Simulation(walls + balls, initial, 240.0, SolverSettings(restitution_threshold=0.05),
+    sim = Simulation(walls + balls, initial, rate, SolverSettings(restitution_threshold=0.05),
                      gravity=ZERO_G)
     energy, ratios, contacts = sim.energy(), [], 0
-    for _ in range(1200):
+    for _ in range(int(5 * rate)):
         contacts += sim.step().report.contacts.count
         ratios.append(sim.energy() / energy)
     print('energy ratio: final', ratios[-1], 'min', min(ratios), 'max', max(ratios),
@@ -238,3 +246,51 @@ def test_a_four_point_impact_whose_friction_turns_a_slip_around_gains_no_energy(
     print('kinetic energy', k0, '->', k1, 'impulses', result.report.normal_impulse)
     assert result.report.normal_impulse.sum() > 0.0
     assert k1 <= k0 * (1 + 1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason=NEAR_A_LATE_IMPACT)
+@pytest.mark.parametrize('rate, speed, late', [(60.0, 2.4, 0.9), (60.0, 1.2, 0.9),
+                                               (120.0, 2.4, 0.9), (60.0, 2.4, 0.6)])
+def test_a_ball_passing_a_late_bounce_keeps_the_energy(rate, speed, late):
+    """Ball A bounces off a wall late in a step (e = 1 everywhere) while ball B comes down
+    past it, 4 mm from touching it at the step's end on their unbounced paths: the step
+    keeps the kinetic energy (the resting solve measures B's approach over the whole step
+    against the time left after A's impact, and stops B inelastically: 2.4 m/s -> 1.04
+    m/s at 60 Hz, 44 % of the energy gone)."""
+    r, va, dt = 0.05, 1.85, 1.0 / rate
+    bodies = [box('wall', (0.2, 2.0, 2.0), 1.0, e=1.0, static=True),
+              sphere('a', r, 1.0, e=1.0), sphere('b', r, 1.0, e=1.0)]
+    xa = -r - late * va * dt                 # meets the wall's face (x = 0) at `late` dt
+    zb = 2 * r + 0.004 + speed * dt
+    before = states([[0.1, 0.0, 0.0], [xa, 0.0, 0.0], [xa, 0.0, zb]],
+                    [[0.0, 0.0, 0.0], [va, 0.0, 0.0], [0.0, 0.0, -speed]])
+    after = before.copy()
+    after.position += after.linear * dt
+    world = World(bodies, SolverSettings(sleeping=False))
+    result = world.step(before, after, dt)
+    k0, k1 = kinetic(world, before), kinetic(world, result.states)
+    print('impulses', result.report.normal_impulse, 'A', result.states.linear[1], 'B',
+          result.states.linear[2], 'energy', k0, '->', k1)
+    assert result.report.normal_impulse[0] == pytest.approx(2 * va)   # A bounced
+    assert k1 == pytest.approx(k0, rel=1e-9)
+
+
+@pytest.mark.parametrize('rate', [30.0, 60.0])
+def test_a_ball_struck_towards_a_wall_keeps_the_energy(rate):
+    """Ball B at 3 m/s strikes ball A at rest (e = 1 everywhere), which flies on into a
+    wall within the same step: the kinetic energy is kept over the following steps
+    (a sphere that the end-of-step hold-back stops short of a fixed shape keeps its
+    twist; it was answered at rest, and all of the energy was lost)."""
+    r, v, dt = 0.05, 3.0, 1.0 / rate
+    bodies = [box('wall', (0.2, 2.0, 2.0), 1.0, e=1.0, static=True),
+              sphere('a', r, 1.0, e=1.0), sphere('b', r, 1.0, e=1.0)]
+    xa = r + 0.5 * v * dt                    # A reaches the wall before the step ends
+    xb = xa + 2 * r + 0.3 * v * dt           # B strikes A at 0.3 of the step
+    sim = Simulation(bodies, states([[-0.1, 0, 0], [xa, 0, 0], [xb, 0, 0]],
+                                    [[0, 0, 0], [0, 0, 0], [-v, 0, 0]]), rate,
+                     SolverSettings(sleeping=False), gravity=ZERO_G)
+    energy = sim.energy()
+    for _ in range(int(0.3 * rate)):
+        sim.step()
+        assert sim.energy() == pytest.approx(energy, rel=1e-6)
+    assert sim.state.position[1, 0] >= r - 1e-4           # A never went into the wall

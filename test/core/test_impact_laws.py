@@ -109,7 +109,7 @@ def test_impact_result_is_independent_of_body_and_contact_order(order, reverse):
 
 NEAR_A_LATE_IMPACT = ('the resting solve measures a speculative row from the later of its two '
                       'bodies\' reference times, and a body without an impact closes in on its '
-                      'partner\'s late impact twice (issue 14, bench/bench_laws.py gas)')
+                      'partner\'s late impact twice (bench/bench_laws.py gas)')
 
 
 @pytest.mark.slow

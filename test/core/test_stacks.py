@@ -96,15 +96,18 @@ def test_pyramid_of_55_cubes_stands_10s(rate):
     assert highest <= e0 + 1e-9 * abs(e0)
 
 
-@pytest.mark.xfail(strict=True, reason='the heavy cube sinks into the light one while it lands '
-                                       'and slides off it (bench/bench_laws.py heavy_drop)')
+@pytest.mark.xfail(strict=True, reason='the impact stages pass the heavy cube\'s momentum to '
+                                       'the floor through the light one as successive binary '
+                                       'impacts, a few thousandths of it per pair of stages, '
+                                       'and stop at impact_stages (64) with it still falling')
 @pytest.mark.parametrize('rate, offset', [(30.0, 0.01), (30.0, 0.02), (60.0, 0.04)])
 def test_1000_kg_box_dropped_on_1_kg_box_stays_on_it(rate, offset):
     """A 1000 kg cube dropped 20 mm onto a 1 kg cube resting on the floor, `offset` to the
     side (its centre well over the light cube's top face): it lands on it and stays, and
     never sinks into it by more than a few millimetres. Measured: at 30 Hz with 10 mm or
     more it goes through the light cube's side to the floor (the light one shot away),
-    at 60 Hz with 40 mm; with 5 mm at 30 Hz it sinks 39 mm in before it is pushed out."""
+    at 60 Hz with 40 mm; with 5 mm at 30 Hz it sinks 39 mm in before it is pushed out.
+    With 2000 impact stages the 30 Hz, 20 mm drop stays on (18 mm in while it lands)."""
     size = 0.2
     bodies = [floor(), cube('light', size, 1.0), cube('heavy', size, 1000.0)]
     start = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, size / 2], [offset, 0.0, 1.5 * size + 0.02]])

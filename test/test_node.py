@@ -125,14 +125,66 @@ def test_bad_inputs_are_counted_and_the_others_served(running):
     assert 'Traceback' not in node.output()
 
 
+def per_body_up(peer, node, bodies=('ball', 'box')):
+    """Advertise ``bodies``' pose and twist and wait until the node subscribed to them (it
+    does once they have a publisher: a message published before that match is lost) and
+    the peer's per-body answer readers matched the node's answers' publishers."""
+    topics = [f'bodies/{n}/{k}' for n in bodies for k in ('pose', 'twist')]
+    for topic in topics:
+        peer.advertise(topic, PoseStamped if topic.endswith('pose') else TwistStamped)
+    answers = [s for s in peer.node.subscriptions if s.topic_name.startswith('/bodies/')
+               and s.topic_name.split('/')[2] in bodies]
+    assert peer.wait(lambda: all(peer.connected(t) for t in topics)
+                     and all(s.get_publisher_count() > 0 for s in answers), 30.0), \
+        node.output()
+    # the node says when it subscribed
+    assert peer.wait(lambda: 'per-body inputs: ' in node.output(), 10.0)
+
+
+def per_body_step(peer, stamp, bodies=(('ball', 0.5), ('box', 0.1))):
+    """``bodies``' ((name, z)) pose and twist at ``stamp``, at rest."""
+    for name, z in bodies:
+        pose, twist = PoseStamped(), TwistStamped()
+        pose.header.stamp = twist.header.stamp = to_stamp(stamp)
+        pose.header.frame_id = twist.header.frame_id = 'world'
+        pose.pose.position.x = 1.0 if name == 'box' else 0.0
+        pose.pose.position.z, pose.pose.orientation.w = z, 1.0
+        peer.publish(f'bodies/{name}/pose', pose)
+        peer.publish(f'bodies/{name}/twist', twist)
+
+
+def test_per_body_inputs_exist_only_for_bodies_published_to(running):
+    """With no per-body publisher the node has no per-body subscription (nothing to wait
+    on, nothing for the DDS to match); a peer that then advertises and publishes the ball's
+    and the box's pose and twist gets its per-body answers, the floor's topics stay
+    unsubscribed, and the batched path answers before, between and after."""
+    peer, node = running
+    inputs = [f'/bodies/{n}/{k}' for n in ('floor', 'ball', 'box') for k in ('pose', 'twist')]
+    bodies = [body('ball', 0.5), body('box', 0.1, x=1.0)]
+    for k in range(5):   # batched steps: the node is serving, its start is over
+        step(peer, T0 + k * DT, bodies)
+    assert peer.wait(lambda: diagnostics_values(peer).get('steps') == '5', 10.0)
+    assert [peer.node.count_subscribers(t) for t in inputs] == [0] * 6
+    assert diagnostics_values(peer)['per_body_inputs_subscribed'] == '0'
+    per_body_up(peer, node)
+    for k in range(5, 10):   # per-body steps, each followed by a batched one
+        stamp = T0 + 2 * k * DT
+        per_body_step(peer, stamp)
+        assert peer.wait(lambda: any(stamp_ns(m.header.stamp) == stamp for m in
+                                     peer.messages('bodies/ball/pose/corrected')), 10.0), \
+            f'no per-body answer for {stamp}'
+        out = step(peer, stamp + DT, bodies)
+        assert {b.name for b in out.bodies} == {'ball', 'box'}
+    assert [peer.node.count_subscribers(t) for t in inputs[:2]] == [0, 0]   # the floor's
+    assert peer.wait(lambda: diagnostics_values(peer).get('per_body_inputs_subscribed') == '4',
+                     10.0)
+    step(peer, T0 + 30 * DT, bodies)
+    assert 'Traceback' not in node.output()
+
+
 def test_per_body_topics_body_frame_twist_and_stale(running):
     peer, node = running
-    # the per-body subscriptions come up after the batched topic: the node says when
-    assert peer.wait(lambda: 'per-body inputs: 6 topics subscribed' in node.output(), 30.0)
-    topics = [f'bodies/{n}/{k}' for n in ('ball', 'box') for k in ('pose', 'twist')]
-    for topic in topics:   # a message published before discovery is lost: wait for the match
-        peer.advertise(topic, PoseStamped if topic.endswith('pose') else TwistStamped)
-    assert peer.wait(lambda: all(peer.connected(t) for t in topics), 30.0)
+    per_body_up(peer, node)
     half = math.sqrt(0.5)
     for k in range(3):
         stamp = T0 + k * DT

@@ -53,17 +53,25 @@ def both_sides_matched(node, peer):
     matched the writer can be lost), the node's answer matched both ways, and the node's
     per-body answer's publisher has matched the peer's reader (an answer goes only to a
     topic with a subscriber)."""
-    per_body = node.per_body_inputs
     return (all(peer.connected(t) for t in peer.publishers)
             and node._inputs[0].get_publisher_count() > 0
-            and per_body.ready.is_set()
-            and all(s.get_publisher_count() > 0 for s in per_body.node.subscriptions
-                    if s.topic_name.split('/')[2] in ('ball', 'box'))
+            and per_body_matched(node.per_body_inputs)
             and node._publisher('body_states/corrected',
                                 BodyStateArray).get_subscription_count() > 0
             and all(s.get_publisher_count() > 0 for s in peer.node.subscriptions
-                    if s.topic_name == '/body_states/corrected')
-            and per_body.publishers['ball'][0].get_subscription_count() > 0)
+                    if s.topic_name == '/body_states/corrected'))
+
+
+def per_body_matched(per_body, answered=(('ball', 0),)):
+    """The node subscribes to the four per-body inputs of ball and box (made once a peer
+    publishes on them), each has matched its publisher, and each answer of ``answered``
+    ((body, 0 pose / 1 twist)) has matched its subscriber."""
+    subscriptions = [s for s in per_body.node.subscriptions
+                     if s.topic_name.split('/')[2] in ('ball', 'box')]
+    return (len(subscriptions) == 4 and all(s.get_publisher_count() > 0 for s in subscriptions)
+            and all(name in per_body.publishers
+                    and per_body.publishers[name][kind].get_subscription_count() > 0
+                    for name, kind in answered))
 
 
 def test_inputs_are_answered_while_the_executor_never_spins(node, ros_domain):
@@ -113,12 +121,7 @@ def test_a_per_body_answer_goes_only_to_a_topic_with_a_subscriber(node, ros_doma
             peer.advertise(f'bodies/{name}/pose', PoseStamped)
             peer.advertise(f'bodies/{name}/twist', TwistStamped)
         assert peer.wait(lambda: all(peer.connected(t) for t in peer.publishers)
-                         and per_body.ready.is_set()
-                         and all(s.get_publisher_count() > 0
-                                 for s in per_body.node.subscriptions
-                                 if s.topic_name.split('/')[2] in ('ball', 'box'))
-                         and per_body.publishers['ball'][0].get_subscription_count() > 0,
-                         30.0)
+                         and per_body_matched(per_body), 30.0)
         first = [T0 + k * DT for k in range(5)]
         for stamp in first:
             per_body_step(peer, stamp)

@@ -26,8 +26,9 @@ built only while someone subscribes), ``bodies/<name>/contact_wrench`` (with
 ``get_contacts`` answers the last step's contacts (``ros/contact_sensing.py``). The inputs
 are served by threads of their own, not by the executor (``ros/inputs.py``): ``body_states``
 and ``/tf``, ``/tf_static`` by one, the per-body subscriptions (a second node,
-``<name>_per_body``) by another, each taking every waiting message per wake-up; the
-``body_states`` path costs the same whatever the number of bodies' topics. The executor
+``<name>_per_body``, made for a body once its topics have a publisher) by another, each
+taking every waiting message per wake-up; the ``body_states`` path costs the same whatever
+the number of bodies' topics. The executor
 serves parameters, services and the diagnostics timer.
 
 The edge is raw CDR: the subscriptions take serialised bytes (``raw=True``),
@@ -582,6 +583,7 @@ class CollresNode(Node):
                    'contacts_total': totals['contacts'],
                    'outputs_skipped_behind': self.skipped_behind,
                    'per_body_answers_published': self.per_body_inputs.published,
+                   'per_body_inputs_subscribed': self.per_body_inputs.subscribed,
                    'callback_time_mean_ms': mean('callback'), 'window_steps': w['steps'],
                    'answer_time_mean_ms': mean('answer'),
                    'time.queued_ms': f'{1e3 * w["queued"] / max(w["queued_inputs"], 1):.3f}',

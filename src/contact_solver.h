@@ -70,6 +70,9 @@ struct SolverParams {
                                         // its allowance by more than this is left out of
                                         // the sweeps until the answer reaches it
                                         // (StepSolver::admit)
+  double row_bound = 2.0;               // a speculative contact separating faster than this
+                                        // times (1 + e) the step's fastest approach is no
+                                        // row (StepStats::redone: the net under it)
   double cold_extra = 1.0;              // extra sweeps (x velocity_iterations) when every
                                         // persistent contact is new (nothing to warm start)
   double balanced_friction = 1e-3;      // net friction / net normal impulse of a pair below

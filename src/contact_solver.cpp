@@ -975,9 +975,21 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
 
 // The plan's wide groups and their rows from the manifolds and rows (plan.groups,
 // wide_rows, wave_groups): the fields that stay as prepared for the whole step (once per
-// plan); refresh_groups writes the others.
+// plan); refresh_groups writes the others. A group of the same four manifolds in the same
+// lanes as one of the last packing of these rows (plan.rows_epoch) is copied from it, its
+// kept elimination with it (the same fields from the same rows: the same bits).
 void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, const double* inv_mass) {
+  const bool same_rows = plan.packed_epoch == plan.rows_epoch;
+  if (same_rows) {   // the last packing's groups by their lane 0's first row
+    std::swap(plan.groups, plan.last_groups);
+    std::swap(plan.wide_rows, plan.last_rows);
+    std::swap(plan.faces, plan.last_faces);
+    plan.last_at.assign(rows.size(), -1);
+    for (size_t group = 0; group < plan.last_count; ++group)
+      plan.last_at[static_cast<size_t>(plan.last_groups[group].first[0])] =
+          static_cast<int32_t>(group);
+  }
   // (sized, not cleared: every field below is written, and growing a vector of these
   // zero-fills it)
   size_t group_count = 0;
@@ -997,10 +1009,25 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
   }
   if (plan.wide_rows.size() < row_count) plan.wide_rows.resize(row_count);
   if (plan.faces.size() < group_count) plan.faces.resize(group_count);
-  for (size_t group = 0; group < group_count; ++group)   // (new groups: nothing kept)
-    for (int l = 0; l < kLanes; ++l) plan.faces[group].set[l] = -1;
   for (size_t group = 0; group < group_count; ++group) {
     WideGroup& g = plan.groups[group];
+    int32_t first[kLanes];
+    for (int l = 0; l < kLanes; ++l) first[l] = manifolds[g.manifold + static_cast<size_t>(l)].first;
+    const int32_t last = same_rows ? plan.last_at[static_cast<size_t>(first[0])] : -1;
+    if (last >= 0 && std::equal(first, first + kLanes, plan.last_groups[last].first)) {
+      const WideGroup& old = plan.last_groups[last];
+      const size_t manifold = g.manifold, row = g.row;
+      g = old;
+      g.manifold = manifold;
+      g.row = row;
+      std::copy(plan.last_rows.begin() + static_cast<std::ptrdiff_t>(old.row),
+                plan.last_rows.begin() + static_cast<std::ptrdiff_t>(old.row) + g.count,
+                plan.wide_rows.begin() + static_cast<std::ptrdiff_t>(row));
+      plan.faces[group] = plan.last_faces[static_cast<size_t>(last)];
+      continue;
+    }
+    for (int l = 0; l < kLanes; ++l) plan.faces[group].set[l] = -1;   // (nothing kept)
+    std::copy(first, first + kLanes, g.first);
     for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
@@ -1036,6 +1063,8 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
       }
     }
   }
+  plan.packed_epoch = plan.rows_epoch;
+  plan.last_count = group_count;
 }
 
 // The wide rows' fields that change between calls of solve_velocities in a step (the

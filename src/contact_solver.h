@@ -208,6 +208,7 @@ struct WideRow {
 struct WideGroup {
   size_t manifold = 0, row = 0;
   int count = 0;
+  int32_t first[kLanes] = {};    // its lanes' manifolds' first rows (Manifold::first)
   int64_t offset_a[kLanes] = {}, offset_b[kLanes] = {};   // 6 * body index: the first of
                                                          // its twist's numbers in velocity
   bool write_a[kLanes] = {}, write_b[kLanes] = {};   // movable: its twist is stored
@@ -268,6 +269,17 @@ struct SweepPlan {
   bool packed = false;                  // groups and spin_groups hold the prepared rows'
                                         // constant fields (the first solve_velocities of
                                         // a plan packs them; wave_manifolds clears this)
+  // the rows' generation: the caller changes it whenever the rows are prepared anew; a
+  // group of the same four manifolds in the same lanes as one packed since is taken over
+  // from the last packing (its constant fields and kept elimination: the same bits)
+  uint64_t rows_epoch = 0;
+  uint64_t packed_epoch = ~uint64_t{0};   // the rows' generation of the last packing
+  std::vector<WideGroup> last_groups;     // the last packing's groups, rows and faces
+  std::vector<WideRow> last_rows;
+  std::vector<WideFace> last_faces;
+  size_t last_count = 0;                  // its groups
+  std::vector<int32_t> last_at;           // (rows) the last packing's group whose lane 0
+                                          // is the manifold starting at that row, or -1
 };
 
 // Sequential impulses over the manifolds: normal clamped >= 0 against the speculative

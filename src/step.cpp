@@ -403,6 +403,7 @@ void StepSolver::prepare(StepContext& ctx) {
   known_ = false;
   speed_.resize(rows_.size());
   swept_.clear();
+  ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0 (in manifold order)

@@ -299,6 +299,7 @@ class StepSolver {
   std::vector<int32_t> rowless_;     // the contacts without a row (prepare)
   std::vector<uint8_t> forced_;      // (M,) 1: a row whatever the bound (the net let it in)
   std::vector<double> pre_;          // (N, 6) pre-solve velocities (a redo starts from them)
+  std::vector<double> reach_body_;   // (N,) m: the farthest contact point from its centre
   uint64_t redone_ = 0;
   std::vector<double> cached_normal_, cached_friction_, impact_work_, landing_;
   std::vector<uint8_t> found_;

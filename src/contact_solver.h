@@ -259,27 +259,28 @@ struct SweepPlan {
   size_t parallel = 0;                  // a wave of at least this many manifolds is
                                         // shared with `worker`
   Worker* worker = nullptr;             // null: one thread
-  // scratch of solve_velocities: the wide groups of the waves and their rows
+  // scratch of solve_velocities: the wide groups of the waves and their rows (a pool: slot)
   std::vector<WideGroup> groups;
   std::vector<WideRow> wide_rows;
-  std::vector<size_t> wave_groups;      // groups of wave w: [wave_groups[w], [w + 1])
-  std::vector<WideSpin> spin_groups;    // per group: its manifolds' spin rows, in lanes
+  std::vector<size_t> wave_groups;      // groups of wave w: slot[wave_groups[w], [w + 1])
+  std::vector<WideSpin> spin_groups;    // per entry: its manifolds' spin rows, in lanes
                                         // (spin -1 in a lane: none, one by one)
-  std::vector<WideFace> faces;          // per group: its kept elimination (3 or 4 rows)
+  std::vector<WideFace> faces;          // per entry: its kept elimination (3 or 4 rows)
   bool packed = false;                  // groups and spin_groups hold the prepared rows'
                                         // constant fields (the first solve_velocities of
                                         // a plan packs them; wave_manifolds clears this)
-  // the rows' generation: the caller changes it whenever the rows are prepared anew; a
-  // group of the same four manifolds in the same lanes as one packed since is taken over
-  // from the last packing (its constant fields and kept elimination: the same bits)
+  // groups, wide_rows, faces and spin_groups are a pool, slot[g] the pool entry of the
+  // plan's group g (in wave order): a group of the same four manifolds in the same lanes
+  // as one packed since the rows were prepared (rows_epoch, which the caller changes
+  // whenever they are) keeps its entry, its constant fields and its kept elimination (the
+  // same fields from the same rows: the same bits); only new groups are packed
+  std::vector<int32_t> slot;
   uint64_t rows_epoch = 0;
-  uint64_t packed_epoch = ~uint64_t{0};   // the rows' generation of the last packing
-  std::vector<WideGroup> last_groups;     // the last packing's groups, rows and faces
-  std::vector<WideRow> last_rows;
-  std::vector<WideFace> last_faces;
-  size_t last_count = 0;                  // its groups
-  std::vector<int32_t> last_at;           // (rows) the last packing's group whose lane 0
-                                          // is the manifold starting at that row, or -1
+  uint64_t packed_epoch = ~uint64_t{0};   // the rows' generation the pool holds
+  size_t pool_groups = 0, pool_rows = 0;  // entries of the pool in use
+  std::vector<int32_t> entry_at;          // (rows) the pool entry whose lane 0 is the
+                                          // manifold starting at that row, or -1
+  std::vector<int32_t> fresh;             // the entries packed by the last packing
 };
 
 // Sequential impulses over the manifolds: normal clamped >= 0 against the speculative

@@ -192,6 +192,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("max_correction", &SolverParams::max_correction)
       .def_readwrite("converged", &SolverParams::converged)
       .def_readwrite("activation_margin", &SolverParams::activation_margin)
+      .def_readwrite("row_bound", &SolverParams::row_bound)
       .def_readwrite("cold_extra", &SolverParams::cold_extra)
       .def_readwrite("balanced_friction", &SolverParams::balanced_friction)
       .def_readwrite("warm_start_ratio", &SolverParams::warm_start_ratio)
@@ -245,6 +246,9 @@ void bind_solver(py::module_& m) {
       .def_property_readonly("helped", [](const StepSolver& solver) {
         return py::make_tuple(solver.helped(), solver.chunks_run());
       }, "Chunks of the waves' second halves run so far: (by the second thread, in all).")
+      .def_property_readonly("redone", &StepSolver::redone,
+                             "Steps solved again so far: a contact without a row (prepare's "
+                             "row_bound) escaped and got one.")
       .def("step", &solver_step, py::kw_only(), py::arg("previous"), py::arg("current"),
            py::arg("out"), py::arg("inv_mass"), py::arg("inv_inertia_body"),
            py::arg("movable"), py::arg("held"), py::arg("restitution"),

@@ -974,33 +974,48 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
 #undef WIDE
 
 // The plan's wide groups and their rows from the manifolds and rows (plan.groups,
-// wide_rows, wave_groups): the fields that stay as prepared for the whole step (once per
-// plan); refresh_groups writes the others.
+// wide_rows, wave_groups, slot): the fields that stay as prepared for the whole step (once
+// per plan); refresh_groups writes the others. A group of the same four manifolds in the
+// same lanes as one in the pool since the rows were prepared (plan.rows_epoch) keeps its
+// entry and kept elimination (the same fields from the same rows: the same bits); the
+// others are packed into new entries.
 void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, const double* inv_mass) {
-  // (sized, not cleared: every field below is written, and growing a vector of these
-  // zero-fills it)
-  size_t group_count = 0;
-  for (const SweepWave& c : plan.waves) group_count += (c.wide_end - c.first) / kLanes;
-  if (plan.groups.size() < group_count) plan.groups.resize(group_count);
+  if (plan.packed_epoch != plan.rows_epoch) {   // rows anew: an empty pool
+    plan.packed_epoch = plan.rows_epoch;
+    plan.pool_groups = plan.pool_rows = 0;
+    plan.entry_at.assign(rows.size(), -1);
+  }
   plan.wave_groups.assign(1, 0);
-  size_t row_count = 0, next = 0;
+  plan.slot.clear();
+  plan.fresh.clear();
   for (const SweepWave& c : plan.waves) {
     for (size_t m = c.first; m < c.wide_end; m += kLanes) {
-      WideGroup& g = plan.groups[next++];
-      g.manifold = m;
-      g.count = manifolds[m].count;
-      g.row = row_count;
-      row_count += static_cast<size_t>(g.count);
+      int32_t first[kLanes];
+      for (int l = 0; l < kLanes; ++l) first[l] = manifolds[m + static_cast<size_t>(l)].first;
+      int32_t entry = plan.entry_at[static_cast<size_t>(first[0])];
+      if (entry < 0 || !std::equal(first, first + kLanes, plan.groups[entry].first)) {
+        // a new entry (sized, not cleared: every field below is written)
+        entry = static_cast<int32_t>(plan.pool_groups++);
+        if (plan.groups.size() < plan.pool_groups) plan.groups.resize(plan.pool_groups);
+        WideGroup& g = plan.groups[entry];
+        g.count = manifolds[m].count;
+        g.row = plan.pool_rows;
+        plan.pool_rows += static_cast<size_t>(g.count);
+        std::copy(first, first + kLanes, g.first);
+        plan.entry_at[static_cast<size_t>(first[0])] = entry;
+        plan.fresh.push_back(entry);
+      }
+      plan.groups[entry].manifold = m;
+      plan.slot.push_back(entry);
     }
-    plan.wave_groups.push_back(next);
+    plan.wave_groups.push_back(plan.slot.size());
   }
-  if (plan.wide_rows.size() < row_count) plan.wide_rows.resize(row_count);
-  if (plan.faces.size() < group_count) plan.faces.resize(group_count);
-  for (size_t group = 0; group < group_count; ++group)   // (new groups: nothing kept)
-    for (int l = 0; l < kLanes; ++l) plan.faces[group].set[l] = -1;
-  for (size_t group = 0; group < group_count; ++group) {
-    WideGroup& g = plan.groups[group];
+  if (plan.wide_rows.size() < plan.pool_rows) plan.wide_rows.resize(plan.pool_rows);
+  if (plan.faces.size() < plan.pool_groups) plan.faces.resize(plan.pool_groups);
+  for (const int32_t entry : plan.fresh) {
+    WideGroup& g = plan.groups[entry];
+    for (int l = 0; l < kLanes; ++l) plan.faces[entry].set[l] = -1;   // (nothing kept)
     for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
@@ -1042,8 +1057,8 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 // substeps' allowances, impulses, a friction coefficient hold_energy set to 0).
 void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                     const std::vector<Manifold>& manifolds) {
-  for (size_t group = 0; group < plan.wave_groups.back(); ++group) {
-    const WideGroup& g = plan.groups[group];
+  for (const int32_t entry : plan.slot) {
+    const WideGroup& g = plan.groups[entry];
     for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];
@@ -1060,11 +1075,10 @@ void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 // (pack_groups' spin rows: the fields that stay as prepared; refresh_spins the others)
 void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
                 const std::vector<SpinRow>* spins) {
-  const size_t group_count = plan.wave_groups.back();
-  if (plan.spin_groups.size() < group_count) plan.spin_groups.resize(group_count);
-  for (size_t group = 0; group < group_count; ++group) {
-    const WideGroup& g = plan.groups[group];
-    WideSpin& w = plan.spin_groups[group];
+  if (plan.spin_groups.size() < plan.pool_groups) plan.spin_groups.resize(plan.pool_groups);
+  for (const int32_t entry : plan.fresh) {   // (the entries kept keep theirs)
+    const WideGroup& g = plan.groups[entry];
+    WideSpin& w = plan.spin_groups[entry];
     bool all = spins != nullptr;
     for (int l = 0; l < kLanes && all; ++l) all = manifolds[g.manifold + static_cast<size_t>(l)].spin >= 0;
     for (int l = 0; l < kLanes; ++l)
@@ -1088,8 +1102,8 @@ void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
 
 // (refresh_groups' spin rows: the substeps start them cold, hold_energy may zero a limit)
 void refresh_spins(SweepPlan& plan, const std::vector<SpinRow>& spins) {
-  for (size_t group = 0; group < plan.wave_groups.back(); ++group) {
-    WideSpin& w = plan.spin_groups[group];
+  for (const int32_t entry : plan.slot) {
+    WideSpin& w = plan.spin_groups[entry];
     if (w.spin[0] < 0) continue;
     for (int l = 0; l < kLanes; ++l) {
       const SpinRow& r = spins[w.spin[l]];
@@ -1103,9 +1117,9 @@ void refresh_spins(SweepPlan& plan, const std::vector<SpinRow>& spins) {
 // The wide rows' impulses back into the rows, the wide spin rows' torques into the spins.
 void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
                    const std::vector<Manifold>& manifolds, std::vector<SpinRow>* spins) {
-  for (size_t group = 0; group < plan.wave_groups.back(); ++group) {
-    const WideGroup& g = plan.groups[group];
-    const WideSpin& w = plan.spin_groups[group];
+  for (const int32_t entry : plan.slot) {
+    const WideGroup& g = plan.groups[entry];
+    const WideSpin& w = plan.spin_groups[entry];
     for (int l = 0; l < kLanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       lane_to_rows(&plan.wide_rows[g.row], l, &rows[static_cast<size_t>(m.first)], g.count);
@@ -1128,9 +1142,10 @@ void solve_spin_waves(SweepPlan& plan, std::vector<SpinRow>& spins,
   };
   for (size_t l = 0; l < plan.waves.size(); ++l) {
     for (size_t group = plan.wave_groups[l]; group < plan.wave_groups[l + 1]; ++group) {
-      const WideGroup& g = plan.groups[group];
-      if (plan.spin_groups[group].spin[0] >= 0) {
-        solve_wide_spin(plan.spin_groups[group], g, v, progress);
+      const int32_t entry = plan.slot[group];
+      const WideGroup& g = plan.groups[entry];
+      if (plan.spin_groups[entry].spin[0] >= 0) {
+        solve_wide_spin(plan.spin_groups[entry], g, v, progress);
       } else {
         for (int lane = 0; lane < kLanes; ++lane) one(g.manifold + static_cast<size_t>(lane));
       }
@@ -1163,12 +1178,12 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     const size_t first = wide ? span.wide_end : span.first;
     for (size_t item = lo; item < hi; ++item) {
       if (item < groups) {
-        const size_t group = plan->wave_groups[l] + item;
-        WideGroup& g = plan->groups[group];
-        WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[group].spin[0] >= 0
-                                   ? &plan->spin_groups[group] : nullptr;
+        const int32_t entry = plan->slot[plan->wave_groups[l] + item];
+        WideGroup& g = plan->groups[entry];
+        WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[entry].spin[0] >= 0
+                                   ? &plan->spin_groups[entry] : nullptr;
         solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, spin_lanes,
-                    g.count >= 3 ? &plan->faces[group] : nullptr, progress);
+                    g.count >= 3 ? &plan->faces[entry] : nullptr, progress);
       } else {
         solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
                         bodies, spins, progress);

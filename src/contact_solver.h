@@ -70,6 +70,9 @@ struct SolverParams {
                                         // its allowance by more than this is left out of
                                         // the sweeps until the answer reaches it
                                         // (StepSolver::admit)
+  double row_bound = 0.5;               // a speculative contact separating faster than this
+                                        // times (1 + e) the step's fastest approach is no
+                                        // row (StepStats::redone: the net under it)
   double cold_extra = 1.0;              // extra sweeps (x velocity_iterations) when every
                                         // persistent contact is new (nothing to warm start)
   double balanced_friction = 1e-3;      // net friction / net normal impulse of a pair below
@@ -205,6 +208,7 @@ struct WideRow {
 struct WideGroup {
   size_t manifold = 0, row = 0;
   int count = 0;
+  int32_t first[kLanes] = {};    // its lanes' manifolds' first rows (Manifold::first)
   int64_t offset_a[kLanes] = {}, offset_b[kLanes] = {};   // 6 * body index: the first of
                                                          // its twist's numbers in velocity
   bool write_a[kLanes] = {}, write_b[kLanes] = {};   // movable: its twist is stored
@@ -255,16 +259,28 @@ struct SweepPlan {
   size_t parallel = 0;                  // a wave of at least this many manifolds is
                                         // shared with `worker`
   Worker* worker = nullptr;             // null: one thread
-  // scratch of solve_velocities: the wide groups of the waves and their rows
+  // scratch of solve_velocities: the wide groups of the waves and their rows (a pool: slot)
   std::vector<WideGroup> groups;
   std::vector<WideRow> wide_rows;
-  std::vector<size_t> wave_groups;      // groups of wave w: [wave_groups[w], [w + 1])
-  std::vector<WideSpin> spin_groups;    // per group: its manifolds' spin rows, in lanes
+  std::vector<size_t> wave_groups;      // groups of wave w: slot[wave_groups[w], [w + 1])
+  std::vector<WideSpin> spin_groups;    // per entry: its manifolds' spin rows, in lanes
                                         // (spin -1 in a lane: none, one by one)
-  std::vector<WideFace> faces;          // per group: its kept elimination (3 or 4 rows)
+  std::vector<WideFace> faces;          // per entry: its kept elimination (3 or 4 rows)
   bool packed = false;                  // groups and spin_groups hold the prepared rows'
                                         // constant fields (the first solve_velocities of
                                         // a plan packs them; wave_manifolds clears this)
+  // groups, wide_rows, faces and spin_groups are a pool, slot[g] the pool entry of the
+  // plan's group g (in wave order): a group of the same four manifolds in the same lanes
+  // as one packed since the rows were prepared (rows_epoch, which the caller changes
+  // whenever they are) keeps its entry, its constant fields and its kept elimination (the
+  // same fields from the same rows: the same bits); only new groups are packed
+  std::vector<int32_t> slot;
+  uint64_t rows_epoch = 0;
+  uint64_t packed_epoch = ~uint64_t{0};   // the rows' generation the pool holds
+  size_t pool_groups = 0, pool_rows = 0;  // entries of the pool in use
+  std::vector<int32_t> entry_at;          // (rows) the pool entry whose lane 0 is the
+                                          // manifold starting at that row, or -1
+  std::vector<int32_t> fresh;             // the entries packed by the last packing
 };
 
 // Sequential impulses over the manifolds: normal clamped >= 0 against the speculative

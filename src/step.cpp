@@ -60,41 +60,50 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                   out, report_out};
   // reference time of each contact and body, pre-solve velocities, speculative allowance
   reference_frame(ctx);
-  // prepare: rows of the contacts that can carry an impulse, combined materials
-  prepare(ctx);
-  // impacts: successive stages of the rows approaching faster than the threshold
-  ImpactSettings impacts{params.restitution_threshold, params.impact_stages,
-                         params.impact_sweeps, params.impact_converged};
-  resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
-                  impact_work_);
-  // from here on an impacted body's velocity is the one its pose travels with over the
-  // rest of the step (its velocity at the time of impact plus half the external change
-  // over the rest, advance): the resting solve keeps that travel out of the partners
-  // substeps of the resting solve: as many as keep each within params.max_substep
-  const int substeps = static_cast<int>(std::clamp(
-      std::ceil(dt / std::max(params.max_substep, 1e-300) * (1.0 - 1e-6)), 1.0,
-      static_cast<double>(std::max(params.max_substeps, 1))));
-  to_travel(ctx, substeps);
-  // warm start from last step's impulses of the same pair and feature (a substep's share)
-  double cold = warm(ctx, substeps);
-  start_.assign(velocity_.begin(), velocity_.end());
-  warm_start(rows_, ctx.solver);
-  // iterate: sequential impulses (more sweeps while resting contacts are new, for a step
-  // k periods long sqrt(k) times as many: a load k times the last, whose residual sinks
-  // the poses k^2 times as far, and at least depth_sweeps per level of the deepest
-  // stack), then shock propagation from the ground up
-  const int32_t depth = levels(ctx);
-  const double stretch = std::sqrt(std::clamp(growth_, 1.0, params.warm_start_ratio));
-  int iterations = static_cast<int>(
-      std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold) * stretch));
-  iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
+  // the stages from prepare to the landing, again (from the pre-solve velocities) while a
+  // contact without a row escapes (escaped): it gets a row
+  pre_.assign(velocity_.begin(), velocity_.end());
+  forced_.assign(static_cast<size_t>(contacts.count), 0);
   StepStats stats;
-  stats.rows = static_cast<int64_t>(rows_.size());
-  stats.substeps = substeps;
-  stats.sweeps = soft_step(ctx, substeps, iterations);
-  // landing: the poses travel with the substeps' mean velocity; a speculative contact that
-  // closes within the step ends it touching, and with no approach left for the next step
-  land(ctx);
+  for (;; ++stats.redone) {
+    if (stats.redone > 0) std::copy(pre_.begin(), pre_.end(), velocity_.begin());
+    // prepare: rows of the contacts that can carry an impulse, combined materials
+    prepare(ctx);
+    // impacts: successive stages of the rows approaching faster than the threshold
+    ImpactSettings impacts{params.restitution_threshold, params.impact_stages,
+                           params.impact_sweeps, params.impact_converged};
+    resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
+                    impact_work_);
+    // from here on an impacted body's velocity is the one its pose travels with over the
+    // rest of the step (its velocity at the time of impact plus half the external change
+    // over the rest, advance): the resting solve keeps that travel out of the partners
+    // substeps of the resting solve: as many as keep each within params.max_substep
+    const int substeps = static_cast<int>(std::clamp(
+        std::ceil(dt / std::max(params.max_substep, 1e-300) * (1.0 - 1e-6)), 1.0,
+        static_cast<double>(std::max(params.max_substeps, 1))));
+    to_travel(ctx, substeps);
+    // warm start from last step's impulses of the same pair and feature (a substep's share)
+    double cold = warm(ctx, substeps);
+    start_.assign(velocity_.begin(), velocity_.end());
+    warm_start(rows_, ctx.solver);
+    // iterate: sequential impulses (more sweeps while resting contacts are new, for a step
+    // k periods long sqrt(k) times as many: a load k times the last, whose residual sinks
+    // the poses k^2 times as far, and at least depth_sweeps per level of the deepest
+    // stack), then shock propagation from the ground up
+    const int32_t depth = levels(ctx);
+    const double stretch = std::sqrt(std::clamp(growth_, 1.0, params.warm_start_ratio));
+    int iterations = static_cast<int>(
+        std::lround(params.velocity_iterations * (1.0 + params.cold_extra * cold) * stretch));
+    iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
+    stats.rows = static_cast<int64_t>(rows_.size());
+    stats.substeps = substeps;
+    stats.sweeps += soft_step(ctx, substeps, iterations);
+    // landing: the poses travel with the substeps' mean velocity; a speculative contact that
+    // closes within the step ends it touching, and with no approach left for the next step
+    const bool landed = land(ctx);
+    if (!escaped(ctx, landed)) break;
+  }
+  redone_ += static_cast<uint64_t>(stats.redone);
   for (size_t i = 0; i < rows_.size(); ++i) {   // the step's impulses: the substeps' sums
     rows_[i].normal += total_[3 * i];
     rows_[i].tangent[0] += total_[3 * i + 1];
@@ -311,31 +320,40 @@ void StepSolver::prepare(StepContext& ctx) {
   const ContactsView& c = ctx.contacts;
   const SolverParams& p = ctx.params;
   const int64_t m = c.count;
-  // a speculative contact cannot activate when it separates faster than any impulse of
-  // this step can turn around: (1 + e) per hit, a factor 2 for chains and lever arms,
-  // from the fastest pre-solve approach of the step (a rested body's with the step's
-  // external change, which the resting solve meets)
+  // a speculative contact is no row while it separates faster than row_bound (1 + e) times
+  // the fastest pre-solve approach of the step (a rested body's with the step's external
+  // change, which the resting solve meets): most impulses of the step cannot turn it
+  // around ((1 + e) per hit); one that the answer does turn around gets a row (escaped,
+  // forced_)
   approach_.resize(m);
   const int64_t n = bodies.count;
   later_.resize(6 * n);
   for (int64_t i = 0; i < 6 * n; ++i) later_[i] = rested_[i / 6] ? now_[i] : velocity_[i];
   double fastest = 0.0, e = 0.0;
+  reach_body_.assign(n, 0.0);   // (squared here)
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
+    reach_body_[a] = std::max(reach_body_[a], dot(ra_[k], ra_[k]));
+    reach_body_[b] = std::max(reach_body_[b], dot(rb_[k], rb_[k]));
     approach_[k] = normal_speed(later_.data(), a, b, ra_[k], rb_[k], load3(c.normal + 3 * k));
     fastest = std::max(fastest, -approach_[k]);
     e = std::max({e, bodies.restitution[a], bodies.restitution[b]});
   }
-  const double bound = 2.0 * (1.0 + e) * fastest;
+  for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
+  const double bound = p.row_bound * (1.0 + e) * fastest;
   rows_.clear();
   manifolds_.clear();
   row_of_.assign(m, -1);
+  rowless_.clear();
   // rows in the order of detection's manifolds, one constraint per manifold with rows
   for (int64_t span = 0; span < c.manifold_count; ++span) {
     const int64_t* manifold = c.manifolds + kManifoldFields * span;
     const auto first_row = static_cast<int32_t>(rows_.size());
     for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
-      if (gap_[k] > 0.0 && approach_[k] + allowance_[k] > bound) continue;
+      if (gap_[k] > 0.0 && !forced_[k] && approach_[k] + allowance_[k] > bound) {
+        rowless_.push_back(static_cast<int32_t>(k));
+        continue;
+      }
       const int64_t a = c.a[k], b = c.b[k];
       row_of_[k] = static_cast<int32_t>(rows_.size());
       ContactRow& row = rows_.emplace_back();
@@ -389,6 +407,7 @@ void StepSolver::prepare(StepContext& ctx) {
   known_ = false;
   speed_.resize(rows_.size());
   swept_.clear();
+  ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
   // not 0 (in manifold order)
@@ -689,6 +708,45 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
   return solve_velocities(rows_, retry_, ctx.solver, iterations, ctx.params.converged);
 }
 
+bool StepSolver::escaped(const StepContext& ctx, bool landed) {
+  const ContactsView& c = ctx.contacts;
+  const int64_t n = ctx.bodies.count;
+  // per body: how far a point of it moved (m) and how much its speed changed from the
+  // pre-solve velocity at most (m/s), over the reach of its contacts; a contact whose gap
+  // or slack exceeds its two bodies' is known to hold (the test's answer: the same bits)
+  change_.resize(2 * n);
+  for (int64_t i = 0; i < n; ++i) {
+    const double* x = moved_.data() + 6 * i;
+    const double* v = velocity_.data() + 6 * i;
+    const double* u = later_.data() + 6 * i;
+    change_[2 * i] = length(load3(x)) + length(load3(x + 3)) * reach_body_[i];
+    change_[2 * i + 1] = landed ? length(load3(v) - load3(u)) +
+                                      length(load3(v + 3) - load3(u + 3)) * reach_body_[i]
+                                : 0.0;
+  }
+  constexpr double kSure = 1.0 + 1e-9;   // (rounding)
+  bool any = false;
+  for (const int32_t k : rowless_) {
+    const int64_t a = c.a[k], b = c.b[k];
+    const double* ca = change_.data() + 2 * a;
+    const double* cb = change_.data() + 2 * b;
+    if (gap_[k] > kSure * (ca[0] + cb[0]) &&
+        (!landed || approach_[k] + allowance_[k] > kSure * (ca[1] + cb[1])))
+      continue;
+    const Vec3 normal = load3(c.normal + 3 * k);
+    // its separation at the step's end: the reference gap plus how far the substeps moved
+    // its two points along the normal; after a landing, its approach then
+    bool out = gap_[k] + normal_speed(moved_.data(), a, b, ra_[k], rb_[k], normal) < 0.0;
+    out = out || (landed && normal_speed(velocity_.data(), a, b, ra_[k], rb_[k], normal) +
+                                    allowance_[k] < 0.0);
+    if (out) {
+      forced_[k] = 1;
+      any = true;
+    }
+  }
+  return any;
+}
+
 int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   const SolverParams& p = ctx.params;
   const int64_t n = ctx.bodies.count;
@@ -742,7 +800,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   return sweeps;
 }
 
-void StepSolver::land(StepContext& ctx) {
+bool StepSolver::land(StepContext& ctx) {
   const SolverParams& p = ctx.params;
   // the landing rows: speculative (a gap at the reference time) and holding, i.e. the
   // contact closes within the step and the solve let it approach by its gap only
@@ -757,7 +815,7 @@ void StepSolver::land(StepContext& ctx) {
       any = true;
     }
   }
-  if (!any) return;
+  if (!any) return false;
   // every row again, the landing ones without allowance: the velocities (not the poses,
   // which travel_ holds) leave the touching contacts at rest along their normals
   sweep(ctx, p.velocity_iterations);
@@ -766,6 +824,7 @@ void StepSolver::land(StepContext& ctx) {
     r.landing = r.normal - landing_[i];     // reported, not warm started
     r.normal = landing_[i];
   }
+  return true;
 }
 
 void StepSolver::report(StepContext& ctx) {

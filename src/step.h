@@ -34,7 +34,8 @@
 //    impact row with a positive separation: its gap at the time of impact) over the rest
 //    of the step;
 // 2. prepare: one row per contact point that can carry an impulse this step (a
-//    speculative contact that cannot close within the step is no row), combined
+//    speculative contact that separates faster than `row_bound` (1 + e) times the step's
+//    fastest pre-solve approach is no row: a net checks it, below), combined
 //    materials by the combine rules, rows in the order of detection's manifolds, one
 //    Manifold constraint per manifold with rows; per manifold with rolling resistance or
 //    torsional friction one SpinRow (its coefficients combined by the friction rule);
@@ -78,6 +79,11 @@
 //    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
 //    is solved again with no allowance, for the velocities only, so it ends the step
 //    touching and with no approach left to bounce on next step (land);
+//    The net: at the landing's end every contact without a row is checked: if one ends
+//    the step closer than touching (on the substeps' poses) or, after a landing, approaches
+//    faster than its allowance (it would have carried an impulse), it gets a row and the
+//    step is solved again from the pre-solve velocities (stages 2-6), until none does:
+//    every contact without a row ends the step idle;
 // 7. store impulses for the next step (without the impact stages' and landing's part);
 // 8. advance: impacted bodies from their time of impact with the travel velocity for the
 //    rest of the step, (1 - f) dt, their twist the mid-step one (velocity - f / 2
@@ -176,6 +182,7 @@ struct StepStats {
   int sweeps = 0;   // velocity sweeps done
   int64_t rows = 0; // contact points solved (the others were speculative, inactive)
   int substeps = 1;  // substeps of the resting solve (StepSolver::soft_step)
+  int redone = 0;    // times the step was solved again: a contact without a row escaped
 };
 
 class StepSolver {
@@ -195,6 +202,8 @@ class StepSolver {
   // chunks of the waves' second halves run so far: by the second thread, in all
   uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
   uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
+  // steps solved again since construction (a contact without a row escaped: StepSolver::escaped)
+  uint64_t redone() const { return redone_; }
 
  private:
   void reference_frame(StepContext& ctx);
@@ -203,6 +212,12 @@ class StepSolver {
                                                  // contacts cold
   int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
   int soft_step(StepContext& ctx, int substeps, int iterations);   // returns the sweeps
+  // The net under prepare's row bound, at the step's end: true when a contact without a
+  // row ends the step closer than touching (its gap at the reference time plus how far the
+  // substeps moved its points along the normal, moved_) or, after a landing (`landed`),
+  // approaches faster than its allowance: its row would have carried an impulse. Each such
+  // is marked in forced_ (a row from then on).
+  bool escaped(const StepContext& ctx, bool landed);
   void to_travel(StepContext& ctx, int substeps);  // impacted bodies: + (1 - f) / 2 external change;
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
@@ -229,7 +244,7 @@ class StepSolver {
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
   bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
   int sweep(StepContext& ctx, int iterations);
-  void land(StepContext& ctx);
+  bool land(StepContext& ctx);   // true when it solved (a landing row)
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
@@ -281,6 +296,11 @@ class StepSolver {
   std::vector<double> span_;         // s: the time a row's allowance spans (> 0)
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
+  std::vector<int32_t> rowless_;     // the contacts without a row (prepare)
+  std::vector<uint8_t> forced_;      // (M,) 1: a row whatever the bound (the net let it in)
+  std::vector<double> pre_;          // (N, 6) pre-solve velocities (a redo starts from them)
+  std::vector<double> reach_body_;   // (N,) m: the farthest contact point from its centre
+  uint64_t redone_ = 0;
   std::vector<double> cached_normal_, cached_friction_, impact_work_, landing_;
   std::vector<uint8_t> found_;
   std::vector<ContactRow> rows_, shock_rows_;

@@ -199,3 +199,17 @@ def test_any_threshold_above_g_dt_lets_a_ball_rest(rate):
     law = bounces_to_rest(0.8, 0.3, threshold)
     print(f'{rate:.0f} Hz, threshold {threshold:.4f} m/s: rests at {rest:.4f} s, law {law:.4f} s')
     assert abs(rest - law) <= 8 / rate
+
+
+@pytest.mark.parametrize('rate, threshold', [(60.0, 0.6), (120.0, 0.5), (240.0, 0.4)])
+def test_a_bounce_landing_above_the_threshold_late_in_a_step_is_not_lost(rate, threshold):
+    """The ball dropped from 0.3 m (e 0.8) lands on its last bounce at just above the
+    threshold late in a step: it bounces, and rests within 3 steps of the bounce law (a
+    lost bounce is at least 2 e threshold / g of flight early: 6-16 steps here). The
+    resting contact judged the approach at mid-step, not at the time it closed, and let it
+    stop dead (on b67fd73: 7.7, 11.3 and 17.5 steps early)."""
+    rest, height = rest_time(rate, threshold)
+    law = bounces_to_rest(0.8, 0.3, threshold)
+    print(f'{rate:.0f} Hz, threshold {threshold} m/s: rests at {rest:.4f} s, law {law:.4f} s')
+    assert abs(rest - law) <= 3 / rate
+    assert np.all(np.abs(height[int(rest * rate):]) < 1e-5)

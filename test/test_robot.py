@@ -200,7 +200,11 @@ def test_scripted_joints_drive_the_links_in_collres_sim(package, tmp_path) -> No
     assert touches & {('crate', 'forearm', 'wrist'), ('crate', 'hand', 'palm'),
                       ('crate', 'hand', 'finger'), ('crate', 'forearm', 'tube')}
     crate = [b for b in inputs[-1].bodies if b.name == 'crate'][0]
-    assert abs(crate.pose.position.x - 0.45) > 0.05   # moved by the arm (out and back)
+    # moved by the arm: the finger comes down 2 cm into the crate's top and squeezes it
+    # against the floor (about 60 N s a step), and where the squeezed crate slips out is
+    # decided by a tenth of a millimetre: from starts 0.05-0.3 mm apart it ends either
+    # 4.6 cm or 11-14 cm away (either at every row_bound), never closer than 4.6 cm
+    assert abs(crate.pose.position.x - 0.45) > 0.03
     # the bag's own params (links as bodies, no script) replay it to the same contacts
     from collres_ros.replay import main as replay_main
     assert replay_main([str(tmp_path / 'bag'), str(tmp_path / 'out'), '--quiet']) == 0

@@ -16,10 +16,12 @@ wake it):
 A node that falls behind drops inputs, and the step it takes next spans k periods; its
 source either integrated the last answer for one period (it integrates each answer it
 gets, as bench/bench_latency.py's simulator) or for k (it kept integrating its own
-state). Either way a pile falls asleep within twice the time it takes when no input is
-dropped (over three piles; one pile's sleep time is chaotic, 1.9 to 6.9 s at 30 Hz for three
-jitters of the same pile, and over ten piles with steps of 1-4 periods the mean took 1.77
-times the steady one), each pile within 8 s, and a sleeping pile stays asleep and in place:
+state). Either way each pile falls asleep within 8 s (with every period answered they take
+1.1-3.1 s), and a sleeping pile stays
+asleep and in place. No ratio to the steady time is asserted: one pile's sleep time is
+chaotic (1.9 to 6.9 s at 30 Hz for three jitters of the same pile), and over 30 piles with
+steps of 1-4 periods the mean took 2.03-2.07 times the steady one while groups of three
+ranged 1.3-3.3 times:
 the warm start and the sweeps follow the load the input carries (one period of gravity
 is one period's impulses, whatever dt says), not dt alone.
 
@@ -334,13 +336,12 @@ SEEDS = (1, 2, 3)   # piles (bench/pile.py's jitter) and their random k
 
 @pytest.mark.parametrize('style', ['one', 'k'])
 def test_a_pile_falls_asleep_and_stays_asleep_across_dropped_inputs(style: str) -> None:
-    steady = [_asleep_after('k', seed, periods=1)[0] for seed in SEEDS]
+    steady = [_asleep_after('k', seed, periods=1)[0] for seed in SEEDS]   # printed only
     dropped = [_asleep_after(style, seed) for seed in SEEDS]
     times = [elapsed for elapsed, _ in dropped]
     print(f'{style}: asleep after {np.round(times, 2)} s (every period answered: '
           f'{np.round(steady, 2)} s)')
     assert max(times) < 8.0
-    assert np.mean(times) <= 2.0 * np.mean(steady)
     sim = dropped[0][1]
     dynamic = sim.world.dynamic
     held = sim.state.copy()

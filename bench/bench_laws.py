@@ -33,6 +33,8 @@ from collres_ros.core.world import World  # noqa: E402
 from contacts import box, contact_set, FixedContacts, sphere, states  # noqa: E402,I100
 from integrator import Simulation  # noqa: E402
 from pile import make_pile  # noqa: E402
+from test_impact_laws import elastic_gas, GAS_SIDE  # noqa: E402
+from test_stacks import stand  # noqa: E402
 
 G = 9.81
 ZERO_G = np.zeros(3)
@@ -161,25 +163,12 @@ def gas() -> None:
     never above +0.5 % (threshold 0.05 m/s as the test, and the default)."""
     for rate, threshold in ((30.0, 0.05), (60.0, 0.05), (120.0, 0.05), (240.0, 0.05),
                             (240.0, 0.5), (60.0, 0.5)):
-        rng = np.random.default_rng(3)
-        side, r, t = 1.0, 0.05, 0.2
-        outer = side + 2 * t
-        walls = [box(f'w{i}', size, 1.0, e=1.0, static=True) for i, size in enumerate(
-            [(outer, outer, t)] * 2 + [(t, outer, outer)] * 2 + [(outer, t, outer)] * 2)]
-        d = (side + t) / 2
-        wall_at = [[0, 0, -d], [0, 0, d], [-d, 0, 0], [d, 0, 0], [0, -d, 0], [0, d, 0]]
-        grid = np.array([[x, y, z] for x in range(4) for y in range(4) for z in range(3)],
-                        float)[:40]
-        balls = [sphere(f'b{i}', r, 1.0, e=1.0) for i in range(40)]
-        initial = states(wall_at + ((grid - grid.mean(0)) * 0.22).tolist(),
-                         np.r_[np.zeros((6, 3)), rng.normal(0.0, 1.5, (40, 3))])
-        sim = Simulation(walls + balls, initial, rate,
-                         SolverSettings(restitution_threshold=threshold), gravity=ZERO_G)
+        sim = elastic_gas(rate, threshold)
         e0, ratios = sim.energy(), []
         for _ in range(int(5 * rate)):
             sim.step()
             ratios.append(sim.energy() / e0)
-        inside = np.abs(sim.state.position[6:]).max() < side / 2
+        inside = np.abs(sim.state.position[6:]).max() < GAS_SIDE / 2
         ok = min(ratios) >= 0.99 and max(ratios) <= 1.005 and inside
         row('elastic gas', f'{rate:g} Hz, threshold {threshold}',
             f'E min {min(ratios):.4f} max {max(ratios):.4f} end {ratios[-1]:.4f}'
@@ -329,17 +318,6 @@ def hover() -> None:
                 f'corners {np.round(support * 1000, 3)} mm, speed {speed:.1e}', ok)
 
 
-def stand(bodies, start, rate, duration=10.0):
-    sim = Simulation(bodies, states(start, np.zeros_like(start)), rate)
-    e0, highest, moved = sim.energy(), -np.inf, 0.0
-    for _ in range(int(round(duration * rate))):
-        sim.step()
-        moved = max(moved, float(np.linalg.norm(sim.state.position[1:] - start[1:],
-                                                axis=1).max()))
-        highest = max(highest, sim.energy())
-    return moved, e0, highest
-
-
 def cube(name, size, mass=1.0):
     return box(name, (size,) * 3, mass, mu_s=0.5, mu_k=0.3)
 
@@ -353,7 +331,7 @@ def towers() -> None:
     for size, rate, mass in cases:
         bodies = [plane()] + [cube(f'c{i}', size, mass) for i in range(20)]
         start = np.array([[0.0, 0.0, 0.0]] + [[0.0, 0.0, size * (i + 0.5)] for i in range(20)])
-        moved, e0, highest = stand(bodies, start, rate)
+        moved, e0, highest = stand(bodies, start, rate=rate)
         row('tower of 20', f'{size} m, {rate:g} Hz, {mass:g} kg',
             f'drift {moved * 1000:.3f} mm, energy gain {highest - e0:.2e} J',
             moved < 0.005 and highest <= e0 + 1e-9 * abs(e0))
@@ -366,7 +344,7 @@ def stacks() -> None:
         size = 0.2
         bodies = [plane(), cube('light', size, 1.0), cube('heavy', size, 1000.0)]
         start = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, size / 2], [0.0, 0.0, 1.5 * size]])
-        moved, e0, highest = stand(bodies, start, rate)
+        moved, e0, highest = stand(bodies, start, rate=rate)
         row('1000:1 stack', f'{rate:g} Hz', f'drift {moved * 1000:.4f} mm',
             moved < 1e-4 and highest <= e0 + 1e-9 * abs(e0))
     for rate in RATES:
@@ -376,7 +354,7 @@ def stacks() -> None:
             for j in range(base - r):
                 bodies.append(cube(f'c{r}_{j}', size))
                 start.append([(j - (base - r - 1) / 2) * 1.05 * size, 0.0, size * (r + 0.5)])
-        moved, e0, highest = stand(bodies, np.array(start), rate)
+        moved, e0, highest = stand(bodies, np.array(start), rate=rate)
         row('pyramid of 55', f'{rate:g} Hz', f'drift {moved * 1000:.4f} mm',
             moved < 1e-3 and highest <= e0 + 1e-9 * abs(e0))
 

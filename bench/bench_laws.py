@@ -34,7 +34,7 @@ from contacts import box, contact_set, FixedContacts, sphere, states  # noqa: E4
 from integrator import Simulation  # noqa: E402
 from pile import make_pile  # noqa: E402
 from test_impact_laws import elastic_gas, GAS_SIDE  # noqa: E402
-from test_stacks import stand  # noqa: E402
+from test_stacks import pyramid, stand  # noqa: E402
 
 G = 9.81
 ZERO_G = np.zeros(3)
@@ -348,13 +348,8 @@ def stacks() -> None:
         row('1000:1 stack', f'{rate:g} Hz', f'drift {moved * 1000:.4f} mm',
             moved < 1e-4 and highest <= e0 + 1e-9 * abs(e0))
     for rate in RATES:
-        size, base = 0.2, 10
-        bodies, start = [plane()], [[0.0, 0.0, 0.0]]
-        for r in range(base):
-            for j in range(base - r):
-                bodies.append(cube(f'c{r}_{j}', size))
-                start.append([(j - (base - r - 1) / 2) * 1.05 * size, 0.0, size * (r + 0.5)])
-        moved, e0, highest = stand(bodies, np.array(start), rate=rate)
+        bodies, start = pyramid()
+        moved, e0, highest = stand(bodies, start, rate=rate)
         row('pyramid of 55', f'{rate:g} Hz', f'drift {moved * 1000:.4f} mm',
             moved < 1e-3 and highest <= e0 + 1e-9 * abs(e0))
 

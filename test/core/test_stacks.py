@@ -81,15 +81,21 @@ def test_1000_kg_box_on_1_kg_box_stands_10s(rate):
     assert highest <= e0 + 1e-9 * abs(e0)
 
 
-@pytest.mark.parametrize('rate', [RATE, 30.0])
-def test_pyramid_of_55_cubes_stands_10s(rate):
-    size, base = 0.2, 10
+def pyramid(size: float = 0.2, base: int = 10) -> tuple[list[BodySpec], np.ndarray]:
+    """A floor and a 2D pyramid of cubes (``base`` on its lowest row, 5 % of a side apart),
+    resting on each other: the bodies and their start positions (m)."""
     bodies, start = [floor()], [[0.0, 0.0, 0.0]]
     for row in range(base):
         for j in range(base - row):
             bodies.append(cube(f'c{row}_{j}', size))
             start.append([(j - (base - row - 1) / 2) * 1.05 * size, 0.0, size * (row + 0.5)])
-    moved, e0, highest = stand(bodies, np.array(start), rate=rate)
+    return bodies, np.array(start)
+
+
+@pytest.mark.parametrize('rate', [RATE, 30.0])
+def test_pyramid_of_55_cubes_stands_10s(rate):
+    bodies, start = pyramid()
+    moved, e0, highest = stand(bodies, start, rate=rate)
     print(f'pyramid of {len(bodies) - 1} cubes at {rate:g} Hz: largest displacement '
           f'{moved * 1000:.3f} mm')
     assert moved < 0.001

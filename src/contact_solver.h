@@ -70,7 +70,7 @@ struct SolverParams {
                                         // its allowance by more than this is left out of
                                         // the sweeps until the answer reaches it
                                         // (StepSolver::admit)
-  double row_bound = 2.0;               // a speculative contact separating faster than this
+  double row_bound = 0.5;               // a speculative contact separating faster than this
                                         // times (1 + e) the step's fastest approach is no
                                         // row (StepStats::redone: the net under it)
   double cold_extra = 1.0;              // extra sweeps (x velocity_iterations) when every

@@ -6,16 +6,20 @@ floor, at 120 Hz with collres_sim's integrator. With rolling resistance mu_r a b
 slope while tan(theta) <= mu_r (test_rolling.py); a heap stands at least that steep
 (tan(15 deg) = 0.27 < 0.3). Without rolling resistance spheres roll apart: no heap.
 
-And the heap rests: over its last second (2-3 s after the last release) the fastest sphere
-is under 0.05 m/s (Box2D's sleep speed) in most steps. A heap has avalanches: one sphere
-slipping at a given instant is not a heap that does not rest (the same pour of seed 3 shows
-0.005-0.02 m/s for seconds with one 0.2 m/s slip between), so the law is on the median of
-the last second, not on its last step.
+And the heap comes to rest: the fastest sphere's median speed over one second falls under
+0.05 m/s (Box2D's sleep speed) within REST_BY s of the last release; its angle is measured
+then. A heap has avalanches (single 0.1-0.5 m/s slips for seconds), so when it rests is a draw
+of the pour: over pour seeds 1-30, 3 s after the last release the median of the last second
+was still >= 0.05 m/s for 10 seeds at `row_bound` 2, 5 at 1 and 9 at 0.5, yet every pour
+rested within 6.1 s of its last release (median 2.4-2.6 s), at 14.7-35.3 deg at 2 (one heap
+under 15), 16.5-29.1 at 1, 17.0-38.8 at 0.5. Without rolling resistance the spheres roll apart
+(0.6 deg) and never rest.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import BodySpec, BodyStates
@@ -25,11 +29,13 @@ from collres_ros.ros.integrator import euler_step
 GRAVITY = np.array([0.0, 0.0, -9.81])
 
 RADIUS, COUNT, EVERY, HZ = 0.05, 100, 0.1, 120.0
+REST, REST_BY = 0.05, 8.0    # m/s (Box2D's sleep speed), s after the last release
 
 
-def pour(rolling: float) -> tuple[BodyStates, np.ndarray]:
-    """The states 3 s after the last of COUNT spheres was released, and the fastest sphere's
-    speed (m/s) at each step of the last second."""
+def pour(rolling: float, seed: int) -> tuple[BodyStates, float | None]:
+    """The states when the heap of COUNT spheres first rests (the fastest sphere's median speed
+    over the second before under REST) and that time in s after the last release; the states
+    REST_BY s after the last release and None if it does not rest by then."""
     bodies = [BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)]
     bodies += [BodySpec(f's{i}', 'sphere', (RADIUS,), mass=0.5, restitution=0.1,
                         static_friction=0.8, kinetic_friction=0.8,
@@ -39,30 +45,32 @@ def pour(rolling: float) -> tuple[BodyStates, np.ndarray]:
     state.position[1:] = [[10.0 + 0.2 * i, 10.0, 1.0] for i in range(COUNT)]  # parked apart
     state.orientation[:, 3] = 1.0
     world = World(bodies, SolverSettings(sleeping=False))
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     dt, released = 1.0 / HZ, 0
-    steps = int(round((COUNT * EVERY + 3.0) * HZ))
+    last = int(round(COUNT * EVERY * HZ))          # the step after the last release
     fastest = []
-    for k in range(steps):
+    for k in range(last + int(round(REST_BY * HZ))):
         if released < COUNT and k * dt >= released * EVERY - 1e-9:
             state.position[1 + released] = [*rng.uniform(-0.01, 0.01, 2), 0.5]
             released += 1
         falling = world.dynamic.copy()
         falling[1 + released:] = False       # parked spheres wait without gravity
         state = world.step(state, euler_step(state, falling, GRAVITY, dt), dt).states
-        if k >= steps - int(HZ):
+        if k >= last:
             fastest.append(np.linalg.norm(state.linear[1:], axis=1).max())
-    return state, np.array(fastest)
+            if len(fastest) >= HZ and np.median(fastest[-int(HZ):]) < REST:
+                return state, len(fastest) / HZ
+    return state, None
 
 
-def test_a_pour_of_spheres_with_rolling_resistance_forms_a_heap_steeper_than_15_deg():
-    state, fastest = pour(rolling=0.3)
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_a_pour_of_spheres_with_rolling_resistance_forms_a_heap_steeper_than_15_deg(seed):
+    state, rested = pour(rolling=0.3, seed=seed)
     spheres = state.position[1:]
     height = spheres[:, 2].max() + RADIUS
     radius = np.percentile(np.hypot(spheres[:, 0], spheres[:, 1]), 90) + RADIUS
     angle = np.degrees(np.arctan2(height, radius))
     print(f'heap: {height:.3f} m high, 90 % of the spheres within {radius:.3f} m: '
-          f'{angle:.1f} deg; fastest over the last second: median {np.median(fastest):.4f}, '
-          f'max {fastest.max():.4f} m/s')
+          f'{angle:.1f} deg; at rest {rested} s after the last release')
     assert angle > 15.0
-    assert np.median(fastest) < 0.05      # it rests
+    assert rested is not None             # it rests

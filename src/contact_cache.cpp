@@ -13,15 +13,36 @@ bool key_less(const CachedImpulse& e, int64_t a, int64_t b, int64_t f) {
   return std::tie(e.a, e.b, e.feature) < std::tie(a, b, f);
 }
 
+// Whether the m contacts' pairs (a, b) never decrease (detection lists its pairs in order).
+bool pairs_in_order(int64_t m, const int64_t* a, const int64_t* b) {
+  for (int64_t k = 1; k < m; ++k)
+    if (std::tie(a[k], b[k]) < std::tie(a[k - 1], b[k - 1])) return false;
+  return true;
+}
+
 }  // namespace
 
 void ContactCache::store(int64_t m, const int64_t* a, const int64_t* b, const int64_t* feature,
                          const double* normal, const double* friction, const double* point) {
   order_.resize(m);
   std::iota(order_.begin(), order_.end(), 0);
-  std::stable_sort(order_.begin(), order_.end(), [&](int64_t i, int64_t j) {
-    return std::tie(a[i], b[i], feature[i]) < std::tie(a[j], b[j], feature[j]);
-  });
+  // the contacts in key order, equal keys in caller order; detection lists its pairs in
+  // order, so then only each pair's run is sorted by feature (a run holds at most a
+  // pair's few points: insertion sort, stable), else every contact is
+  if (pairs_in_order(m, a, b)) {
+    for (int64_t k = 1; k < m; ++k) {
+      const int64_t i = order_[k];
+      int64_t j = k;
+      for (; j > 0 && a[order_[j - 1]] == a[i] && b[order_[j - 1]] == b[i] &&
+             feature[order_[j - 1]] > feature[i]; --j)
+        order_[j] = order_[j - 1];
+      order_[j] = i;
+    }
+  } else {
+    std::stable_sort(order_.begin(), order_.end(), [&](int64_t i, int64_t j) {
+      return std::tie(a[i], b[i], feature[i]) < std::tie(a[j], b[j], feature[j]);
+    });
+  }
   entries_.clear();
   stored_at_.assign(m, -1);
   for (int64_t k = 0; k < m; ++k) {
@@ -50,6 +71,10 @@ void ContactCache::lookup(int64_t m, const int64_t* a, const int64_t* b, const i
   order_.assign(m, -1);                  // matched entry per query
   auto begin = entries_.begin(), end = entries_.end();
   const int64_t hints = static_cast<int64_t>(stored_at_.size());
+  // pairs in order (as detection lists them): the entries of a query's pair start at or
+  // after the last query's, so one pass over the entries finds them all
+  const bool in_order = pairs_in_order(m, a, b);
+  auto pair_start = begin;
   for (int64_t i = 0; i < m; ++i) {      // exact matches first: where it was, else search
     if (i < hints && stored_at_[i] >= 0) {
       const CachedImpulse& e = entries_[stored_at_[i]];
@@ -59,9 +84,16 @@ void ContactCache::lookup(int64_t m, const int64_t* a, const int64_t* b, const i
         continue;
       }
     }
-    auto it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
-      return key_less(e, a[i], b[i], feature[i]);
-    });
+    auto it = end;                       // the first entry not below the query's key
+    if (in_order) {
+      while (pair_start != end && std::tie(pair_start->a, pair_start->b) < std::tie(a[i], b[i]))
+        ++pair_start;
+      for (it = pair_start; it != end && key_less(*it, a[i], b[i], feature[i]); ++it) {}
+    } else {
+      it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
+        return key_less(e, a[i], b[i], feature[i]);
+      });
+    }
     if (it != end && it->a == a[i] && it->b == b[i] && it->feature == feature[i]) {
       order_[i] = it - begin;
       taken_[order_[i]] = 1;

@@ -47,6 +47,34 @@ def test_cache_exact_nearest_and_forget():
         cache.lookup(np.array([1], np.int32), np.array([3]), np.array([1]), np.zeros((1, 3)))
 
 
+@pytest.mark.parametrize('pairs_in_order', [True, False])
+def test_cache_keeps_the_last_impulse_of_each_key_whatever_the_order(pairs_in_order):
+    """Stored contacts are found by (a, b, feature), a later duplicate of a key winning,
+    whether the pairs come in order (as detection lists them: each pair's features are
+    sorted in place) or not (every contact sorted)."""
+    rng = np.random.default_rng(7)
+    m = 400
+    a = rng.integers(0, 6, m)
+    b = a + 1 + rng.integers(0, 6, m)
+    feature = rng.integers(-3, 4, m)      # few features: many duplicates within a pair
+    if pairs_in_order:
+        by_pair = np.lexsort((b, a))
+        a, b, feature = a[by_pair], b[by_pair], feature[by_pair]
+    normal = np.arange(m, dtype=float)
+    cache = _native.ContactCache()
+    cache.store(a, b, feature, normal, np.zeros((m, 3)), np.zeros((m, 3)))
+    last = {(i, j, f): n for i, j, f, n in zip(a.tolist(), b.tolist(), feature.tolist(), normal)}
+    assert len(cache) == len(last)
+    absent = [(i, j, 10) for i, j, _ in last] + [(100, 101, 0)]
+    queries = np.array(list(last) + absent)
+    queries = queries[np.lexsort((queries[:, 1], queries[:, 0])) if pairs_in_order
+                      else rng.permutation(len(queries))]
+    found_normal, _, found = cache.lookup(queries[:, 0].copy(), queries[:, 1].copy(),
+                                          queries[:, 2].copy(), np.zeros((len(queries), 3)))
+    assert found.tolist() == [tuple(q) in last for q in queries.tolist()]
+    assert found_normal.tolist() == [last.get(tuple(q), 0.0) for q in queries.tolist()]
+
+
 def test_degenerate_tangent_never_nan_and_no_friction_at_rest():
     """Normal parallel to the relative velocity (head-on, friction 1): no tangential impulse."""
     bodies = [sphere('a', 0.1, 1.0, e=0.5, mu_s=1.0, mu_k=1.0),

@@ -136,6 +136,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   load_twists(previous, bodies, then_.data());
   ra_.resize(m);
   rb_.resize(m);
+  travelled_.resize(2 * m);
   before_.resize(m);
   gap_.resize(m);
   toi_.resize(m);
@@ -161,8 +162,9 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // how far the two points closed over the step (m, from the poses: a step of several
     // periods that its source integrated is no straight line at the twist); a persistent
     // contact's gap at the previous state is its separation less that
-    const double closed = dot(travelled(previous, current, now_.data(), b, rb_[k], dt) -
-                              travelled(previous, current, now_.data(), a, ra_[k], dt), normal);
+    travelled_[2 * k] = travelled(previous, current, now_.data(), a, ra_[k], dt);
+    travelled_[2 * k + 1] = travelled(previous, current, now_.data(), b, rb_[k], dt);
+    const double closed = dot(travelled_[2 * k + 1] - travelled_[2 * k], normal);
     gap_[k] = c.separation[k] - closed;
     allowance_[k] = closed;           // (kept here for the loops below)
     before_[k] = normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal);
@@ -206,12 +208,13 @@ void StepSolver::reference_frame(StepContext& ctx) {
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     if (!supported_[a] && !supported_[b]) continue;
-    auto held = [&](int64_t i, const Vec3& r) {
+    auto held = [&](int64_t i, const Vec3& r, const Vec3& moved) {
       if (!supported_[i]) return Vec3(Vec3::Zero());
-      return Vec3(travelled(previous, current, now_.data(), i, r, dt) -
+      return Vec3(moved -
                   dt * (load3(path_.data() + 6 * i) + cross(load3(path_.data() + 6 * i + 3), r)));
     };
-    drift_[k] = dot(held(a, ra_[k]) - held(b, rb_[k]), load3(c.normal + 3 * k));
+    drift_[k] = dot(held(a, ra_[k], travelled_[2 * k]) - held(b, rb_[k], travelled_[2 * k + 1]),
+                    load3(c.normal + 3 * k));
   }
   // the step's load: the momentum its external change gives each movable body (N s), and
   // its sum over the bodies in contact that had a load last step too, then and now
@@ -227,11 +230,13 @@ void StepSolver::reference_frame(StepContext& ctx) {
     }
   }
   growth_ = load > 0.0 && last_load > 0.0 ? load / last_load : dt / std::max(last_dt_, 1e-300);
+  approach_.resize(m);
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
     const Vec3 normal = load3(c.normal + 3 * k);
     const double v_in = normal_speed(now_.data(), a, b, ra_[k], rb_[k], normal);
+    approach_[k] = v_in;   // (the pre-solve approach unless a body has an impact: below)
     // a persistent contact that closes within the step faster than the threshold at the
     // time it closes (on the held paths: its separation at the end is drift_ more than
     // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
@@ -319,6 +324,25 @@ void StepSolver::reference_frame(StepContext& ctx) {
     span_[k] = remaining;
     allowance_[k] = std::max(gap_[k], 0.0) / remaining;
   }
+  // the pre-solve approach of each contact (a rested body's with the step's external
+  // change, which the resting solve meets; a body without an impact: its current twist),
+  // the farthest contact point of each body, the fastest approach and the largest
+  // restitution (prepare's row bound; the same for every solve of the step)
+  later_.resize(6 * n);
+  for (int64_t i = 0; i < 6 * n; ++i) later_[i] = rested_[i / 6] ? now_[i] : velocity_[i];
+  fastest_ = 0.0;
+  restitution_ = 0.0;
+  reach_body_.assign(n, 0.0);   // (squared here)
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    reach_body_[a] = std::max(reach_body_[a], dot(ra_[k], ra_[k]));
+    reach_body_[b] = std::max(reach_body_[b], dot(rb_[k], rb_[k]));
+    if (impacted_[a] || impacted_[b])
+      approach_[k] = normal_speed(later_.data(), a, b, ra_[k], rb_[k], load3(c.normal + 3 * k));
+    fastest_ = std::max(fastest_, -approach_[k]);
+    restitution_ = std::max({restitution_, bodies.restitution[a], bodies.restitution[b]});
+  }
+  for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
 }
 
 void StepSolver::prepare(StepContext& ctx) {
@@ -327,26 +351,10 @@ void StepSolver::prepare(StepContext& ctx) {
   const SolverParams& p = ctx.params;
   const int64_t m = c.count;
   // a speculative contact is no row while it separates faster than row_bound (1 + e) times
-  // the fastest pre-solve approach of the step (a rested body's with the step's external
-  // change, which the resting solve meets): most impulses of the step cannot turn it
-  // around ((1 + e) per hit); one that the answer does turn around gets a row (escaped,
-  // forced_)
-  approach_.resize(m);
-  const int64_t n = bodies.count;
-  later_.resize(6 * n);
-  for (int64_t i = 0; i < 6 * n; ++i) later_[i] = rested_[i / 6] ? now_[i] : velocity_[i];
-  double fastest = 0.0, e = 0.0;
-  reach_body_.assign(n, 0.0);   // (squared here)
-  for (int64_t k = 0; k < m; ++k) {
-    const int64_t a = c.a[k], b = c.b[k];
-    reach_body_[a] = std::max(reach_body_[a], dot(ra_[k], ra_[k]));
-    reach_body_[b] = std::max(reach_body_[b], dot(rb_[k], rb_[k]));
-    approach_[k] = normal_speed(later_.data(), a, b, ra_[k], rb_[k], load3(c.normal + 3 * k));
-    fastest = std::max(fastest, -approach_[k]);
-    e = std::max({e, bodies.restitution[a], bodies.restitution[b]});
-  }
-  for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
-  const double bound = p.row_bound * (1.0 + e) * fastest;
+  // the fastest pre-solve approach of the step (reference_frame): most impulses of the step
+  // cannot turn it around ((1 + e) per hit); one that the answer does turn around gets a
+  // row (escaped, forced_)
+  const double bound = p.row_bound * (1.0 + restitution_) * fastest_;
   rows_.clear();
   manifolds_.clear();
   row_of_.assign(m, -1);

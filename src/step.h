@@ -288,6 +288,8 @@ class StepSolver {
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;
+  std::vector<Vec3> travelled_;      // (M, 2) m: how far the points of A and B travelled
+                                     // over the step (reference_frame)
   std::vector<double> before_;       // m/s: normal speed at the previous twists (< 0
                                      // approaching; reference_frame)
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
@@ -300,6 +302,8 @@ class StepSolver {
   std::vector<uint8_t> forced_;      // (M,) 1: a row whatever the bound (the net let it in)
   std::vector<double> pre_;          // (N, 6) pre-solve velocities (a redo starts from them)
   std::vector<double> reach_body_;   // (N,) m: the farthest contact point from its centre
+  double fastest_ = 0.0;             // m/s: the step's fastest pre-solve approach (approach_)
+  double restitution_ = 0.0;         // the largest restitution of a body in contact
   uint64_t redone_ = 0;
   std::vector<double> cached_normal_, cached_friction_, impact_work_, landing_;
   std::vector<uint8_t> found_;

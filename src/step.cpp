@@ -71,7 +71,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     prepare(ctx);
     // impacts: successive stages of the rows approaching faster than the threshold
     ImpactSettings impacts{params.restitution_threshold, params.impact_stages,
-                           params.impact_sweeps, params.impact_converged};
+                           params.impact_sweeps, params.impact_converged, params.shock_ratio};
     resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
                     impact_work_);
     // from here on an impacted body's velocity is the one its pose travels with over the

@@ -473,8 +473,8 @@ def rolling() -> None:
                 spins.append(sim.state.angular[1, 2])
             t = np.arange(1, len(spins) + 1) / rate
             spins = np.array(spins)
-            keep = np.flatnonzero(spins > 0.1 * w0)[1:]    # while it spins
-            slope = np.polyfit(t[keep], spins[keep], 1)[0] if len(keep) > 1 else np.nan
+            keep = np.flatnonzero(spins > 0.1 * w0)    # while it spins, from the start
+            slope = np.polyfit(np.r_[0.0, t[keep]], np.r_[w0, spins[keep]], 1)[0]
             row('torsional friction', f'{rate:g} Hz, r {r}, mu_t {mu_t}',
                 f'decay {-slope:.3f} rad/s^2, law {law:.3f}, drift '
                 f'{np.linalg.norm(sim.state.linear[1]):.1e} m/s',

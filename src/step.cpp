@@ -156,14 +156,20 @@ void StepSolver::reference_frame(StepContext& ctx) {
     double at = detected ? c.toi[k] : 1.0;
     Vec3 point = load3(c.point + 3 * k), normal = load3(c.normal + 3 * k);
     Vec3 xa = load3(previous.position + 3 * a), xb = load3(previous.position + 3 * b);
-    // each lever to its own body's surface point (detection's point is midway between the
-    // two; a persistent contact's current poses overlap by -separation, at 30 Hz g dt^2 =
-    // 11 mm for a body at rest: from the midpoint a ball's lever was that half short, so
-    // its friction and spin rows saw it turn 5 % too slowly); the normal rows see no
-    // change (r x n is the same along n)
-    const Vec3 half = detected ? Vec3::Zero() : Vec3(0.5 * c.separation[k] * normal);
-    ra_[k] = point - half - (xa + at * (load3(current.position + 3 * a) - xa));
-    rb_[k] = point + half - (xb + at * (load3(current.position + 3 * b) - xb));
+    // against an immovable body the levers reach the movable body's own surface point
+    // (detection's point is midway between the two surfaces; a persistent contact's
+    // current poses overlap by -separation, at 30 Hz g dt^2 = 11 mm for a body resting on
+    // a floor: from the midpoint a ball's lever was that half short, so its friction and
+    // spin rows saw it turn 5 % too slowly). Two movable bodies keep one point for both
+    // (midway: equal and opposite impulses at one point keep the angular momentum). The
+    // normal rows see no change (r x n is the same along n)
+    if (!detected) {
+      const bool fixed_a = bodies.inv_mass[a] == 0.0, fixed_b = bodies.inv_mass[b] == 0.0;
+      if (fixed_a != fixed_b)
+        point += (fixed_a ? 0.5 : -0.5) * c.separation[k] * normal;
+    }
+    ra_[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
+    rb_[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
     // how far the two points closed over the step (m, from the poses: a step of several
     // periods that its source integrated is no straight line at the twist); a persistent
     // contact's gap at the previous state is its separation less that

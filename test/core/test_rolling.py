@@ -112,8 +112,8 @@ def test_a_ball_holds_on_a_slope_while_tan_is_at_most_mu_r_and_rolls_above(mu_r)
 @pytest.mark.parametrize('rate', [30.0, 240.0])
 def test_spin_about_the_normal_slows_at_the_torsional_friction_rate(rate):
     """At every rate, from the first step on. At 30 Hz (8ac80a2) it slowed 5 % too slowly
-    once the ball's contact was carried from the previous step: its lever (r in mu_t r N)
-    reached detection's point midway into the floor, g dt^2 / 2 short of the surface."""
+    from its first step: its lever (r in mu_t r N) reached detection's point midway into
+    the floor, g dt^2 / 2 (5.5 mm) short of the ball's surface."""
     mu_t, w0 = 0.05, 10.0
     initial = states([[0, 0, -0.1], [0, 0, R]], np.zeros((2, 3)), [[0, 0, 0], [0, 0, w0]])
     sim = Simulation([floor(mu_t=mu_t), ball(mu_t=mu_t)], initial, rate)

@@ -1313,11 +1313,88 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
   }
 }
 
+// The bodies' support in the impact stages (shock propagation): each body's touching
+// level, its distance from an immovable body over touching rows (no allowance: a
+// speculative row holds nothing yet), -1 where no chain of touching rows reaches one, and
+// per body its touching rows to a body one level below (what holds it up).
+struct ImpactSupport {
+  std::vector<int32_t> level, first, below, queue;
+
+  void find(const std::vector<ContactRow>& rows, const SolverBodies& bodies) {
+    const size_t n = static_cast<size_t>(bodies.count);
+    auto touching = [](const ContactRow& r) { return !(r.allowance > 0.0); };
+    // the touching rows' graph (CSR in `first` / `below`), breadth first from the
+    // immovable bodies in it
+    first.assign(n + 1, 0);
+    for (const ContactRow& r : rows)
+      if (touching(r)) {
+        ++first[static_cast<size_t>(r.a) + 1];
+        ++first[static_cast<size_t>(r.b) + 1];
+      }
+    for (size_t i = 0; i < n; ++i) first[i + 1] += first[i];
+    below.resize(static_cast<size_t>(first[n]));
+    queue.assign(first.begin(), first.end() - 1);   // fill cursor per body
+    for (size_t i = 0; i < rows.size(); ++i)
+      if (touching(rows[i])) {
+        below[static_cast<size_t>(queue[rows[i].a]++)] = static_cast<int32_t>(i);
+        below[static_cast<size_t>(queue[rows[i].b]++)] = static_cast<int32_t>(i);
+      }
+    level.assign(n, -1);
+    queue.clear();
+    for (size_t i = 0; i < n; ++i)
+      if (bodies.inv_mass[i] == 0.0 && first[i + 1] > first[i]) {
+        level[i] = 0;
+        queue.push_back(static_cast<int32_t>(i));
+      }
+    for (size_t head = 0; head < queue.size(); ++head) {
+      const int32_t i = queue[head];
+      for (int32_t k = first[i]; k < first[i + 1]; ++k) {
+        const ContactRow& r = rows[static_cast<size_t>(below[static_cast<size_t>(k)])];
+        const int32_t j = r.a == i ? r.b : r.a;
+        if (level[j] < 0) {
+          level[j] = level[i] + 1;
+          queue.push_back(j);
+        }
+      }
+    }
+  }
+
+  // Whether a stage's row `r` sees its lower body held: the lower body is supported
+  // (level >= 1), the upper one is not supported at the same or a lower level (free, or
+  // above it), the upper body is at least `ratio` times heavier, and the push on the
+  // lower body (along the row's normal, away from the upper body) lies inside the
+  // friction cone of one of the lower body's touching rows to the level below, so what
+  // holds the lower body up takes the push. A push outside every support's cone (a
+  // sideways hit) moves the lower body. `upper_b`: whether B is the upper body.
+  bool held(const ContactRow& r, const std::vector<ContactRow>& rows, double ratio,
+            bool& upper_b) const {
+    const int32_t la = level[r.a], lb = level[r.b];
+    if (la == lb || (la < 1 && lb < 1)) return false;
+    upper_b = la >= 1 && (lb < 0 || lb > la);
+    const int32_t low = upper_b ? r.a : r.b;
+    const double inv_upper = upper_b ? r.mb : r.ma, inv_lower = upper_b ? r.ma : r.mb;
+    if (level[low] < 1 || inv_upper == 0.0 || inv_lower == 0.0 || inv_upper * ratio > inv_lower)
+      return false;
+    const Vec3 push = upper_b ? Vec3(-r.n) : Vec3(r.n);
+    for (int32_t k = first[low]; k < first[low + 1]; ++k) {
+      const ContactRow& s = rows[static_cast<size_t>(below[static_cast<size_t>(k)])];
+      const int32_t other = s.a == low ? s.b : s.a;
+      if (level[other] != level[low] - 1) continue;
+      // the support's normal from the lower body into what holds it
+      const Vec3 into = s.a == low ? Vec3(s.n) : Vec3(-s.n);
+      const double along = dot(push, into);
+      if (along > 0.0 && length(push - along * into) <= s.mu * along) return true;
+    }
+    return false;
+  }
+};
+
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     const ImpactSettings& settings, std::vector<ContactRow>& scratch,
                     std::vector<Manifold>& blocks, std::vector<int32_t>& members,
                     std::vector<double>& work) {
   double* v = bodies.velocity;
+  ImpactSupport support;   // found when a first stage has rows
   int stage = 0;
   for (; stage < settings.stages; ++stage) {
     members.clear();
@@ -1329,6 +1406,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
         members.push_back(static_cast<int32_t>(i));
     }
     if (members.empty()) break;
+    if (stage == 0) support.find(rows, bodies);
     // the stage's rows (copies, in row order: a manifold's rows stay one block), from zero
     const size_t k = members.size();
     scratch.clear();
@@ -1343,6 +1421,22 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
       std::copy(v + 6 * c.b, v + 6 * c.b + 6, saved + 12 * j + 6);
       c.normal = c.tangent[0] = c.tangent[1] = 0.0;
       c.allowance = 0.0;          // a speculative row that closes bounces off its approach
+      bool upper_b = false;
+      if (support.held(c, rows, settings.shock_ratio, upper_b)) {
+        // the lower body held: the upper one stops (and bounces) on it in this stage,
+        // instead of passing a share m_light / m_heavy of its momentum per pair of
+        // stages down the chain. The lower body moving towards the upper one does not
+        // push it (no energy gain): only the upper body's own approach is stopped
+        const int32_t low = upper_b ? c.a : c.b;
+        const double towards = (upper_b ? 1.0 : -1.0) *
+                               (dot(lin(v, low), c.n) +
+                                dot(ang(v, low), upper_b ? c.ang_a[0] : c.ang_b[0]));
+        ContactRow held = c;
+        if (hold_lower(held, upper_b)) {
+          c = held;
+          c.allowance = std::max(towards, 0.0);
+        }
+      }
       row_velocity(c, v, &work[7 * j]);
       if (j == 0 || c.manifold != rows[members[j - 1]].manifold) {
         blocks.emplace_back();

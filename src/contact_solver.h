@@ -322,16 +322,27 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
 // gain energy): no stage gains energy for e <= 1, and with e = 1 and no friction none is
 // lost. Rows that a stage drives into approach take part in the next one, so a chain of
 // touching bodies passes an impact on as successive binary impacts (Newton's cradle).
-// Per-object restitution (e_A != e_B) is applied as given, without that bound. Stops when
-// no row approaches or after `stages` stages (the rest is left to the resting solve);
-// returns the stages done. A stage's rows of one manifold (ContactRow::manifold, rows of
-// a manifold consecutive) form one block. `scratch`, `blocks`, `members` and `work` are
-// scratch space.
+// Per-object restitution (e_A != e_B) is applied as given, without that bound. Shock
+// propagation: the bodies' touching levels are found (from the immovable bodies over the
+// rows without allowance: touching at the reference time); in a stage, a row whose lower
+// body is supported by such a chain, whose upper body is free or on a higher level and
+// at least `shock_ratio` times heavier, and whose push on the lower body lies inside the
+// friction cone of one of the lower body's touching rows to the level below (what holds
+// it up takes the push; a sideways hit moves it), sees the lower body as immovable and
+// stops the upper body's own approach only (the lower body moving towards it does not
+// push it). So a heavy body landing on a light one resting on the floor stops (and
+// bounces) in one stage instead of passing m_light / m_heavy of its momentum down per
+// pair of stages. Stops when no row approaches or after `stages` stages (the rest is
+// left to the resting solve); returns the stages done. A stage's rows of one manifold
+// (ContactRow::manifold, rows of a manifold consecutive) form one block. `scratch`,
+// `blocks`, `members` and `work` are scratch space.
 struct ImpactSettings {
   double threshold = 0.5;    // m/s: slower approaches do not bounce
   int stages = 64;           // most stages per step
   int sweeps = 100;          // most sequential-impulse sweeps per stage compression
   double converged = 1e-10;  // relative impulse change that ends a stage's compression
+  double shock_ratio = 4.0;  // a row's lower body is held under a body this many times
+                             // heavier (shock propagation, below)
 };
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     const ImpactSettings& settings, std::vector<ContactRow>& scratch,

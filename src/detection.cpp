@@ -911,11 +911,11 @@ void Detector::speculate(Lane& lane, int a, int b, const Vec3& normal, const Poi
     const BodyShape& sb = shapes_[b];
     if (!skip_known) lane.row_codes.clear();
     for (const auto& [height, k] : lane.heights) {
-      // a contact carried from the previous state (!skip_known) that the current poses
-      // overlap: the corner on the body, and the feature ids of a patch (its warm start
-      // carries over); else between the corner and the plane, beyond every patch feature
-      const bool carried = !skip_known && height < 0.0;
-      const Vec3 point = lane.corners[k] + (carried ? 0.0 : 0.5 * height) * towards;
+      // the point midway between the corner and the plane, as every contact's (the solver
+      // finds each body's own point from it and the separation); a contact carried from
+      // the previous state (!skip_known) gets the feature ids of a patch (its warm start
+      // carries over), else one beyond every patch feature
+      const Vec3 point = lane.corners[k] + 0.5 * height * towards;
       std::int64_t feature = 729 * 16 + 512 * side + k % 512 + kPiecePairFeature *
           (static_cast<std::int64_t>(sa.piece) * kMaxPieces + sb.piece);
       if (!skip_known) {

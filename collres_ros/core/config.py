@@ -220,9 +220,10 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               'Shock-propagation sweeps per level, from the ground up', 0, 1000,
               reason='two sweeps hold a heavy body on a light one in the step'),
     ParamSpec('shock_ratio', 'double', 4.0,
-              'Shock propagation treats a lower body as immovable only under a body at least '
-              'this many times heavier (or on an immovable one); so does the push-out, '
-              'which then moves the upper body only', 1.0, 1e12,
+              'Shock propagation (in the impact stages and the resting solve) treats a lower '
+              'body as immovable only under a body at least this many times heavier (or on '
+              'an immovable one); so does the push-out, which then moves the upper body '
+              'only', 1.0, 1e12,
               reason='a 1 kg box under 1000 kg is held in the step (0.04 mm in 10 s), while '
                      'a tower of equal cubes is left to the sweeps: shock propagation '
                      'between equal masses made 20 cubes collapse; a push-out shared by the '

@@ -73,7 +73,11 @@ class ContactSet:
     """Contact points found by the narrow phase, M of them, before solving.
 
     ``point`` is in the world frame at the contact configuration (the time of
-    impact for IMPACT/TUNNELLED contacts, the current state for PERSISTENT).
+    impact for IMPACT/TUNNELLED contacts, the current state for PERSISTENT), midway
+    between the two surfaces: for a PERSISTENT contact against an immovable body the
+    solver moves it to the movable body's own surface (``point - separation / 2 *
+    normal`` for A, ``point + separation / 2 * normal`` for B: friction's and the spin
+    rows' levers).
     ``separation`` is the signed gap along the normal at the current state
     (negative when penetrating, m); ``depth = max(0, -separation)``.
     ``toi`` is the time of impact as a fraction of the step in [0, 1]

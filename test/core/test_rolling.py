@@ -51,17 +51,24 @@ def rolling_speed(mu_r: float, v0: float, duration: float, rate: float = 240.0):
     return np.array(speeds), sim
 
 
+@pytest.mark.parametrize('rate', [30.0, 60.0, 240.0])
 @pytest.mark.parametrize('mu_r', [0.02, 0.1])
-def test_a_rolling_ball_slows_at_five_sevenths_mu_r_g(mu_r):
+def test_a_rolling_ball_slows_at_five_sevenths_mu_r_g(mu_r, rate):
+    """At every rate, from the first step on. At 30 and 60 Hz (8ac80a2) the ball slipped
+    (v - w r = -0.07 to -0.11 m/s at 30 Hz, from its first step) and its deceleration was
+    up to 2.4 % off the law: the friction rows' levers reached from the centre to
+    detection's point midway into the floor (the current poses overlap it by g dt^2, 11 mm
+    at 30 Hz), half that short of the ball's surface."""
     v0, duration = 2.0, 1.0
-    speeds, sim = rolling_speed(mu_r, v0, duration)
-    t = np.arange(1, len(speeds) + 1) / 240.0
-    keep = speeds > 0.05
-    slope = np.polyfit(t[keep][10:], speeds[keep][10:], 1)[0]
-    print('mu_r', mu_r, 'deceleration', -slope, 'law', 5 / 7 * mu_r * G)
-    assert -slope == pytest.approx(5.0 / 7.0 * mu_r * G, rel=0.03)
+    speeds, sim = rolling_speed(mu_r, v0, duration, rate)
+    t = np.arange(1, len(speeds) + 1) / rate
+    slope = np.polyfit(np.r_[0.0, t], np.r_[v0, speeds], 1)[0]
+    slip = sim.state.linear[1, 0] - sim.state.angular[1, 1] * R
+    print('mu_r', mu_r, 'at', rate, 'Hz: deceleration', -slope, 'law', 5 / 7 * mu_r * G,
+          'slip', slip)
+    assert -slope == pytest.approx(5.0 / 7.0 * mu_r * G, rel=0.01)
     # still rolling without slip: v = w r
-    assert abs(sim.state.linear[1, 0] - sim.state.angular[1, 1] * R) < 0.005 * v0
+    assert abs(slip) < 0.005 * v0
 
 
 def test_a_ball_on_a_flat_floor_still_rolls_with_the_defaults():
@@ -102,25 +109,37 @@ def test_a_ball_holds_on_a_slope_while_tan_is_at_most_mu_r_and_rolls_above(mu_r)
     assert rolled == pytest.approx(expected, rel=0.1)
 
 
-def test_spin_about_the_normal_slows_at_the_torsional_friction_rate():
+@pytest.mark.parametrize('rate', [30.0, 240.0])
+def test_spin_about_the_normal_slows_at_the_torsional_friction_rate(rate):
+    """At every rate, from the first step on. At 30 Hz (8ac80a2) it slowed 5 % too slowly
+    from its first step: its lever (r in mu_t r N) reached detection's point midway into
+    the floor, g dt^2 / 2 (5.5 mm) short of the ball's surface."""
     mu_t, w0 = 0.05, 10.0
     initial = states([[0, 0, -0.1], [0, 0, R]], np.zeros((2, 3)), [[0, 0, 0], [0, 0, w0]])
-    sim = Simulation([floor(mu_t=mu_t), ball(mu_t=mu_t)], initial, 240.0)
+    sim = Simulation([floor(mu_t=mu_t), ball(mu_t=mu_t)], initial, rate)
+    steps = int(0.5 * rate)
     spins = []
-    for _ in range(120):
+    for _ in range(steps):
         sim.step()
         spins.append(sim.state.angular[1, 2])
-    t = np.arange(1, 121) / 240.0
-    slope = np.polyfit(t[10:], np.array(spins)[10:], 1)[0]
+    t = np.arange(1, steps + 1) / rate
+    slope = np.polyfit(np.r_[0.0, t], np.r_[w0, spins], 1)[0]
     law = mu_t * R * G / (0.4 * R * R)
-    print('spin deceleration', -slope, 'law', law)
-    assert -slope == pytest.approx(law, rel=0.03)
+    print('at', rate, 'Hz: spin deceleration', -slope, 'law', law)
+    assert -slope == pytest.approx(law, rel=0.01)
     assert np.linalg.norm(sim.state.linear[1]) < 1e-6     # spinning on the spot
 
 
-def test_without_rolling_resistance_a_ball_rolls_on():
-    speeds, _ = rolling_speed(0.0, 2.0, 0.5)
-    assert speeds[-1] == pytest.approx(speeds[0], abs=1e-9)
+@pytest.mark.parametrize('rate', [30.0, 240.0])
+def test_without_rolling_resistance_a_ball_rolls_on(rate):
+    """At v0, without slip (at 30 Hz on 8ac80a2 its first step slowed it to 0.983 v0 and
+    left it slipping at -0.057 v0: the friction rows' levers half an overlap short)."""
+    v0 = 2.0
+    speeds, sim = rolling_speed(0.0, v0, 0.5, rate)
+    slip = sim.state.linear[1, 0] - sim.state.angular[1, 1] * R
+    print('at', rate, 'Hz: speeds', speeds[0], speeds[-1], 'slip', slip)
+    assert speeds == pytest.approx(v0, abs=1e-9)
+    assert abs(slip) < 1e-9
 
 
 @pytest.mark.slow

@@ -16,10 +16,9 @@ processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
   (``--modes``): ``estimator``, the settled pile as an estimator measures it at rest
   (its poses, zero twists: ``input_bytes``) as pre-serialised
   BodyStateArray bytes with a new stamp each step, inputs independent of the
-  answers; ``simulator``, as ``collres_sim --realtime`` drives the node: each input the
-  previous step's answer integrated one step (semi-implicit Euler with gravity) when that
-  answer came before the step was due, else the previous input integrated one step (a late
-  answer is never adopted: see ``Inputs``); ``per_body``, the
+  answers; ``simulator``, each input the latest answer integrated (semi-implicit Euler with
+  gravity, collres_sim's integrator) from its stamp to the input's (see ``Inputs``);
+  ``per_body``, the
   estimator's inputs as ``bodies/<name>/pose`` and ``twist`` messages (the
   node steps once every body has both). First lock-step
   (publish, wait for the answer, repeat: the highest rate the node sustains),
@@ -63,11 +62,11 @@ needs ~42 at 30 Hz), and the paced run then measured the awake solver (an awake 
 step at 30 Hz costs more than the 33 ms period, and the node never caught up). The row's
 ``lock-step`` cell says how many steps that took and whether the pile was still.
 
-In simulator mode one late answer wakes the asleep pile: the next input is the simulator's
-own state integrated twice from the last answer (every body 3 g dt^2 below its rest, at
-2 g dt), and the core wakes the islands it touches (in-process, 100 bodies at 100 Hz: kinetic
-energy 0 -> 0.007 J, bodies at up to 4 cm/s, not asleep again 1 s later); at 1000 bodies
-an awake step costs more than the 30 Hz period, so the node then stays behind. The core's
+In simulator mode one late answer wakes the asleep pile: the next input is the last answer
+integrated two steps (every body 3 g dt^2 below its rest, at 2 g dt), and the core wakes
+the islands it touches (in-process, 100 bodies at 100 Hz: kinetic energy 0 -> 0.007 J,
+bodies at up to 4 cm/s, not asleep again 1 s later); at 1000 bodies an awake step costs
+more than the 30 Hz period, so the node then stays behind. The core's
 matter (issue 14); the row's ``asleep`` says how the run ended.
 
 An input the node drops (it was behind) is no fresh start: the next
@@ -199,60 +198,52 @@ def ros_env(domain: int) -> dict[str, str]:
 # --- the publisher process ----------------------------------------------------------------------
 
 class Inputs:
-    """The publisher's next input: the template with a new stamp (estimator), or, as
-    ``collres_sim --realtime`` builds it (simulator), the previous step's answer integrated
-    one step when that answer came before this step was due, else the previous input (the
-    simulator's own, uncorrected state) integrated one step.
+    """The publisher's next input: the template with a new stamp (estimator), or
+    (simulator) the latest answer received integrated from its stamp to the input's: n
+    steps of the period when it is n steps old (the template, before any answer: one).
 
-    Not the latest answer whatever its age (this bench's rule before): a simulator that
-    adopts an answer n steps old and integrates it one step under a stamp n steps later
-    sends a state whose time is wrong by n - 1 steps. For a pile still settling that state
-    puts every moving body back where it was n steps ago: the node sees the bodies moved
-    back and corrects towards that, and the older the answers the more energy goes in. In
-    1000 @ 30 runs whose lock-step ended before the pile slept (17 awake steps, 4441640,
-    load 1.7-1.9) the answers fell 5-20 steps behind and, replayed in-process, the pile's
-    kinetic energy rose from 0.0014 J (step 25, the input built from the answer one step
-    old) to 0.1 J (step 36, 7 steps old) and 1-8 J (15-20 steps old): it never slept, 141 of
-    600 inputs answered. collres_sim never adopts a late answer."""
+    Not the latest answer integrated one step whatever its age (this bench's rule before):
+    that state's time is wrong by n - 1 steps. For a pile still settling it puts every
+    moving body back where it was n - 1 steps ago; the node sees the bodies moved back and
+    corrects towards that, and the older the answers the more energy goes in. In 1000 @ 30
+    runs whose lock-step ended before the pile slept (17 awake steps, 4441640, load 1.7-1.9)
+    the answers fell 5-20 steps behind and, replayed in-process, the pile's kinetic energy
+    rose from 0.0014 J (step 25, the input built from the answer one step old) to 0.1 J
+    (step 36, 7 steps old) and 1-8 J (15-20 steps old): it never slept, 141 of 600 inputs
+    answered. Nor ``collres_sim --realtime``'s rule (a late answer never adopted, the step
+    goes on with the simulator's own state): once the node is behind by a step, every
+    answer comes late, the simulator's bodies fall freely for good and the node is fed a
+    pile sinking through its floor (100 @ 100: 2312 of 3000 inputs unanswered, World.step
+    26 ms of CPU where an awake step takes 2). An answer n steps old integrated n steps is
+    a state of the input's time: at most n steps of free fall from the last correction."""
 
     def __init__(self, template: bytes, mode: str, dt: float) -> None:
         from collres_ros.ros.codec import StatesCodec
         self.template, self.mode, self.dt = bytearray(template), mode, dt
+        self.period = int(round(dt * 1e9))
         self.codec = StatesCodec()
-        self.answers: dict[int, bytes] = {}   # answers received, by stamp (simulator)
-        self.previous: tuple[int, bytes] | None = None   # the last input sent (simulator)
-        # what the last input was built from: (stamp, whether it was the previous input
-        # (the simulator's own state) rather than an answer); (0, False): the template
-        self.base: tuple[int, bool] = (0, False)
+        self.latest: bytes = bytes(template)   # the last answer (simulator)
+        self.base = 0   # the stamp of that answer (simulator; 0: none yet, the template)
 
     def answer(self, data: bytes) -> None:
         if self.mode == 'simulator':
-            self.answers[stamp_of(data)] = bytes(data)
+            self.latest, self.base = bytes(data), stamp_of(data)
 
     def next(self, stamp: int) -> bytes:
-        if self.mode != 'simulator':
-            return self.from_answer(stamp, b'')
-        if self.previous is None:
-            self.base, source = (0, False), bytes(self.template)
-        elif self.previous[0] in self.answers:
-            self.base, source = (self.previous[0], False), self.answers[self.previous[0]]
-        else:   # no answer in time: the simulator goes on with its own state
-            self.base, source = (self.previous[0], True), self.previous[1]
-        self.answers.clear()   # an answer that comes later is not adopted
-        data = self.from_answer(stamp, source)
-        self.previous = (stamp, data)
-        return data
+        return self.from_answer(stamp, self.latest, self.base)
 
-    def from_answer(self, stamp: int, answer: bytes) -> bytes:
-        """The input at ``stamp`` built from ``answer`` (an answer, or the previous input:
-        a BodyStateArray one step before ``stamp``)."""
+    def from_answer(self, stamp: int, answer: bytes, base: int) -> bytes:
+        """The input at ``stamp`` built from ``answer``, the answer of stamp ``base`` (0:
+        the template, one step before)."""
         if self.mode in ('estimator', 'per_body'):
             return with_stamp(self.template, stamp)
         from collres_ros.ros.messages import state_values, states_of
         decoded = self.codec.decode(answer)
         states = states_of(decoded.values)
-        current = integrate(states, np.ones(len(decoded.names), bool), self.dt)
-        return self.codec.encode(stamp, decoded.frame_id, decoded.names, state_values(current))
+        dynamic = np.ones(len(decoded.names), bool)
+        for _ in range(max(1, round((stamp - base) / self.period) if base else 1)):
+            states = integrate(states, dynamic, self.dt)
+        return self.codec.encode(stamp, decoded.frame_id, decoded.names, state_values(states))
 
 
 def at_rest(answer: bytes) -> bool:
@@ -328,8 +319,7 @@ def publisher(args: argparse.Namespace) -> int:
                                       for p in inputs_of), 60.0):
             raise RuntimeError('no subscriber of the inputs')
         stamp = T0
-        # every input sent: (stamp, (the stamp of what it was built from, whether that was
-        # the previous input rather than its answer))
+        # every input sent: (stamp, the stamp of the answer it was integrated from)
         result['inputs'] = sent_inputs = []
         # lock-step: the next step as soon as the previous one is answered, for --lockstep s
         # and then (--until-rest) until an answer holds every body still, the pile asleep
@@ -671,12 +661,12 @@ def in_process(count: int, rate: float, mode: str, scene: Path, sent: list[Any],
     as the node took them; this process sleeps in between).
 
     The scene read back from the params file into a ``Resolver`` as the node builds it, and
-    the node's own steps: every input the publisher sent (``sent``: in order, each with what
-    it was built from), rebuilt by the publisher's rule (``Inputs``) from this process's
-    answer of that stamp or from the input before it, and stepped when the node answered it
-    (``stepped``: the stamps answered): the same stamps, so the same dt and the same long
-    steps across the inputs it never took. The core is deterministic, so these are the
-    node's steps; what the node's ``time.world_ms`` adds to them, the live run adds.
+    the node's own steps: every input the publisher sent (``sent``: in order, each with the
+    stamp of the answer it was built from) that the node answered (``stepped``), rebuilt by
+    the publisher's rule (``Inputs``) from this process's answer of that stamp: the same
+    stamps, so the same dt and the same long steps across the inputs it never took. The
+    core is deterministic, so these are the node's steps; what the node's
+    ``time.world_ms`` adds to them, the live run adds.
 
     Paced, the same steps cost more CPU than back to back, in this process, on one thread:
     at 100 bodies (a settled pile, 100 Hz, load 2.5) 0.85-0.98 ms against 0.33 ms with the
@@ -698,8 +688,7 @@ def in_process(count: int, rate: float, mode: str, scene: Path, sent: list[Any],
                                          resolver.bodies)
         inputs = Inputs((scene.parent / f'input{count}.cdr').read_bytes(), mode,
                         int(round(1e9 / rate)) * 1e-9)   # the publisher's period
-        answer: tuple[int, bytes] = (0, bytes(inputs.template))   # 0: no answer yet
-        previous: tuple[int, bytes] = (0, b'')   # the input before
+        answers: dict[int, bytes] = {0: bytes(inputs.template)}   # 0: no answer yet
         world_step = resolver.world.step
         wall, cpu = [], []
 
@@ -710,20 +699,21 @@ def in_process(count: int, rate: float, mode: str, scene: Path, sent: list[Any],
             return result
         resolver.world.step = timed   # type: ignore[method-assign]
         begun = time.perf_counter()
-        for stamp, (base, own) in sent:
-            source = previous if own else answer
-            if mode == 'simulator' and source[0] != base:   # an answer the node never gave
-                return float('nan'), float('nan')
-            previous = (stamp, inputs.from_answer(stamp, source[1]))
+        for stamp, base in sent:
             if stamp not in stepped:
                 continue
+            if base not in answers:   # built from an answer the node never gave
+                return float('nan'), float('nan')
+            data = inputs.from_answer(stamp, answers[base], base)
+            for old in [s for s in answers if s < base]:   # bases only grow
+                del answers[old]
             if paced and stamp in measured:   # the measured steps, one per period
                 time.sleep(max(0.0, period - (time.perf_counter() - begun)))
             begun = time.perf_counter()
-            decoded = inputs.codec.decode(previous[1])
+            decoded = inputs.codec.decode(data)
             step = resolver.resolve(stamp, InputBatch(decoded.names, decoded.values,
                                                       decoded.frame_id, decoded.frame_id))
-            answer = (stamp, encoder.corrected(step))
+            answers[stamp] = encoder.corrected(step)
             wall.append(step.world_time_s)
         return 1e3 * float(np.median(wall[-last:])), 1e3 * float(np.median(cpu[-last:]))
     wall, cpu = replay(False)

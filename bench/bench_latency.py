@@ -67,7 +67,7 @@ integrated two steps (every body 3 g dt^2 below its rest, at 2 g dt), and the co
 the islands it touches (in-process, 100 bodies at 100 Hz: kinetic energy 0 -> 0.007 J,
 bodies at up to 4 cm/s, not asleep again 1 s later); at 1000 bodies an awake step costs
 more than the 30 Hz period, so the node then stays behind. The core's
-matter (issue 14); the row's ``asleep`` says how the run ended.
+matter (its solver's speed and its sleep); the row's ``asleep`` says how the run ended.
 
 An input the node drops (it was behind) is no fresh start: the next
 answered step spans the time since the last answered one (up to ``max_dt``), its warm start

@@ -16,9 +16,8 @@ processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
   (``--modes``): ``estimator``, the settled pile as an estimator measures it at rest
   (its poses, zero twists: ``input_bytes``) as pre-serialised
   BodyStateArray bytes with a new stamp each step, inputs independent of the
-  answers; ``simulator``, each input the latest answer integrated (semi-implicit Euler with
-  gravity, collres_sim's integrator) from its stamp to the input's (see ``Inputs``);
-  ``per_body``, the
+  answers; ``simulator``, each input the latest answer integrated one step (semi-implicit
+  Euler with gravity, collres_sim's integrator; see ``Inputs``); ``per_body``, the
   estimator's inputs as ``bodies/<name>/pose`` and ``twist`` messages (the
   node steps once every body has both). First lock-step
   (publish, wait for the answer, repeat: the highest rate the node sustains),
@@ -62,7 +61,8 @@ needs ~42 at 30 Hz), and the paced run then measured the awake solver (an awake 
 step at 30 Hz costs more than the 33 ms period, and the node never caught up). The row's
 ``lock-step`` cell says how many steps that took and whether the pile was still.
 
-In simulator mode one late answer wakes the asleep pile: the next input is the last answer
+A simulator that integrates its own state when an answer is late (collres_sim
+--realtime) wakes the asleep pile with one late answer: its next input is the last answer
 integrated two steps (every body 3 g dt^2 below its rest, at 2 g dt), and the core wakes
 the islands it touches (in-process, 100 bodies at 100 Hz: kinetic energy 0 -> 0.007 J,
 bodies at up to 4 cm/s, not asleep again 1 s later); at 1000 bodies an awake step costs
@@ -199,28 +199,32 @@ def ros_env(domain: int) -> dict[str, str]:
 
 class Inputs:
     """The publisher's next input: the template with a new stamp (estimator), or
-    (simulator) the latest answer received integrated from its stamp to the input's: n
-    steps of the period when it is n steps old (the template, before any answer: one).
+    (simulator) the latest answer received integrated one step under the new stamp, as a
+    simulator that takes the last correction it has for its state and steps it does.
 
-    Not the latest answer integrated one step whatever its age (this bench's rule before):
-    that state's time is wrong by n - 1 steps. For a pile still settling it puts every
-    moving body back where it was n - 1 steps ago; the node sees the bodies moved back and
-    corrects towards that, and the older the answers the more energy goes in. In 1000 @ 30
-    runs whose lock-step ended before the pile slept (17 awake steps, 4441640, load 1.7-1.9)
-    the answers fell 5-20 steps behind and, replayed in-process, the pile's kinetic energy
-    rose from 0.0014 J (step 25, the input built from the answer one step old) to 0.1 J
-    (step 36, 7 steps old) and 1-8 J (15-20 steps old): it never slept, 141 of 600 inputs
-    answered. Nor ``collres_sim --realtime``'s rule (a late answer never adopted, the step
-    goes on with the simulator's own state): once the node is behind by a step, every
-    answer comes late, the simulator's bodies fall freely for good and the node is fed a
-    pile sinking through its floor (100 @ 100: 2312 of 3000 inputs unanswered, World.step
-    26 ms of CPU where an awake step takes 2). An answer n steps old integrated n steps is
-    a state of the input's time: at most n steps of free fall from the last correction."""
+    Its state's time is wrong by n - 1 steps when the answer is n steps old: for a pile
+    still settling that puts every moving body back where it was, the node corrects
+    towards it, and the older the answers the more energy goes in. In 1000 @ 30 runs whose
+    lock-step ended before the pile slept (17 awake steps, load 1.7-1.9) the answers fell
+    5-20 steps behind and, replayed in-process, the pile's kinetic energy rose from 0.0014 J
+    (step 25, the input built from the answer one step old) to 0.1 J (step 36, 7 steps old)
+    and 1-8 J (15-20 steps old): it never slept, 141 of 600 inputs answered. Hence the
+    lock-step until the pile is still (``--until-rest``): an asleep pile's answers are all
+    the same, and so are the inputs built from any of them.
+
+    The time-consistent rules were tried and are worse at rest: each makes a late answer a
+    free fall, without collisions, of as many steps as the answer is late, and one late
+    answer (two steps of fall) wakes the asleep pile (the core's sleep), whose awake steps
+    then fall behind, so that the next answers are later still. ``collres_sim
+    --realtime``'s rule (a late answer never adopted, the step goes on with the simulator's
+    own state): 100 @ 100, 2312 of 3000 inputs unanswered, ``World.step`` 26 ms of CPU
+    where an awake step takes 2; the latest answer integrated to the input's stamp: the
+    same, the lag 1 -> 4 -> 9 steps within 1 s of the first late answer (a virtual-time
+    replay in-process), and a 30 s run at 100 @ 100 that had not ended after 5 minutes."""
 
     def __init__(self, template: bytes, mode: str, dt: float) -> None:
         from collres_ros.ros.codec import StatesCodec
         self.template, self.mode, self.dt = bytearray(template), mode, dt
-        self.period = int(round(dt * 1e9))
         self.codec = StatesCodec()
         self.latest: bytes = bytes(template)   # the last answer (simulator)
         self.base = 0   # the stamp of that answer (simulator; 0: none yet, the template)
@@ -230,20 +234,17 @@ class Inputs:
             self.latest, self.base = bytes(data), stamp_of(data)
 
     def next(self, stamp: int) -> bytes:
-        return self.from_answer(stamp, self.latest, self.base)
+        return self.from_answer(stamp, self.latest)
 
-    def from_answer(self, stamp: int, answer: bytes, base: int) -> bytes:
-        """The input at ``stamp`` built from ``answer``, the answer of stamp ``base`` (0:
-        the template, one step before)."""
+    def from_answer(self, stamp: int, answer: bytes) -> bytes:
+        """The input at ``stamp`` when ``answer`` is the last answer the publisher has."""
         if self.mode in ('estimator', 'per_body'):
             return with_stamp(self.template, stamp)
         from collres_ros.ros.messages import state_values, states_of
         decoded = self.codec.decode(answer)
         states = states_of(decoded.values)
-        dynamic = np.ones(len(decoded.names), bool)
-        for _ in range(max(1, round((stamp - base) / self.period) if base else 1)):
-            states = integrate(states, dynamic, self.dt)
-        return self.codec.encode(stamp, decoded.frame_id, decoded.names, state_values(states))
+        current = integrate(states, np.ones(len(decoded.names), bool), self.dt)
+        return self.codec.encode(stamp, decoded.frame_id, decoded.names, state_values(current))
 
 
 def at_rest(answer: bytes) -> bool:
@@ -704,7 +705,7 @@ def in_process(count: int, rate: float, mode: str, scene: Path, sent: list[Any],
                 continue
             if base not in answers:   # built from an answer the node never gave
                 return float('nan'), float('nan')
-            data = inputs.from_answer(stamp, answers[base], base)
+            data = inputs.from_answer(stamp, answers[base])
             for old in [s for s in answers if s < base]:   # bases only grow
                 del answers[old]
             if paced and stamp in measured:   # the measured steps, one per period

@@ -16,8 +16,8 @@ processes talk over real DDS on localhost in a private ROS_DOMAIN_ID:
   (``--modes``): ``estimator``, the settled pile as an estimator measures it at rest
   (its poses, zero twists: ``input_bytes``) as pre-serialised
   BodyStateArray bytes with a new stamp each step, inputs independent of the
-  answers; ``simulator``, each input the latest answer integrated one step
-  (semi-implicit Euler with gravity, as collres_sim does); ``per_body``, the
+  answers; ``simulator``, each input the latest answer integrated one step (semi-implicit
+  Euler with gravity, collres_sim's integrator; see ``Inputs``); ``per_body``, the
   estimator's inputs as ``bodies/<name>/pose`` and ``twist`` messages (the
   node steps once every body has both). First lock-step
   (publish, wait for the answer, repeat: the highest rate the node sustains),
@@ -53,9 +53,23 @@ callback split comes from its ``/diagnostics`` values:
 ``--sleeping``: the node runs with ``solver.sleeping`` on (the default) and/or off (every
 step detected and solved); the row says which, and how many bodies the node's last
 /diagnostics reported asleep. The pile falls asleep in the lock-step run once the node has
-answered ``time_to_sleep`` (0.5 s) of stamps of a still pile, 50 steps at 100 Hz: give
-1000 bodies a ``--settle`` that brings them to rest (3 s) and a ``--lockstep`` long enough
-for 50 awake steps. An input the node drops (it was behind) is no fresh start: the next
+answered ``time_to_sleep`` (0.5 s) of stamps of a still pile, 50 steps at 100 Hz; with
+sleeping on, the lock-step goes on past ``--lockstep`` until an answer holds every body
+still (``--until-rest``), so the paced run measures the settled, asleep pile: a lock-step of
+fixed wall time ended, on a loaded machine, after 17-82 awake 1000-body steps (the pile
+needs ~42 at 30 Hz), and the paced run then measured the awake solver (an awake 1000-body
+step at 30 Hz costs more than the 33 ms period, and the node never caught up). The row's
+``lock-step`` cell says how many steps that took and whether the pile was still.
+
+A simulator that integrates its own state when an answer is late (collres_sim
+--realtime) wakes the asleep pile with one late answer: its next input is the last answer
+integrated two steps (every body 3 g dt^2 below its rest, at 2 g dt), and the core wakes
+the islands it touches (in-process, 100 bodies at 100 Hz: kinetic energy 0 -> 0.007 J,
+bodies at up to 4 cm/s, not asleep again 1 s later); at 1000 bodies an awake step costs
+more than the 30 Hz period, so the node then stays behind. The core's
+matter (its solver's speed and its sleep); the row's ``asleep`` says how the run ended.
+
+An input the node drops (it was behind) is no fresh start: the next
 answered step spans the time since the last answered one (up to ``max_dt``), its warm start
 follows the load that step carries, and a pile can fall asleep, and stays asleep, across it.
 
@@ -184,8 +198,29 @@ def ros_env(domain: int) -> dict[str, str]:
 # --- the publisher process ----------------------------------------------------------------------
 
 class Inputs:
-    """The publisher's next input: the template with a new stamp (estimator), or the latest
-    answer integrated one step (simulator: each input from its last answer)."""
+    """The publisher's next input: the template with a new stamp (estimator), or
+    (simulator) the latest answer received integrated one step under the new stamp, as a
+    simulator that takes the last correction it has for its state and steps it does.
+
+    Its state's time is wrong by n - 1 steps when the answer is n steps old: for a pile
+    still settling that puts every moving body back where it was, the node corrects
+    towards it, and the older the answers the more energy goes in. In 1000 @ 30 runs whose
+    lock-step ended before the pile slept (17 awake steps, load 1.7-1.9) the answers fell
+    5-20 steps behind and, replayed in-process, the pile's kinetic energy rose from 0.0014 J
+    (step 25, the input built from the answer one step old) to 0.1 J (step 36, 7 steps old)
+    and 1-8 J (15-20 steps old): it never slept, 141 of 600 inputs answered. Hence the
+    lock-step until the pile is still (``--until-rest``): an asleep pile's answers are all
+    the same, and so are the inputs built from any of them.
+
+    The time-consistent rules were tried and are worse at rest: each makes a late answer a
+    free fall, without collisions, of as many steps as the answer is late, and one late
+    answer (two steps of fall) wakes the asleep pile (the core's sleep), whose awake steps
+    then fall behind, so that the next answers are later still. ``collres_sim
+    --realtime``'s rule (a late answer never adopted, the step goes on with the simulator's
+    own state): 100 @ 100, 2312 of 3000 inputs unanswered, ``World.step`` 26 ms of CPU
+    where an awake step takes 2; the latest answer integrated to the input's stamp: the
+    same, the lag 1 -> 4 -> 9 steps within 1 s of the first late answer (a virtual-time
+    replay in-process), and a 30 s run at 100 @ 100 that had not ended after 5 minutes."""
 
     def __init__(self, template: bytes, mode: str, dt: float) -> None:
         from collres_ros.ros.codec import StatesCodec
@@ -210,6 +245,14 @@ class Inputs:
         states = states_of(decoded.values)
         current = integrate(states, np.ones(len(decoded.names), bool), self.dt)
         return self.codec.encode(stamp, decoded.frame_id, decoded.names, state_values(current))
+
+
+def at_rest(answer: bytes) -> bool:
+    """Whether a ``body_states/corrected`` answer holds every body still (zero twists: the
+    node answers an asleep body with its held state)."""
+    from collres_ros.ros.codec import StatesCodec
+    values = StatesCodec().decode(answer).values
+    return len(values) > 0 and not values[:, 7:13].any()
 
 
 def publisher(args: argparse.Namespace) -> int:
@@ -253,9 +296,11 @@ def publisher(args: argparse.Namespace) -> int:
                     t.publish(twist)
         pub = Split()
     answered: dict[int, int] = {}
+    last_answer = [b'']
 
     def on_answer(data: bytes) -> None:
         answered.setdefault(stamp_of(data), time.monotonic_ns())
+        last_answer[0] = data
         inputs.answer(data)
     node.create_subscription(BodyStateArray, 'body_states/corrected', on_answer, qos, raw=True)
     executor = SingleThreadedExecutor()
@@ -277,10 +322,12 @@ def publisher(args: argparse.Namespace) -> int:
         stamp = T0
         # every input sent: (stamp, the stamp of the answer it was integrated from)
         result['inputs'] = sent_inputs = []
-        # lock-step: the next step as soon as the previous one is answered
-        times, lost = [], 0
+        # lock-step: the next step as soon as the previous one is answered, for --lockstep s
+        # and then (--until-rest) until an answer holds every body still, the pile asleep
+        times, lost, still = [], 0, False
         lock_end = time.monotonic() + args.lockstep
-        while time.monotonic() < lock_end:
+        while time.monotonic() < lock_end or (
+                not still and time.monotonic() < lock_end + args.until_rest):
             stamp += period
             data = inputs.next(stamp)
             sent_inputs.append((stamp, inputs.base))
@@ -288,10 +335,11 @@ def publisher(args: argparse.Namespace) -> int:
             pub.publish(data)
             if spin_until(lambda: stamp in answered, 5.0):
                 times.append(answered[stamp] - sent)
+                still = args.until_rest > 0 and at_rest(last_answer[0])
             else:
                 lost += 1
         warm = times[len(times) // 5:] or times
-        result['lockstep'] = {'steps': len(times), 'lost': lost,
+        result['lockstep'] = {'steps': len(times), 'lost': lost, 'still': still,
                               'rate_hz': 1e9 / float(np.mean(warm)) if warm else 0.0,
                               'p50_ms': float(np.percentile(warm, 50)) / 1e6 if warm else 0.0}
         spin_until(lambda: False, 0.5)   # drain
@@ -315,6 +363,7 @@ def publisher(args: argparse.Namespace) -> int:
             sending.append(time.monotonic_ns() - sent_at[stamp])
         spin_until(lambda: all(s in answered for s in sent_at), 5.0)
         result['sent'] = {str(s): t for s, t in sent_at.items()}
+        result['answered'] = list(answered)
         result['send_ms'] = [float(np.percentile(sending, q)) / 1e6 for q in (50, 99)]
         result['publish_late_ms'] = (time.monotonic_ns() - begin) / 1e6 - args.duration * 1e3
     finally:
@@ -551,8 +600,10 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
                 [sys.executable, __file__, '--role', 'publisher', '--bytes', str(data),
                  '--rate', str(rate), '--duration', str(args.duration), '--lockstep',
                  str(args.lockstep), '--domain', str(args.domain), '--out', str(out),
-                 '--mode', mode], env=env, stdout=log, stderr=subprocess.STDOUT)
-        pub.wait(timeout=args.duration + args.lockstep + 300)
+                 '--mode', mode, '--until-rest',
+                 str(args.until_rest if server == 'node' and sleeping == 'on' else 0.0)],
+                env=env, stdout=log, stderr=subprocess.STDOUT)
+        pub.wait(timeout=args.duration + args.lockstep + args.until_rest + 300)
         result = json.loads(out.read_text())
         paced_from = min(int(t) for t in result['sent'].values())
         if server == 'node':
@@ -589,9 +640,11 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
             'contacts_msgs': listener.counts['contacts'],
             'markers_msgs': listener.counts['contact_markers'],
             'timings': timings, 'lock_timings': lock_timings, 'queued_max_ms': queued_max,
-            # the node's steps: every input it answered, in order, with the answer it was
-            # built from (an input lost in the node's queue was never stepped)
-            'stepped': [(s, base) for s, base in result['inputs'] if s in listener.arrived]}
+            # every input sent, in order, with what it was built from, and the node's steps:
+            # the inputs it answered (received here or by the publisher; an input lost in
+            # the node's queue was never stepped)
+            'inputs': result['inputs'],
+            'stepped': set(listener.arrived) | set(result.get('answered', []))}
 
 
 def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) -> None:
@@ -602,19 +655,19 @@ def prepare(count: int, rate: float, args: argparse.Namespace, workdir: Path) ->
     (workdir / f'input{count}.cdr').write_bytes(input_bytes(bodies, state))
 
 
-def in_process(count: int, rate: float, mode: str, scene: Path,
-               stepped: list[tuple[int, int]], last: int) -> tuple[float, float, float]:
+def in_process(count: int, rate: float, mode: str, scene: Path, sent: list[Any],
+               stepped: set[int], last: int) -> tuple[float, float, float]:
     """(wall, CPU, paced CPU) median ms of World.step over the ``last`` of the node's steps,
     stepped again in this process: back to back, and paced (one step per period of ``rate``,
     as the node took them; this process sleeps in between).
 
     The scene read back from the params file into a ``Resolver`` as the node builds it, and
-    the node's own steps (``stepped``: every input it answered, in order, with the stamp of
-    the answer the publisher had built it from): the same stamps, so the same dt and the
-    same long steps across the inputs it never took, and each input built by the
-    publisher's rule (``Inputs``) from this process's answer of that stamp. The core is
-    deterministic, so these are the node's steps; what the node's ``time.world_ms`` adds
-    to them, the live run adds.
+    the node's own steps: every input the publisher sent (``sent``: in order, each with the
+    stamp of the answer it was built from) that the node answered (``stepped``), rebuilt by
+    the publisher's rule (``Inputs``) from this process's answer of that stamp: the same
+    stamps, so the same dt and the same long steps across the inputs it never took. The
+    core is deterministic, so these are the node's steps; what the node's
+    ``time.world_ms`` adds to them, the live run adds.
 
     Paced, the same steps cost more CPU than back to back, in this process, on one thread:
     at 100 bodies (a settled pile, 100 Hz, load 2.5) 0.85-0.98 ms against 0.33 ms with the
@@ -628,6 +681,7 @@ def in_process(count: int, rate: float, mode: str, scene: Path,
     if not last:
         return float('nan'), float('nan'), float('nan')
     period = 1.0 / rate
+    measured = set(sorted(s for s, _ in sent if s in stepped)[-last:])
 
     def replay(paced: bool) -> tuple[float, float]:
         resolver = Resolver.for_scene(params.load_scene(scene))
@@ -635,7 +689,6 @@ def in_process(count: int, rate: float, mode: str, scene: Path,
                                          resolver.bodies)
         inputs = Inputs((scene.parent / f'input{count}.cdr').read_bytes(), mode,
                         int(round(1e9 / rate)) * 1e-9)   # the publisher's period
-        needed = {base for _, base in stepped}
         answers: dict[int, bytes] = {0: bytes(inputs.template)}   # 0: no answer yet
         world_step = resolver.world.step
         wall, cpu = [], []
@@ -647,19 +700,21 @@ def in_process(count: int, rate: float, mode: str, scene: Path,
             return result
         resolver.world.step = timed   # type: ignore[method-assign]
         begun = time.perf_counter()
-        for k, (stamp, base) in enumerate(stepped):
-            if paced and k >= len(stepped) - last:   # the measured steps, one per period
-                time.sleep(max(0.0, period - (time.perf_counter() - begun)))
-            begun = time.perf_counter()
-            if base not in answers:   # built from an answer this process did not receive
+        for stamp, base in sent:
+            if stamp not in stepped:
+                continue
+            if base not in answers:   # built from an answer the node never gave
                 return float('nan'), float('nan')
-            decoded = inputs.codec.decode(inputs.from_answer(stamp, answers[base]))
+            data = inputs.from_answer(stamp, answers[base])
             for old in [s for s in answers if s < base]:   # bases only grow
                 del answers[old]
+            if paced and stamp in measured:   # the measured steps, one per period
+                time.sleep(max(0.0, period - (time.perf_counter() - begun)))
+            begun = time.perf_counter()
+            decoded = inputs.codec.decode(data)
             step = resolver.resolve(stamp, InputBatch(decoded.names, decoded.values,
                                                       decoded.frame_id, decoded.frame_id))
-            if stamp in needed:
-                answers[stamp] = encoder.corrected(step)
+            answers[stamp] = encoder.corrected(step)
             wall.append(step.world_time_s)
         return 1e3 * float(np.median(wall[-last:])), 1e3 * float(np.median(cpu[-last:]))
     wall, cpu = replay(False)
@@ -677,6 +732,10 @@ def main(argv: list[str] | None = None) -> int:
                         help='paced rate per size, Hz')
     parser.add_argument('--duration', type=float, default=10.0, help='paced run, s')
     parser.add_argument('--lockstep', type=float, default=5.0, help='lock-step run, s')
+    parser.add_argument('--until-rest', type=float, default=120.0, metavar='S',
+                        help='with solver.sleeping on, the lock-step goes on past --lockstep '
+                        'until an answer holds every body still (asleep), for up to S s more '
+                        '(0: no)')
     parser.add_argument('--settle', type=float, default=2.0,
                         help='settling time, s (the pile is at rest 2 s after the drop)')
     parser.add_argument('--domain', type=int, default=int(os.environ.get('ROS_DOMAIN_ID', 90)))
@@ -738,12 +797,13 @@ def main(argv: list[str] | None = None) -> int:
             for server, mode, flag, variant in runs:
                 r = measure(count, rate, args, Path(tmp), server, mode, flag, variant)
                 r['in_process_ms'] = in_process(
-                    count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml', r['stepped'],
-                    r['answered'])
+                    count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml', r['inputs'],
+                    r['stepped'], r['answered'])
                 r['first_answer_s'] = start if server == 'node' else float('nan')
                 rows.append(r)
                 _print_row(r)
-    print('lock-step: publish, wait for the answer, repeat; paced: --duration s at the rate; '
+    print('lock-step: publish, wait for the answer, repeat (its steps; still: its last answer '
+          'held every body still); paced: --duration s at the rate; '
           'dropped: paced steps without an answer (behind: steps the node answered while a newer '
           'input waited, their markers skipped, since its start); '
           'latency: publish to body_states/corrected received (it includes send: the '
@@ -770,7 +830,9 @@ def _print_row(r: dict[str, Any]) -> None:
     overhead = answer - world if answer is not None and world is not None else None
     print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["sleeping"]} ({r["asleep"]}) | '
           f'{r["first_answer_s"]:.2f} ({r["startup_s"]:.2f}) | '
-          f'{r["lockstep"]["rate_hz"]:.1f} | {r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
+          f'{r["lockstep"]["rate_hz"]:.1f} ({r["lockstep"]["steps"]} steps'
+          f'{", still" if r["lockstep"].get("still") else ""}) | '
+          f'{r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '
           f'{r["sent"]} | {r["send_ms"][0]:.2f} / {r["send_ms"][1]:.2f} | {r["dropped"]} '
           f'({r["behind"]}) | '
           f'{r["p50"]:.2f} | {r["p99"]:.2f} | '

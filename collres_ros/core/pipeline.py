@@ -11,12 +11,14 @@ gathers, scatters and copies are one array operation each, whatever N; and it:
 * previous = the body's last corrected state, current = its input; a body seen
   for the first time, after its stamp went backwards, after a gap longer than
   ``settings.max_dt`` or after missing the previous step starts fresh
-  (previous = current, its warm-start entries forgotten);
+  (previous = current, its warm-start entries forgotten; one resumed forward, after a
+  gap or a missed step, keeps its last answer's twist as the one before the step);
 * static bodies take their params pose unless it is published; a dynamic body
   never published yet sits, inactive, at its params pose;
 * dt = stamp - the previous step's stamp; when there is no usable previous
   step every body is fresh and ``FRESH_DT`` is used (nothing moves between
-  identical previous and current states);
+  identical previous and current poses), or the last usable step's length when every
+  fresh body resumes forward (its twist's change spans one period of its source);
 * returns the corrected states of every accepted input body (never NaN; a
   non-finite result keeps the input and is reported ``non_finite_result``),
   the contacts with absolute time of impact (ns) and the rejections.
@@ -63,7 +65,7 @@ class ResolvedStep:
     rejected: list[Rejection] = field(default_factory=list)  # refused inputs (bodies held)
     resets: list[Rejection] = field(default_factory=list)    # accepted as a fresh start
     stale: list[str] = field(default_factory=list)           # bodies silent > stale timeout
-    dt: float = 0.0                   # s, step length used (FRESH_DT on a fresh start)
+    dt: float = 0.0                   # s, step length used (fresh start: FRESH_DT or the period)
     step_time_s: float = 0.0          # wall time of resolve() (not deterministic)
     world_time_s: float = 0.0         # wall time of World.step alone (not deterministic)
     # CPU time of this thread in World.step (not deterministic): below world_time_s by the
@@ -195,6 +197,7 @@ class Resolver:
         self._values = self._params_values.copy()
         self.last_stamp = np.full(len(self.bodies), NO_STAMP, np.int64)
         self.previous_step_ns = NO_STAMP
+        self.period_ns = 0   # length of the last usable step (ns; 0: none yet)
         self.totals: Counter[str] = Counter()
         if len(self.bodies):
             self.world.forget(np.arange(len(self.bodies)))
@@ -244,13 +247,32 @@ class Resolver:
             restart = index[fresh]
             previous = previous.copy()
             previous[restart] = current[restart]
+            # a body resumed forward (after a gap or a missed step) keeps its last answer's
+            # twist as the one before the step: its input's twist less that is the change
+            # its source integrated over the step (an asleep pile's input after a gap, g dt
+            # down, is its supports' load, as on the usual step, not a fall of every body
+            # into them that a 1 ms solve of the pile cannot stop); a body first seen or
+            # whose time went back has no such twist (previous = its input)
+            resumed = fresh & (self.last_stamp[index] != NO_STAMP) \
+                & (self.last_stamp[index] < stamp_ns)
+            previous[index[resumed], 7:13] = self._values[index[resumed], 7:13]
             self.world.forget(restart)
+            resumed_all = bool(resumed[fresh].all())
+        else:
+            resumed_all = False
         active = ~self.dynamic
         active[rows] = True
         step_ns = stamp_ns - self.previous_step_ns
         usable = (self.previous_step_ns != NO_STAMP and 0 < step_ns
                   and step_ns <= settings.max_dt * 1e9 and not fresh.all())
-        dt = step_ns * 1e-9 if usable else FRESH_DT
+        # a step without a usable previous one: FRESH_DT, but when every fresh body resumes
+        # forward, the stream's last step length (the change of twist its source integrated
+        # spans one of its periods; over 1 ms that change is a load 1 / (period * 1 ms)
+        # times gravity's that a cold solve of a pile does not hold)
+        dt = step_ns * 1e-9 if usable else (
+            self.period_ns * 1e-9 if resumed_all and self.period_ns else FRESH_DT)
+        if usable:
+            self.period_ns = step_ns
 
         # 3. the world step
         world_start, world_cpu = time.perf_counter(), time.thread_time()

@@ -226,16 +226,20 @@ class Resolver:
         entered = checked.values             # (K, 13) the accepted inputs, world frame
         twist_in_body = checked.twist_in_body
         resets: list[Rejection] = []
+        held = False   # every fresh body resumes asleep: the usual step of the period
         if not history.usual and (fresh.any() or history.repeated.any()):   # not the usual step
             for k in np.flatnonzero(history.repeated):
                 name = self.names[checked.index[k]]
                 rejected.append(Rejection(name, 'repeated_stamp',
                                           f'{name}: already resolved at stamp {stamp_ns} ns'))
-            resets = self._resets(checked.index, history, stamp_ns)
+            held = self._resumes_asleep(checked.index, checked.values, history, stamp_ns)
+            resets = self._resets(checked.index, history, stamp_ns, held)
             use = ~history.repeated
             if not use.all():
                 index, fresh, entered = index[use], fresh[use], entered[use]
                 twist_in_body, rows = twist_in_body[use], index
+            if held:
+                fresh = np.zeros(len(index), bool)
 
         # 2. previous and current states of all N bodies: (N, 13) rows, one array each;
         # previous is the history itself unless a fresh start changes it (the world only
@@ -263,6 +267,8 @@ class Resolver:
         active = ~self.dynamic
         active[rows] = True
         step_ns = stamp_ns - self.previous_step_ns
+        if held and not 0 < step_ns <= settings.max_dt * 1e9:
+            step_ns = self.period_ns   # the held states' next step
         usable = (self.previous_step_ns != NO_STAMP and 0 < step_ns
                   and step_ns <= settings.max_dt * 1e9 and not fresh.all())
         # a step without a usable previous one: FRESH_DT, but when every fresh body resumes
@@ -350,8 +356,37 @@ class Resolver:
             self._covered = (rows, not (self.dynamic & ~held).any())
         return self._covered[1]
 
-    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int
-                ) -> list[Rejection]:
+    def _resumes_asleep(self, index: np.ndarray, entered: np.ndarray, history: StampCheck,
+                        stamp_ns: int) -> bool:
+        """Whether every fresh body of this step (``index``; ``entered``, the (K, 13) input
+        rows, world frame) resumes forward (a gap or a missed step, not time going back nor
+        a first input) asleep, within a period's reach, after a usable step of known length:
+        its island is held at rest, so the step is the usual one of that length from the
+        held states, and the sleep rule judges the inputs against them (a source that kept
+        integrating the rest sends the held state advanced by one period, gravity's g dt
+        and g dt^2: the island stays asleep, answered at rest; anything else wakes it, as on
+        a usual step). A restart instead would solve every body cold from its input, sunk
+        g dt^2 and moving at g dt into its supports, and shake the pile awake."""
+        sleep = getattr(self.world, 'sleep', None)
+        fresh = history.fresh & ~history.repeated
+        if not self.period_ns or sleep is None or not sleep.enabled or not fresh.any():
+            return False
+        resumed = index[fresh]
+        last = self.last_stamp[resumed]
+        if not ((last != NO_STAMP).all() and (last < stamp_ns).all()
+                and sleep.asleep[resumed].all()):
+            return False
+        # and each input within one period's reach of its held pose (the sleep rule's own
+        # bound): a body moved during the gap restarts there, with no sweep across the gap
+        moved = np.linalg.norm(entered[fresh, 0:3] - self._values[resumed, 0:3], axis=1)
+        reach = (np.linalg.norm(entered[fresh, 7:10], axis=1)
+                 + self._settings.sleep_threshold) * self.period_ns * 1e-9
+        return bool((moved <= reach).all())
+
+    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int,
+                held: bool = False) -> list[Rejection]:
+        """The fresh starts of this step's inputs, reported; ``held``: the gap's bodies
+        resume asleep from their held states instead (``_resumes_asleep``)."""
         resets = []
         for k in np.flatnonzero(history.backwards):
             name = self.names[index[k]]
@@ -363,7 +398,8 @@ class Resolver:
             gap = (stamp_ns - self.last_stamp[index[k]]) * 1e-9
             resets.append(Rejection(name, 'large_gap',
                                     f'{name}: {gap:.3g} s since its last state (> max_dt '
-                                    f'{self._settings.max_dt:g} s); fresh start'))
+                                    f'{self._settings.max_dt:g} s); '
+                                    + ('resumed asleep' if held else 'fresh start')))
         return resets
 
 

@@ -87,6 +87,13 @@ class Sleep:
         self._version += 1
         self._held_for = np.zeros(len(self.dynamic), bool)
 
+    @property
+    def asleep(self) -> np.ndarray:
+        """(N,) bool: the bodies asleep after the last step (read only)."""
+        asleep = self._native.asleep.view(bool).copy()
+        asleep.flags.writeable = False
+        return asleep
+
     def counts(self) -> dict[str, int]:
         """Bodies and islands asleep, and awake islands of the last step."""
         return {'sleeping_bodies': self._native.sleeping_bodies,

@@ -12,7 +12,10 @@ gathers, scatters and copies are one array operation each, whatever N; and it:
   for the first time, after its stamp went backwards, after a gap longer than
   ``settings.max_dt`` or after missing the previous step starts fresh
   (previous = current, its warm-start entries forgotten; one resumed forward, after a
-  gap or a missed step, keeps its last answer's twist as the one before the step);
+  gap or a missed step, keeps its last answer's twist as the one before the step); but
+  when every such body resumes forward asleep, within one period's reach of its held pose,
+  nothing restarts: the step is the usual one of the stream's last period from the held
+  states, and the sleep rule judges the inputs (``_resumes_asleep``);
 * static bodies take their params pose unless it is published; a dynamic body
   never published yet sits, inactive, at its params pose;
 * dt = stamp - the previous step's stamp; when there is no usable previous

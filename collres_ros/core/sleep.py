@@ -24,7 +24,9 @@ A woken body's still time restarts: it sleeps again only after ``time_to_sleep``
 a body answered asleep in two consecutive steps has the same pose in both (while
 ``time_to_sleep`` >= dt).
 * everything wakes on a body added, removed or reset, a material, filter or settings
-  change, and a step without a usable previous one (a clock jump).
+  change, and a step without a usable previous one (a clock jump; not a gap after which
+  every body resumes asleep within reach of its held pose: the resolver then steps the
+  stream's period from the held states, ``Resolver._resumes_asleep``).
 
 The contacts of a sleeping island (among its bodies and with static ones) are held as they
 were in the step it fell asleep and reported every step with the state SLEEPING.

@@ -54,6 +54,22 @@ double Islands::speed(int i, const double* v, const double* w) const {
   return norm3(v) + norm3(w) * r;
 }
 
+bool Islands::late(int i, const double* v0, const double* w0, const double* v1,
+                   const double* w1, const double* x0, const double* x1, double dt) const {
+  const double tau = settings_.threshold;
+  for (int k = 2; k <= settings_.late_steps; ++k) {
+    double dv[3], dw[3], dx[3];
+    const double rise = 0.5 * k * (k + 1) * dt;
+    for (int d = 0; d < 3; ++d) {
+      dv[d] = v1[d] - v0[d] - k * change_[6 * i + d];
+      dw[d] = w1[d] - w0[d] - k * change_[6 * i + 3 + d];
+      dx[d] = x1[d] - x0[d] - rise * change_[6 * i + d];
+    }
+    if (speed(i, dv, dw) <= tau && norm3(dx) <= tau * dt) return true;
+  }
+  return false;
+}
+
 int Islands::wake(const SleepStates& previous, const SleepStates& current,
                   const std::uint8_t* active, const std::uint8_t* kinematic, double dt) {
   const int n = count();
@@ -87,11 +103,15 @@ int Islands::wake(const SleepStates& previous, const SleepStates& current,
       if (asleep_[i]) {
         double dx[3] = {x1[0] - x0[0], x1[1] - x0[1], x1[2] - x0[2]};
         const double rr = std::isfinite(r) ? r : 0.0;
-        const bool departs =
+        bool departs =
             !(jolt <= tau) ||
             !(norm3(dx) <= (norm3(v1) + tau) * dt) ||
             !(turn(previous.orientation + 4 * i, current.orientation + 4 * i) * rr <=
               (norm3(w1) * rr + tau) * dt);
+        if (departs && settings_.late_steps > 1 && late(i, v0, w0, v1, w1, x0, x1, dt) &&
+            !(turn(previous.orientation + 4 * i, current.orientation + 4 * i) * rr >
+              (norm3(w1) * rr + tau) * dt))
+          departs = false;
         if (departs) mark(i);
       } else {
         moving = moving || !(speed(i, v0, w0) <= tau) || !(jolt <= tau);

@@ -21,7 +21,11 @@
 //         > threshold                 (a push; the second form holds when an input was lost
 //                                      and dt spans two of the upstream's periods), or
 //   |x_in - x_held| > (|v_in| + threshold) dt, or the turn from the held orientation
-//   times r > (|w_in| r + threshold) dt                           (a teleport, a correction).
+//   times r > (|w_in| r + threshold) dt                           (a teleport, a correction);
+// unless the input is the held state integrated k = 2 .. `late_steps` times by the same
+// change (an upstream that integrated an answer k - 1 periods old: one came late):
+//   speed of (v_in - v_last - k dv) <= threshold and
+//   |x_in - x_held - k (k + 1) / 2 dv dt| <= threshold dt (and the turn's test above).
 // Before detection (Islands::wake) an island wakes when one of its bodies departs, or when
 // the swept bounds of a moving body touch one of its bodies' bounds (spheres of radius r
 // about the centre of mass, padded by half the speculative margin as detection's boxes).
@@ -43,6 +47,8 @@ struct SleepSettings {
   double threshold = 0.05;     // m/s, speed of the farthest point under which a body is still
   double time_to_sleep = 0.5;  // s a whole island must stay still before it sleeps
   double margin = 0.02;        // m, speculative margin: bounds are padded by half of it
+  int late_steps = 1;          // most periods an upstream's input may be integrated from the
+                               // held state and keep it asleep (1: only the usual one)
 };
 
 // Rows of N states (read only).
@@ -100,6 +106,10 @@ class Islands {
  private:
   int find(int i);
   double speed(int i, const double* v, const double* w) const;
+  // Whether body i's input (v1, w1, x1) is its held state (v0, w0, x0) integrated k = 2 ..
+  // late_steps times by its kept change (within the threshold; see the file comment).
+  bool late(int i, const double* v0, const double* w0, const double* v1, const double* w1,
+            const double* x0, const double* x1, double dt) const;
 
   std::vector<double> radius_;
   std::vector<std::uint8_t> dynamic_;

@@ -385,6 +385,13 @@ DEFAULT_COLLISION_GROUP = 1
 ALL_COLLISION_BITS = 0xFFFF
 COLLISION_RULE = 'a pair collides when (group_a & mask_b) != 0 and (group_b & mask_a) != 0'
 
+# Sleep (core.sleep, handed to _native.SleepSettings.late_steps): an asleep body's input that
+# is its held state integrated by its kept change up to this many periods (an upstream that
+# integrated an answer that came late, k - 1 periods old) keeps it asleep. 3: a 100-body
+# pile at 100 Hz given one input from an answer two steps old woke (up to 4 cm/s) and was
+# not asleep 1.1 s later; an answer three periods late is already a node far behind.
+SLEEP_LATE_STEPS = 3
+
 # /diagnostics: fresh starts (time going back, jumps, gaps) in at least this fraction of a
 # window's steps are a WARN (two clocks on one topic, a source whose time keeps jumping)
 TIME_JUMP_WARN_FRACTION = 0.25

@@ -13,8 +13,10 @@ It wakes, in the step:
 
 * when its input departs from the held state beyond the threshold: a push (a velocity
   change other than the external acceleration it had when it fell asleep: upstream keeps
-  integrating, so held twist + gravity dt does not wake it), a teleport or a correction
-  (a pose the input velocity cannot reach from the held pose within the threshold);
+  integrating, so held twist + gravity dt does not wake it, nor the held state integrated
+  k <= ``config.SLEEP_LATE_STEPS`` periods by it: an upstream integrating an answer that
+  came late), a teleport or a correction (a pose the input velocity cannot reach from the
+  held pose within the threshold);
 * when the swept bounds of a moving body (kinematic, or awake and faster than the
   threshold, or jolted beyond it) touch its island, before detection: no impact is missed;
 * after a step in which an awake body leaned on it (a contact with impulse): answered
@@ -41,7 +43,7 @@ from typing import Sequence
 import numpy as np
 
 from collres_ros.core import _native
-from collres_ros.core.config import SolverSettings
+from collres_ros.core.config import SLEEP_LATE_STEPS, SolverSettings
 from collres_ros.core.shapes import bounding_radius
 from collres_ros.core.types import BodySpec, BodyStates, ContactReport, ContactSet, ContactState
 
@@ -76,6 +78,7 @@ class Sleep:
         native.threshold = settings.sleep_threshold
         native.time_to_sleep = settings.time_to_sleep
         native.margin = settings.speculative_margin
+        native.late_steps = SLEEP_LATE_STEPS
         self._native.settings = native
         self.wake_all()
 

@@ -193,6 +193,37 @@ def test_a_lost_input_does_not_wake_it() -> None:
     assert not sim.world.step(sim.state, current, 2 * sim.dt).sleeping[1]
 
 
+def test_an_input_from_a_late_answer_does_not_wake_it() -> None:
+    """An answer that came late: the upstream integrated its own state from the held one
+    k times (k - 1 periods of its own, then the usual one: k (k + 1) / 2 g dt^2 down,
+    moving at k g dt) while the node's dt is one period. Up to ``SLEEP_LATE_STEPS`` the
+    island stays asleep, answered at its held rest (8ac80a2 woke it at k = 2 and solved it
+    cold: a 100-body pile at 100 Hz took up to 4 cm/s and was awake 1.1 s later); beyond
+    that, or with a push on top, it wakes."""
+    from collres_ros.core.config import SLEEP_LATE_STEPS
+    sim = resting_boxes()
+    run_until_asleep(sim)
+    held = sim.state.copy()
+
+    def late(k: int, push: float = 0.0):
+        current = sim.state
+        for _ in range(k):
+            current = sim.integrate(current)
+        current.linear[1, 0] += push
+        return sim.world.step(sim.state, current, sim.dt)
+
+    for k in range(2, SLEEP_LATE_STEPS + 1):
+        result = late(k)
+        assert result.sleeping[1], f'woken by an answer {k - 1} periods late'
+        np.testing.assert_array_equal(result.states.position[1], held.position[1])
+        np.testing.assert_array_equal(result.states.linear[1], 0.0)
+        sim.state = result.states
+    assert not late(2, push=0.5).sleeping[1]
+    sim = resting_boxes()
+    run_until_asleep(sim)
+    assert not late(SLEEP_LATE_STEPS + 1).sleeping[1]
+
+
 def test_wakes_on_a_teleport() -> None:
     sim = resting_boxes()
     run_until_asleep(sim)

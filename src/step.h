@@ -285,6 +285,8 @@ class StepSolver {
                                      // until an impact: moves with its previous twist)
   std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)
   std::vector<uint8_t> touching_;    // (M,) persistent, within the slop at the previous state
+  std::vector<uint8_t> near_;        // (N,) movable, a persistent contact within the slop at
+                                     // the previous state (approaching or not)
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;
@@ -295,6 +297,8 @@ class StepSolver {
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
   std::vector<double> drift_;        // m: how much more the separation grows over the step
                                      // on the held paths than on the integrated ones
+  std::vector<double> moved_a_;      // m: how far A's point moves along the normal over the
+                                     // step on its path (A's part of closed + drift_)
   std::vector<double> span_;         // s: the time a row's allowance spans (> 0)
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row

@@ -101,8 +101,7 @@ def test_a_zero_that_changes_sign_is_encoded_again() -> None:
     encoder = messages.OutputEncoder(names, 'world')
     for k, zero in enumerate((0.0, -0.0)):
         now = copy.deepcopy(step)
-        now.stamp_ns += k * period
-        now.toi_ns += k * period
+        now.stamp_ns += k * period   # toi_ns, read first below, follows the stamp
         now.report.friction_impulse[0, 0] = zero
         now.report.contacts.point[0, 0] = zero
         fresh = messages.OutputEncoder(names, 'world')

@@ -64,7 +64,9 @@ class ResolvedStep:
     twist_in_body: np.ndarray         # (K,) bool: the input twist was in the body frame
     body_names: tuple[str, ...]       # all N names: contacts' body_a/body_b index these
     report: ContactReport             # M solved contacts (body indices, world frame)
-    toi_ns: np.ndarray                # (M,) int64 absolute time of impact, ns
+    # the step's span (ns) the contacts' toi fractions are of: 0 when every contact is from
+    # the step's start (a fresh step); ``toi_ns`` of it
+    toi_span_ns: int
     rejected: list[Rejection] = field(default_factory=list)  # refused inputs (bodies held)
     resets: list[Rejection] = field(default_factory=list)    # accepted as a fresh start
     stale: list[str] = field(default_factory=list)           # bodies silent > stale timeout
@@ -88,6 +90,21 @@ class ResolvedStep:
     # (K, 13) the corrected states as rows (position, orientation, linear, angular: the
     # wire's order); ``states`` are its column views
     values: np.ndarray = field(default_factory=lambda: np.zeros((0, 13)))
+
+    _toi_ns: Optional[np.ndarray] = field(default=None, init=False, repr=False)
+
+    @property
+    def toi_ns(self) -> np.ndarray:
+        """(M,) int64 absolute time of impact of each contact, ns (computed when first read:
+        nothing is spent on it for a step whose contacts nobody reads)."""
+        if self._toi_ns is None:
+            toi = np.asarray(self.report.contacts.toi, float)
+            span_ns, stamp_ns = self.toi_span_ns, self.stamp_ns
+            if span_ns and toi.any():
+                self._toi_ns = stamp_ns - np.rint((1.0 - toi) * span_ns).astype(np.int64)
+            else:   # every contact from the step's start (persistent, held asleep)
+                self._toi_ns = np.full(len(toi), stamp_ns - span_ns, np.int64)
+        return self._toi_ns
 
     def contact_names(self, k: int) -> tuple[str, str]:
         """Body names (A, B) of contact ``k``."""
@@ -199,6 +216,9 @@ class Resolver:
         """Forget all history: every body back to its params state, never seen."""
         self._values = self._params_values.copy()
         self.last_stamp = np.full(len(self.bodies), NO_STAMP, np.int64)
+        # the scene rows the last step stamped, all of them (with previous_step_ns): the
+        # same object again (an input of the same names) needs no comparison of stamps
+        self._stamped: object = None
         self.previous_step_ns = NO_STAMP
         self.period_ns = 0   # length of the last usable step (ns; 0: none yet)
         self.totals: Counter[str] = Counter()
@@ -223,8 +243,8 @@ class Resolver:
         rejected = list(checked.rejected)
         # rows: the scene rows of the inputs, a slice when they are consecutive (block copies)
         index, rows = checked.index, checked.rows
-        history = check_stamps(self.last_stamp[rows], stamp_ns,
-                               int(settings.max_dt * 1e9), self.previous_step_ns)
+        history = check_stamps(self.last_stamp[rows], stamp_ns, int(settings.max_dt * 1e9),
+                               self.previous_step_ns, rows is self._stamped)
         fresh = history.fresh
         entered = checked.values             # (K, 13) the accepted inputs, world frame
         twist_in_body = checked.twist_in_body
@@ -316,15 +336,10 @@ class Resolver:
             self._values[rows] = values
         self.last_stamp[rows] = stamp_ns
         self.previous_step_ns = stamp_ns
+        self._stamped = rows
 
         # 5. report
         report = result.report
-        toi = np.asarray(report.contacts.toi, float)
-        span_ns = step_ns if usable else 0
-        if span_ns and toi.any():
-            toi_ns = stamp_ns - np.rint((1.0 - toi) * span_ns).astype(np.int64)
-        else:   # every contact from the step's start (persistent, held asleep)
-            toi_ns = np.full(len(toi), stamp_ns - span_ns, np.int64)
         # a body stamped now is not stale: when the step's input holds every dynamic body,
         # none is (a stream's usual step)
         stale = self._no_stale if self._covers_dynamic(rows) else stale_bodies(
@@ -340,7 +355,7 @@ class Resolver:
         names = list(self.names[rows]) if isinstance(rows, slice) else \
             self._name_array[rows].tolist()
         return ResolvedStep(stamp_ns, names, index, _states(values), twist_in_body,
-                            self.names, report, toi_ns, rejected, resets,
+                            self.names, report, step_ns if usable else 0, rejected, resets,
                             [self.names[i] for i in np.flatnonzero(stale)] if stale.any()
                             else [], dt,
                             time.perf_counter() - start, world_time, world_cpu,

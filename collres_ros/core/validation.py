@@ -258,16 +258,17 @@ class StampCheck:
 
 
 def check_stamps(last_stamp: np.ndarray, stamp_ns: int, max_dt_ns: int,
-                 previous_step_ns: int) -> StampCheck:
+                 previous_step_ns: int, all_previous: bool = False) -> StampCheck:
     """Classify inputs by their body's last stamp (ns; ``NO_STAMP`` if never seen).
 
     A body is fresh when first seen, when time went backwards, after a gap
     longer than ``max_dt_ns``, or when its last state is not from the previous
     step (``previous_step_ns``): the interpolated motion would span a different
-    interval than the step's dt.
+    interval than the step's dt. ``all_previous``: the caller knows that every
+    ``last_stamp`` is ``previous_step_ns`` (they are not compared again).
     """
     if previous_step_ns != NO_STAMP and 0 < stamp_ns - previous_step_ns <= max_dt_ns \
-            and (last_stamp == previous_step_ns).all():   # the stream's usual step
+            and (all_previous or (last_stamp == previous_step_ns).all()):   # the usual step
         none = _NONE.get(len(last_stamp))
         if none is None:
             if len(_NONE) > 16:

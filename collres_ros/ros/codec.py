@@ -251,8 +251,15 @@ class DecodedStates:
     frame_id: str
     names: list[str]
     values: np.ndarray   # (K, 13) float64: position, orientation (x, y, z, w), linear, angular
-    flags: np.ndarray = field(repr=False)   # (K,) uint8 the flags (empty: legacy)
+    # (the message's uint8 view, the (K,) positions of its flags): read only when asked for
+    flag_bytes: tuple[np.ndarray, np.ndarray] = field(repr=False)
     legacy: bool = False  # written before BodyState had ``sleeping`` (old bags)
+
+    @property
+    def flags(self) -> np.ndarray:
+        """(K,) uint8 the ``sleeping`` flags as sent (empty: legacy)."""
+        raw, where = self.flag_bytes
+        return raw[where]
 
     @property
     def sleeping(self) -> np.ndarray:
@@ -275,21 +282,13 @@ class _Layout:
     #                          floats, padding, flags)
     legacy: bool             # bodies without the ``sleeping`` field (written before it existed)
     expected: np.ndarray     # template[check]: what a message of this layout has there
-    # the same test as 8-byte words of the float64 view (byte 4 + 8 i): the words that hold
-    # checked bytes, a mask of those bytes and the template's masked words; checked bytes
-    # after the last whole word (``tail``) one by one; bytes 0-1 (the encapsulation) are
-    # the Reader's
-    words: np.ndarray
-    word_mask: np.ndarray
-    word_expected: np.ndarray
-    tail: np.ndarray
+    expected_bytes: bytes    # ``expected`` as bytes
 
     def matches(self, data: Any, raw: np.ndarray) -> bool:
         """Whether message bytes ``data`` (``raw``: their uint8 view, at least ``size``
-        long) have this layout's names, frame and lengths, as ``check`` says."""
-        words = np.frombuffer(data, '<u8', (len(data) - 4) // 8, 4)
-        return bool(((words[self.words] & self.word_mask) == self.word_expected).all()) and (
-            not len(self.tail) or bool((raw[self.tail] == self.template[self.tail]).all()))
+        long) have this layout's names, frame and lengths, as ``check`` says: one gather
+        and one comparison of bytes."""
+        return raw[self.check].tobytes() == self.expected_bytes
 
 
 def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) -> _Layout:
@@ -320,17 +319,8 @@ def _states_layout(frame_id: str, names: Sequence[str], legacy: bool = False) ->
     flag_bytes = np.array(flags, np.int64)
     keep[flag_bytes] = False
     check = np.flatnonzero(keep)
-    whole = (size - 4) // 8   # whole words of the float64 view
-    inside = check[(check >= 4) & (check < 4 + 8 * whole)]
-    word = (inside - 4) // 8
-    mask = np.zeros(whole, np.uint64)
-    np.bitwise_or.at(mask, word, np.left_shift(np.uint64(0xFF),
-                                               (8 * ((inside - 4) % 8)).astype(np.uint64)))
-    words = np.unique(word)
-    template_words = np.frombuffer(template.tobytes(), '<u8', whole, 4)
     return _Layout(frame_id, list(names), size, template, rows, first, flag_bytes, check, legacy,
-                   template[check], words, mask[words], template_words[words] & mask[words],
-                   check[check >= 4 + 8 * whole])
+                   template[check], template[check].tobytes())
 
 
 def _doubles(buffer: Any) -> np.ndarray:
@@ -446,7 +436,7 @@ class StatesCodec:
     @staticmethod
     def _decoded(stamp: int, layout: _Layout, data: bytes, raw: np.ndarray) -> DecodedStates:
         return DecodedStates(stamp, layout.frame_id, layout.names, _states_of(data)[layout.first],
-                             raw[layout.flags], layout.legacy)
+                             (raw, layout.flags), layout.legacy)
 
 
 def _parse_bodies(reader: Reader, frame_id: str, count: int, raw: np.ndarray,

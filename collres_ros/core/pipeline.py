@@ -385,9 +385,9 @@ class Resolver:
         and g dt^2: the island stays asleep, answered at rest; anything else wakes it, as on
         a usual step). A restart instead would solve every body cold from its input, sunk
         g dt^2 and moving at g dt into its supports, and shake the pile awake."""
-        sleep = self.world.sleep
+        sleep = getattr(self.world, 'sleep', None)
         fresh = history.fresh & ~history.repeated
-        if not self.period_ns or not sleep.enabled or not fresh.any():
+        if not self.period_ns or sleep is None or not sleep.enabled or not fresh.any():
             return False
         resumed = index[fresh]
         last = self.last_stamp[resumed]

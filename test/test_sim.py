@@ -197,6 +197,7 @@ def test_realtime_pace_warns_behind_the_clock_and_with_the_rate_reached() -> Non
     assert text is not None and '1.0 s behind' in text and '50 steps/s' in text
     assert pace.late(150, 14.0) is None              # warned less than a period ago
     assert pace.summary(101, 11.0) is None           # step 100 published at 11 s: 100 Hz
+    assert pace.summary(21, 10.2128) is None         # 0.2 s run, its last step 13 ms late
     short = pace.summary(101, 12.0)
     assert short is not None and 'reached 50 steps/s of the 100 Hz asked' in short
 

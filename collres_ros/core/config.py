@@ -376,9 +376,12 @@ PARAMS_FILE_MAX_DEPTH = 32                 # nested mappings and lists
 # collres_sim --realtime: it warns when it falls behind the wall clock by more than
 # REALTIME_LAG s (at most once per REALTIME_WARN_PERIOD s), and at the end when the rate it
 # reached is below REALTIME_SHORTFALL of the rate asked (each step waits for the node's answer)
+# and the run ended more than REALTIME_JITTER_STEPS periods behind (one late last step of a
+# short run is the scheduler's jitter, not a rate)
 REALTIME_LAG = 0.5             # s
 REALTIME_WARN_PERIOD = 5.0     # s
 REALTIME_SHORTFALL = 0.95      # fraction of rate_hz
+REALTIME_JITTER_STEPS = 3      # periods (1 / rate_hz)
 # Collision filtering (Box2D category/mask bits, Gazebo collide_bitmask): 16 bits, a body in
 # bit 0 that collides with every bit, so a scene that does not filter is unchanged.
 DEFAULT_COLLISION_GROUP = 1

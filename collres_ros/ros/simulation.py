@@ -20,7 +20,8 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from collres_ros.core.config import REALTIME_LAG, REALTIME_SHORTFALL, REALTIME_WARN_PERIOD
+from collres_ros.core.config import (REALTIME_JITTER_STEPS, REALTIME_LAG, REALTIME_SHORTFALL,
+                                     REALTIME_WARN_PERIOD)
 from collres_ros.core.types import BodyStates
 from collres_ros.ros.integrator import euler_step
 
@@ -160,10 +161,14 @@ class RealtimePace:
 
     def summary(self, steps: int, now: float) -> Optional[str]:
         """The warning at the end of a run that reached less than REALTIME_SHORTFALL of its
-        rate, else None. ``now``: when the last of the ``steps`` steps was published (the
-        first at ``start``)."""
-        reached = (steps - 1) / max(now - self.start, 1e-9)
-        if steps < 2 or reached >= REALTIME_SHORTFALL * self.rate_hz:
+        rate and ended more than REALTIME_JITTER_STEPS periods behind, else None. ``now``:
+        when the last of the ``steps`` steps was published (the first at ``start``). A short
+        run whose last step alone came a period late (the scheduler's jitter) kept its rate."""
+        elapsed = max(now - self.start, 1e-9)
+        reached = (steps - 1) / elapsed
+        behind = elapsed - (steps - 1) / self.rate_hz
+        if (steps < 2 or reached >= REALTIME_SHORTFALL * self.rate_hz
+                or behind <= REALTIME_JITTER_STEPS / self.rate_hz):
             return None
         return (f'realtime: reached {reached:.0f} steps/s of the {self.rate_hz:g} Hz asked '
                 '(each step waits for the answer of collres_node)')

@@ -219,6 +219,7 @@ class Detector {
   };
   std::vector<Mesh> meshes_;   // out of the sort and sweep (broad_phase.h BoxTree)
   std::vector<Vec3> merge_points_;        // merge_mesh_faces: a normal's points
+  std::vector<double> merge_separations_; // ... and their separations (m)
   std::vector<std::size_t> merge_rows_;   // merge_mesh_faces: their rows
   std::vector<int> merge_keep_;           // merge_mesh_faces: the kept ones
   ContactRows grouped_;        // scratch of group_by_bodies

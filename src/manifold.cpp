@@ -326,6 +326,18 @@ void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transfor
         surface_.push_back({on_a - 0.5 * loaded_shift_, on_b - 0.5 * loaded_shift_});
         separation_.push_back((on_b - on_a).dot(normal));
       }
+      // and the pair's deepest point (coal's witness) where no patch point comes within
+      // `tie` of its depth: two boxes crossing edge on edge overlap deepest where the
+      // edges cross, inside the patch's edge, while its ends along it barely touch (the
+      // reduction then keeps it)
+      const PointPair witness{to_vec(c.nearest_points[0]),
+                              to_vec(c.nearest_points[1]) - loaded_shift_};
+      const double depth = (witness.on_b - witness.on_a).dot(normal);
+      if (depth < *std::min_element(separation_.begin(), separation_.end()) - tie) {
+        polygon_.push_back(0.5 * (witness.on_a + witness.on_b) + 0.5 * loaded_shift_);
+        surface_.push_back(witness);
+        separation_.push_back(depth);
+      }
       reduce_manifold(polygon_, separation_, normal, tie, keep_);
       for (int k : keep_) points.push_back(surface_[k]);
       return;

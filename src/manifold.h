@@ -106,8 +106,9 @@ class PairQuery {
                   const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                   PointPair& closest);
   // The manifold of the loaded contact on the same pair (same poses): the coal patch
-  // where faces touch, reduced to at most four points that keep its deepest one (to
-  // within `tie`, m: reduce_manifold), else the witness points. The patch's points lie on
+  // where faces touch, with the witness points (coal's deepest) where no patch point comes
+  // within `tie` (m) of their depth, reduced to at most four points that keep the deepest
+  // one (to within `tie`: reduce_manifold), else the witness points. The patch's points lie on
   // the separating plane; each body's point is where the line along the normal through
   // it meets that body's surface (boxes and half-spaces), else half the patch's one depth
   // along the normal from there.

@@ -50,8 +50,9 @@
 // Triangle meshes (static scenery, shapes.h): each triangle is a piece. Before the cap, the
 // manifolds of a pair with a mesh that share one normal (the triangles of one flat part of
 // the mesh under one face of the other body) become one manifold of at most four rows,
-// those that span the most area (reduce_manifold), as one face would give (Jolt reduces
-// mesh contacts alike): a box on a floor of many triangles rests on its four corners.
+// the deepest and those that span the most area (reduce_manifold), as one face would give
+// (Jolt reduces mesh contacts alike): a box on a floor of many triangles rests on its four
+// corners.
 //
 // Budget (DetectionSettings max_pairs, max_contacts; as MuJoCo's nconmax and PhysX's contact
 // buffer): a step with more pairs to query (broad-phase pairs whose bounding spheres come

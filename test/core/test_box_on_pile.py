@@ -17,7 +17,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import coal
 import numpy as np
 import pytest
 
@@ -26,34 +25,13 @@ from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import BodySpec, BodyStates
 from collres_ros.core.world import World
 
+from overlap import deepest_into  # noqa: I100
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
 from pile import SIZE, integrate, make_pile  # noqa: E402
 
 RATE = 30.0
 TOLERANCE = 1e-4   # m beyond the slop: the resting solve's residual (module docstring)
-
-
-def geometry(spec: BodySpec) -> coal.CollisionGeometry:
-    if spec.shape == 'plane':
-        return coal.Halfspace(np.array(spec.size[:3]), spec.size[3])
-    if spec.shape == 'sphere':
-        return coal.Sphere(spec.size[0])
-    return coal.Box(*spec.size)
-
-
-def deepest_into(bodies: list[BodySpec], state: BodyStates, index: int) -> float:
-    """m, how deep body ``index`` is in the deepest other body (0 when it touches none)."""
-    poses = [coal.Transform3s(r, p) for r, p in
-             zip(rotation.to_matrix(state.orientation), state.position)]
-    shapes = [geometry(spec) for spec in bodies]
-    depth = 0.0
-    for k in range(len(bodies)):
-        if k == index:
-            continue
-        request, result = coal.CollisionRequest(), coal.CollisionResult()
-        if coal.collide(shapes[index], poses[index], shapes[k], poses[k], request, result):
-            depth = max(depth, -result.getContact(0).penetration_depth)
-    return depth
 
 
 @pytest.fixture(scope='module')

@@ -551,10 +551,13 @@ void Detector::merge_mesh_faces(ContactRows& out) {
     const bool several = merge_rows_.size() > static_cast<std::size_t>(span[3]);
     if (several && merge_rows_.size() > static_cast<std::size_t>(kMaxManifoldPoints)) {
       merge_points_.clear();
+      merge_separations_.clear();
       for (const std::size_t r : merge_rows_) {
         merge_points_.emplace_back(out.point[3 * r], out.point[3 * r + 1], out.point[3 * r + 2]);
+        merge_separations_.push_back(out.separation[r]);
       }
-      reduce_manifold(merge_points_, normal, merge_keep_);
+      reduce_manifold(merge_points_, merge_separations_, normal, settings_.linear_slop,
+                      merge_keep_);
       for (const int i : merge_keep_) order_.push_back(merge_rows_[i]);
       merged = true;
     } else {
@@ -730,7 +733,8 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
     if (shapes_[a].single_point || shapes_[b].single_point) {
       lane.points.push_back(witness);
     } else {
-      lane.query.manifold(*shapes_[a].geometry, A.pose1, *shapes_[b].geometry, B.pose1, lane.points);
+      lane.query.manifold(*shapes_[a].geometry, A.pose1, *shapes_[b].geometry, B.pose1,
+                          settings_.linear_slop, lane.points);
     }
     emit(lane, a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
     const Vec3 unit = normal.normalized();
@@ -828,7 +832,7 @@ bool Detector::time_of_impact(Lane& lane, int a, int b, const Motion& ma, const 
   if (shapes_[a].single_point || shapes_[b].single_point) {
     lane.points.push_back(witness);
   } else {
-    lane.query.manifold(ga, ma.at(s1), gb, mb.at(s1), lane.points);
+    lane.query.manifold(ga, ma.at(s1), gb, mb.at(s1), settings_.linear_slop, lane.points);
   }
   const Mat3 ra = ma.rotation_at(s1), rb = mb.rotation_at(s1);
   const Vec3 pa = ma.position_at(s1), pb = mb.position_at(s1);
@@ -950,7 +954,7 @@ void Detector::current_manifold(Lane& lane, int a, int b, ContactRows& out) cons
   if (shapes_[a].single_point || shapes_[b].single_point) {
     lane.points.push_back(witness);
   } else {
-    lane.query.manifold(ga, A.pose1, gb, B.pose1, lane.points);
+    lane.query.manifold(ga, A.pose1, gb, B.pose1, settings_.linear_slop, lane.points);
   }
   emit(lane, a, b, normal, 0.0, ContactKind::persistent, kInf, A.r1, A.p1, B.r1, B.p1, out);
   const Vec3 unit = normal.normalized();

@@ -50,8 +50,9 @@
 // Triangle meshes (static scenery, shapes.h): each triangle is a piece. Before the cap, the
 // manifolds of a pair with a mesh that share one normal (the triangles of one flat part of
 // the mesh under one face of the other body) become one manifold of at most four rows,
-// those that span the most area (reduce_manifold), as one face would give (Jolt reduces
-// mesh contacts alike): a box on a floor of many triangles rests on its four corners.
+// the deepest and those that span the most area (reduce_manifold), as one face would give
+// (Jolt reduces mesh contacts alike): a box on a floor of many triangles rests on its four
+// corners.
 //
 // Budget (DetectionSettings max_pairs, max_contacts; as MuJoCo's nconmax and PhysX's contact
 // buffer): a step with more pairs to query (broad-phase pairs whose bounding spheres come
@@ -219,6 +220,7 @@ class Detector {
   };
   std::vector<Mesh> meshes_;   // out of the sort and sweep (broad_phase.h BoxTree)
   std::vector<Vec3> merge_points_;        // merge_mesh_faces: a normal's points
+  std::vector<double> merge_separations_; // ... and their separations (m)
   std::vector<std::size_t> merge_rows_;   // merge_mesh_faces: their rows
   std::vector<int> merge_keep_;           // merge_mesh_faces: the kept ones
   ContactRows grouped_;        // scratch of group_by_bodies

@@ -297,7 +297,7 @@ double PairQuery::distance(const coal::CollisionGeometry& ga, const coal::Transf
 
 void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                          const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
-                         std::vector<PointPair>& points) {
+                         double tie, std::vector<PointPair>& points) {
   points.clear();
   const coal::Contact& c = result_.getContact(0);
   patch_result_.clear();
@@ -309,30 +309,45 @@ void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transfor
       const Vec3 normal = to_vec(c.normal);
       const Vec3 half = 0.5 * patch.penetration_depth * normal;
       polygon_.clear();
+      surface_.clear();
+      separation_.clear();
       // each point in the world frame, as ContactPatch::getPoint gives it (whose range
-      // check builds a std::logic_error on every call, thrown or not)
+      // check builds a std::logic_error on every call, thrown or not), and its own depth
+      // where the surface is known (boxes, half-spaces): a patch gathers points within
+      // kPatchTolerance of the plane, and a tilted face's far corners are not at the
+      // patch's one depth (a box would rest on them in the air)
       for (const coal::Vec2s& point : patch.points()) {
-        polygon_.push_back(to_vec(patch.tf.transform(coal::Vec3s(point(0), point(1), 0.0))));
-      }
-      reduce_manifold(polygon_, normal, keep_);
-      // each point's own depth where the surface is known (boxes, half-spaces): a patch
-      // gathers points within kPatchTolerance of the plane, and a tilted face's far
-      // corners are not at the patch's one depth (a box would rest on them in the air)
-      for (int k : keep_) {
-        Vec3 on_a = polygon_[k] - half, on_b = polygon_[k] + half;
+        const Vec3 p = to_vec(patch.tf.transform(coal::Vec3s(point(0), point(1), 0.0)));
+        Vec3 on_a = p - half, on_b = p + half;
         double t = 0.0;
-        if (surface_along(ga, ta, polygon_[k], normal, false, t)) on_a = polygon_[k] + t * normal;
-        if (surface_along(gb, moved, polygon_[k], normal, true, t)) on_b = polygon_[k] + t * normal;
-        points.push_back({on_a - 0.5 * loaded_shift_, on_b - 0.5 * loaded_shift_});
+        if (surface_along(ga, ta, p, normal, false, t)) on_a = p + t * normal;
+        if (surface_along(gb, moved, p, normal, true, t)) on_b = p + t * normal;
+        polygon_.push_back(p);
+        surface_.push_back({on_a - 0.5 * loaded_shift_, on_b - 0.5 * loaded_shift_});
+        separation_.push_back((on_b - on_a).dot(normal));
       }
+      // and the pair's deepest point (coal's witness) where no patch point comes within
+      // `tie` of its depth: two boxes crossing edge on edge overlap deepest where the
+      // edges cross, inside the patch's edge, while its ends along it barely touch (the
+      // reduction then keeps it)
+      const PointPair witness{to_vec(c.nearest_points[0]),
+                              to_vec(c.nearest_points[1]) - loaded_shift_};
+      const double depth = (witness.on_b - witness.on_a).dot(normal);
+      if (depth < *std::min_element(separation_.begin(), separation_.end()) - tie) {
+        polygon_.push_back(0.5 * (witness.on_a + witness.on_b) + 0.5 * loaded_shift_);
+        surface_.push_back(witness);
+        separation_.push_back(depth);
+      }
+      reduce_manifold(polygon_, separation_, normal, tie, keep_);
+      for (int k : keep_) points.push_back(surface_[k]);
       return;
     }
   }
   points.push_back({to_vec(c.nearest_points[0]), to_vec(c.nearest_points[1]) - loaded_shift_});
 }
 
-void reduce_manifold(const std::vector<Vec3>& polygon, const Vec3& normal,
-                     std::vector<int>& keep) {
+void reduce_manifold(const std::vector<Vec3>& polygon, const std::vector<double>& separation,
+                     const Vec3& normal, double tie, std::vector<int>& keep) {
   const int count = static_cast<int>(polygon.size());
   keep.clear();
   if (count <= kMaxManifoldPoints) {
@@ -356,7 +371,11 @@ void reduce_manifold(const std::vector<Vec3>& polygon, const Vec3& normal,
     }
     return std::make_pair(index, top);
   };
-  const int i0 = best([&](int k) { return polygon[k].dot(tangent); }).first;
+  int i0 = best([&](int k) { return polygon[k].dot(tangent); }).first;
+  if (!separation.empty()) {
+    const int deepest = best([&](int k) { return -separation[k]; }).first;
+    if (separation[deepest] < separation[i0] - tie) i0 = deepest;
+  }
   const Vec3& p0 = polygon[i0];
   const int i1 = best([&](int k) { return (polygon[k] - p0).squaredNorm(); }).first;
   const Vec3& p1 = polygon[i1];

@@ -106,13 +106,15 @@ class PairQuery {
                   const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                   PointPair& closest);
   // The manifold of the loaded contact on the same pair (same poses): the coal patch
-  // where faces touch, reduced to at most four points, else the witness points. The
-  // patch's points lie on the separating plane; each body's point is where the line
-  // along the normal through it meets that body's surface (boxes and half-spaces), else
-  // half the patch's one depth along the normal from there.
+  // where faces touch, with the witness points (coal's deepest) where no patch point comes
+  // within `tie` (m) of their depth, reduced to at most four points that keep the deepest
+  // one (to within `tie`: reduce_manifold), else the witness points. The patch's points lie on
+  // the separating plane; each body's point is where the line along the normal through
+  // it meets that body's surface (boxes and half-spaces), else half the patch's one depth
+  // along the normal from there.
   void manifold(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                 const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
-                std::vector<PointPair>& points);
+                double tie, std::vector<PointPair>& points);
 
  private:
   bool loaded_is_valid() const;  // the loaded contact's depth is a number coal computed
@@ -134,6 +136,8 @@ class PairQuery {
   coal::ContactPatchRequest patch_request_;
   coal::ContactPatchResult patch_result_;
   std::vector<Vec3> polygon_;
+  std::vector<PointPair> surface_;   // each polygon point's pair on the two surfaces
+  std::vector<double> separation_;   // m, each polygon point's (on_b - on_a) . normal
   std::vector<int> keep_;
   // coal's distance and contact patch, through the kept solvers of the two node types
   double distance_of(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
@@ -146,12 +150,16 @@ class PairQuery {
   Vec3 loaded_shift_ = Vec3::Zero();  // m, B's step of the loaded contact (failed queries)
 };
 
-// Indices (at most four) of the polygon's points that keep the most of its area: the one
-// farthest along a fixed tangent, the one farthest from it, the one that makes the largest
-// triangle with both, and the one that adds the most area on the other side (Bullet's and
-// Jolt's reduction; all the patch's points share one depth). `normal` is the patch normal.
-void reduce_manifold(const std::vector<Vec3>& polygon, const Vec3& normal,
-                     std::vector<int>& keep);
+// Indices (at most four) of the polygon's points that keep its deepest point and the most
+// of its area: first the one farthest along a fixed tangent, or the deepest point when it
+// is deeper than that one by more than `tie` (m; `separation` per point, m, negative when
+// overlapping: a patch's points do not share one depth where its faces are tilted to one
+// another, and where two boxes cross edge on edge the deepest is where the edges cross,
+// a point no area rule picks), then the one farthest from it, the one that makes the
+// largest triangle with both, and the one that adds the most area on the other side
+// (Bullet's and Jolt's reduction). `normal` is the patch normal.
+void reduce_manifold(const std::vector<Vec3>& polygon, const std::vector<double>& separation,
+                     const Vec3& normal, double tie, std::vector<int>& keep);
 
 // Feature id of a point pair from its body-frame points and the bodies' half extents: each
 // coordinate is coded by whether it lies in the outer quarter of the half extent on either

@@ -32,14 +32,18 @@ double normal_speed(const double* v, int64_t a, int64_t b, Vec3 ra, Vec3 rb, Vec
 }
 
 // m: how far the point of body i at r from its current centre of mass travelled over the
-// step: the centre's travel from the poses (a step of several periods that its source
-// integrated under gravity is no straight line at the twist), the turn from the twist
-// (`twist` (N, 6); to first order, as a curved surface's contact point is no material
-// point: a rolling ball's does not rise)
-Vec3 travelled(const BodyStatesView& previous, const BodyStatesView& current,
-               const double* twist, int64_t i, const Vec3& r, double dt) {
+// step, from the poses: the centre's travel (a step of several periods that its source
+// integrated under gravity is no straight line at the twist) and the turn (an estimator's
+// pose turned with a zero twist: a push-out from the last answer that turned a body must
+// see that turn, or it pushes again every step and the body keeps turning into its
+// neighbours), to first order (a curved surface's contact point is no material point: a
+// rolling ball's does not rise)
+Vec3 travelled(const BodyStatesView& previous, const BodyStatesView& current, int64_t i,
+               const Vec3& r) {
+  const Quat turn = multiply(load4(current.orientation + 4 * i),
+                             load4(previous.orientation + 4 * i).conjugate());
   return load3(current.position + 3 * i) - load3(previous.position + 3 * i) +
-         dt * cross(load3(twist + 6 * i + 3), r);
+         cross(to_rotation_vector(turn), r);
 }
 
 }  // namespace
@@ -176,8 +180,8 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // how far the two points closed over the step (m, from the poses: a step of several
     // periods that its source integrated is no straight line at the twist); a persistent
     // contact's gap at the previous state is its separation less that
-    travelled_[2 * k] = travelled(previous, current, now_.data(), a, ra_[k], dt);
-    travelled_[2 * k + 1] = travelled(previous, current, now_.data(), b, rb_[k], dt);
+    travelled_[2 * k] = travelled(previous, current, a, ra_[k]);
+    travelled_[2 * k + 1] = travelled(previous, current, b, rb_[k]);
     moved_a_[k] = dot(travelled_[2 * k], normal);
     const double closed = dot(travelled_[2 * k + 1], normal) - moved_a_[k];
     gap_[k] = c.separation[k] - closed;

@@ -9,9 +9,10 @@
 //
 // In order (StepSolver::step):
 // 1. reference frame: a persistent contact's gap at the previous state is its separation
-//    less how far its points closed over the step (the centres' travel from the poses,
-//    the turn from the twist: a step of several periods that its source integrated under
-//    gravity, after dropped inputs, is no straight line at the twist); one within the
+//    less how far its points closed over the step (the centres' travel and the turns,
+//    from the poses: a step of several periods that its source integrated under
+//    gravity, after dropped inputs, is no straight line at the twist, and an estimator's
+//    pose turns with a zero twist); one within the
 //    slop then whose pair did not approach then (previous twists, faster than the
 //    sticking speed) touches from the start, and its movable bodies rest (rested). A
 //    body with an impact (IMPACT/TUNNELLED contact, or a persistent contact that closes

@@ -74,6 +74,16 @@ inline Quat from_rotation_vector(const Vec3& v) {
   return quat(v.x() * scale, v.y() * scale, v.z() * scale, std::cos(0.5 * angle));
 }
 
+// Rotation vector (axis * angle, rad, angle in [0, pi]) of the unit quaternion q: the
+// inverse of from_rotation_vector (the shorter arc).
+inline Vec3 to_rotation_vector(const Quat& q) {
+  const double s = q.w() < 0.0 ? -1.0 : 1.0;
+  const Vec3 v(s * q.x(), s * q.y(), s * q.z());
+  const double half = length(v);
+  const double scale = half > 1e-12 ? 2.0 * std::atan2(half, s * q.w()) / half : 2.0;
+  return scale * v;
+}
+
 // Orientation after rotating at constant world-frame angular velocity w (rad/s) for dt s.
 inline Quat integrate(const Quat& q, const Vec3& w, double dt) {
   return normalize(multiply(from_rotation_vector(dt * w), q));

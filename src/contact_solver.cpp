@@ -352,10 +352,19 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
 
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
   double* v = bodies.velocity;
-  for (const ContactRow& r : rows) {
-    if (r.normal != 0.0) apply(r, v, 0, r.n, r.normal);
-    if (r.tangent[0] != 0.0) apply(r, v, 1, r.t1, r.tangent[0]);
-    if (r.tangent[1] != 0.0) apply(r, v, 2, r.t2, r.tangent[1]);
+  // a run of consecutive rows of one pair (a manifold's) on its two twists loaded once and
+  // stored once: each number takes the same operations in the same order as row by row
+  for (size_t i = 0; i < rows.size();) {
+    const int32_t a = rows[i].a, b = rows[i].b;
+    Twists t(v, a, b);
+    bool changed = false;
+    for (; i < rows.size() && rows[i].a == a && rows[i].b == b; ++i) {
+      const ContactRow& r = rows[i];
+      if (r.normal != 0.0) apply(r, t, 0, r.n, r.normal), changed = true;
+      if (r.tangent[0] != 0.0) apply(r, t, 1, r.t1, r.tangent[0]), changed = true;
+      if (r.tangent[1] != 0.0) apply(r, t, 2, r.t2, r.tangent[1]), changed = true;
+    }
+    if (changed) t.store(v, a, b);
   }
 }
 

@@ -638,17 +638,15 @@ void rows_to_lane(const ContactRow* r, int count, WideRow* w, int l) {
   }
 }
 
-// One sweep's update of a wide group: solve_manifold on its kLanes manifolds. A block
-// whose all-active answer does not fit (the active-set search, or rows one by one) is
-// handed to solve_manifold in its lane.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
-#endif
-void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
-                 const std::vector<Manifold>& manifolds, double* v,
-                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
-                 Progress& progress) {
-  const int k = g.count;
+// One sweep's update of a wide group of k rows (g.count): solve_manifold on its kLanes
+// manifolds. A block whose all-active answer does not fit (the active-set search, or rows
+// one by one) is handed to solve_manifold in its lane. (k a constant: each row count's
+// loops unrolled, their values in registers; solve_group picks one.)
+template <int k>
+WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
+                         const std::vector<Manifold>& manifolds, double* v,
+                         std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
+                         Progress& progress) {
   WideTwists t(v, g);
   // every lane idle: no impulse held (+0 bits) and no row approaching beyond its
   // allowance, so each lane's update would change nothing (solve_block's idle answer x = 0,
@@ -906,6 +904,29 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
   for (int l = 0; l < kLanes; ++l) {
     const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
     if (spins != nullptr && spin >= 0) (*spins)[spin].load = load[l];
+  }
+}
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
+void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
+                 const std::vector<Manifold>& manifolds, double* v,
+                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
+                 Progress& progress) {
+  switch (g.count) {   // 1 to 4 (WideGroup)
+    case 1:
+      solve_group_of<1>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
+    case 2:
+      solve_group_of<2>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
+    case 3:
+      solve_group_of<3>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
+    default:
+      solve_group_of<4>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
   }
 }
 

@@ -759,7 +759,8 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     if (k >= 3 && any(face)) {
       const Lanes zero = splat(0.0), one = splat(1.0);
       Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
-      int idx[kLanes][4], members[kLanes], sets[kLanes];
+      // (idx zeroed: GCC cannot tell that a lane reads only the entries it wrote)
+      int idx[kLanes][4] = {}, members[kLanes], sets[kLanes];
       Mask tried = {0, 0, 0, 0};
       for (int l = 0; l < kLanes; ++l) {
         members[l] = 0;

@@ -352,10 +352,19 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
 
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
   double* v = bodies.velocity;
-  for (const ContactRow& r : rows) {
-    if (r.normal != 0.0) apply(r, v, 0, r.n, r.normal);
-    if (r.tangent[0] != 0.0) apply(r, v, 1, r.t1, r.tangent[0]);
-    if (r.tangent[1] != 0.0) apply(r, v, 2, r.t2, r.tangent[1]);
+  // a run of consecutive rows of one pair (a manifold's) on its two twists loaded once and
+  // stored once: each number takes the same operations in the same order as row by row
+  for (size_t i = 0; i < rows.size();) {
+    const int32_t a = rows[i].a, b = rows[i].b;
+    Twists t(v, a, b);
+    bool changed = false;
+    for (; i < rows.size() && rows[i].a == a && rows[i].b == b; ++i) {
+      const ContactRow& r = rows[i];
+      if (r.normal != 0.0) apply(r, t, 0, r.n, r.normal), changed = true;
+      if (r.tangent[0] != 0.0) apply(r, t, 1, r.t1, r.tangent[0]), changed = true;
+      if (r.tangent[1] != 0.0) apply(r, t, 2, r.t2, r.tangent[1]), changed = true;
+    }
+    if (changed) t.store(v, a, b);
   }
 }
 
@@ -629,17 +638,15 @@ void rows_to_lane(const ContactRow* r, int count, WideRow* w, int l) {
   }
 }
 
-// One sweep's update of a wide group: solve_manifold on its kLanes manifolds. A block
-// whose all-active answer does not fit (the active-set search, or rows one by one) is
-// handed to solve_manifold in its lane.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
-#endif
-void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
-                 const std::vector<Manifold>& manifolds, double* v,
-                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
-                 Progress& progress) {
-  const int k = g.count;
+// One sweep's update of a wide group of k rows (g.count): solve_manifold on its kLanes
+// manifolds. A block whose all-active answer does not fit (the active-set search, or rows
+// one by one) is handed to solve_manifold in its lane. (k a constant: each row count's
+// loops unrolled, their values in registers; solve_group picks one.)
+template <int k>
+WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
+                         const std::vector<Manifold>& manifolds, double* v,
+                         std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
+                         Progress& progress) {
   WideTwists t(v, g);
   // every lane idle: no impulse held (+0 bits) and no row approaching beyond its
   // allowance, so each lane's update would change nothing (solve_block's idle answer x = 0,
@@ -752,7 +759,8 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
     if (k >= 3 && any(face)) {
       const Lanes zero = splat(0.0), one = splat(1.0);
       Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
-      int idx[kLanes][4], members[kLanes], sets[kLanes];
+      // (idx zeroed: GCC cannot tell that a lane reads only the entries it wrote)
+      int idx[kLanes][4] = {}, members[kLanes], sets[kLanes];
       Mask tried = {0, 0, 0, 0};
       for (int l = 0; l < kLanes; ++l) {
         members[l] = 0;
@@ -897,6 +905,29 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
   for (int l = 0; l < kLanes; ++l) {
     const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
     if (spins != nullptr && spin >= 0) (*spins)[spin].load = load[l];
+  }
+}
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
+void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
+                 const std::vector<Manifold>& manifolds, double* v,
+                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
+                 Progress& progress) {
+  switch (g.count) {   // 1 to 4 (WideGroup)
+    case 1:
+      solve_group_of<1>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
+    case 2:
+      solve_group_of<2>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
+    case 3:
+      solve_group_of<3>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
+    default:
+      solve_group_of<4>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+      break;
   }
 }
 

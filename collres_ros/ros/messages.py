@@ -343,7 +343,14 @@ def batch_from_group(parts: Mapping[str, Mapping[str, codec.Stamped]],
         frames.append(pose.frame_id)
         twist_frames.append(twist.frame_id if twist is not None else pose.frame_id)
     values = np.array(rows, float).reshape(len(rows), 13)
-    return InputBatch(names, values, frames, twist_frames)
+    # one frame for all (the usual group): given as one, the check of a stream's usual step
+    # takes it whole (core/validation.py), not body by body
+    return InputBatch(names, values, _one(frames), _one(twist_frames))
+
+
+def _one(frames: list[str]) -> str | list[str]:
+    """``frames``' one frame when every entry is that frame, else ``frames``."""
+    return frames[0] if frames and len(set(frames)) == 1 else frames
 
 
 def inputs_from_group(parts: Mapping[str, Mapping[str, Any]], dynamic: Container[str]

@@ -21,7 +21,11 @@ demo: setup
 test: setup test-setup
 	$(VPY) -m pytest test
 
+# then the package's bytecode, compiled ahead (only what changed): an editable install
+# compiles none, and where PYTHONDONTWRITEBYTECODE is set (CI containers) every process
+# compiled every collres_ros module again, 0.08 s of each collres_node start
 setup: $(VENV)/.editable-stamp
+	@$(VPY) -m compileall -q collres_ros
 
 test-setup: $(VENV)/.test-deps-stamp
 

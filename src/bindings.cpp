@@ -6,4 +6,5 @@ PYBIND11_MODULE(_native, m) {
   bind_solver(m);
   bind_detection(m);
   bind_islands(m);
+  bind_input_check(m);
 }

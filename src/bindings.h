@@ -61,3 +61,6 @@ void bind_detection(pybind11::module_& m);
 
 // Islands and sleep timers (bind_islands.cpp).
 void bind_islands(pybind11::module_& m);
+
+// The usual step's input check (bind_input_check.cpp).
+void bind_input_check(pybind11::module_& m);

@@ -7,6 +7,7 @@ from typing import Any, Optional, Sequence
 import numpy as np
 
 from collres_ros.core.config import SolverSettings
+from collres_ros.core.sleep import Sleep
 from collres_ros.core.types import (
     BodySpec, BodyStates, ContactReport, ContactSet, Rejection, StepResult)
 
@@ -24,6 +25,9 @@ class FakeWorld:
         self.report: ContactReport = ContactReport.empty()
         self.hook: Any = None
         self.budget = (0, 0)   # what the step budget dropped (World.budget)
+        # the sleep state a World has (World.sleep); the fake never steps it: every body awake
+        self.sleep = Sleep(self.bodies, np.array([not b.static for b in self.bodies], bool),
+                           self.settings)
 
     def set_material(self, index: int, **values: Any) -> None:
         self.materials[index] = values

@@ -410,6 +410,30 @@ def test_negative_and_unnormalised_stamps_are_refused_with_a_reason() -> None:
     assert caught.value.reason == 'negative_stamp'
 
 
+def test_a_stamped_message_of_a_frame_seen_before_decodes_as_the_first() -> None:
+    """A stream's poses and twists after the first of their frame (read with one lookup):
+    the same values and frame as read field by field, their stamps still checked, and bytes
+    of one kind given as the other still refused."""
+    values = [0.5, -1.0, 2.0, 0.0, 0.0, 0.6, 0.8]
+    for frame in ('world', 'odom', ''):
+        first = codec.decode_pose(codec.encode_pose(10**9, frame, values))
+        pose = codec.encode_pose(2 * 10**9 + 7, frame, [v + 1.0 for v in values])
+        again = codec.decode_pose(pose)
+        assert (again.stamp_ns, again.frame_id) == (2 * 10**9 + 7, frame) == \
+            (again.stamp_ns, first.frame_id)
+        assert list(again.values) == [v + 1.0 for v in values]
+        twist = codec.encode_twist(3 * 10**9, frame, values[:6])
+        assert codec.decode_twist(twist).values == codec.decode_twist(twist).values \
+            == tuple(values[:6])
+        negative = bytearray(pose)
+        negative[4:12] = struct.pack('<iI', -1, 0)
+        with pytest.raises(codec.DecodeError) as caught:
+            codec.decode_pose(bytes(negative))
+        assert caught.value.reason == 'negative_stamp'
+        with pytest.raises(codec.DecodeError, match='trailing'):
+            codec.decode_twist(pose)
+
+
 def test_malformed_messages_are_refused_not_crashed_on() -> None:
     data = _states(['ball', 'box'])
     for broken in (b'', b'\x00\x01', b'\x01\x00\x00\x00' + data[4:], data[:-1],

@@ -194,6 +194,26 @@ def test_what_the_start_built_is_out_of_the_collectors_passes(node):
     assert gc.get_freeze_count() > 0
 
 
+def test_the_scene_parameters_are_described_and_checked_as_declared_ones(node):
+    """What ``ros2 param describe`` and ``set`` see of the scene's parameters, whose
+    descriptors are built when first read: each its own name, range and read-only flag; a
+    set is checked against them by rclpy (range, read-only) and by the node."""
+    from rclpy.parameter import Parameter
+    restitution, mass = node.describe_parameters(['body.ball.restitution', 'body.ball.mass'])
+    assert (restitution.name, restitution.read_only) == ('body.ball.restitution', False)
+    assert (restitution.floating_point_range[0].from_value,
+            restitution.floating_point_range[0].to_value) == (0.0, 1.0)
+    assert (mass.name, mass.read_only) == ('body.ball.mass', True)
+    assert node.describe_parameter('body.box.restitution').name == 'body.box.restitution'
+    results = node.set_parameters([Parameter('body.ball.restitution', value=1.5)]
+                                  + [Parameter('body.ball.mass', value=2.0)]
+                                  + [Parameter('body.box.restitution', value=0.25)])
+    assert [r.successful for r in results] == [False, False, True], results
+    assert node.get_parameter('body.box.restitution').value == 0.25
+    assert node.scene.bodies[node.scene.names.index('box')].restitution == 0.25
+    assert node.describe_parameter('body.box.restitution').floating_point_range
+
+
 def test_what_a_cleanup_releases_is_freed(node):
     """A managed node's cleanup (release_resolution) unfreezes what its configure froze: an
     object it drops is freed by the collector even in a reference cycle (a frozen cycle is

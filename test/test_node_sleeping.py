@@ -1,6 +1,7 @@
 """collres_node over real DDS with sleeping on (the default): a resting ball and box are
 answered every step, flagged ``sleeping`` with zero twist once asleep, counted in
-/diagnostics, and a push wakes the ball in the step."""
+/diagnostics; given their rest after a gap longer than max_dt they resume asleep (and the log
+says so: no fresh start); a push wakes the ball in the step."""
 
 from __future__ import annotations
 
@@ -42,11 +43,24 @@ def test_the_node_flags_sleeping_bodies_and_keeps_answering(running):  # noqa: F
     values = diagnostics_values(peer)
     assert (values['sleeping'], values['awake_bodies'], values['sleeping_islands']) == \
         ('on', '0', '2')
+    # 1 s later (> max_dt 0.5 s), their rest advanced one period as a simulator that kept
+    # integrating it sends it: both resume asleep, held where they rest
+    resume = T0 + n * DT + 10**9
+    out = step(peer, resume, [body(name, z - G * dt * dt, -G * dt, x=x)
+                              for name, (z, vz, x) in state.items()])
+    assert all(b.sleeping and b.pose.position.z == state[b.name][0] and b.twist.linear.z == 0
+               for b in out.bodies), out.bodies
+    assert peer.wait(lambda: '[large_gap]' in node.output(), 5.0), \
+        node.output()[-2000:]
+    print(node.output()[-400:])
+    # (one line per reason per second: the ball's)
+    assert 'resumed asleep [large_gap]: ball: 1.01 s since its last state' in node.output()
+    assert 'fresh start' not in node.output()
     # a push (1 m/s along x) wakes the ball in its step; the box sleeps on
     z, vz, x = state['ball']
     pushed = body('ball', z + (vz - G * dt) * dt, vz - G * dt, x=x + 1.0 * dt)
     pushed.twist.linear.x = 1.0
-    out = step(peer, T0 + n * DT, [pushed, body('box', state['box'][0] - G * dt * dt,
+    out = step(peer, resume + DT, [pushed, body('box', state['box'][0] - G * dt * dt,
                                                 -G * dt, x=1.0)])
     answers = {b.name: b for b in out.bodies}
     assert not answers['ball'].sleeping and answers['box'].sleeping

@@ -68,7 +68,8 @@ class ResolvedStep:
     # the step's start (a fresh step); ``toi_ns`` of it
     toi_span_ns: int
     rejected: list[Rejection] = field(default_factory=list)  # refused inputs (bodies held)
-    resets: list[Rejection] = field(default_factory=list)    # accepted as a fresh start
+    # accepted after a gap or with time going back: a fresh start, unless ``resumed_asleep``
+    resets: list[Rejection] = field(default_factory=list)
     stale: list[str] = field(default_factory=list)           # bodies silent > stale timeout
     dt: float = 0.0                   # s, step length used (fresh start: FRESH_DT or the period)
     step_time_s: float = 0.0          # wall time of resolve() (not deterministic)
@@ -90,6 +91,9 @@ class ResolvedStep:
     # (K, 13) the corrected states as rows (position, orientation, linear, angular: the
     # wire's order); ``states`` are its column views
     values: np.ndarray = field(default_factory=lambda: np.zeros((0, 13)))
+    # the gap's bodies (``resets``, all large_gap) resumed asleep from their held states: the
+    # usual step of the stream's period, no fresh start (``Resolver._resumes_asleep``)
+    resumed_asleep: bool = False
 
     _toi_ns: Optional[np.ndarray] = field(default=None, init=False, repr=False)
 
@@ -256,7 +260,7 @@ class Resolver:
                 rejected.append(Rejection(name, 'repeated_stamp',
                                           f'{name}: already resolved at stamp {stamp_ns} ns'))
             held = self._resumes_asleep(checked.index, checked.values, history, stamp_ns)
-            resets = self._resets(checked.index, history, stamp_ns, held)
+            resets = self._resets(checked.index, history, stamp_ns)
             use = ~history.repeated
             if not use.all():
                 index, fresh, entered = index[use], fresh[use], entered[use]
@@ -363,7 +367,8 @@ class Resolver:
                             np.zeros(len(index), bool) if result.sleeping is None
                             else result.sleeping[rows] if bad is None
                             else result.sleeping[rows] & ~bad,
-                            number=self.number, unchanged=result.unchanged, values=values)
+                            number=self.number, unchanged=result.unchanged, values=values,
+                            resumed_asleep=held)
 
     def _covers_dynamic(self, rows: np.ndarray | slice) -> bool:
         """Whether the scene rows ``rows`` (an input's, the same object step after step for
@@ -385,9 +390,9 @@ class Resolver:
         and g dt^2: the island stays asleep, answered at rest; anything else wakes it, as on
         a usual step). A restart instead would solve every body cold from its input, sunk
         g dt^2 and moving at g dt into its supports, and shake the pile awake."""
-        sleep = getattr(self.world, 'sleep', None)
+        sleep = self.world.sleep
         fresh = history.fresh & ~history.repeated
-        if not self.period_ns or sleep is None or not sleep.enabled or not fresh.any():
+        if not self.period_ns or not sleep.enabled or not fresh.any():
             return False
         resumed = index[fresh]
         last = self.last_stamp[resumed]
@@ -401,10 +406,10 @@ class Resolver:
                  + self._settings.sleep_threshold) * self.period_ns * 1e-9
         return bool((moved <= reach).all())
 
-    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int,
-                held: bool = False) -> list[Rejection]:
-        """The fresh starts of this step's inputs, reported; ``held``: the gap's bodies
-        resume asleep from their held states instead (``_resumes_asleep``)."""
+    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int
+                ) -> list[Rejection]:
+        """This step's inputs after a gap or with time going back, reported (fresh starts,
+        unless the gap's bodies resume asleep: ``ResolvedStep.resumed_asleep``)."""
         resets = []
         for k in np.flatnonzero(history.backwards):
             name = self.names[index[k]]
@@ -416,8 +421,7 @@ class Resolver:
             gap = (stamp_ns - self.last_stamp[index[k]]) * 1e-9
             resets.append(Rejection(name, 'large_gap',
                                     f'{name}: {gap:.3g} s since its last state (> max_dt '
-                                    f'{self._settings.max_dt:g} s); '
-                                    + ('resumed asleep' if held else 'fresh start')))
+                                    f'{self._settings.max_dt:g} s)'))
         return resets
 
 

@@ -473,8 +473,16 @@ def _radius_length(spec: BodySpec, size: list[float]) -> tuple[float, float]:
 
 
 def _guarded_inverse(inertia: np.ndarray) -> np.ndarray:
-    """Inverse of a symmetric inertia; axes with a non-positive moment get 0."""
-    values, vectors = np.linalg.eigh(0.5 * (inertia + inertia.T))
+    """Inverse of a symmetric inertia; axes with a non-positive moment get 0.
+
+    A diagonal inertia (the primitives' principal moments) is inverted on its diagonal:
+    what the eigen decomposition gives for it (unit eigenvectors, exact products), without
+    its 50 us a body at start."""
+    diagonal = np.diagonal(inertia)
+    if not (inertia - np.diag(diagonal)).any():
+        values, vectors = diagonal, None
+    else:
+        values, vectors = np.linalg.eigh(0.5 * (inertia + inertia.T))
     scale = max(float(np.max(np.abs(values))), 1e-300)
     inverse = np.where(values > 1e-12 * scale, 1.0 / np.where(values > 0.0, values, 1.0), 0.0)
-    return (vectors * inverse) @ vectors.T
+    return np.diag(inverse) if vectors is None else (vectors * inverse) @ vectors.T

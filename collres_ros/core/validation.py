@@ -23,7 +23,8 @@ History notices (the input is used, as a fresh start: previous = current):
 (more than ``max_dt`` since the body's last state). ``stale`` marks a known
 body that has not been updated for longer than a timeout.
 
-Pure functions over numpy arrays; no ROS, no coal.
+Pure functions over numpy arrays (the usual step's test in one pass of the compiled core,
+``_native.usual_inputs``); no ROS, no coal.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from collres_ros.core import _native
 from collres_ros.core.config import POSITION_LIMIT, VELOCITY_LIMIT
 from collres_ros.core.rotation import to_matrix
 from collres_ros.core.types import BodyInput, InputBatch, Rejection
@@ -43,8 +45,8 @@ QUATERNION_TOLERANCE = 1e-3   # |norm - 1| up to this is normalised silently
 NO_STAMP = -1                 # last-stamp value of a body never seen
 NAME_SHOWN = 40               # characters of a name shown in a detail line
 # |value| limits of an input row in check_inputs' usual step (position, orientation x, y, z,
-# w, linear, angular); a row beyond them takes the detailed checks
-_LIMITS = np.array([POSITION_LIMIT] * 3 + [2.0] * 4 + [VELOCITY_LIMIT] * 6)
+# w, linear, angular), (1, 13); a row beyond them takes the detailed checks
+_LIMITS = np.array([[POSITION_LIMIT] * 3 + [2.0] * 4 + [VELOCITY_LIMIT] * 6])
 
 
 def shown_name(name: str, limit: int = NAME_SHOWN) -> str:
@@ -150,17 +152,14 @@ def check_inputs(inputs: Sequence[BodyInput] | InputBatch,
     lookup = index_of if isinstance(index_of, NameIndex) else NameIndex(index_of)
     index, repeats = lookup.lookup(names)
     quaternion = numbers[:, 3:7]
-    # the stream's usual step in a few whole-array tests (nothing refused: the checks below
-    # would refuse nothing): every name known and once, the world frame, every number
-    # within its limit (NaN and Inf are not), then unit quaternions (the limit keeps their
-    # squares finite)
+    # the stream's usual step (nothing refused: the checks below would refuse nothing):
+    # every name known and once, the world frame, then in one compiled pass every number
+    # within its limit (NaN and Inf are not) and unit quaternions (the limit keeps their
+    # squares finite), normalised as below (the same bits)
     if lookup.plain and count and isinstance(batch.frame_id, str) and batch.frame_id in world \
-            and isinstance(batch.twist_frame_id, str) and batch.twist_frame_id in world \
-            and (np.abs(numbers) <= _LIMITS).all():
-        norm = _norms(quaternion)
-        if np.abs(norm - 1.0).max() <= min(quaternion_tolerance, 0.5):
-            values = numbers.copy()
-            values[:, 3:7] /= norm[:, None]
+            and isinstance(batch.twist_frame_id, str) and batch.twist_frame_id in world:
+        values = _native.usual_inputs(numbers, _LIMITS, min(quaternion_tolerance, 0.5))
+        if values is not None:
             # the index and the mask are the lookup's, read-only
             return CheckedInputs.of(index, values, lookup.none, [], lookup.span)
     duplicate = np.array([repeats[n] > 1 for n in names], bool) if repeats \
@@ -206,17 +205,6 @@ def check_inputs(inputs: Sequence[BodyInput] | InputBatch,
         values[in_body, 7:10] = np.einsum('kij,kj->ki', rotation, good[in_body, 7:10])
         values[in_body, 10:13] = np.einsum('kij,kj->ki', rotation, good[in_body, 10:13])
     return CheckedInputs.of(np.array(index), values, in_body, rejected)
-
-
-def _norms(quaternion: np.ndarray) -> np.ndarray:
-    """(K,) norms of (K, 4) rows, bit for bit ``np.linalg.norm(quaternion, axis=1)`` (its
-    sum of squares in the same order: x, y, z, w), column by column: a reduction along rows
-    of four strided numbers costs numpy 3x more."""
-    square = quaternion * quaternion
-    total = square[:, 0] + square[:, 1]
-    total += square[:, 2]
-    total += square[:, 3]
-    return np.sqrt(total, out=total)
 
 
 def _refusal(code: int, k: int, name: str, batch: InputBatch, repeats: Counter[str] | None,

@@ -153,10 +153,10 @@ class OutputEncoder:
         if any(n != [''] for n in names):
             self.piece_start = np.cumsum([0] + [len(n) for n in names[:-1]]).astype(np.int64)
             self.piece_names = codec.NamePool([n for group in names for n in group])
+        # the scene's body markers, built when first asked for (``body_markers``): their
+        # triangles took 25 ms of a 1000-body start, for a topic few subscribe to
+        self._bodies = None if bodies is None else tuple(bodies)
         self._body_markers: Optional[Any] = None
-        if bodies is not None:
-            from collres_ros.ros.body_markers import BodyMarkers
-            self._body_markers = BodyMarkers(bodies)
         self._last_body_markers: Optional[int] = None   # stamp (ns) of the last ones
         # topic -> (the step its last message was built or restamped for, the lifetime of
         # its markers, the message): a step whose report is that step's (``ResolvedStep.
@@ -171,9 +171,12 @@ class OutputEncoder:
         """body_markers (``body_markers.py``), or None when the last ones are younger than
         ``period`` s by stamp (a stamp going backwards starts again)."""
         last, now = self._last_body_markers, step.stamp_ns
-        if self._body_markers is None or (last is not None and 0 <= now - last
-                                          < int(round(period * 1e9))):
+        if self._bodies is None or (last is not None and 0 <= now - last
+                                    < int(round(period * 1e9))):
             return None
+        if self._body_markers is None:
+            from collres_ros.ros.body_markers import BodyMarkers
+            self._body_markers = BodyMarkers(self._bodies)
         self._last_body_markers = now
         life = int(round((lifetime + period) * 1e9))
         return codec.encode_markers(now, self.world_frame,
@@ -340,7 +343,14 @@ def batch_from_group(parts: Mapping[str, Mapping[str, codec.Stamped]],
         frames.append(pose.frame_id)
         twist_frames.append(twist.frame_id if twist is not None else pose.frame_id)
     values = np.array(rows, float).reshape(len(rows), 13)
-    return InputBatch(names, values, frames, twist_frames)
+    # one frame for all (the usual group): given as one, the check of a stream's usual step
+    # takes it whole (core/validation.py), not body by body
+    return InputBatch(names, values, _one(frames), _one(twist_frames))
+
+
+def _one(frames: list[str]) -> str | list[str]:
+    """``frames``' one frame when every entry is that frame, else ``frames``."""
+    return frames[0] if frames and len(set(frames)) == 1 else frames
 
 
 def inputs_from_group(parts: Mapping[str, Mapping[str, Any]], dynamic: Container[str]

@@ -496,8 +496,9 @@ class CollresNode(Node):
                 f'{self.scene.solver.max_contacts}); counted as contact_budget in /diagnostics')
         for item in step.rejected:
             self._warn(item.reason, f'input refused [{item.reason}]: {item.detail}')
+        happened = 'resumed asleep' if step.resumed_asleep else 'fresh start'
         for item in step.resets:
-            self._warn(item.reason, f'fresh start [{item.reason}]: {item.detail}')
+            self._warn(item.reason, f'{happened} [{item.reason}]: {item.detail}')
 
     def _configure_contact_state(self) -> None:
         node = self.scene.node

@@ -191,8 +191,16 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // contact from the start of the step; its bodies rest on it unless they have an impact
     touching_[k] = !detected && gap_[k] <= slop && before_[k] >= -sticking;
     if (touching_[k]) rested_[a] = rested_[b] = 1;
-    if (!detected && gap_[k] <= slop) near_[a] = near_[b] = 1;
-    if (!detected && gap_[k] <= slop && before_[k] >= -threshold)
+    // The gap then is measured along the current normal, a lower bound of the true one:
+    // two balls that pass each other fast turn their normal over the step and read as
+    // deep then though they were apart. So a pair leaving faster than the threshold is
+    // not near (its speculative rows measured from the later reference time: stopped
+    // short of a partner's late impact), and one leaving or approaching that fast is no
+    // support (held by it, below): taken as each other's support, a ball that a third
+    // hit within the step was held on the other as on a floor, one-sidedly (30 Hz elastic
+    // gas: 1.4 N s of momentum made, 12 % of the three's energy lost in a step)
+    if (!detected && gap_[k] <= slop && before_[k] <= threshold) near_[a] = near_[b] = 1;
+    if (!detected && gap_[k] <= slop && std::abs(before_[k]) <= threshold)
       supported_[a] = supported_[b] = 1;
     touched_[a] = touched_[b] = 1;
   }
@@ -216,7 +224,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const Vec3 normal = load3(c.normal + 3 * k);
-    if (!persistent(c.kind[k]) || gap_[k] > slop || before_[k] < -threshold) continue;
+    if (!persistent(c.kind[k]) || gap_[k] > slop || std::abs(before_[k]) > threshold) continue;
     for (const int64_t i : {a, b}) {
       if (!supported_[i]) continue;
       const int64_t other = i == a ? b : a;

@@ -18,8 +18,8 @@
 //    body with an impact (IMPACT/TUNNELLED contact, or a persistent contact that closes
 //    faster than the restitution threshold during the step) is rewound to its earliest
 //    time of impact f and solved with the velocity it had then (a supported body, one
-//    touching something from the start and approaching it then slower than the
-//    threshold, along its held path: its previous twist less any approach into what it
+//    touching something from the start and neither approaching nor leaving it then
+//    faster than the threshold, along its held path: its previous twist less any approach into what it
 //    touches, not the path its source integrated through its supports; its impacts are
 //    timed against that path, and one that does not close on it is a persistent contact
 //    from the start), except an impact of a

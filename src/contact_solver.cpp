@@ -1300,9 +1300,16 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
     if (inv_lower == 0.0 || inv_upper * ratio <= inv_lower)
       order.push_back(static_cast<int32_t>(r));
   }
+  // by lower level, stably (a counting sort: levels are small non-negative integers)
   auto lower = [&](int32_t i) { return std::min(level[rows[i].a], level[rows[i].b]); };
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int32_t i, int32_t j) { return lower(i) < lower(j); });
+  int32_t top = -1;
+  for (const int32_t i : order) top = std::max(top, lower(i));
+  std::vector<size_t> start(static_cast<size_t>(top) + 2, 0);
+  for (const int32_t i : order) ++start[static_cast<size_t>(lower(i)) + 1];
+  for (size_t l = 1; l < start.size(); ++l) start[l] += start[l - 1];
+  std::vector<int32_t> by_level(order.size());
+  for (const int32_t i : order) by_level[start[static_cast<size_t>(lower(i))]++] = i;
+  order.swap(by_level);
   // the rows between levels L and L + 1 see the bodies below as fixed: copies of the rows
   // with the lower body's inverse mass and inertia zeroed
   scratch.clear();

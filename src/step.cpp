@@ -31,19 +31,24 @@ double normal_speed(const double* v, int64_t a, int64_t b, Vec3 ra, Vec3 rb, Vec
   return dot(vb - va, n);
 }
 
-// m: how far the point of body i at r from its current centre of mass travelled over the
-// step, from the poses: the centre's travel (a step of several periods that its source
-// integrated under gravity is no straight line at the twist) and the turn (an estimator's
-// pose turned with a zero twist: a push-out from the last answer that turned a body must
-// see that turn, or it pushes again every step and the body keeps turning into its
-// neighbours), to first order (a curved surface's contact point is no material point: a
-// rolling ball's does not rise)
-Vec3 travelled(const BodyStatesView& previous, const BodyStatesView& current, int64_t i,
-               const Vec3& r) {
+// How body i moved over the step, from the poses (a step of several periods that its source
+// integrated under gravity is no straight line at the twist): (shift, turn), its centre's
+// travel (m) and its turn q1 q0^-1 as a rotation vector (rad; an estimator's pose turned
+// with a zero twist: a push-out from the last answer that turned a body must see that turn,
+// or it pushes again every step and the body keeps turning into its neighbours)
+std::array<Vec3, 2> body_motion(const BodyStatesView& previous, const BodyStatesView& current,
+                                int64_t i) {
   const Quat turn = multiply(load4(current.orientation + 4 * i),
                              load4(previous.orientation + 4 * i).conjugate());
-  return load3(current.position + 3 * i) - load3(previous.position + 3 * i) +
-         cross(to_rotation_vector(turn), r);
+  return {Vec3(load3(current.position + 3 * i) - load3(previous.position + 3 * i)),
+          to_rotation_vector(turn)};
+}
+
+// m: how far the point at r from a body's current centre of mass travelled over the step,
+// from its motion (body_motion), to first order (a curved surface's contact point is no
+// material point: a rolling ball's does not rise)
+Vec3 travelled(const std::array<Vec3, 2>& motion, const Vec3& r) {
+  return motion[0] + cross(motion[1], r);
 }
 
 }  // namespace
@@ -156,6 +161,14 @@ void StepSolver::reference_frame(StepContext& ctx) {
   impacted_.assign(n, 0);
   rested_.assign(n, 0);
   supported_.assign(n, 0);
+  motion_.resize(n);
+  for (int64_t k = 0; k < m; ++k) {   // each body in contact's motion, once
+    for (const int64_t i : {c.a[k], c.b[k]}) {
+      if (touched_[i]) continue;
+      touched_[i] = 1;
+      motion_[i] = body_motion(previous, current, i);
+    }
+  }
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);   // IMPACT or TUNNELLED
@@ -180,8 +193,8 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // how far the two points closed over the step (m, from the poses: a step of several
     // periods that its source integrated is no straight line at the twist); a persistent
     // contact's gap at the previous state is its separation less that
-    travelled_[2 * k] = travelled(previous, current, a, ra_[k]);
-    travelled_[2 * k + 1] = travelled(previous, current, b, rb_[k]);
+    travelled_[2 * k] = travelled(motion_[a], ra_[k]);
+    travelled_[2 * k + 1] = travelled(motion_[b], rb_[k]);
     moved_a_[k] = dot(travelled_[2 * k], normal);
     const double closed = dot(travelled_[2 * k + 1], normal) - moved_a_[k];
     gap_[k] = c.separation[k] - closed;
@@ -202,7 +215,6 @@ void StepSolver::reference_frame(StepContext& ctx) {
     if (!detected && gap_[k] <= slop && before_[k] <= threshold) near_[a] = near_[b] = 1;
     if (!detected && gap_[k] <= slop && std::abs(before_[k]) <= threshold)
       supported_[a] = supported_[b] = 1;
-    touched_[a] = touched_[b] = 1;
   }
   for (int64_t i = 0; i < n; ++i) {
     rested_[i] = rested_[i] && bodies.movable[i] != 0;

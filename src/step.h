@@ -99,6 +99,7 @@
 // reads the step's inputs, settings and outputs from one StepContext.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -289,6 +290,9 @@ class StepSolver {
   std::vector<uint8_t> near_;        // (N,) movable, a persistent contact within the slop at
                                      // the previous state (approaching or not)
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
+  std::vector<std::array<Vec3, 2>> motion_;   // (N,) of a body in contact (touched_): its
+                                     // centre's travel over the step (m) and its turn as a
+                                     // rotation vector (rad), from the poses
   // per contact (scratch)
   std::vector<Vec3> ra_, rb_;
   std::vector<Vec3> travelled_;      // (M, 2) m: how far the points of A and B travelled

@@ -189,9 +189,43 @@ def with_stamp(template: bytearray, stamp: int) -> bytes:
     return bytes(template)
 
 
-def ros_env(domain: int) -> dict[str, str]:
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+# Fast DDS announces a participant 5 times at start, 0.1 s apart, then every 3 s. Which side
+# sees the other first is a race: a probe that missed the node's first announcements waited
+# for its next one (at 1000 bodies, load 2-3, the first answer came 3.7-4.6 s after the start
+# in most runs, 2-3 s after the node was ready). The bench's own participants (this process's
+# probe and listener, the publisher) announce themselves every 0.25 s instead, so the node
+# learns of them, and they of it, within a quarter second of its start, whatever the race:
+# set on the probe side only, through Fast DDS's default profile file; the node's and the
+# echo's processes keep the environment a user gives them.
+PROBE_PROFILE = """<?xml version="1.0" encoding="UTF-8"?>
+<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <profiles>
+    <participant profile_name="collres_bench_probe" is_default_profile="true">
+      <rtps><builtin><discovery_config>
+        <leaseAnnouncement><sec>0</sec><nanosec>250000000</nanosec></leaseAnnouncement>
+      </discovery_config></builtin></rtps>
+    </participant>
+  </profiles>
+</dds>
+"""
+PROFILE_VARIABLE = 'FASTRTPS_DEFAULT_PROFILES_FILE'
+USER_ENV = dict(os.environ)   # the environment as given, before the probe's profile is set
+
+
+def use_probe_profile(workdir: Path) -> None:
+    """This process's participants, and the publisher's, announce every 0.25 s (see
+    ``PROBE_PROFILE``); before this process's first participant."""
+    path = workdir / 'probe_profile.xml'
+    path.write_text(PROBE_PROFILE)
+    os.environ[PROFILE_VARIABLE] = str(path)
+
+
+def ros_env(domain: int, probe: bool = True) -> dict[str, str]:
+    """The environment of a process of the run: the probe side's (``probe``: this process's
+    own, with its Fast DDS profile) or a server's (the node, the echo: the user's)."""
+    env = dict(os.environ if probe else USER_ENV, ROS_DOMAIN_ID=str(domain),
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1',
+               RCUTILS_COLORIZED_OUTPUT='0')
     return env
 
 
@@ -478,13 +512,13 @@ def first_answer(count: int, args: argparse.Namespace, workdir: Path) -> tuple[f
     when the first ``body_states/corrected`` arrives: imports, parameters, resolver, topics,
     discovery and the first step, all that a user waits for. ``ready``: to the node's
     ``resolving ...`` log line (its topics exist; the rest is DDS discovery and the step).
-    Discovery between two new participants on a busy machine may wait for the next periodic
-    announcement of Fast DDS (every 3 s by default), so the first figure is bimodal: at 1000
-    bodies, load 2-3, most first answers came 3.7-4.6 s after the start, 2-3 s after the
-    node was ready; a probe whose participant announced itself every 0.3 s (its own Fast DDS
-    profile, ``leaseAnnouncement``) had its first answer 0.1-0.2 s after the node was ready,
-    in 4 runs of 4; the node's own announcement period changed nothing. The node is then
-    stopped; the runs that follow start their own.
+    Discovery between two new participants may wait for the next periodic announcement of
+    Fast DDS (every 3 s by default), so the first figure was bimodal: at 1000 bodies, load
+    4.5, first answers 1.17, 3.74, 4.10, 3.75, 3.74, 3.74 s with the node ready after
+    0.90-1.35 s; the probe's participant now announces itself every 0.25 s
+    (``PROBE_PROFILE``, this side only): 1.26-1.40 s, 0.04-0.05 s after the node was ready,
+    in 6 runs of 6 (same load). The node is then stopped; the runs that follow start their
+    own.
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -508,7 +542,7 @@ def first_answer(count: int, args: argparse.Namespace, workdir: Path) -> tuple[f
     try:
         with open(workdir / f'start{count}.log', 'wb') as log:
             wall, begin = time.time(), time.monotonic_ns()
-            node = subprocess.Popen(command, env=ros_env(args.domain), stdout=log,
+            node = subprocess.Popen(command, env=ros_env(args.domain, probe=False), stdout=log,
                                     stderr=subprocess.STDOUT, start_new_session=True)
         try:
             deadline = begin + 120 * 10**9
@@ -575,8 +609,9 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
     """One run of the publisher in ``mode`` against ``server`` ('node' or 'echo'; the
     node's process with the environment of ``variant``, see ``node_env``)."""
     scene, data = workdir / f'pile{count}_{sleeping}.yaml', workdir / f'input{count}.cdr'
-    env = ros_env(args.domain)
-    server_env = dict(env, **node_env(variant)) if server == 'node' else env   # its own only
+    env = ros_env(args.domain)   # the publisher's
+    server_env = dict(ros_env(args.domain, probe=False), **(
+        node_env(variant) if server == 'node' else {}))   # the variant: the node's only
     if server == 'node':
         command = [str(Path(sys.executable).parent / 'collres_node'), '--ros-args',
                    '--params-file', str(scene)]
@@ -770,13 +805,14 @@ def main(argv: list[str] | None = None) -> int:
     rates = (args.rates + [args.rates[-1]] * len(args.sizes))[:len(args.sizes)]
     if args.start_only:
         with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
+            use_probe_profile(Path(tmp))
             for count, rate in zip(args.sizes, rates):
                 prepare(count, rate, args, Path(tmp))
                 starts = [first_answer(count, args, Path(tmp)) for _ in range(args.start_only)]
                 print(f'{count} bodies: first answer (ready) after '
                       f'{", ".join(f"{t:.2f} ({r:.2f})" for t, r in starts)} s', flush=True)
         return 0
-    print('| bodies | server | mode | sleeping (asleep) | start s: answer (topics) | '
+    print('| bodies | server | mode | sleeping (asleep) | start s: answer / ready (topics) | '
           'lock-step Hz | '
           'lock-step p50 ms | paced Hz | sent | send p50 / p99 ms | dropped (behind) | p50 ms | '
           'p99 ms | '
@@ -787,9 +823,10 @@ def main(argv: list[str] | None = None) -> int:
     print('|---' * 22 + '|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
+        use_probe_profile(Path(tmp))
         for count, rate in zip(args.sizes, rates):
             prepare(count, rate, args, Path(tmp))
-            start = first_answer(count, args, Path(tmp))[0]
+            start, ready = first_answer(count, args, Path(tmp))
             runs = ([] if args.no_echo else [('echo', 'estimator', 'on', 'default')]) + \
                 [('node', mode, flag, variant) for mode in args.modes
                  for flag in args.sleeping for _ in range(args.repeat)
@@ -800,6 +837,7 @@ def main(argv: list[str] | None = None) -> int:
                     count, rate, mode, Path(tmp) / f'pile{count}_{flag}.yaml', r['inputs'],
                     r['stepped'], r['answered'])
                 r['first_answer_s'] = start if server == 'node' else float('nan')
+                r['ready_s'] = ready if server == 'node' else float('nan')
                 rows.append(r)
                 _print_row(r)
     print('lock-step: publish, wait for the answer, repeat (its steps; still: its last answer '
@@ -809,9 +847,10 @@ def main(argv: list[str] | None = None) -> int:
           'latency: publish to body_states/corrected received (it includes send: the '
           "publisher's own time to hand a step over, 2 x bodies messages in per_body mode); "
           "start: the node's process start to its first answer (a probe run of its own, "
-          'the pile\'s input sent every 20 ms from the start), in brackets to every topic of '
-          'the run connected; callback split: the node\'s /diagnostics means over the paced '
-          'run; World.step (in-process wall / CPU): the node\'s own steps (every input it '
+          'the pile\'s input sent every 20 ms from the start) / to its \'resolving\' log line '
+          '(ready: its topics exist), in brackets to every topic of the run connected; '
+          'callback split: the node\'s /diagnostics means over the paced run; World.step '
+          '(in-process wall / CPU): the node\'s own steps (every input it '
           'answered, the same stamps and inputs) stepped again by a Resolver in this process '
           '(median, thread CPU time beside; paced CPU: the same steps one per period, the CPU '
           "a step pays after other work, the node's reference, see in_process); "
@@ -829,7 +868,7 @@ def _print_row(r: dict[str, Any]) -> None:
     answer, world = t.get('answer_time_mean_ms'), t.get('time.world_ms')
     overhead = answer - world if answer is not None and world is not None else None
     print(f'| {r["bodies"]} | {r["server"]} | {r["mode"]} | {r["sleeping"]} ({r["asleep"]}) | '
-          f'{r["first_answer_s"]:.2f} ({r["startup_s"]:.2f}) | '
+          f'{r["first_answer_s"]:.2f} / {r["ready_s"]:.2f} ({r["startup_s"]:.2f}) | '
           f'{r["lockstep"]["rate_hz"]:.1f} ({r["lockstep"]["steps"]} steps'
           f'{", still" if r["lockstep"].get("still") else ""}) | '
           f'{r["lockstep"]["p50_ms"]:.2f} | {r["rate"]:g} | '

@@ -82,7 +82,8 @@ class Islands {
   // moving body's swept bounds touch (see the file comment); remember each awake body's
   // acceleration. `previous` is the last answer (held state for the sleepers), `current`
   // the inputs; `active` (N,) 0 = no input this step (held, never moving); `kinematic`
-  // (N,) 1 = a static body that moves this step. dt > 0 (s). Returns the bodies woken.
+  // (N,) 1 = a body moving this step whatever its twists say (a static body that moves, an
+  // awake dynamic one back from held). dt > 0 (s). Returns the bodies woken.
   int wake(const SleepStates& previous, const SleepStates& current,
            const std::uint8_t* active, const std::uint8_t* kinematic, double dt);
 

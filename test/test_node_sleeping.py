@@ -1,7 +1,8 @@
 """collres_node over real DDS with sleeping on (the default): a resting ball and box are
 answered every step, flagged ``sleeping`` with zero twist once asleep, counted in
 /diagnostics; given their rest after a gap longer than max_dt they resume asleep (and the log
-says so: no fresh start); a push wakes the ball in the step."""
+says so: no fresh start); a message of one of them wakes neither; a push wakes the ball in
+the step."""
 
 from __future__ import annotations
 
@@ -56,12 +57,21 @@ def test_the_node_flags_sleeping_bodies_and_keeps_answering(running):  # noqa: F
     # (one line per reason per second: the ball's)
     assert 'resumed asleep [large_gap]: ball: 1.01 s since its last state' in node.output()
     assert 'fresh start' not in node.output()
+    # a message of the box alone holds the ball, asleep, where it is: nothing wakes, and the
+    # next message of both finds both asleep (7039d81 woke both: the box answered awake)
+    rest = {name: body(name, z - G * dt * dt, -G * dt, x=x)
+            for name, (z, vz, x) in state.items()}
+    out = step(peer, resume + DT, [rest['box']])
+    assert [(b.name, b.sleeping) for b in out.bodies] == [('box', True)], out.bodies
+    out = step(peer, resume + 2 * DT, list(rest.values()))
+    assert all(b.sleeping and b.pose.position.z == state[b.name][0] for b in out.bodies), \
+        out.bodies
     # a push (1 m/s along x) wakes the ball in its step; the box sleeps on
     z, vz, x = state['ball']
     pushed = body('ball', z + (vz - G * dt) * dt, vz - G * dt, x=x + 1.0 * dt)
     pushed.twist.linear.x = 1.0
-    out = step(peer, resume + DT, [pushed, body('box', state['box'][0] - G * dt * dt,
-                                                -G * dt, x=1.0)])
+    out = step(peer, resume + 3 * DT, [pushed, body('box', state['box'][0] - G * dt * dt,
+                                                    -G * dt, x=1.0)])
     answers = {b.name: b for b in out.bodies}
     assert not answers['ball'].sleeping and answers['box'].sleeping
     assert answers['ball'].twist.linear.x > 0.5

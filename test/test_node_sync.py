@@ -194,3 +194,24 @@ def test_a_gap_in_one_body_stream_does_not_stall_the_others():
     print('served', served)
     assert served[-15:] == list(range(25, 40))
     assert sync.stale() == ['box']
+
+
+def test_a_synchronised_step_lists_its_bodies_in_the_scene_order_whatever_came_first():
+    """The answer of a per-body step (``body_states/corrected``) lists the scene's bodies in
+    the scene's order, then any the scene does not know (refused by the resolver), as their
+    parts came, however the parts of this step were interleaved on the way."""
+    from collres_ros.ros.codec import Stamped
+    from collres_ros.ros.messages import batch_from_group
+
+    order = ('floor', 'a', 'b', 'c')
+    sync = StampSync(['a', 'b', 'c'], ['floor'])
+    arrivals = [('c', 'twist'), ('stray', 'pose'), ('b', 'pose'), ('floor', 'pose'),
+                ('a', 'twist'), ('stray', 'twist'), ('c', 'pose'), ('b', 'twist'),
+                ('a', 'pose')]
+    done = []
+    for name, kind in arrivals:
+        part = Stamped(10 * MS, 'world', (0.0,) * (7 if kind == 'pose' else 6))
+        done += sync.add(name, kind, 10 * MS, part)
+    assert len(done) == 1
+    batch = batch_from_group(done[0].parts, frozenset(['a', 'b', 'c', 'stray']), order)
+    assert list(batch.names) == ['floor', 'a', 'b', 'c', 'stray']

@@ -20,7 +20,13 @@ It wakes, in the step:
 * when the swept bounds of a moving body (kinematic, or awake and faster than the
   threshold, or jolted beyond it) touch its island, before detection: no impact is missed;
 * after a step in which an awake body leaned on it (a contact with impulse): answered
-  asleep (held) in that step, solved from the next.
+  asleep (held) in that step, solved from the next;
+* when an awake body comes back from a step without its input (held): it is taken as
+  moving in that step, so its swept bounds wake the islands they touch (it may have left,
+  while held, from under an island that fell asleep on it).
+
+A body held for a step (no input: a message of some bodies; or its input refused) is fixed
+in it, as a sleeper is: that wakes nothing, and an asleep body not mentioned stays asleep.
 
 A woken body's still time restarts: it sleeps again only after ``time_to_sleep`` awake, so
 a body answered asleep in two consecutive steps has the same pose in both (while
@@ -111,17 +117,25 @@ class Sleep:
         replaced by their held state (previous pose, zero twist) and marked inactive.
         ``previous``, ``current``: (N, 13) rows (position, orientation, linear, angular)."""
         last = self._last_active
-        if fresh or last is None or len(last) != len(active) or not (active == last).all():
+        kinematic = self._no_kinematic
+        if fresh or last is None or len(last) != len(active):
             self.wake_all()            # a clock jump, a body added or removed
             self._last_active = active.copy()
-        kinematic = self._no_kinematic
+        elif not (active == last).all():
+            # a body held this step (not in the input, or refused) is fixed, as a sleeper is:
+            # nothing wakes for it; an awake one back from held is a mover this step (it may
+            # have lost a support while held), its swept bounds wake the islands they touch
+            back = active & ~last & self.dynamic & ~self._native.asleep.view(bool)
+            if back.any():
+                kinematic = back.astype(np.uint8)
+            self._last_active = active.copy()
         if self._native.sleeping_bodies and len(self._static):
             k = self._static     # moved, or a kinematic velocity: a non-zero change of
             change = current[k]  # pose (finite numbers: a - b is 0 only where a == b) or twist
             change[:, 0:7] -= previous[k, 0:7]
             moved = active[k] & change.any(1)
             if moved.any():
-                kinematic = self._no_kinematic.copy()
+                kinematic = kinematic.copy()
                 kinematic[k] = moved
         self._native.wake(_columns(previous), _columns(current), active.view(np.uint8),
                           kinematic, float(dt))

@@ -198,6 +198,9 @@ class CollresNode(Node):
         self._configure_contact_state()
         statics = [b.name for b in self.scene.bodies if b.static]
         self.dynamic = [b.name for b in self.scene.bodies if not b.static]
+        # a per-body step's bodies, in the scene's order (``messages.batch_from_group``)
+        self._body_order = tuple(b.name for b in self.scene.bodies)
+        self._dynamic_names = frozenset(self.dynamic)
         self.sync = StampSync(self.dynamic, statics, seconds_ns(self.scene.node.sync_slop),
                               seconds_ns(self.scene.node.stale_timeout))
         self._publishers_by_topic: dict[str, Any] = {}
@@ -427,8 +430,9 @@ class CollresNode(Node):
         for group in groups:
             self._parts_since_step = 0
             self._last_part_step = time.monotonic()
-            self._step(group.stamp_ns, messages.batch_from_group(group.parts, self.dynamic),
-                       True, start)
+            batch = messages.batch_from_group(group.parts, self._dynamic_names,
+                                              self._body_order)
+            self._step(group.stamp_ns, batch, True, start)
             start = time.perf_counter()
 
     def _refuse(self, refusal: codec.DecodeError, topic: str) -> None:

@@ -225,6 +225,9 @@ class PerBodyGrouper:
         from collres_ros.ros.sync import StampSync
         self.wanted = wanted
         self.dynamic = [b.name for b in scene.bodies if not b.static]
+        # a per-body step's bodies, in the scene's order (``messages.batch_from_group``)
+        self._body_order = tuple(b.name for b in scene.bodies)
+        self._dynamic_names = frozenset(self.dynamic)
         node = scene.node
         self.sync = StampSync(self.dynamic, [b.name for b in scene.bodies if b.static],
                               seconds_ns(node.sync_slop), seconds_ns(node.stale_timeout))
@@ -249,7 +252,8 @@ class PerBodyGrouper:
                 continue
             for group in self.sync.add(name, kind, part.stamp_ns, part):
                 yield Step(group.stamp_ns, log_time,
-                           messages.batch_from_group(group.parts, self.dynamic), True)
+                           messages.batch_from_group(group.parts, self._dynamic_names,
+                                                     self._body_order), True)
         self.incomplete = self.sync.dropped + len(self.sync.pending)
 
 

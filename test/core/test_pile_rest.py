@@ -29,12 +29,15 @@ from collres_ros.core.config import SolverSettings
 from collres_ros.core.detection import Detection
 from collres_ros.core.world import World
 
+from overlap import deepest_between  # noqa: I100
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
 from pile import integrate, make_pile  # noqa: E402
 
 RATE = 30.0
 FLOOR = 5e-4      # m, the most a body may rest in the floor
 BETWEEN = 2.5e-3  # m, the most two bodies may overlap at rest (module docstring)
+SETTLED = SolverSettings().linear_slop + 3e-4   # m, the law below: slop + 0.3 mm
 
 
 @pytest.mark.parametrize('seed', [1, 2])
@@ -59,3 +62,38 @@ def test_a_pile_rests_on_its_floor_and_not_in_itself_at_30_hz(kind: str, seed: i
     assert asleep is not None
     assert into_floor < FLOOR
     assert overlap < BETWEEN
+
+
+# At 30 Hz the settled piles rest 1.2-2.0 mm deep between bodies (coal, seeds 1-2 of both
+# kinds, asleep after 1.0-2.2 s), at 120 Hz 0.14-0.17 mm.
+AT_30_HZ_OPEN = pytest.mark.xfail(strict=True, reason=(
+    'between two movable bodies the push-out of the sweep of every row is cancelled by '
+    'the floor sweeps (a body under another is pushed down, then back up) and the deep '
+    'sweeps act only beyond slop + deep_overlap; the bin\'s walls root the contact '
+    'levels, so the hold of the lower body pushes bodies under the outer columns down: '
+    'the pile falls asleep 1.2-2.0 mm deep'))
+
+
+@pytest.mark.parametrize('rate', [pytest.param(30.0, marks=AT_30_HZ_OPEN), 120.0])
+@pytest.mark.parametrize('seed', [1, 2])
+@pytest.mark.parametrize('kind', ['cubes', 'mixed'])
+def test_a_settled_pile_has_no_contact_deeper_than_the_slop(
+        kind: str, seed: int, rate: float) -> None:
+    """A pile at rest holds no two bodies deeper in each other than the slop plus 0.3 mm,
+    measured by coal's signed distance on the answered poses. The push-out converged
+    leaves them at the slop plus the resting solve's residual: 0.14-0.17 mm at 120 Hz, and
+    at 30 Hz kept awake with four sweeps of every row 0.14-0.18 mm after 8 s; 0.3 mm is
+    that with margin, and below what a user sees between two 10 cm boxes."""
+    bodies, state = make_pile(100, seed=seed, kind=kind)
+    world = World(bodies, SolverSettings())
+    dynamic = world.dynamic
+    asleep = False
+    for _ in range(int(4.0 * rate)):
+        result = world.step(state, integrate(state, dynamic, 1.0 / rate), 1.0 / rate)
+        state = result.states
+        asleep = bool(result.sleeping[dynamic].all())
+    depth = deepest_between(bodies, state, dynamic)
+    print(f'{kind} seed {seed} at {rate:.0f} Hz: asleep {asleep}, deepest between bodies '
+          f'{depth * 1e3:.2f} mm')
+    assert asleep
+    assert depth < SETTLED

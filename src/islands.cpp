@@ -117,7 +117,10 @@ int Islands::wake(const SleepStates& previous, const SleepStates& current,
         moving = moving || !(speed(i, v0, w0) <= tau) || !(jolt <= tau);
       }
     }
-    if (asleep_[i]) {
+    // a sleeper the caller moves (a fresh restart): its island wakes, and its swept
+    // bounds wake the islands they touch
+    if (asleep_[i] && moving) mark(i);
+    if (asleep_[i] && !moving) {
       Box box;
       for (int k = 0; k < 3; ++k) {
         box.lo[k] = x0[k] - r - pad;

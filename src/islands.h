@@ -29,7 +29,8 @@
 // Before detection (Islands::wake) an island wakes when one of its bodies departs, or when
 // the swept bounds of a moving body touch one of its bodies' bounds (spheres of radius r
 // about the centre of mass, padded by half the speculative margin as detection's boxes).
-// Moving: a kinematic body (caller's flag), or an awake dynamic body whose last answer
+// Moving: a body the caller flags (kinematic, back from held, restarted fresh; a sleeper so
+// flagged wakes its own island), or an awake dynamic body whose last answer
 // was faster than the threshold or whose input jolts beyond it. An awake body at rest
 // beside a sleeping island does not wake it (detection treats the sleeper as fixed; a
 // contact with it that carries impulse wakes it after the step, Islands::update).
@@ -83,7 +84,8 @@ class Islands {
   // acceleration. `previous` is the last answer (held state for the sleepers), `current`
   // the inputs; `active` (N,) 0 = no input this step (held, never moving); `kinematic`
   // (N,) 1 = a body moving this step whatever its twists say (a static body that moves, an
-  // awake dynamic one back from held). dt > 0 (s). Returns the bodies woken.
+  // awake dynamic one back from held, a body restarted fresh: a sleeper so flagged wakes its
+  // island). dt > 0 (s). Returns the bodies woken.
   int wake(const SleepStates& previous, const SleepStates& current,
            const std::uint8_t* active, const std::uint8_t* kinematic, double dt);
 

@@ -287,7 +287,9 @@ class Resolver:
             resumed = fresh & (self.last_stamp[index] != NO_STAMP) \
                 & (self.last_stamp[index] < stamp_ns)
             previous[index[resumed], 7:13] = self._values[index[resumed], 7:13]
-            self.world.forget(restart)
+            # each moves in this step from where it was held (its last answer, or its params
+            # state): its island and what it sweeps wake, no other island
+            self.world.forget(restart, self._values[restart, 0:7])
             resumed_all = bool(resumed[fresh].all())
         else:
             resumed_all = False

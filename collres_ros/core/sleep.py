@@ -23,7 +23,12 @@ It wakes, in the step:
   asleep (held) in that step, solved from the next;
 * when an awake body comes back from a step without its input (held): it is taken as
   moving in that step, so its swept bounds wake the islands they touch (it may have left,
-  while held, from under an island that fell asleep on it).
+  while held, from under an island that fell asleep on it);
+* when one of its bodies restarts fresh (a first input, a gap, time going back, a missed
+  step: ``World.forget``): that body moves in the step from where it was held to its input,
+  so its own island wakes and its swept bounds wake the islands they touch; no other (a
+  static body restarted wakes what it touches when its pose changed or it has a twist, as
+  on any step).
 
 A body held for a step (no input: a message of some bodies; or its input refused) is fixed
 in it, as a sleeper is: that wakes nothing, and an asleep body not mentioned stays asleep.
@@ -31,8 +36,8 @@ in it, as a sleeper is: that wakes nothing, and an asleep body not mentioned sta
 A woken body's still time restarts: it sleeps again only after ``time_to_sleep`` awake, so
 a body answered asleep in two consecutive steps has the same pose in both (while
 ``time_to_sleep`` >= dt).
-* everything wakes on a body added, removed or reset, a material, filter or settings
-  change, and a step without a usable previous one (a clock jump; not a gap after which
+* everything wakes on a body added or removed, a material, filter or settings change,
+  and a step without a usable previous one (a clock jump; not a gap after which
   every body resumes asleep within reach of its held pose: the resolver then steps the
   stream's period from the held states, ``Resolver._resumes_asleep``).
 
@@ -68,6 +73,8 @@ class Sleep:
         self._held = ContactReport.empty()    # contacts of the sleeping islands
         self._held_for = np.zeros(len(self.dynamic), bool)   # bodies asleep after last step
         self._version = 0   # of _held: counts its replacements
+        self._restarted = np.zeros(len(self.dynamic), bool)   # movers of the next step
+        self._restarted_from = np.zeros((len(self.dynamic), 7))   # their last poses (m, xyzw)
         self._reported: int | None = None   # _held's version when the last step's report
         #                                     was _held alone (None: it was not)
         self.settings = settings
@@ -92,8 +99,19 @@ class Sleep:
     def enabled(self) -> bool:
         return bool(self._settings.sleeping)
 
+    def restart(self, bodies: np.ndarray, last_poses: np.ndarray | None = None) -> None:
+        """The ``bodies`` (indices) restart fresh in the next step (their history
+        forgotten), from ``last_poses`` ((K, 7) position m, orientation x y z w, world;
+        default: their poses in that step). A dynamic one is a mover in that step, as a body
+        back from held is: swept from its last pose, and a sleeper among them wakes its own
+        island; a static (kinematic) one moves if its input's pose differs from its last or
+        its twist is not zero, as on any step. Nothing else wakes for them."""
+        self._restarted[bodies] = True
+        self._restarted_from[bodies] = np.nan if last_poses is None else last_poses
+
     def wake_all(self) -> None:
         self._native.wake_all()
+        self._restarted = np.zeros(len(self.dynamic), bool)   # none moves: all awake
         self._held = ContactReport.empty()
         self._version += 1
         self._held_for = np.zeros(len(self.dynamic), bool)
@@ -129,15 +147,25 @@ class Sleep:
             if back.any():
                 kinematic = back.astype(np.uint8)
             self._last_active = active.copy()
+        swept_from = previous
+        if self._restarted.any():
+            # a body restarted fresh moves in this step from where it was last (the step's
+            # previous state is its input: nothing moved before); a sleeper's island wakes
+            restarted, self._restarted = self._restarted, np.zeros(len(self.dynamic), bool)
+            kinematic = kinematic | (restarted & active & self.dynamic)
+            known = np.flatnonzero(restarted & np.isfinite(self._restarted_from).all(1))
+            if len(known):
+                swept_from = previous.copy()
+                swept_from[known, 0:7] = self._restarted_from[known]
         if self._native.sleeping_bodies and len(self._static):
             k = self._static     # moved, or a kinematic velocity: a non-zero change of
             change = current[k]  # pose (finite numbers: a - b is 0 only where a == b) or twist
-            change[:, 0:7] -= previous[k, 0:7]
+            change[:, 0:7] -= swept_from[k, 0:7]
             moved = active[k] & change.any(1)
             if moved.any():
                 kinematic = kinematic.copy()
                 kinematic[k] = moved
-        self._native.wake(_columns(previous), _columns(current), active.view(np.uint8),
+        self._native.wake(_columns(swept_from), _columns(current), active.view(np.uint8),
                           kinematic, float(dt))
         asleep = self._native.asleep.view(bool)
         if not asleep.any():

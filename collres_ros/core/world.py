@@ -144,11 +144,15 @@ class World:
                 getattr(self, name)[index] = value
         self.sleep.wake_all()
 
-    def forget(self, bodies: np.ndarray) -> None:
-        """Drop the warm-start impulses of these body indices (e.g. after a reset); wakes
-        every island (a body added or reset)."""
-        self._cache.forget(np.asarray(bodies, np.int64).ravel())
-        self.sleep.wake_all()
+    def forget(self, bodies: np.ndarray, last_poses: np.ndarray | None = None) -> None:
+        """Drop the warm-start impulses of these body indices (a fresh restart, a reset):
+        each moves in the next step from ``last_poses`` ((K, 7) position m, orientation
+        x y z w, world frame: where it was last; default its pose in that step), so a
+        dynamic one's island wakes and the islands it sweeps or a static one's move touches
+        wake (``Sleep.restart``); no other island wakes."""
+        bodies = np.asarray(bodies, np.int64).ravel()
+        self._cache.forget(bodies)
+        self.sleep.restart(bodies, last_poses)
 
     def step(self, previous: BodyStates | np.ndarray, current: BodyStates | np.ndarray,
              dt: float, active: np.ndarray | None = None, fresh: bool = False) -> StepResult:

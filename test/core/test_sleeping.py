@@ -45,14 +45,15 @@ import pytest
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.detection import Detection
-from collres_ros.core.types import BodySpec, ContactState
+from collres_ros.core.pipeline import Resolver
+from collres_ros.core.types import BodySpec, BodyStates, ContactState, InputBatch
 from collres_ros.core.world import World
 
 from contacts import box, sphere, states  # noqa: I100
 from integrator import Simulation
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
-from pile import make_pile  # noqa: E402
+from pile import integrate, make_pile  # noqa: E402
 
 RATE = 100.0
 SIZE = 0.2
@@ -369,6 +370,71 @@ def test_a_support_back_from_held_and_moved_wakes_what_it_carried() -> None:
     result = step_with(sim, support_gone)
     assert not result.sleeping[2], 'left asleep where its support was'
     assert (result.report.state != ContactState.SLEEPING).all()   # solved again
+
+
+def _stack_and_ball(ball_at):
+    """A resolver of two boxes stacked on the floor at x = 0 (one island) and a ball at
+    ``ball_at`` (m), the source integrating each answer (bench/pile.py's integrator): run at
+    RATE until the stack sleeps, with the ball still falling, awake. Returns the resolver,
+    the last answer's rows (box below, box above, ball), the stamp."""
+    bodies = [floor(), box('below', (SIZE,) * 3, 1.0, mu_s=0.5, mu_k=0.3),
+              box('above', (SIZE,) * 3, 1.0, mu_s=0.5, mu_k=0.3), sphere('ball', 0.1, 1.0)]
+    resolver = Resolver(bodies, SolverSettings())
+    names = ['below', 'above', 'ball']
+    answer = states([[0, 0, SIZE / 2], [0, 0, 1.5 * SIZE], ball_at], np.zeros((3, 3)))
+    stamp = 10**12
+    for _ in range(int(2 * RATE)):
+        stamp += int(round(1e9 / RATE))
+        step = resolver.resolve(stamp, _batch(names, integrate(answer, np.ones(3, bool),
+                                                               1 / RATE)))
+        answer = step.states
+        if step.sleeping[:2].all():
+            break
+    assert step.sleeping[:2].all() and not step.sleeping[2], 'the stack never fell asleep'
+    return resolver, answer, stamp
+
+
+def _arrays(given: BodyStates):
+    return given.position, given.orientation, given.linear, given.angular
+
+
+def _batch(names, given: BodyStates, rows=slice(None)) -> InputBatch:
+    values = np.hstack(_arrays(given))
+    return InputBatch(list(np.array(names)[rows]), values[rows], 'world', 'world')
+
+
+@pytest.mark.parametrize('back_at', ['its_own_path', 'on_the_stack'])
+def test_a_body_restarted_fresh_wakes_only_what_it_touches(back_at: str) -> None:
+    """An awake ball, falling far from a sleeping stack of two boxes, misses a step (a
+    message of the stack alone): when it comes back it restarts fresh (its last state is
+    not the previous step's). It moves in that step from where it was held: the islands its
+    swept bounds touch wake, no other. Back on its own path, the stack stays asleep, answered
+    at its held rest (7039d81 woke every island on any fresh restart: the whole scene woke
+    whenever a message had left out an awake body); back on top of the stack (its source
+    moved it while the node did not hear it), the stack wakes and is solved in that step."""
+    resolver, answer, stamp = _stack_and_ball([3.0, 0.0, 20.0])
+    rest = answer.position[:2].copy()
+    names = ['below', 'above', 'ball']
+    source = integrate(answer, np.ones(3, bool), 1 / RATE)   # the source's own state
+    stamp += int(round(1e9 / RATE))
+    step = resolver.resolve(stamp, _batch(names, source, slice(0, 2)))   # ball left out
+    assert step.sleeping.all(), 'a step that held the ball woke the stack'
+    for mine, answered in zip(_arrays(source), _arrays(step.states)):
+        mine[:2] = answered   # the stack's answer, the ball's own state: integrated
+    source = integrate(source, np.ones(3, bool), 1 / RATE)
+    if back_at == 'on_the_stack':
+        source.position[2] = [0.0, 0.0, 2 * SIZE + 0.1 + 0.005]   # 5 mm above the top box
+    stamp += int(round(1e9 / RATE))
+    step = resolver.resolve(stamp, _batch(names, source))
+    assert not step.sleeping[2]
+    if back_at == 'its_own_path':
+        assert step.sleeping[:2].all(), 'the ball\'s restart far away woke the stack'
+        np.testing.assert_array_equal(step.states.position[:2], rest)
+        np.testing.assert_array_equal(step.states.linear[:2], 0.0)
+        assert resolver.world.sleep.counts()['sleeping_bodies'] == 2
+    else:
+        assert not step.sleeping[:2].any(), 'the ball landed on a stack left asleep'
+        assert (step.report.state != ContactState.SLEEPING).all()   # solved in the step
 
 
 def test_off_never_sleeps() -> None:

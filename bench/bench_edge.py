@@ -48,7 +48,7 @@ class CannedWorld:
     def step(self, *args: Any, **kwargs: Any) -> Any:
         return self.result
 
-    def forget(self, index: Any) -> None:
+    def forget(self, index: Any, last_poses: Any = None) -> None:
         pass
 
     def set_material(self, *args: Any, **kwargs: Any) -> None:

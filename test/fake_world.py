@@ -32,7 +32,7 @@ class FakeWorld:
     def set_material(self, index: int, **values: Any) -> None:
         self.materials[index] = values
 
-    def forget(self, bodies: np.ndarray) -> None:
+    def forget(self, bodies: np.ndarray, last_poses: Optional[np.ndarray] = None) -> None:
         self.forgotten.append([int(i) for i in bodies])
 
     def step(self, previous: np.ndarray, current: np.ndarray, dt: float,

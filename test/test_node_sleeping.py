@@ -2,7 +2,8 @@
 answered every step, flagged ``sleeping`` with zero twist once asleep, counted in
 /diagnostics; given their rest after a gap longer than max_dt they resume asleep (and the log
 says so: no fresh start); a message of one of them wakes neither; a push wakes the ball in
-the step."""
+the step; the awake ball left out of a message and back in the next (a fresh restart) wakes
+only what it touches, not the box."""
 
 from __future__ import annotations
 
@@ -75,4 +76,18 @@ def test_the_node_flags_sleeping_bodies_and_keeps_answering(running):  # noqa: F
     answers = {b.name: b for b in out.bodies}
     assert not answers['ball'].sleeping and answers['box'].sleeping
     assert answers['ball'].twist.linear.x > 0.5
+    # the ball, awake, left out of one message (held where it is) and back in the next
+    # restarts fresh: it wakes only what it touches, the box 0.8 m away sleeps on (59f1d0c
+    # woke every island on a fresh restart: the box answered awake)
+    box_rest = body('box', state['box'][0] - G * dt * dt, -G * dt, x=1.0)
+    out = step(peer, resume + 4 * DT, [box_rest])
+    assert [(b.name, b.sleeping) for b in out.bodies] == [('box', True)], out.bodies
+    ball = answers['ball']
+    vx = ball.twist.linear.x
+    back = body('ball', ball.pose.position.z, 0.0, x=ball.pose.position.x + 2 * vx * dt)
+    back.twist.linear.x = vx
+    out = step(peer, resume + 5 * DT, [back, box_rest])
+    answers = {b.name: b for b in out.bodies}
+    assert not answers['ball'].sleeping and answers['box'].sleeping, out.bodies
+    assert answers['box'].pose.position.z == state['box'][0]
     assert node.poll() is None and 'Traceback' not in node.output()

@@ -437,6 +437,45 @@ def test_a_body_restarted_fresh_wakes_only_what_it_touches(back_at: str) -> None
         assert (step.report.state != ContactState.SLEEPING).all()   # solved in the step
 
 
+@pytest.mark.parametrize('back_at', ['where_it_was', 'moved_onto_the_box'])
+def test_a_kinematic_body_restarted_fresh_wakes_what_it_touches_only_if_it_moved(
+        back_at: str) -> None:
+    """A kinematic paddle (static, published) stands 5 mm beside a sleeping box, misses a
+    step and comes back, restarting fresh: where it was, it moved nothing and the box sleeps
+    on, at its held rest, as on any step in which a static body keeps its pose (59f1d0c woke
+    every island on a fresh restart); moved onto the box, it wakes it in that step."""
+    bodies = [floor(), box('resting', (SIZE,) * 3, 1.0, mu_s=0.5, mu_k=0.3),
+              box('paddle', (SIZE,) * 3, 1.0, static=True)]
+    resolver = Resolver(bodies, SolverSettings())
+    names = ['resting', 'paddle']
+    answer = states([[0, 0, SIZE / 2], [SIZE + 0.005, 0, SIZE / 2]], np.zeros((2, 3)))
+    stamp = 10**12
+    for _ in range(int(2 * RATE)):
+        stamp += int(round(1e9 / RATE))
+        given = integrate(answer, np.array([True, False]), 1 / RATE)
+        step = resolver.resolve(stamp, _batch(names, given))
+        answer = step.states
+        if step.sleeping[0]:
+            break
+    assert step.sleeping[0], 'the box never fell asleep'
+    rest = answer.position[0].copy()
+    stamp += int(round(1e9 / RATE))
+    step = resolver.resolve(stamp, _batch(names, integrate(answer, np.array([True, False]),
+                                                           1 / RATE), slice(0, 1)))
+    assert step.sleeping[0], 'a step that held the paddle woke the box'
+    given = integrate(answer, np.array([True, False]), 1 / RATE)
+    given.position[0] = step.states.position[0]
+    if back_at == 'moved_onto_the_box':
+        given.position[1] = [0.0, 0.0, 1.5 * SIZE + 0.005]
+    stamp += int(round(1e9 / RATE))
+    step = resolver.resolve(stamp, _batch(names, given))
+    if back_at == 'where_it_was':
+        assert step.sleeping[0], 'the paddle\'s restart where it stood woke the box'
+        np.testing.assert_array_equal(step.states.position[0], rest)
+    else:
+        assert not step.sleeping[0], 'the paddle moved onto a box left asleep'
+
+
 def test_off_never_sleeps() -> None:
     sim = resting_boxes(settings=SolverSettings(sleeping=False))
     assert all(sim.step().sleeping is None for _ in range(100))

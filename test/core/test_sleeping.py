@@ -13,7 +13,9 @@ wake it):
   without sleeping, and a second island far away stays asleep), a material, settings or
   filter change, a body reset or removed, and a clock jump;
 * a step without its input (held: fixed, as a sleeper is) wakes nothing, but a body back
-  from held and moved wakes the islands its swept bounds touch.
+  from held and moved wakes the islands its swept bounds touch;
+* a body restarted fresh (back after a missed step) wakes only its own island and those it
+  sweeps from where it was held to its input (a kinematic one only if it moved).
 
 A node that falls behind drops inputs, and the step it takes next spans k periods; its
 source either integrated the last answer for one period (it integrates each answer it

@@ -40,18 +40,28 @@ BETWEEN = 2.5e-3  # m, the most two bodies may overlap at rest (module docstring
 SETTLED = SolverSettings().linear_slop + 3e-4   # m, the law below: slop + 0.3 mm
 
 
-@pytest.mark.parametrize('seed', [1, 2])
-@pytest.mark.parametrize('kind', ['cubes', 'mixed'])
-def test_a_pile_rests_on_its_floor_and_not_in_itself_at_30_hz(kind: str, seed: int) -> None:
+def settle(kind: str, seed: int, rate: float, seconds: float = 4.0):
+    """The 100-body pile of ``kind`` dropped and stepped at ``rate`` Hz for ``seconds``:
+    the world, the last answered state, when every body was first asleep (s; None if
+    never) and whether every body is asleep at the end."""
     bodies, state = make_pile(100, seed=seed, kind=kind)
     world = World(bodies, SolverSettings())
     dynamic = world.dynamic
-    asleep = None
-    for k in range(int(4.0 * RATE)):
-        result = world.step(state, integrate(state, dynamic, 1.0 / RATE), 1.0 / RATE)
+    first_asleep, asleep = None, False
+    for k in range(int(seconds * rate)):
+        result = world.step(state, integrate(state, dynamic, 1.0 / rate), 1.0 / rate)
         state = result.states
-        if asleep is None and result.sleeping[dynamic].all():
-            asleep = (k + 1) / RATE
+        asleep = bool(result.sleeping[dynamic].all())
+        if first_asleep is None and asleep:
+            first_asleep = (k + 1) / rate
+    return world, state, first_asleep, asleep
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+@pytest.mark.parametrize('kind', ['cubes', 'mixed'])
+def test_a_pile_rests_on_its_floor_and_not_in_itself_at_30_hz(kind: str, seed: int) -> None:
+    world, state, asleep, _ = settle(kind, seed, RATE)
+    dynamic = world.dynamic
     seen = Detection(world.specs, SolverSettings(sleeping=False)).detect(state, state)
     floor = seen.body_a == 0                          # the floor is body 0, the walls 1-4
     between = dynamic[seen.body_a] & dynamic[seen.body_b]
@@ -84,15 +94,8 @@ def test_a_settled_pile_has_no_contact_deeper_than_the_slop(
     leaves them at the slop plus the resting solve's residual: 0.14-0.17 mm at 120 Hz, and
     at 30 Hz kept awake with four sweeps of every row 0.14-0.18 mm after 8 s; 0.3 mm is
     that with margin, and below what a user sees between two 10 cm boxes."""
-    bodies, state = make_pile(100, seed=seed, kind=kind)
-    world = World(bodies, SolverSettings())
-    dynamic = world.dynamic
-    asleep = False
-    for _ in range(int(4.0 * rate)):
-        result = world.step(state, integrate(state, dynamic, 1.0 / rate), 1.0 / rate)
-        state = result.states
-        asleep = bool(result.sleeping[dynamic].all())
-    depth = deepest_between(bodies, state, dynamic)
+    world, state, _, asleep = settle(kind, seed, rate)
+    depth = deepest_between(world.specs, state, world.dynamic)
     print(f'{kind} seed {seed} at {rate:.0f} Hz: asleep {asleep}, deepest between bodies '
           f'{depth * 1e3:.2f} mm')
     assert asleep

@@ -40,8 +40,18 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               'Cap on bisection / conservative-advancement iterations per pair', 1, 200,
               reason='2^-30 of dt is below double resolution of a step'),
     ParamSpec('velocity_iterations', 'integer', 10,
-              'Sequential-impulse iterations per step', 1, 1000,
-              reason='Box2D and Jolt default to 8-10 with warm starting'),
+              'Sequential-impulse sweeps in each substep of the resting solve (max_substep; '
+              'more while resting contacts are new, and at least SOLVER_TUNING depth_sweeps '
+              'per level of the deepest stack)', 1, 1000,
+              reason='Box2D and Jolt default to 8-10 with warm starting; each substep is '
+                     'warm started from the last one, yet needs its own: at 5 the 1000:1 '
+                     'stack moved 40 mm in 10 s at 30 Hz; a step\'s sweeps shared by its '
+                     'substeps (ceil(10 / S) each) moved towers of 20 28 mm at 30 Hz and '
+                     'toppled them at 60 Hz, and sank the 1000:1 stack 0.38 m at 30 Hz; the '
+                     'first substep at the full count and 7 in each later one (more while '
+                     'contacts are new) let a dropped column of 8 cubes '
+                     '(bench_laws column, 20 layouts) overlap up to 2.7 mm at 30 Hz and '
+                     '19.5 mm at 60 Hz, against 1.9 and 1.1 mm'),
     ParamSpec('restitution_threshold', 'double', 0.5,
               'Approach speed below which a contact is RESTING and does not bounce',
               0.0, 100.0, unit='m/s',
@@ -93,7 +103,10 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
               reason='one solve per 30 Hz step does not converge a deep stack (a column of 7 '
                      'cubes toppled, towers of 20 fell); substeps of 6.7 ms hold towers of '
                      '20 cubes within 2 mm at 30, 60 and 120 Hz (1/120 s: 5.2 mm at 60 Hz); '
-                     '240 Hz is one substep, 120 Hz two, 30 Hz five'),
+                     '240 Hz is one substep, 120 Hz two, 30 Hz five, and each substep costs '
+                     'the sweeps of a step (velocity_iterations): a settled pile of 1000 '
+                     'cubes sweeps 5 x 11 times in a 30 Hz step, 117.5M instructions '
+                     '(callgrind), against 2 x 11 and 59.4M at 120 Hz'),
     ParamSpec('max_pairs', 'integer', 20000,
               'Budget of pairs queried per step (broad-phase pairs whose bounding spheres come '
               'within reach); beyond it the pairs whose spheres overlap deepest are kept '
@@ -236,7 +249,11 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               reason='a load passes down a stack one level per sweep: 20 cubes of 5 cm to '
                      '1 m move 1.5 mm in 10 s at 240 Hz (measured before the per-point '
                      'patch depths with 1 sweep per level: 20 cm cubes 2.4 mm, 5 cm cubes '
-                     'fell)'),
+                     'fell); per substep, not per step: at 1 per level towers of 20 cubes '
+                     'of 0.05 and 0.2 m toppled at 240 Hz (one substep), 1 m ones moved 38 '
+                     'mm, and 1.5 per level '
+                     'shared by the substeps (6 per substep at 30 Hz) moved them 28 mm at '
+                     '30 Hz'),
     ParamSpec('converged', 'double', 1e-6,
               'Velocity sweeps stop when no impulse changes by more than this times the '
               'largest normal impulse', 0.0, 1.0,

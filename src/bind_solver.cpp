@@ -182,6 +182,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("fixed_sweeps", &SolverParams::fixed_sweeps)
       .def_readwrite("deep_sweeps", &SolverParams::deep_sweeps)
       .def_readwrite("deep_overlap", &SolverParams::deep_overlap)
+      .def_readwrite("support_cosine", &SolverParams::support_cosine)
       .def_readwrite("shock_sweeps", &SolverParams::shock_sweeps)
       .def_readwrite("shock_ratio", &SolverParams::shock_ratio)
       .def_readwrite("depth_sweeps", &SolverParams::depth_sweeps)

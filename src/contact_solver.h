@@ -56,6 +56,8 @@ struct SolverParams {
   int fixed_sweeps = 4;                 // push-out sweeps of the rows on immovable bodies
   int deep_sweeps = 16;                 // push-out sweeps of the deep rows between movables
   double deep_overlap = 1e-3;           // m: ... those overlapping beyond the slop by more
+  double support_cosine = 0.5;          // a fixed body is a level's root where the external
+                                        // change presses a body into it this squarely
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double shock_ratio = 4.0;             // ... only under a body this many times heavier
   double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack

@@ -939,9 +939,27 @@ void StepSolver::report(StepContext& ctx) {
 
 int32_t StepSolver::levels(StepContext& ctx) {
   const int64_t n = ctx.bodies.count;
-  // contact graph of the rows (CSR), then breadth first from the immovable bodies
+  // contact graph of the rows (CSR), then breadth first from the immovable bodies. A row
+  // on an immovable body is an edge only where that body holds the movable one up: the
+  // step's external change of the movable body's linear velocity (now - then: gravity
+  // dt) presses it into the immovable one, its component along the normal at least
+  // support_cosine of its length, or it has none (a weightless input). A wall beside a
+  // body is no support: counted as one, it made the bodies of a bin's outer columns
+  // level 1 whatever their height, and the push-out's hold (solve_positions) then pushed
+  // the body under one of them down
+  const double* now = now_.data();
+  const double* then = then_.data();
+  auto edge = [&](const ContactRow& r) {
+    const bool a_fixed = touched_[r.a] == 0, b_fixed = touched_[r.b] == 0;
+    if (a_fixed == b_fixed) return true;
+    const int64_t i = a_fixed ? r.b : r.a;
+    const Vec3 external = load3(now + 6 * i) - load3(then + 6 * i);
+    const double into = a_fixed ? -dot(external, r.n) : dot(external, r.n);
+    return into >= ctx.params.support_cosine * length(external);
+  };
   first_.assign(n + 1, 0);
   for (const ContactRow& r : rows_) {
+    if (!edge(r)) continue;
     ++first_[r.a + 1];
     ++first_[r.b + 1];
   }
@@ -949,6 +967,7 @@ int32_t StepSolver::levels(StepContext& ctx) {
   adjacency_.resize(first_[n]);
   order32_.assign(first_.begin(), first_.end() - 1);   // fill cursor per body
   for (const ContactRow& r : rows_) {
+    if (!edge(r)) continue;
     adjacency_[order32_[r.a]++] = r.b;
     adjacency_[order32_[r.b]++] = r.a;
   }

@@ -225,10 +225,23 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
     ParamSpec('deep_overlap', 'double', 1e-3,
               'The overlap beyond the slop from which a row between two movable bodies is '
               'deep (deep_sweeps)', 0.0, 1.0, unit='m',
-              reason='sweeping every overlapping row (0) kept a few columns of a settled '
-                     '1000-cube pile rocking at 0.1 m/s: at 30 Hz it fell asleep after 11.8 '
-                     's or not in 12 s (seeds 1, 2); with 1 mm after 2.8 and 2.3 s (3540a22: '
-                     '5.1 and 7.0 s)'),
+              reason='at 30 Hz with 1 mm the settled 100 piles (seeds 1, 2 of both kinds) rest '
+                     '0.88-1.11 mm deep between bodies, asleep after 1.2-2.1 s, and 1000 piles '
+                     '1.04-1.47 mm, 1.5-3.5 s; with 0.2 mm 0.30-0.37 mm (1000 piles '
+                     '0.30-0.48 mm, 2.0-4.9 s), but a 200-cube pile fell asleep after 5.4 s '
+                     '(1.2 s); with 0.1 mm a 1000-cube pile was awake after 8 s, and '
+                     'sweeping every overlapping row (0) kept a 100-cube pile awake: a free '
+                     'column of cubes rocks as one (5 mrad), the push-out lifting it every '
+                     'step'),
+    ParamSpec('support_cosine', 'double', 0.5,
+              'A row on an immovable body roots the contact levels (shock propagation, '
+              'the push-out\'s hold of the lower body) only where the step\'s external '
+              'change of the other body\'s velocity presses it into the immovable one with '
+              'at least this cosine to the normal (or it has none)', 0.0, 1.0,
+              reason='a wall beside a pile\'s outer columns is no support: as a root it '
+                     'made their bodies level 1 at any height, and the push-out pushed the '
+                     'body under one down (the settled 100 piles at 30 Hz 1.24-1.98 mm deep '
+                     'between bodies); 0.5: a support within 60 degrees of the load'),
     ParamSpec('shock_sweeps', 'integer', 2,
               'Shock-propagation sweeps per level, from the ground up', 0, 1000,
               reason='two sweeps hold a heavy body on a light one in the step'),

@@ -77,3 +77,36 @@ def test_a_column_of_equal_cubes_overlapping_does_not_push_the_lowest_into_the_f
         sunk = max(sunk, SIZE / 2 - float(sim.state.position[1, 2]))
     print(f'the lowest of {count} cubes at most {sunk * 1e3:.3f} mm into the floor')
     assert sunk < SLOP + 1e-3
+
+
+def test_a_wall_beside_the_top_cube_does_not_make_the_push_out_drive_the_one_below_down(
+        ) -> None:
+    """Three equal 1 kg cubes stacked on a fixed floor, released at rest at 30 Hz; the top
+    one overlaps the middle one by 10 mm and touches a fixed wall with its side (the two
+    below are 5 mm from it). A wall holds nothing up: the overlap is the top cube's to
+    leave, upwards. The first step's sweep of every row shares the push by the masses
+    (the middle cube goes about 2 mm into the lowest); after it the middle cube is never
+    that deep again. When the wall rooted the contact levels the top cube was level 1 and
+    the middle one level 2, so the deep sweeps held the top cube and pushed the middle one
+    down: 1.98, 2.40, 2.41 mm into the lowest over the first three steps (now 1.92, 1.19,
+    0.76 mm), and 0.26 mm after 1 s (now 0.21 mm)."""
+    rate = 30.0
+    floor = BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True,
+                     static_friction=0.6, kinetic_friction=0.4)
+    wall = box('wall', (0.2, 1.0, 1.0), 1.0, mu_s=0.6, mu_k=0.4, static=True)
+    cubes = [box(f'c{k}', (SIZE,) * 3, 1.0, e=0.2, mu_s=0.6, mu_k=0.4) for k in range(3)]
+    aside = 0.005    # m, the two lower cubes from the wall; the top one touches it
+    start = [[0.0, 0.0, 0.0], [SIZE / 2 + aside + 0.1, 0.0, 0.5], [0.0, 0.0, SIZE / 2],
+             [0.0, 0.0, 1.5 * SIZE], [aside, 0.0, 2.5 * SIZE - OVERLAP]]
+    sim = Simulation([floor, wall] + cubes, states(start, np.zeros((5, 3))), rate,
+                     SolverSettings(sleeping=False))
+    into_lowest = []
+    for _ in range(int(round(1.0 * rate))):
+        sim.step()
+        z = sim.state.position[2:, 2]
+        into_lowest.append(SIZE - (z[1] - z[0]))
+    print('the middle cube into the lowest (mm), first steps:',
+          np.round(np.array(into_lowest[:5]) * 1e3, 3), 'after 1 s:',
+          round(into_lowest[-1] * 1e3, 3))
+    assert max(into_lowest[1:]) < into_lowest[0]
+    assert into_lowest[-1] < SLOP + 3e-4

@@ -723,6 +723,10 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
       if (x != y) island_[std::max(x, y)] = std::min(x, y);
     }
     for (int64_t i = 0; i < n; ++i) island_[i] = find(static_cast<int32_t>(i));
+    // the world inertia of each body the energies are judged on (kg m^2)
+    inertia_.resize(n);
+    for (int64_t i = 0; i < n; ++i)
+      if (touched_[i] && inv_mass[i] != 0.0) inertia_[i] = inv_inertia_[i].inverse();
     islands_ = true;
   }
   auto root = [&](int32_t i) { return island_[i]; };
@@ -743,7 +747,7 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
     const double* v0 = start_.data() + 6 * i;
     const double* v1 = velocity_.data() + 6 * i;
     const Vec3 l0 = load3(v0), l1 = load3(v1), w0 = load3(v0 + 3), w1 = load3(v1 + 3);
-    const Mat3 inertia = inv_inertia_[i].inverse();
+    const Mat3& inertia = inertia_[i];
     const double before = (dot(l0, l0) / inv_mass[i] + dot(w0, mul(inertia, w0))) * 0.5;
     const double after = (dot(l1, l1) / inv_mass[i] + dot(w1, mul(inertia, w1))) * 0.5;
     const int32_t x = root(static_cast<int32_t>(i));

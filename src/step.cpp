@@ -1027,9 +1027,8 @@ void StepSolver::push_out(StepContext& ctx) {
   // predicted gap at the end of the step = reference gap + new normal speed times the
   // remaining time; beyond the slop a fraction of it (at most max_correction) is removed
   for (ContactRow& r : rows_) {
-    double rel[3];
-    row_velocity(r, travel_.data(), rel);
-    double predicted = gap_[r.contact] + rel[0] * remaining_[r.contact];
+    double predicted =
+        gap_[r.contact] + normal_velocity(r, travel_.data()) * remaining_[r.contact];
     double depth = std::min(p.position_correction *
                                 std::max(-predicted - p.linear_slop, 0.0),
                             p.max_correction);

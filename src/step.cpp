@@ -925,15 +925,16 @@ void StepSolver::report(StepContext& ctx) {
   for (int64_t span = 0; span < c.manifold_count; ++span) {
     const int64_t lo = c.manifolds[kManifoldFields * span + 2];
     const int64_t hi = lo + c.manifolds[kManifoldFields * span + 3];
+    bool sticking = false;
+    for (int64_t k = lo; k < hi && !sticking; ++k) sticking = out.state[k] == kSticking;
+    if (!sticking) continue;
     Vec3 friction = Vec3::Zero();
     double normal = 0.0;
-    bool sticking = false;
     for (int64_t k = lo; k < hi; ++k) {
       friction += load3(out.friction_impulse + 3 * k);
       normal += out.normal_impulse[k];
-      sticking = sticking || out.state[k] == kSticking;
     }
-    if (sticking && length(friction) <= p.balanced_friction * normal + 1e-15) {
+    if (length(friction) <= p.balanced_friction * normal + 1e-15) {
       for (int64_t k = lo; k < hi; ++k)
         if (out.state[k] == kSticking) out.state[k] = kResting;
     }

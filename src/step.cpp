@@ -759,6 +759,9 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
     return gain_[2 * x + 1] >= 0.0 && gain_[2 * x] > 1e-10 * gain_[2 * x + 1] + 1e-300;
   };
   retry_.clear();
+  bool any = false;   // (most substeps: no island gained, nothing to look for)
+  for (int64_t i = 0; i < n && !any; ++i) any = island_[i] == i && gained(static_cast<int32_t>(i));
+  if (!any) return 0;
   for (size_t m = 0; m < manifolds_.size(); ++m) {
     const Manifold& manifold = manifolds_[m];
     if (!gained(inv_mass[manifold.a] > 0.0 ? manifold.a : manifold.b)) continue;

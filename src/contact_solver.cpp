@@ -312,7 +312,14 @@ double combine(double a, double b, CombineRule rule) {
 }
 
 void row_velocity(const ContactRow& row, const double* v, double out[3]) {
-  for (int k = 0; k < 3; ++k) out[k] = relative(row, v, k, direction(row, k));
+  const Twists t(v, row.a, row.b);   // (loaded once: out may alias v for the compiler)
+  for (int k = 0; k < 3; ++k) out[k] = relative(row, t, k, direction(row, k));
+}
+
+void slip_velocity(const ContactRow& row, const double* v, double out[2]) {
+  const Twists t(v, row.a, row.b);
+  out[0] = relative(row, t, 1, row.t1);
+  out[1] = relative(row, t, 2, row.t2);
 }
 
 double normal_velocity(const ContactRow& row, const double* v) {
@@ -343,10 +350,10 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row.kt[0] = block(1, 1);
   row.kt[1] = block(1, 2) + block(2, 1);
   row.kt[2] = block(2, 2);
-  double before[3];
-  row_velocity(row, slow, before);
+  double before[2];
+  slip_velocity(row, slow, before);
   row.bounce = false;
-  row.sticking = norm2(before[1], before[2]) < sticking_speed;
+  row.sticking = norm2(before[0], before[1]) < sticking_speed;
   row.mu = row.sticking ? mu_static : mu_kinetic;
 }
 
@@ -1633,15 +1640,15 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
 }
 
 uint8_t contact_state(const ContactRow& r, const double* velocity, double sticking_speed) {
-  double rel[3];
-  row_velocity(r, velocity, rel);
+  double slip[2];
+  slip_velocity(r, velocity, slip);
   double size = norm2(r.tangent[0] + r.impact_tangent[0], r.tangent[1] + r.impact_tangent[1]);
   bool friction = size > kTiny;
   bool touching = r.normal + r.impact > 0.0;
   bool at_limit = size >= r.mu * (r.normal + r.impact) * (1.0 - 1e-9);
   // sliding: it slips after the solve, or friction at the cone limit could not stop a slip
   // it had before (a held point whose share of the friction reaches its cone is sticking)
-  bool sliding = norm2(rel[1], rel[2]) > sticking_speed || (!r.sticking && friction && at_limit);
+  bool sliding = norm2(slip[0], slip[1]) > sticking_speed || (!r.sticking && friction && at_limit);
   if (r.bounce && touching) return kImpact;
   if (touching && sliding && (friction || r.mu == 0.0)) return kSliding;
   return friction ? kSticking : kResting;

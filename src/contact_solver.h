@@ -372,6 +372,9 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
 void row_velocity(const ContactRow& row, const double* v, double out[3]);
 // Its normal part alone (m/s, < 0: approaching; the same bits as row_velocity's out[0]).
 double normal_velocity(const ContactRow& row, const double* v);
+// Its tangential parts alone, along t1 and t2 (m/s; the same bits as row_velocity's out[1],
+// out[2]).
+void slip_velocity(const ContactRow& row, const double* v, double out[2]);
 
 // Friction impulse of a row as a world vector (N s, on B): impact stages and resting solve.
 inline Vec3 friction_world(const ContactRow& row) {

@@ -25,7 +25,8 @@ void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* 
 bool persistent(int8_t kind) { return kind == static_cast<int8_t>(ContactKind::persistent); }
 
 // Normal velocity of B's point relative to A's (< 0 approaching) for twists v (N, 6).
-double normal_speed(const double* v, int64_t a, int64_t b, Vec3 ra, Vec3 rb, Vec3 n) {
+inline double normal_speed(const double* v, int64_t a, int64_t b, const Vec3& ra, const Vec3& rb,
+                           const Vec3& n) {
   Vec3 va = load3(v + 6 * a) + cross(load3(v + 6 * a + 3), ra);
   Vec3 vb = load3(v + 6 * b) + cross(load3(v + 6 * b + 3), rb);
   return dot(vb - va, n);
@@ -247,19 +248,6 @@ void StepSolver::reference_frame(StepContext& ctx) {
         store3(path_.data() + 6 * i, load3(path_.data() + 6 * i) - approach * into);
     }
   }
-  drift_.assign(m, 0.0);
-  for (int64_t k = 0; k < m; ++k) {
-    const int64_t a = c.a[k], b = c.b[k];
-    if (!supported_[a] && !supported_[b]) continue;
-    auto held = [&](int64_t i, const Vec3& r, const Vec3& moved) {
-      if (!supported_[i]) return Vec3(Vec3::Zero());
-      return Vec3(moved -
-                  dt * (load3(path_.data() + 6 * i) + cross(load3(path_.data() + 6 * i + 3), r)));
-    };
-    const Vec3 normal = load3(c.normal + 3 * k), held_a = held(a, ra_[k], travelled_[2 * k]);
-    drift_[k] = dot(held_a - held(b, rb_[k], travelled_[2 * k + 1]), normal);
-    moved_a_[k] -= dot(held_a, normal);
-  }
   // the step's load: the momentum its external change gives each movable body (N s), and
   // its sum over the bodies in contact that had a load last step too, then and now
   load_.assign(n, 0.0);
@@ -274,11 +262,25 @@ void StepSolver::reference_frame(StepContext& ctx) {
     }
   }
   growth_ = load > 0.0 && last_load > 0.0 ? load / last_load : dt / std::max(last_dt_, 1e-300);
+  // per contact: its drift_ (its supported bodies on their held paths), then whether it
+  // is an impact and when
+  auto held = [&](int64_t i, const Vec3& r, const Vec3& moved) {
+    if (!supported_[i]) return Vec3(Vec3::Zero());
+    return Vec3(moved -
+                dt * (load3(path_.data() + 6 * i) + cross(load3(path_.data() + 6 * i + 3), r)));
+  };
+  drift_.resize(m);
   approach_.resize(m);
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
     const Vec3 normal = load3(c.normal + 3 * k);
+    drift_[k] = 0.0;
+    if (supported_[a] || supported_[b]) {
+      const Vec3 held_a = held(a, ra_[k], travelled_[2 * k]);
+      drift_[k] = dot(held_a - held(b, rb_[k], travelled_[2 * k + 1]), normal);
+      moved_a_[k] -= dot(held_a, normal);
+    }
     const double v_in = normal_speed(now_.data(), a, b, ra_[k], rb_[k], normal);
     approach_[k] = v_in;   // (the pre-solve approach unless a body has an impact: below)
     // a persistent contact that closes within the step faster than the threshold at the
@@ -364,7 +366,16 @@ void StepSolver::reference_frame(StepContext& ctx) {
   // inelastically: an elastic gas lost a fifth of its energy in 5 s at 120 Hz.) Else (a
   // body at rest or in a settled contact) the gap at the later of the two reference
   // times: a velocity row cannot move a settled body and its partner for different times
-  // (with own times, piles after dropped inputs slept later and a column sank)
+  // (with own times, piles after dropped inputs slept later and a column sank).
+  // In the same pass: the pre-solve approach of each contact (a rested body's with the
+  // step's external change, which the resting solve meets; a body without an impact: its
+  // current twist), the farthest contact point of each body, the fastest approach and the
+  // largest restitution (prepare's row bound; the same for every solve of the step)
+  later_.resize(6 * n);
+  for (int64_t i = 0; i < 6 * n; ++i) later_[i] = rested_[i / 6] ? now_[i] : velocity_[i];
+  fastest_ = 0.0;
+  restitution_ = 0.0;
+  reach_body_.assign(n, 0.0);   // (squared here)
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const double later = std::max(fraction_[a], fraction_[b]);
@@ -381,18 +392,6 @@ void StepSolver::reference_frame(StepContext& ctx) {
     remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
     span_[k] = remaining;
     allowance_[k] = std::max(gap_[k], 0.0) / remaining;
-  }
-  // the pre-solve approach of each contact (a rested body's with the step's external
-  // change, which the resting solve meets; a body without an impact: its current twist),
-  // the farthest contact point of each body, the fastest approach and the largest
-  // restitution (prepare's row bound; the same for every solve of the step)
-  later_.resize(6 * n);
-  for (int64_t i = 0; i < 6 * n; ++i) later_[i] = rested_[i / 6] ? now_[i] : velocity_[i];
-  fastest_ = 0.0;
-  restitution_ = 0.0;
-  reach_body_.assign(n, 0.0);   // (squared here)
-  for (int64_t k = 0; k < m; ++k) {
-    const int64_t a = c.a[k], b = c.b[k];
     reach_body_[a] = std::max(reach_body_[a], dot(ra_[k], ra_[k]));
     reach_body_[b] = std::max(reach_body_[b], dot(rb_[k], rb_[k]));
     if (impacted_[a] || impacted_[b])
@@ -724,6 +723,10 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
       if (x != y) island_[std::max(x, y)] = std::min(x, y);
     }
     for (int64_t i = 0; i < n; ++i) island_[i] = find(static_cast<int32_t>(i));
+    // the world inertia of each body the energies are judged on (kg m^2)
+    inertia_.resize(n);
+    for (int64_t i = 0; i < n; ++i)
+      if (touched_[i] && inv_mass[i] != 0.0) inertia_[i] = inv_inertia_[i].inverse();
     islands_ = true;
   }
   auto root = [&](int32_t i) { return island_[i]; };
@@ -744,7 +747,7 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
     const double* v0 = start_.data() + 6 * i;
     const double* v1 = velocity_.data() + 6 * i;
     const Vec3 l0 = load3(v0), l1 = load3(v1), w0 = load3(v0 + 3), w1 = load3(v1 + 3);
-    const Mat3 inertia = inv_inertia_[i].inverse();
+    const Mat3& inertia = inertia_[i];
     const double before = (dot(l0, l0) / inv_mass[i] + dot(w0, mul(inertia, w0))) * 0.5;
     const double after = (dot(l1, l1) / inv_mass[i] + dot(w1, mul(inertia, w1))) * 0.5;
     const int32_t x = root(static_cast<int32_t>(i));
@@ -756,6 +759,9 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
     return gain_[2 * x + 1] >= 0.0 && gain_[2 * x] > 1e-10 * gain_[2 * x + 1] + 1e-300;
   };
   retry_.clear();
+  bool any = false;   // (most substeps: no island gained, nothing to look for)
+  for (int64_t i = 0; i < n && !any; ++i) any = island_[i] == i && gained(static_cast<int32_t>(i));
+  if (!any) return 0;
   for (size_t m = 0; m < manifolds_.size(); ++m) {
     const Manifold& manifold = manifolds_[m];
     if (!gained(inv_mass[manifold.a] > 0.0 ? manifold.a : manifold.b)) continue;
@@ -922,15 +928,16 @@ void StepSolver::report(StepContext& ctx) {
   for (int64_t span = 0; span < c.manifold_count; ++span) {
     const int64_t lo = c.manifolds[kManifoldFields * span + 2];
     const int64_t hi = lo + c.manifolds[kManifoldFields * span + 3];
+    bool sticking = false;
+    for (int64_t k = lo; k < hi && !sticking; ++k) sticking = out.state[k] == kSticking;
+    if (!sticking) continue;
     Vec3 friction = Vec3::Zero();
     double normal = 0.0;
-    bool sticking = false;
     for (int64_t k = lo; k < hi; ++k) {
       friction += load3(out.friction_impulse + 3 * k);
       normal += out.normal_impulse[k];
-      sticking = sticking || out.state[k] == kSticking;
     }
-    if (sticking && length(friction) <= p.balanced_friction * normal + 1e-15) {
+    if (length(friction) <= p.balanced_friction * normal + 1e-15) {
       for (int64_t k = lo; k < hi; ++k)
         if (out.state[k] == kSticking) out.state[k] = kResting;
     }
@@ -1043,9 +1050,8 @@ void StepSolver::push_out(StepContext& ctx) {
   // predicted gap at the end of the step = reference gap + new normal speed times the
   // remaining time; beyond the slop a fraction of it (at most max_correction) is removed
   for (ContactRow& r : rows_) {
-    double rel[3];
-    row_velocity(r, travel_.data(), rel);
-    double predicted = gap_[r.contact] + rel[0] * remaining_[r.contact];
+    double predicted =
+        gap_[r.contact] + normal_velocity(r, travel_.data()) * remaining_[r.contact];
     double depth = std::min(p.position_correction *
                                 std::max(-predicted - p.linear_slop, 0.0),
                             p.max_correction);

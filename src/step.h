@@ -277,7 +277,9 @@ class StepSolver {
   std::vector<double> later_;        // (N, 6) pre-solve velocity, rested bodies' current
   std::vector<int32_t> island_;      // (N,) island root (hold_energy; the rows' islands,
                                      // found at its first call of a step)
-  bool islands_ = false;             // island_ holds this step's islands
+  bool islands_ = false;             // island_ holds this step's islands (and inertia_ the
+                                     // world inertias of its movable bodies in contact)
+  std::vector<Mat3> inertia_;        // (N,) kg m^2, world frame: inv_inertia_^-1 (hold_energy)
   std::vector<double> gain_;         // (N, 2) J, per island root: the energy change, the
                                      // energy before (-1: driven, not judged)
   std::vector<double> fraction_;     // (N,) reference fraction of the step

@@ -766,27 +766,32 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     if (k >= 3 && any(face)) {
       const Lanes zero = splat(0.0), one = splat(1.0);
       Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
-      // (idx zeroed: GCC cannot tell that a lane reads only the entries it wrote)
-      int idx[kLanes][4] = {}, members[kLanes], sets[kLanes];
-      Mask tried = {0, 0, 0, 0};
-      for (int l = 0; l < kLanes; ++l) {
-        members[l] = 0;
-        sets[l] = 0;
-        if (!face[l]) continue;
-        int carrying = 0;
-        for (int i = 0; i < k; ++i) carrying |= w[i].normal[l] > 0.0 ? 1 << i : 0;
-        if (carrying == (1 << k) - 1) continue;   // (the all-active set: failed above)
-        tried[l] = -1;
-        sets[l] = carrying;
-        for (int i = 0; i < k; ++i)
-          if (carrying & (1 << i)) idx[l][members[l]++] = i;
+      // each lane's carrying set as lane masks: carry[i] where row i carries, rank[i] its
+      // place in the set (the rows before it that carry), `in`[r][i] where row i is the
+      // set's r-th row; `bits` the set (bit i: row i) in the lanes tried, else 0
+      Mask carry[4], all_carry = (Mask){-1, -1, -1, -1};
+      for (int i = 0; i < k; ++i) {
+        carry[i] = w[i].normal > 0.0;
+        all_carry &= carry[i];
       }
+      const Mask tried = face & ~all_carry;   // (the all-active set: failed above)
       if (any(tried)) {
+        Mask rank[4], bits = (Mask){0, 0, 0, 0};
+        rank[0] = (Mask){0, 0, 0, 0};
+        for (int i = 0; i < k; ++i) {
+          carry[i] &= tried;
+          bits |= carry[i] & (Mask){1 << i, 1 << i, 1 << i, 1 << i};
+          if (i + 1 < k) rank[i + 1] = rank[i] - carry[i];
+        }
+        Mask in[4][4];   // [r][i], r <= i
+        for (int i = 0; i < k; ++i)
+          for (int r = 0; r <= i; ++r) in[r][i] = carry[i] & (rank[i] == (Mask){r, r, r, r});
         for (int r = 0; r < 4; ++r) e[r][4] = zero;   // the right-hand side, -q of the set
-        for (int l = 0; l < kLanes; ++l)
-          for (int r = 0; r < members[l]; ++r) e[r][4][l] = -q[idx[l][r]][l];
-        bool replay = kept != nullptr;
-        for (int l = 0; l < kLanes && replay; ++l) replay = !tried[l] || kept->set[l] == sets[l];
+        for (int i = 0; i < k; ++i)
+          for (int r = 0; r <= i; ++r) e[r][4] = pick(in[r][i], -q[i], e[r][4]);
+        Mask kept_bits = (Mask){-1, -1, -1, -1};
+        if (kept != nullptr) std::memcpy(&kept_bits, kept->set, sizeof(kept_bits));
+        const bool replay = kept != nullptr && !any(tried & (kept_bits != bits));
         Mask ok = tried;
         if (replay) {
           // the kept elimination on the right-hand side alone (its swaps and multiples)
@@ -810,14 +815,17 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
             diagonal[r] = one;
           }
           for (int l = 0; l < kLanes; ++l) {
-            const int m = members[l];
+            // (idx zeroed: GCC cannot tell that a lane reads only the entries it wrote)
+            int idx[4] = {}, m = 0;
+            for (int i = 0; i < k; ++i)
+              if (bits[l] & (1 << i)) idx[m++] = i;
             for (int r = 0; r < 4; ++r) {
               if (r >= m) {
                 e[r][r][l] = 1.0;
                 continue;
               }
-              for (int c = 0; c < m; ++c) e[r][c][l] = g.delassus[idx[l][r]][idx[l][c]][l];
-              diagonal[r][l] = g.delassus[idx[l][r]][idx[l][r]][l];
+              for (int c = 0; c < m; ++c) e[r][c][l] = g.delassus[idx[r]][idx[c]][l];
+              diagonal[r][l] = g.delassus[idx[r]][idx[r]][l];
             }
           }
           Mask usable = (Mask){-1, -1, -1, -1};
@@ -848,27 +856,25 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
             if (kept != nullptr) kept->pivot[c] = pivot;
           }
           ok &= usable;
-          if (kept != nullptr) {   // kept for the next sweeps (lanes not tried: none)
+          if (kept != nullptr) {   // kept for the next sweeps (lanes not tried: none, -1)
             for (int r = 0; r < 4; ++r) kept->diagonal[r] = e[r][r];
             kept->usable = (Lanes)usable;
-            for (int l = 0; l < kLanes; ++l) kept->set[l] = tried[l] ? sets[l] : -1;
+            const Mask set = bits | ~tried;
+            std::memcpy(kept->set, &set, sizeof(set));
           }
         }
+        Lanes x[4];   // the set's r-th row's impulse
+        for (int r = 0; r < 4; ++r) x[r] = e[r][4] / e[r][r];
         Lanes xs[4] = {zero, zero, zero, zero};   // by row of the block
-        for (int r = 0; r < 4; ++r) {
-          const Lanes x_r = e[r][4] / e[r][r];
-          for (int l = 0; l < kLanes; ++l)
-            if (r < members[l]) {
-              xs[idx[l][r]][l] = x_r[l];
-              if (!(x_r[l] >= -1e-12 * (1.0 + std::fabs(x_r[l])))) ok[l] = 0;
-            }
-        }
+        for (int i = 0; i < k; ++i)
+          for (int r = 0; r <= i; ++r) {
+            xs[i] = pick(in[r][i], x[r], xs[i]);
+            ok &= ~in[r][i] | (x[r] >= -1e-12 * (1.0 + magnitude(x[r])));
+          }
         for (int i = 0; i < k; ++i) {   // the rows left out: no approach
           Lanes w_i = q[i];
           for (int j = 0; j < k; ++j) w_i += g.delassus[i][j] * xs[j];
-          Mask in;   // row i in the lane's set
-          for (int l = 0; l < kLanes; ++l) in[l] = (sets[l] >> i) & 1 ? -1 : 0;
-          ok &= in | (w_i >= -1e-12 * (1.0 + magnitude(q[i])));
+          ok &= carry[i] | (w_i >= -1e-12 * (1.0 + magnitude(q[i])));
         }
         for (int i = 0; i < k; ++i) {   // take_block
           const Lanes d = pick(ok, maximum(xs[i], zero) - w[i].normal, zero);

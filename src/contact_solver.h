@@ -227,8 +227,8 @@ struct WideGroup {
 // for the set kept, the right-hand side alone is eliminated with them: the same operations
 // on it, the same bits.
 struct WideFace {
-  int set[kLanes] = {-1, -1, -1, -1};   // per lane the carrying set kept (bit i: row i),
-                                        // -1: none
+  alignas(32) int64_t set[kLanes] = {-1, -1, -1, -1};   // per lane the carrying set kept
+                                                      // (bit i: row i), -1: none
   Lanes pivot[4];                       // column c: the row swapped into place (as double)
   Lanes factor[4][4];                   // [c][r]: row c's multiple taken from row r != c
   Lanes diagonal[4];                    // the eliminated matrix's diagonal

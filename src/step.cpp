@@ -82,8 +82,16 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     // impacts: successive stages of the rows approaching faster than the threshold
     ImpactSettings impacts{params.restitution_threshold, params.impact_stages,
                            params.impact_sweeps, params.impact_converged, params.shock_ratio};
+    // a speculative row of a supported body closes on the held paths (reference_frame's
+    // closing test) by drift_ less than its bodies' velocities say: the stages see that
+    // allowance, or a body hopping within the slop of its floor, held above it, bounced
+    // where it was (no rewind: it never reached the floor) and rose higher each hop
+    for (ContactRow& r : rows_)
+      if (!impact_[r.contact] && gap_[r.contact] > 0.0 && drift_[r.contact] > 0.0)
+        r.allowance = (gap_[r.contact] + drift_[r.contact]) / span_[r.contact];
     resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
                     impact_work_);
+    for (ContactRow& r : rows_) r.allowance = allowance_[r.contact];
     // from here on an impacted body's velocity is the one its pose travels with over the
     // rest of the step (its velocity at the time of impact plus half the external change
     // over the rest, advance): the resting solve keeps that travel out of the partners

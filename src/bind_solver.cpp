@@ -203,6 +203,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("wide_rows", &SolverParams::wide_rows)
       .def_readwrite("max_substep", &SolverParams::max_substep)
       .def_readwrite("max_substeps", &SolverParams::max_substeps)
+      .def_readwrite("substep_sink", &SolverParams::substep_sink)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);
 

@@ -90,6 +90,9 @@ struct SolverParams {
   double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
                                         // long (StepSolver::soft_step) ...
   int max_substeps = 8;                 // ... and at most this many per step
+  double substep_sink = 0.02;           // ... and so short that a substep's external change
+                                        // sinks a body by at most this fraction of its
+                                        // contact reach (a h^2 <= this * reach)
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };

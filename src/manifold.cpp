@@ -302,6 +302,17 @@ void PairQuery::manifold(const coal::CollisionGeometry& ga, const coal::Transfor
   const coal::Contact& c = result_.getContact(0);
   patch_result_.clear();
   const coal::Transform3s moved(tb.getRotation(), tb.getTranslation() + loaded_shift_);
+  // points within kPatchTolerance of the plane, or within kPatchThickness of the thinner
+  // shape's least extent: a 1 cm cube's far face lies within 1 cm, and a point of it
+  // taken for one of its touching corners left that corner out (it rested tilted, a
+  // corner 0.15 mm deep and another in the air)
+  double least = kPatchTolerance / kPatchThickness;
+  for (const coal::CollisionGeometry* g : {&ga, &gb}) {
+    const coal::AABB& box = g->aabb_local;
+    const double extent = std::min({box.width(), box.height(), box.depth()});
+    if (extent > 0.0 && std::isfinite(extent)) least = std::min(least, extent);
+  }
+  patch_request_.setPatchTolerance(kPatchThickness * least);
   patch(ga, ta, gb, moved);
   if (patch_result_.numContactPatches() > 0) {
     const coal::ContactPatch& patch = patch_result_.getContactPatch(0);

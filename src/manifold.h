@@ -38,6 +38,8 @@ namespace collres {
 
 constexpr double kPatchTolerance = 0.01;  // m: points within this of the separating plane
                                           // join a patch (coal's 1 mm drops tilted faces)
+constexpr double kPatchThickness = 0.25;  // ... and within this fraction of the thinner
+                                          // shape's least extent (its far face stays out)
 constexpr int kMaxManifoldPoints = 4;     // as Box2D, Bullet and Jolt
 
 struct PointPair {

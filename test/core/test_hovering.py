@@ -55,6 +55,11 @@ def drop(size, axis, angle_deg: float, rate: float, mu: float) -> tuple[np.ndarr
     ((0.2, 0.2, 0.2), (1, 0, 0), 40, 240.0, 0.5),     # an edge
     ((0.2, 0.2, 0.2), (1, 1, 1), 50, 60.0, 0.5),      # a corner
     ((0.4, 0.1, 0.05), (1, 0.3, 0), 30, 120.0, 1.2),  # a bar
+    # small boxes: their far face lay within the patch's 1 cm of the floor and one of its
+    # points was kept for a touching corner (49bb690: rested 1.2 deg tilted, a corner
+    # 0.14 mm deep, one 0.08 mm up; the plate 0.16 mm deep)
+    ((0.01, 0.01, 0.01), (1, 0, 0), 40, 100.0, 0.5),
+    ((0.02, 0.02, 0.002), (1, 0, 0), 40, 1000.0, 0.5),
 ])
 def test_a_box_dropped_on_an_edge_or_corner_rests_on_the_floor(size, axis, angle, rate, mu):
     support, speed = drop(size, axis, angle, rate, mu)

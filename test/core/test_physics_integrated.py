@@ -201,6 +201,23 @@ def test_any_threshold_above_g_dt_lets_a_ball_rest(rate):
     assert abs(rest - law) <= 8 / rate
 
 
+@pytest.mark.parametrize('rate, times_g_dt', [(500.0, 1.1), (500.0, 1.5), (1000.0, 3.0)])
+def test_a_ball_hopping_within_the_slop_of_its_floor_comes_to_rest(rate, times_g_dt):
+    """At high rates the last hops rise less than the slop (0.1 mm): a ball that close to
+    its floor and slower than the threshold is held above it, and a speculative row closing
+    faster than the threshold on its own velocity was bounced where it was, no rewind, so
+    it rose higher each hop (49bb690: at 500 Hz and 1.1 g dt hopping 0.10 mm for ever, at
+    1.5 g dt 0.19 mm; at 1000 Hz and 3 g dt 0.10 mm). Now it rests within 30 ms of the
+    bounce law and stays."""
+    threshold = times_g_dt * G / rate
+    rest, height = rest_time(rate, threshold)
+    law = bounces_to_rest(0.8, 0.3, threshold)
+    print(f'{rate:.0f} Hz, threshold {threshold:.4f} m/s: rests at {rest:.4f} s, law {law:.4f} '
+          f's; highest over the last 0.5 s {height[-int(rate / 2):].max() * 1e6:.1f} um')
+    assert abs(rest - law) <= 0.03
+    assert np.all(np.abs(height[int(rest * rate):]) < 1e-5)
+
+
 @pytest.mark.parametrize('rate, threshold', [(60.0, 0.6), (120.0, 0.5), (240.0, 0.4)])
 def test_a_bounce_landing_above_the_threshold_late_in_a_step_is_not_lost(rate, threshold):
     """The ball dropped from 0.3 m (e 0.8) lands on its last bounce at just above the

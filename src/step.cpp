@@ -477,7 +477,7 @@ void StepSolver::prepare(StepContext& ctx) {
   islands_ = false;
   known_ = false;
   speed_.resize(rows_.size());
-  swept_.clear();
+  chosen_.clear();
   ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
@@ -591,9 +591,9 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
   known_ = true;
   if (!grew) return false;
   // the swept manifolds in detection's order, then in waves
-  swept_.clear();
+  chosen_.clear();
   for (size_t m = 0; m < manifolds_.size(); ++m)
-    if (in_[m]) swept_.push_back(manifolds_[m]);
+    if (in_[m]) chosen_.push_back(static_cast<int32_t>(m));
   plan_sweeps(ctx);
   return true;
 }
@@ -638,8 +638,8 @@ int StepSolver::sweep(StepContext& ctx, int iterations) {
 
 void StepSolver::plan_sweeps(StepContext& ctx) {
   const SolverParams& p = ctx.params;
-  wave_manifolds(swept_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_, wave_, of_,
-                 buckets_, sorted_);
+  wave_manifolds(manifolds_, chosen_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_,
+                 swept_, wave_, bucket_, start_of_, order_);
   plan_.wide = p.wide_rows;
   plan_.parallel = static_cast<size_t>(std::max(p.parallel_wave, 1));
   plan_.worker = p.threads >= 2 ? worker() : nullptr;

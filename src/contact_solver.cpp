@@ -1298,10 +1298,8 @@ static bool hold_lower(ContactRow& r, bool upper_b) {
   return true;
 }
 
-void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
-                     const std::vector<int32_t>& level, std::vector<int32_t>& order,
-                     std::vector<ContactRow>& scratch, int sweeps, double ratio) {
-  double* v = bodies.velocity;
+void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
+                std::vector<int32_t>& order, std::vector<ContactRow>& scratch, double ratio) {
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
     const ContactRow& row = rows[r];
@@ -1331,6 +1329,21 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
     if (!hold_lower(r, level[r.b] > level[r.a])) continue;
     r.contact = index;               // (the row it stands for, while it is a copy)
     scratch.push_back(r);
+  }
+}
+
+void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                     const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
+                     int sweeps) {
+  double* v = bodies.velocity;
+  // the copies take the fields that change within a step from the rows they stand for
+  for (ContactRow& r : scratch) {
+    const ContactRow& row = rows[r.contact];
+    r.allowance = row.allowance;
+    r.mu = row.mu;
+    r.normal = row.normal;
+    r.tangent[0] = row.tangent[0];
+    r.tangent[1] = row.tangent[1];
   }
   for (size_t lo = 0; lo < scratch.size();) {
     size_t hi = lo;

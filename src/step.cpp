@@ -836,6 +836,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   moved_.assign(6 * n, 0.0);
   travel_.assign(6 * n, 0.0);
   total_.assign(3 * rows, 0.0);
+  shock_rows(rows_, level_, order32_, shock_rows_, p.shock_ratio);   // (for every substep)
   int sweeps = 0;
   for (int s = 0; s < substeps; ++s) {
     if (s > 0) {
@@ -857,8 +858,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
     }
     sweeps += sweep(ctx, iterations);
     sweeps += hold_energy(ctx, iterations);
-    propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, p.shock_sweeps,
-                    p.shock_ratio);
+    propagate_shock(rows_, ctx.solver, level_, shock_rows_, p.shock_sweeps);
     // the poses travel with the substep's velocity for its share of the body's time
     for (int64_t i = 0; i < n; ++i) {
       const double h = (1.0 - fraction_[i]) * ctx.dt * share;

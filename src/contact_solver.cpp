@@ -423,6 +423,9 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
 }
 
 // One sweep over manifolds [from, to), one by one.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default"), flatten))
+#endif
 void solve_manifolds(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      size_t from, size_t to, const SolverBodies& bodies,
                      std::vector<SpinRow>* spins, Progress& progress) {

@@ -257,6 +257,7 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
 
 }  // namespace
 
+COLLRES_CLONED
 void prepare_block(Manifold& block, const ContactRow* r) {
   const int k = block.count;
   for (int i = 0; i < k && k <= 4; ++i) {
@@ -357,6 +358,7 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row.mu = row.sticking ? mu_static : mu_kinetic;
 }
 
+COLLRES_CLONED
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
   double* v = bodies.velocity;
   // a run of consecutive rows of one pair (a manifold's) on its two twists loaded once and
@@ -423,9 +425,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
 }
 
 // One sweep over manifolds [from, to), one by one.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default"), flatten))
-#endif
+COLLRES_CLONED_FLAT
 void solve_manifolds(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      size_t from, size_t to, const SolverBodies& bodies,
                      std::vector<SpinRow>* spins, Progress& progress) {
@@ -924,9 +924,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   }
 }
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
-#endif
+COLLRES_CLONED
 void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, double* v,
                  std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
@@ -949,9 +947,7 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
 
 // solve_spin() on the spin rows of a wide group (all four lanes, WideSpin::load their
 // SpinRow::load); returns the change over the lever per lane
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
-#endif
+COLLRES_CLONED
 void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progress) {
   const Lanes normal = s.load;
   const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |

@@ -132,6 +132,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   return stats;
 }
 
+COLLRES_CLONED
 void StepSolver::reference_frame(StepContext& ctx) {
   const BodyStatesView &previous = ctx.previous, &current = ctx.current;
   const BodyProperties& bodies = ctx.bodies;
@@ -402,6 +403,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
 }
 
+COLLRES_CLONED_FLAT
 void StepSolver::prepare(StepContext& ctx) {
   const BodyProperties& bodies = ctx.bodies;
   const ContactsView& c = ctx.contacts;

@@ -920,11 +920,16 @@ bool StepSolver::land(StepContext& ctx) {
 }
 
 void StepSolver::report(StepContext& ctx) {
-  const ContactsView& c = ctx.contacts;
+  // (the views by value and the arrays through local pointers: a store of a state, a
+  // byte, may alias any memory, see reference_frame)
+  const ContactsView c = ctx.contacts;
   const SolverParams& p = ctx.params;
-  ContactsOut& out = ctx.report;
+  const ContactsOut out = ctx.report;
   const int64_t m = c.count;
   cached_normal_.assign(m, 0.0);      // what is stored for the warm start
+  double* const cached = cached_normal_.data();
+  const double* const v = velocity_.data();
+  const double sticking_speed = p.sticking_speed;
   for (int64_t k = 0; k < m; ++k) {
     out.normal_impulse[k] = 0.0;
     store3(out.friction_impulse + 3 * k, Vec3::Zero());
@@ -932,10 +937,10 @@ void StepSolver::report(StepContext& ctx) {
   }
   for (const ContactRow& r : rows_) {
     const int64_t k = r.contact;
-    cached_normal_[k] = r.normal;
+    cached[k] = r.normal;
     out.normal_impulse[k] = r.normal + r.impact + r.landing;
     store3(out.friction_impulse + 3 * k, friction_world(r));
-    out.state[k] = contact_state(r, velocity_.data(), p.sticking_speed);
+    out.state[k] = contact_state(r, v, sticking_speed);
   }
   // STICKING -> RESTING where a manifold's friction impulses sum to nothing (a box at rest
   // on a flat floor may carry equal and opposite friction at its corners: no net friction)

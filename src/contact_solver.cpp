@@ -257,6 +257,7 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
 
 }  // namespace
 
+COLLRES_CLONED
 void prepare_block(Manifold& block, const ContactRow* r) {
   const int k = block.count;
   for (int i = 0; i < k && k <= 4; ++i) {
@@ -357,6 +358,7 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row.mu = row.sticking ? mu_static : mu_kinetic;
 }
 
+COLLRES_CLONED
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
   double* v = bodies.velocity;
   // a run of consecutive rows of one pair (a manifold's) on its two twists loaded once and
@@ -423,6 +425,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
 }
 
 // One sweep over manifolds [from, to), one by one.
+COLLRES_CLONED_FLAT
 void solve_manifolds(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      size_t from, size_t to, const SolverBodies& bodies,
                      std::vector<SpinRow>* spins, Progress& progress) {
@@ -921,9 +924,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   }
 }
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
-#endif
+COLLRES_CLONED
 void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, double* v,
                  std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
@@ -946,9 +947,7 @@ void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
 
 // solve_spin() on the spin rows of a wide group (all four lanes, WideSpin::load their
 // SpinRow::load); returns the change over the lever per lane
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
-#endif
+COLLRES_CLONED
 void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progress) {
   const Lanes normal = s.load;
   const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |
@@ -1298,10 +1297,8 @@ static bool hold_lower(ContactRow& r, bool upper_b) {
   return true;
 }
 
-void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
-                     const std::vector<int32_t>& level, std::vector<int32_t>& order,
-                     std::vector<ContactRow>& scratch, int sweeps, double ratio) {
-  double* v = bodies.velocity;
+void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
+                std::vector<int32_t>& order, std::vector<ContactRow>& scratch, double ratio) {
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
     const ContactRow& row = rows[r];
@@ -1331,6 +1328,21 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
     if (!hold_lower(r, level[r.b] > level[r.a])) continue;
     r.contact = index;               // (the row it stands for, while it is a copy)
     scratch.push_back(r);
+  }
+}
+
+void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
+                     const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
+                     int sweeps) {
+  double* v = bodies.velocity;
+  // the copies take the fields that change within a step from the rows they stand for
+  for (ContactRow& r : scratch) {
+    const ContactRow& row = rows[r.contact];
+    r.allowance = row.allowance;
+    r.mu = row.mu;
+    r.normal = row.normal;
+    r.tangent[0] = row.tangent[0];
+    r.tangent[1] = row.tangent[1];
   }
   for (size_t lo = 0; lo < scratch.size();) {
     size_t hi = lo;

@@ -162,13 +162,16 @@ double StepSolver::longest_substep(const StepContext& ctx) const {
   return std::max(longest, 1e-300);
 }
 
+COLLRES_CLONED
 void StepSolver::reference_frame(StepContext& ctx) {
-  const BodyStatesView &previous = ctx.previous, &current = ctx.current;
-  const BodyProperties& bodies = ctx.bodies;
-  const ContactsView& c = ctx.contacts;
+  // (the views by value, and below the flags' data: a store of a flag, a byte, may alias
+  // anything in memory, so that otherwise every array's address was loaded again after it)
+  const BodyStatesView previous = ctx.previous, current = ctx.current;
+  const BodyProperties bodies = ctx.bodies;
+  const ContactsView c = ctx.contacts;
   const double dt = ctx.dt, threshold = ctx.params.restitution_threshold;
   const double slop = ctx.params.linear_slop, sticking = ctx.params.sticking_speed;
-  ContactsOut& report = ctx.report;
+  const ContactsOut report = ctx.report;
   const int64_t n = bodies.count, m = c.count;
   now_.resize(6 * n);
   then_.resize(6 * n);
@@ -200,6 +203,13 @@ void StepSolver::reference_frame(StepContext& ctx) {
       motion_[i] = body_motion(previous, current, i);
     }
   }
+  uint8_t *const touching = touching_.data(), *const rested = rested_.data();
+  uint8_t *const near = near_.data(), *const supported = supported_.data();
+  Vec3 *const ra = ra_.data(), *const rb = rb_.data(), *const travel = travelled_.data();
+  double *const moved_a = moved_a_.data(), *const gap = gap_.data();
+  double *const allowance = allowance_.data(), *const before = before_.data();
+  const double* const then = then_.data();
+  const std::array<Vec3, 2>* const motion = motion_.data();
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);   // IMPACT or TUNNELLED
@@ -219,22 +229,22 @@ void StepSolver::reference_frame(StepContext& ctx) {
       if (fixed_a != fixed_b)
         point += (fixed_a ? 0.5 : -0.5) * c.separation[k] * normal;
     }
-    ra_[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
-    rb_[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
+    ra[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
+    rb[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
     // how far the two points closed over the step (m, from the poses: a step of several
     // periods that its source integrated is no straight line at the twist); a persistent
     // contact's gap at the previous state is its separation less that
-    travelled_[2 * k] = travelled(motion_[a], ra_[k]);
-    travelled_[2 * k + 1] = travelled(motion_[b], rb_[k]);
-    moved_a_[k] = dot(travelled_[2 * k], normal);
-    const double closed = dot(travelled_[2 * k + 1], normal) - moved_a_[k];
-    gap_[k] = c.separation[k] - closed;
-    allowance_[k] = closed;           // (kept here for the loops below)
-    before_[k] = normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal);
+    travel[2 * k] = travelled(motion[a], ra[k]);
+    travel[2 * k + 1] = travelled(motion[b], rb[k]);
+    moved_a[k] = dot(travel[2 * k], normal);
+    const double closed = dot(travel[2 * k + 1], normal) - moved_a[k];
+    gap[k] = c.separation[k] - closed;
+    allowance[k] = closed;           // (kept here for the loops below)
+    before[k] = normal_speed(then, a, b, ra[k], rb[k], normal);
     // touching at the previous state (within the slop) and not approaching then: in
     // contact from the start of the step; its bodies rest on it unless they have an impact
-    touching_[k] = !detected && gap_[k] <= slop && before_[k] >= -sticking;
-    if (touching_[k]) rested_[a] = rested_[b] = 1;
+    touching[k] = !detected && gap[k] <= slop && before[k] >= -sticking;
+    if (touching[k]) rested[a] = rested[b] = 1;
     // The gap then is measured along the current normal, a lower bound of the true one:
     // two balls that pass each other fast turn their normal over the step and read as
     // deep then though they were apart. So a pair leaving faster than the threshold is
@@ -243,9 +253,9 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // support (held by it, below): taken as each other's support, a ball that a third
     // hit within the step was held on the other as on a floor, one-sidedly (30 Hz elastic
     // gas: 1.4 N s of momentum made, 12 % of the three's energy lost in a step)
-    if (!detected && gap_[k] <= slop && before_[k] <= threshold) near_[a] = near_[b] = 1;
-    if (!detected && gap_[k] <= slop && std::abs(before_[k]) <= threshold)
-      supported_[a] = supported_[b] = 1;
+    if (!detected && gap[k] <= slop && before[k] <= threshold) near[a] = near[b] = 1;
+    if (!detected && gap[k] <= slop && std::abs(before[k]) <= threshold)
+      supported[a] = supported[b] = 1;
   }
   for (int64_t i = 0; i < n; ++i) {
     rested_[i] = rested_[i] && bodies.movable[i] != 0;
@@ -301,28 +311,31 @@ void StepSolver::reference_frame(StepContext& ctx) {
   };
   drift_.resize(m);
   approach_.resize(m);
+  double *const drift = drift_.data(), *const approach = approach_.data();
+  double *const toi_of = toi_.data(), *const fraction = fraction_.data();
+  uint8_t *const impact_of = impact_.data(), *const impacted = impacted_.data();
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
     const Vec3 normal = load3(c.normal + 3 * k);
-    drift_[k] = 0.0;
-    if (supported_[a] || supported_[b]) {
-      const Vec3 held_a = held(a, ra_[k], travelled_[2 * k]);
-      drift_[k] = dot(held_a - held(b, rb_[k], travelled_[2 * k + 1]), normal);
-      moved_a_[k] -= dot(held_a, normal);
+    drift[k] = 0.0;
+    if (supported[a] || supported[b]) {
+      const Vec3 held_a = held(a, ra[k], travel[2 * k]);
+      drift[k] = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
+      moved_a[k] -= dot(held_a, normal);
     }
-    const double v_in = normal_speed(now_.data(), a, b, ra_[k], rb_[k], normal);
-    approach_[k] = v_in;   // (the pre-solve approach unless a body has an impact: below)
+    const double v_in = normal_speed(now_.data(), a, b, ra[k], rb[k], normal);
+    approach[k] = v_in;   // (the pre-solve approach unless a body has an impact: below)
     // a persistent contact that closes within the step faster than the threshold at the
     // time it closes (on the held paths: its separation at the end is drift_ more than
     // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
     // v_in + (f - 1/2) (v_in - before) off the held paths: a ball landing at 0.51 m/s late
     // in a 120 Hz step whose mid-step approach was 0.50 m/s did not bounce)
-    const double end = c.separation[k] + drift_[k];
-    const double meets = gap_[k] / std::max(gap_[k] - end, 1e-300);
-    const double v_then = supported_[a] || supported_[b]
-                              ? v_in : v_in + (meets - 0.5) * (v_in - before_[k]);
-    bool closing = !detected && !touching_[k] && gap_[k] > 0.0 && end < 0.0 &&
+    const double end = c.separation[k] + drift[k];
+    const double meets = gap[k] / std::max(gap[k] - end, 1e-300);
+    const double v_then = supported[a] || supported[b]
+                              ? v_in : v_in + (meets - 0.5) * (v_in - before[k]);
+    bool closing = !detected && !touching[k] && gap[k] > 0.0 && end < 0.0 &&
                    v_then < -threshold;
     bool impact = detected || closing;
     double toi = detected ? c.toi[k] : 0.0;
@@ -332,11 +345,11 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // points close by closed over the step on the integrated paths); none within the step
     // there: a persistent contact from the start, its gap then the one at the time of
     // impact less what closed before it
-    if (detected && drift_[k] != 0.0) {
-      const double closed = allowance_[k], held = closed + drift_[k];
+    if (detected && drift[k] != 0.0) {
+      const double closed = allowance[k], held = closed + drift[k];
       const double at = closed < 0.0 && held < 0.0 ? toi * closed / held : 2.0;
       if (at > 1.0) {
-        gap_[k] = std::max(c.separation[k], 0.0) - toi * closed;
+        gap[k] = std::max(c.separation[k], 0.0) - toi * closed;
         impact = false;
         toi = 0.0;
       } else {
@@ -347,23 +360,23 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // external change brings (at the start its pair approached slower than the
     // threshold): after dropped inputs its source integrated it through its supports
     // into what lies below them; the contact is speculative from the start instead
-    if (impact && (rested_[a] || rested_[b]) && before_[k] >= -threshold) {
+    if (impact && (rested[a] || rested[b]) && before[k] >= -threshold) {
       // a detected impact's rows touch (its corners: their separation) at the time of
       // impact, and closed by toi of the step's closing before
       if (detected)
-        gap_[k] = std::max(c.separation[k], 0.0) - toi * (allowance_[k] + drift_[k]);
+        gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drift[k]);
       impact = closing = false;
       toi = 0.0;
     }
-    impact_[k] = impact;
-    toi_[k] = toi;
+    impact_of[k] = impact;
+    toi_of[k] = toi;
     report.toi[k] = std::clamp(toi, 0.0, 1.0);
     report.kind[k] = closing ? static_cast<int8_t>(ContactKind::impact)
                              : impact ? c.kind[k] : static_cast<int8_t>(ContactKind::persistent);
     if (impact) {
-      impacted_[a] = impacted_[b] = 1;
-      fraction_[a] = std::min(fraction_[a], toi);
-      fraction_[b] = std::min(fraction_[b], toi);
+      impacted[a] = impacted[b] = 1;
+      fraction[a] = std::min(fraction[a], toi);
+      fraction[b] = std::min(fraction[b], toi);
     }
   }
   for (int64_t i = 0; i < n; ++i) {
@@ -432,6 +445,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
 }
 
+COLLRES_CLONED_FLAT
 void StepSolver::prepare(StepContext& ctx) {
   const BodyProperties& bodies = ctx.bodies;
   const ContactsView& c = ctx.contacts;
@@ -507,7 +521,7 @@ void StepSolver::prepare(StepContext& ctx) {
   islands_ = false;
   known_ = false;
   speed_.resize(rows_.size());
-  swept_.clear();
+  chosen_.clear();
   ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
@@ -621,9 +635,9 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
   known_ = true;
   if (!grew) return false;
   // the swept manifolds in detection's order, then in waves
-  swept_.clear();
+  chosen_.clear();
   for (size_t m = 0; m < manifolds_.size(); ++m)
-    if (in_[m]) swept_.push_back(manifolds_[m]);
+    if (in_[m]) chosen_.push_back(static_cast<int32_t>(m));
   plan_sweeps(ctx);
   return true;
 }
@@ -668,8 +682,8 @@ int StepSolver::sweep(StepContext& ctx, int iterations) {
 
 void StepSolver::plan_sweeps(StepContext& ctx) {
   const SolverParams& p = ctx.params;
-  wave_manifolds(swept_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_, wave_, of_,
-                 buckets_, sorted_);
+  wave_manifolds(manifolds_, chosen_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_,
+                 swept_, wave_, bucket_, start_of_, order_);
   plan_.wide = p.wide_rows;
   plan_.parallel = static_cast<size_t>(std::max(p.parallel_wave, 1));
   plan_.worker = p.threads >= 2 ? worker() : nullptr;
@@ -866,6 +880,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   moved_.assign(6 * n, 0.0);
   travel_.assign(6 * n, 0.0);
   total_.assign(3 * rows, 0.0);
+  shock_rows(rows_, level_, order32_, shock_rows_, p.shock_ratio);   // (for every substep)
   int sweeps = 0;
   for (int s = 0; s < substeps; ++s) {
     if (s > 0) {
@@ -887,8 +902,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
     }
     sweeps += sweep(ctx, iterations);
     sweeps += hold_energy(ctx, iterations);
-    propagate_shock(rows_, ctx.solver, level_, order32_, shock_rows_, p.shock_sweeps,
-                    p.shock_ratio);
+    propagate_shock(rows_, ctx.solver, level_, shock_rows_, p.shock_sweeps);
     // the poses travel with the substep's velocity for its share of the body's time
     for (int64_t i = 0; i < n; ++i) {
       const double h = (1.0 - fraction_[i]) * ctx.dt * share;
@@ -936,11 +950,16 @@ bool StepSolver::land(StepContext& ctx) {
 }
 
 void StepSolver::report(StepContext& ctx) {
-  const ContactsView& c = ctx.contacts;
+  // (the views by value and the arrays through local pointers: a store of a state, a
+  // byte, may alias any memory, see reference_frame)
+  const ContactsView c = ctx.contacts;
   const SolverParams& p = ctx.params;
-  ContactsOut& out = ctx.report;
+  const ContactsOut out = ctx.report;
   const int64_t m = c.count;
   cached_normal_.assign(m, 0.0);      // what is stored for the warm start
+  double* const cached = cached_normal_.data();
+  const double* const v = velocity_.data();
+  const double sticking_speed = p.sticking_speed;
   for (int64_t k = 0; k < m; ++k) {
     out.normal_impulse[k] = 0.0;
     store3(out.friction_impulse + 3 * k, Vec3::Zero());
@@ -948,10 +967,10 @@ void StepSolver::report(StepContext& ctx) {
   }
   for (const ContactRow& r : rows_) {
     const int64_t k = r.contact;
-    cached_normal_[k] = r.normal;
+    cached[k] = r.normal;
     out.normal_impulse[k] = r.normal + r.impact + r.landing;
     store3(out.friction_impulse + 3 * k, friction_world(r));
-    out.state[k] = contact_state(r, velocity_.data(), p.sticking_speed);
+    out.state[k] = contact_state(r, v, sticking_speed);
   }
   // STICKING -> RESTING where a manifold's friction impulses sum to nothing (a box at rest
   // on a flat floor may carry equal and opposite friction at its corners: no net friction)

@@ -323,6 +323,7 @@ class StepSolver {
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
                                                      // (manifolds_ in detection's order)
   std::vector<Manifold> swept_;      // the manifolds in the sweeps, in plan_'s order
+  std::vector<int32_t> chosen_;      // their indices in manifolds_, ascending (admit)
   std::vector<uint8_t> in_;          // (manifolds_) 1: in the sweeps this step (admit)
   std::vector<uint8_t> blocked_;     // (manifolds_) 1: prepare_block done (at admission,
                                      // or for hold_energy's retry)
@@ -346,9 +347,8 @@ class StepSolver {
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
   std::vector<int32_t> wave_;        // (N,) plan_sweeps: the last wave of each body
-  std::vector<int32_t> of_;          // plan_sweeps: the wave of each manifold
-  std::vector<size_t> buckets_;      // plan_sweeps: scratch
-  std::vector<Manifold> sorted_;     // plan_sweeps: scratch
+  std::vector<size_t> bucket_, start_of_;   // plan_sweeps: scratch
+  std::vector<int32_t> order_;       // plan_sweeps: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

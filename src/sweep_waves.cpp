@@ -4,24 +4,12 @@
 
 namespace collres {
 
-void wave_manifolds(std::vector<Manifold>& manifolds, const std::vector<ContactRow>& rows,
-                    const double* inv_mass, int64_t body_count, SweepPlan& plan,
-                    std::vector<int32_t>& wave, std::vector<int32_t>& of,
-                    std::vector<size_t>& start, std::vector<Manifold>& sorted) {
-  const size_t count = manifolds.size();
-  // each manifold's wave (of[index]); wave[body]: the last wave that moved it
-  wave.assign(static_cast<size_t>(body_count), -1);
-  of.resize(count);
-  int32_t waves = 0;
-  for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds[index];
-    const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
-    const int32_t own = std::max(move_a ? wave[m.a] : -1, move_b ? wave[m.b] : -1) + 1;
-    if (move_a) wave[m.a] = own;
-    if (move_b) wave[m.b] = own;
-    of[index] = own;
-    waves = std::max(waves, own + 1);
-  }
+void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
+                    const std::vector<ContactRow>& rows, const double* inv_mass,
+                    int64_t body_count, SweepPlan& plan, std::vector<Manifold>& out,
+                    std::vector<int32_t>& wave, std::vector<size_t>& bucket,
+                    std::vector<size_t>& start, std::vector<int32_t>& order) {
+  const size_t count = chosen.size();
   // stable counting sort by (wave, row count, speculative): bucket wave * 10 + 2 (count -
   // 1) + speculative (counts 1 to 4; the last two buckets of a wave for longer manifolds).
   // A speculative manifold (every row with a gap to close: allowance > 0) is the kind that
@@ -34,20 +22,35 @@ void wave_manifolds(std::vector<Manifold>& manifolds, const std::vector<ContactR
       if (!(rows[i].allowance > 0.0)) return false;
     return true;
   };
-  auto bucket = [&](size_t index) {
-    const Manifold& m = manifolds[index];
-    return static_cast<size_t>(of[index]) * kBuckets +
-           2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) + (speculative(m) ? 1 : 0);
-  };
+  // each manifold's bucket (bucket[index]), from its wave; wave[body]: the last wave that
+  // moved it
+  wave.assign(static_cast<size_t>(body_count), -1);
+  bucket.resize(count);
+  int32_t waves = 0;
+  for (size_t index = 0; index < count; ++index) {
+    const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
+    const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
+    const int32_t own = std::max(move_a ? wave[m.a] : -1, move_b ? wave[m.b] : -1) + 1;
+    if (move_a) wave[m.a] = own;
+    if (move_b) wave[m.b] = own;
+    waves = std::max(waves, own + 1);
+    bucket[index] = static_cast<size_t>(own) * kBuckets +
+                    2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) +
+                    (speculative(m) ? 1 : 0);
+  }
   start.assign(static_cast<size_t>(waves) * kBuckets + 1, 0);
-  for (size_t index = 0; index < count; ++index) ++start[bucket(index) + 1];
+  for (size_t index = 0; index < count; ++index) ++start[bucket[index] + 1];
   for (size_t i = 0; i + 1 < start.size(); ++i) start[i + 1] += start[i];
-  sorted.resize(count);
+  order.resize(count);
   for (size_t index = 0; index < count; ++index)
-    sorted[start[bucket(index)]++] = manifolds[index];   // (start: ends now)
+    order[start[bucket[index]]++] = chosen[index];   // (start: ends now)
   // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then the
   // rest one by one (counts 1..4's remainders, then longer manifolds)
-  manifolds.clear();
+  out.resize(count);
+  Manifold* to = out.data();
+  auto place = [&](size_t from, size_t end) {
+    for (size_t k = from; k < end; ++k) *to++ = manifolds[static_cast<size_t>(order[k])];
+  };
   plan.waves.clear();
   plan.packed = false;
   size_t from = 0;
@@ -58,20 +61,18 @@ void wave_manifolds(std::vector<Manifold>& manifolds, const std::vector<ContactR
       first[k + 1] = start[static_cast<size_t>(l) * kBuckets + 2 * static_cast<size_t>(k) + 1];
     from = first[kKinds];
     SweepWave part;
-    part.first = manifolds.size();
+    part.first = static_cast<size_t>(to - out.data());
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
-      manifolds.insert(manifolds.end(), sorted.begin() + first[k],
-                       sorted.begin() + first[k] + (n - n % kLanes));
+      place(first[k], first[k] + (n - n % kLanes));
     }
-    part.wide_end = manifolds.size();
+    part.wide_end = static_cast<size_t>(to - out.data());
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
-      manifolds.insert(manifolds.end(), sorted.begin() + first[k] + (n - n % kLanes),
-                       sorted.begin() + first[k + 1]);
+      place(first[k] + (n - n % kLanes), first[k + 1]);
     }
-    manifolds.insert(manifolds.end(), sorted.begin() + first[4], sorted.begin() + first[5]);
-    part.end = manifolds.size();
+    place(first[4], first[5]);
+    part.end = static_cast<size_t>(to - out.data());
     plan.waves.push_back(part);
   }
 }

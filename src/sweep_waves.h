@@ -19,16 +19,18 @@
 
 namespace collres {
 
-// Reorders `manifolds` wave by wave (SweepPlan's layout: within a wave, wide groups of
-// kLanes manifolds of one row count 1..4 first, then the rest one by one; within a row
-// count the speculative manifolds, every row with allowance > 0, last); fills plan.waves
-// and clears plan.packed (its other fields are left as they are). The manifolds keep
-// their rows and spin rows (Manifold::spin); the rows keep their ContactRow::manifold.
-// `inv_mass` (N,) 1/kg: 0 for immovable bodies. `wave`, `of`, `start` and `sorted` are
+// The manifolds `chosen` (indices into `manifolds`, ascending: the sweep's order) wave by
+// wave into `out` (SweepPlan's layout: within a wave, wide groups of kLanes manifolds of
+// one row count 1..4 first, then the rest one by one; within a row count the speculative
+// manifolds, every row with allowance > 0, last), each copied once; fills plan.waves and
+// clears plan.packed (its other fields are left as they are). The manifolds keep their
+// rows and spin rows (Manifold::spin); the rows keep their ContactRow::manifold.
+// `inv_mass` (N,) 1/kg: 0 for immovable bodies. `wave`, `bucket`, `start` and `order` are
 // scratch.
-void wave_manifolds(std::vector<Manifold>& manifolds, const std::vector<ContactRow>& rows,
-                    const double* inv_mass, int64_t body_count, SweepPlan& plan,
-                    std::vector<int32_t>& wave, std::vector<int32_t>& of,
-                    std::vector<size_t>& start, std::vector<Manifold>& sorted);
+void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
+                    const std::vector<ContactRow>& rows, const double* inv_mass,
+                    int64_t body_count, SweepPlan& plan, std::vector<Manifold>& out,
+                    std::vector<int32_t>& wave, std::vector<size_t>& bucket,
+                    std::vector<size_t>& start, std::vector<int32_t>& order);
 
 }  // namespace collres

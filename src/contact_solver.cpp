@@ -1452,12 +1452,56 @@ struct ImpactSupport {
   }
 };
 
+namespace {
+
+// A stage's manifold with no touching row (all speculative: its gap closes later in the
+// step) waits for a later stage if one of its movable bodies is in a touching manifold of
+// the stage: that impact comes first and may turn the body away (a cradle's striker,
+// stopped by the first ball, never reaches the second, which the step's motion alone
+// would have put within its reach)
+void hold_back_gaps(const std::vector<ContactRow>& rows, const SolverBodies& bodies,
+                    std::vector<int32_t>& members, std::vector<uint8_t>& struck) {
+  int32_t last = 0;
+  for (const int32_t i : members) last = std::max({last, rows[i].a, rows[i].b});
+  struck.assign(static_cast<size_t>(last) + 1, 0);
+  bool any = false;
+  auto each_manifold = [&](auto&& visit) {
+    for (size_t lo = 0; lo < members.size();) {
+      size_t hi = lo;
+      bool touches = false;
+      for (; hi < members.size() && rows[members[hi]].manifold == rows[members[lo]].manifold;
+           ++hi)
+        if (!(rows[members[hi]].allowance > 0.0)) touches = true;
+      visit(lo, hi, touches);
+      lo = hi;
+    }
+  };
+  each_manifold([&](size_t lo, size_t, bool touches) {
+    if (!touches) return;
+    const ContactRow& r = rows[members[lo]];
+    struck[r.a] = struck[r.b] = 1;
+    any = true;
+  });
+  if (!any) return;
+  size_t kept = 0;
+  each_manifold([&](size_t lo, size_t hi, bool touches) {
+    const ContactRow& r = rows[members[lo]];
+    const bool waits = !touches && ((struck[r.a] && bodies.inv_mass[r.a] > 0.0) ||
+                                    (struck[r.b] && bodies.inv_mass[r.b] > 0.0));
+    for (size_t j = lo; j < hi && !waits; ++j) members[kept++] = members[j];
+  });
+  members.resize(kept);
+}
+
+}  // namespace
+
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     const ImpactSettings& settings, std::vector<ContactRow>& scratch,
                     std::vector<Manifold>& blocks, std::vector<int32_t>& members,
                     std::vector<double>& work) {
   double* v = bodies.velocity;
   ImpactSupport support;   // found when a first stage has rows
+  std::vector<uint8_t> struck;
   int stage = 0;
   for (; stage < settings.stages; ++stage) {
     members.clear();
@@ -1469,6 +1513,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
         members.push_back(static_cast<int32_t>(i));
     }
     if (members.empty()) break;
+    hold_back_gaps(rows, bodies, members, struck);
     if (stage == 0) support.find(rows, bodies);
     // the stage's rows (copies, in row order: a manifold's rows stay one block), from zero
     const size_t k = members.size();

@@ -90,6 +90,10 @@ struct SolverParams {
   double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
                                         // long (StepSolver::soft_step) ...
   int max_substeps = 8;                 // ... and at most this many per step
+  double later_impact = 1e-3;           // fraction of the step: a detected impact this much
+                                        // later than its body's earliest ...
+  double behind_cosine = 0.9;           // ... and behind it (normals out of the body within
+                                        // acos of this) waits for it
   double substep_sink = 0.02;           // ... and so short that a substep's external change
                                         // sinks a body by at most this fraction of its
                                         // contact reach (a h^2 <= this * reach)

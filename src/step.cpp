@@ -314,6 +314,25 @@ void StepSolver::reference_frame(StepContext& ctx) {
   double *const drift = drift_.data(), *const approach = approach_.data();
   double *const toi_of = toi_.data(), *const fraction = fraction_.data();
   uint8_t *const impact_of = impact_.data(), *const impacted = impacted_.data();
+  // each body's earliest detected impact (-1: none)
+  earliest_.assign(n, -1);
+  for (int64_t k = 0; k < m; ++k) {
+    if (persistent(c.kind[k])) continue;
+    for (const int64_t i : {c.a[k], c.b[k]})
+      if (earliest_[i] < 0 || c.toi[k] < c.toi[earliest_[i]]) earliest_[i] = k;
+  }
+  // whether detected impact k of body i comes later in the step than i's earliest one and
+  // lies behind it: the normals out of i within acos(behind_cosine). Body i reaches k's
+  // other body only through the earlier one's (a striker that passes through a cradle's
+  // first ball within the step meets the second too, behind it: struck at once, a third
+  // of the impulse went to the second ball); the earlier impact turns it first
+  auto behind = [&](int64_t k, int64_t i) {
+    const int64_t e = earliest_[i];
+    if (e < 0 || e == k || c.toi[k] <= c.toi[e] + ctx.params.later_impact) return false;
+    const Vec3 out_k = (c.a[k] == i ? 1.0 : -1.0) * load3(c.normal + 3 * k);
+    const Vec3 out_e = (c.a[e] == i ? 1.0 : -1.0) * load3(c.normal + 3 * e);
+    return dot(out_k, out_e) >= ctx.params.behind_cosine;
+  };
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
@@ -355,6 +374,12 @@ void StepSolver::reference_frame(StepContext& ctx) {
       } else {
         toi = at;
       }
+    }
+    // an impact behind an earlier one of one of its bodies is speculative from the start:
+    // the impact stages take it only if it still closes after the earlier impact
+    if (detected && impact && (behind(k, a) || behind(k, b))) {
+      impact = false;
+      toi = 0.0;
     }
     // a body resting on something from the start meets no impact that only the step's
     // external change brings (at the start its pair approached slower than the

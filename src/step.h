@@ -284,6 +284,7 @@ class StepSolver {
   std::vector<double> gain_;         // (N, 2) J, per island root: the energy change, the
                                      // energy before (-1: driven, not judged)
   std::vector<double> fraction_;     // (N,) reference fraction of the step
+  std::vector<int64_t> earliest_;    // (N,) its earliest detected impact (-1: none)
   std::vector<uint8_t> touched_, impacted_;
   std::vector<uint8_t> rested_;      // (N,) touching something from the start, no impact
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it

@@ -328,6 +328,24 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
     ParamSpec('max_substeps', 'integer', 8,
               'Most substeps of a step\'s resting solve (max_substep)', 1, 64,
               reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 8 solves'),
+    ParamSpec('later_impact', 'double', 1e-3,
+              'A detected impact whose time of impact is later than the earliest of one of '
+              'its bodies by more than this fraction of the step, behind it (behind_cosine), '
+              'is no impact of the step: speculative from the start, the impact stages take '
+              'it only if it still closes after the earlier impact', 0.0, 1.0,
+              unit='fraction of dt',
+              reason='ten times the time-of-impact bisection\'s tolerance (toi_tolerance): '
+                     'impacts closer in time are one simultaneous impact; a striker that '
+                     'passed through a cradle\'s first ball within the step also met the '
+                     'second and hit both at once (1 cm balls at 1 m/s, 30-60 Hz: the last '
+                     'ball left at 0.59-0.89 v0)'),
+    ParamSpec('behind_cosine', 'double', 0.9,
+              'A later impact of a body lies behind its earliest one (later_impact) where '
+              'their normals out of the body are within acos of this', -1.0, 1.0,
+              reason='a body reaches what lies behind the body it strikes (a cradle\'s second '
+                     'ball: the same normal) only through it; impacts on different sides '
+                     '(a ball struck while it passes another, 90 deg; a sphere landing in the '
+                     'pocket of two touching ones, 60 deg) are struck as they come'),
     ParamSpec('substep_sink', 'double', 0.02,
               'The resting solve\'s substeps are also at most sqrt(this * reach / a) long for '
               'every solver row and its movable bodies (a: the body\'s external acceleration, '

@@ -175,6 +175,25 @@ def gas() -> None:
             + ('' if inside else ', a ball left the box'), ok)
 
 
+@check('gas_sweep')
+def gas_sweep() -> None:
+    """The elastic gas (threshold 0.05 m/s) over ball radii (the box scaled with them),
+    rms speeds and two seeds at 30-240 Hz: energy within 1 %, never above +0.5 %."""
+    for radius in (0.005, 0.02, 0.05, 0.2):
+        for rms in (0.5, 1.5, 5.0):
+            for rate in (30.0, 50.0, 60.0, 100.0, 120.0, 240.0):
+                low, high = 1.0, 1.0
+                for seed in (1, 2):
+                    sim = elastic_gas(rate, 0.05, radius, rms, seed)
+                    e0 = sim.energy()
+                    for _ in range(int(5 * rate)):
+                        sim.step()
+                        low = min(low, sim.energy() / e0)
+                        high = max(high, sim.energy() / e0)
+                row('elastic gas', f'r {radius} m, {rms} m/s rms, {rate:g} Hz, seeds 1-2',
+                    f'E min {low:.4f} max {high:.4f}', low >= 0.99 and high <= 1.005)
+
+
 def apexes(height):
     return [float(height[i]) for i in range(1, len(height) - 1)
             if height[i] >= height[i - 1] and height[i] > height[i + 1]]

@@ -74,6 +74,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   // contact without a row escapes (escaped): it gets a row
   pre_.assign(velocity_.begin(), velocity_.end());
   forced_.assign(static_cast<size_t>(contacts.count), 0);
+  struck_.assign(static_cast<size_t>(contacts.count), 0);
   StepStats stats;
   for (;; ++stats.redone) {
     if (stats.redone > 0) std::copy(pre_.begin(), pre_.end(), velocity_.begin());
@@ -89,6 +90,11 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     for (ContactRow& r : rows_)
       if (!impact_[r.contact] && gap_[r.contact] > 0.0 && drift_[r.contact] > 0.0)
         r.allowance = (gap_[r.contact] + drift_[r.contact]) / span_[r.contact];
+    // a speculative contact that the last solve closed within the step faster than the
+    // threshold (struck_, land) is an impact: the stages take it from the reference time
+    // (it bounces with its restitution, its gap not yet closed)
+    for (ContactRow& r : rows_)
+      if (struck_[r.contact]) r.allowance = 0.0;
     resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
                     impact_work_);
     for (ContactRow& r : rows_) r.allowance = allowance_[r.contact];
@@ -105,6 +111,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     // warm start from last step's impulses of the same pair and feature (a substep's share)
     double cold = warm(ctx, substeps);
     start_.assign(velocity_.begin(), velocity_.end());
+    resting_.assign(velocity_.begin(), velocity_.end());
     warm_start(rows_, ctx.solver);
     // iterate: sequential impulses (more sweeps while resting contacts are new, for a step
     // k periods long sqrt(k) times as many: a load k times the last, whose residual sinks
@@ -120,8 +127,9 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     stats.sweeps += soft_step(ctx, substeps, iterations);
     // landing: the poses travel with the substeps' mean velocity; a speculative contact that
     // closes within the step ends it touching, and with no approach left for the next step
-    const bool landed = land(ctx);
-    if (!escaped(ctx, landed)) break;
+    bool struck = false;
+    const bool landed = land(ctx, struck);
+    if (!escaped(ctx, landed) && !struck) break;
   }
   redone_ += static_cast<uint64_t>(stats.redone);
   for (size_t i = 0; i < rows_.size(); ++i) {   // the step's impulses: the substeps' sums
@@ -947,10 +955,17 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   return sweeps;
 }
 
-bool StepSolver::land(StepContext& ctx) {
+bool StepSolver::land(StepContext& ctx, bool& struck) {
   const SolverParams& p = ctx.params;
   // the landing rows: speculative (a gap at the reference time) and holding, i.e. the
-  // contact closes within the step and the solve let it approach by its gap only
+  // contact closes within the step and the solve let it approach by its gap only. One
+  // that closes faster than the restitution threshold (its approach as the resting solve
+  // began, after the impact stages: two balls passing each other, or one that a partner's
+  // impact drives in) from a gap beyond the slop is an impact: marked in struck_, and the
+  // step is solved again with it in the impact stages. (Landed, it stopped inelastically:
+  // an elastic gas of 40 balls of 5 mm in a 10 cm box lost 6 % of its energy in one step
+  // at 100 Hz. Within the slop it is touching: a ball hopping that close to its floor,
+  // bounced there without a rewind, rose higher each hop.)
   landing_.resize(rows_.size());
   bool any = false;
   for (size_t i = 0; i < rows_.size(); ++i) {
@@ -960,6 +975,11 @@ bool StepSolver::land(StepContext& ctx) {
     if (gap_[r.contact] > 0.0 && r.allowance > 0.0 && r.normal > 0.0) {
       r.allowance = 0.0;
       any = true;
+      if (!struck_[r.contact] && gap_[r.contact] > p.linear_slop &&
+          normal_velocity(r, resting_.data()) < -p.restitution_threshold) {
+        struck_[r.contact] = 1;
+        struck = true;
+      }
     }
   }
   if (!any) return false;

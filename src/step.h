@@ -79,7 +79,11 @@
 // 6. landing: the poses travel with the substeps' mean velocity; a speculative contact
 //    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
 //    is solved again with no allowance, for the velocities only, so it ends the step
-//    touching and with no approach left to bounce on next step (land);
+//    touching and with no approach left to bounce on next step (land); one that closes
+//    from a gap beyond the slop faster than the restitution threshold (its approach when
+//    the resting solve began) is an impact instead: the step is solved again from the
+//    pre-solve velocities (stages 2-6) with it in the impact stages (struck_), where it
+//    bounces with its restitution;
 //    The net: at the landing's end every contact without a row is checked: if one ends
 //    the step closer than touching (on the substeps' poses) or, after a landing, approaches
 //    faster than its allowance (it would have carried an impulse), it gets a row and the
@@ -247,7 +251,9 @@ class StepSolver {
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
   bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
   int sweep(StepContext& ctx, int iterations);
-  bool land(StepContext& ctx);   // true when it solved (a landing row)
+  // true when it solved (a landing row); `struck`: a landing row closed faster than the
+  // restitution threshold and was newly marked in struck_ (an impact when solved again)
+  bool land(StepContext& ctx, bool& struck);
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
@@ -275,6 +281,8 @@ class StepSolver {
   std::vector<double> moved_;        // (N, 6) m, rad: displacement and turn (soft_step)
   std::vector<double> total_;        // (rows, 3) N s: the substeps' summed impulses
   std::vector<double> start_;        // (N, 6) velocity before the warm start
+  std::vector<double> resting_;      // (N, 6) velocity the resting solve starts from (after
+                                     // the impact stages, before the first warm start)
   std::vector<double> later_;        // (N, 6) pre-solve velocity, rested bodies' current
   std::vector<int32_t> island_;      // (N,) island root (hold_energy; the rows' islands,
                                      // found at its first call of a step)
@@ -313,6 +321,8 @@ class StepSolver {
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
   std::vector<int32_t> rowless_;     // the contacts without a row (prepare)
   std::vector<uint8_t> forced_;      // (M,) 1: a row whatever the bound (the net let it in)
+  std::vector<uint8_t> struck_;      // (M,) 1: a speculative contact the impact stages take
+                                     // (land found it closing faster than the threshold)
   std::vector<double> pre_;          // (N, 6) pre-solve velocities (a redo starts from them)
   std::vector<double> reach_body_;   // (N,) m: the farthest contact point from its centre
   double fastest_ = 0.0;             // m/s: the step's fastest pre-solve approach (approach_)

@@ -132,12 +132,15 @@ def test_impact_result_is_independent_of_body_and_contact_order(order, reverse):
 GAS_SIDE = 1.0   # m, the inside of the gas's closed box (centred on the origin)
 
 
-def elastic_gas(rate: float, threshold: float) -> Simulation:
+def elastic_gas(rate: float, threshold: float, radius: float = 0.05, rms: float = 1.5,
+                seed: int = 3) -> Simulation:
     """40 frictionless spheres (r 5 cm, 1 kg, e = 1) at 1.5 m/s rms in a closed box of
     static walls (inside GAS_SIDE wide), no gravity, at ``rate`` with ``threshold`` as the
-    restitution threshold (m/s)."""
-    rng = np.random.default_rng(3)
-    side, r, t = GAS_SIDE, 0.05, 0.2
+    restitution threshold (m/s). Other radii scale the box and the walls with the balls
+    (``radius`` / 0.05 of GAS_SIDE); ``rms`` (m/s) and ``seed`` draw the velocities."""
+    rng = np.random.default_rng(seed)
+    scale = radius / 0.05
+    side, r, t = GAS_SIDE * scale, radius, 0.2 * scale
     outer = side + 2 * t
     walls = [box(f'w{i}', size, 1.0, e=1.0, static=True) for i, size in enumerate(
         [(outer, outer, t)] * 2 + [(t, outer, outer)] * 2 + [(outer, t, outer)] * 2)]
@@ -146,8 +149,8 @@ def elastic_gas(rate: float, threshold: float) -> Simulation:
     grid = np.array([[x, y, z] for x in range(4) for y in range(4) for z in range(3)],
                     float)[:40]
     balls = [sphere(f'b{i}', r, 1.0, e=1.0) for i in range(40)]
-    initial = states(wall_at + ((grid - grid.mean(0)) * 0.22).tolist(),
-                     np.r_[np.zeros((6, 3)), rng.normal(0.0, 1.5, (40, 3))])
+    initial = states(wall_at + ((grid - grid.mean(0)) * 0.22 * scale).tolist(),
+                     np.r_[np.zeros((6, 3)), rng.normal(0.0, rms, (40, 3))])
     return Simulation(walls + balls, initial, rate,
                       SolverSettings(restitution_threshold=threshold), gravity=ZERO_G)
 
@@ -169,6 +172,25 @@ def test_elastic_gas_in_a_closed_box_keeps_its_energy(rate):
     print('energy ratio: final', ratios[-1], 'min', min(ratios), 'max', max(ratios),
           'contacts', contacts)
     assert contacts > 1000
+    assert min(ratios) >= 0.99
+    assert max(ratios) <= 1.005
+
+
+@pytest.mark.parametrize('rate', [50.0, 60.0, 100.0])
+def test_an_elastic_gas_of_small_balls_keeps_its_energy(rate):
+    """The elastic gas with balls of 5 mm in a 10 cm box (0.5 m/s rms, threshold 0.05 m/s):
+    balls pass each other and their neighbours well inside the 2 cm speculative margin,
+    so most hits are gap contacts that close within a step. The kinetic energy stays
+    within 1 % over 5 s, never above +0.5 %. (A gap contact closed within the step by a
+    partner's impact, or by a pass, was stopped at the touch by the resting solve and its
+    landing, without a bounce: at 50, 60 and 100 Hz 9.0, 19.1 and 15.5 % lost, up to
+    6.2 % in one step.)"""
+    sim = elastic_gas(rate, 0.05, radius=0.005, rms=0.5, seed=1)
+    energy, ratios = sim.energy(), []
+    for _ in range(int(5 * rate)):
+        sim.step()
+        ratios.append(sim.energy() / energy)
+    print('energy ratio: final', ratios[-1], 'min', min(ratios), 'max', max(ratios))
     assert min(ratios) >= 0.99
     assert max(ratios) <= 1.005
 

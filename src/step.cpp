@@ -262,8 +262,17 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // hit within the step was held on the other as on a floor, one-sidedly (30 Hz elastic
     // gas: 1.4 N s of momentum made, 12 % of the three's energy lost in a step)
     if (!detected && gap[k] <= slop && before[k] <= threshold) near[a] = near[b] = 1;
-    if (!detected && gap[k] <= slop && std::abs(before[k]) <= threshold)
-      supported[a] = supported[b] = 1;
+    // (and only where the step's external change presses one of the two into the other:
+    // without one, nothing holds a body there, and a ball that drifted into another in a
+    // weightless gas, struck within the step, was held on it one-sidedly: momentum made,
+    // 1.2 % of an elastic gas's energy lost in a step at 100 Hz)
+    if (!detected && gap[k] <= slop && std::abs(before[k]) <= threshold) {
+      const double* const now = now_.data();
+      const Vec3 press_a = load3(now + 6 * a) - load3(then + 6 * a);
+      const Vec3 press_b = load3(now + 6 * b) - load3(then + 6 * b);
+      if (dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0)
+        supported[a] = supported[b] = 1;
+    }
   }
   for (int64_t i = 0; i < n; ++i) {
     rested_[i] = rested_[i] && bodies.movable[i] != 0;

@@ -19,7 +19,8 @@
 //    faster than the restitution threshold during the step) is rewound to its earliest
 //    time of impact f and solved with the velocity it had then (a supported body, one
 //    touching something from the start and neither approaching nor leaving it then
-//    faster than the threshold, along its held path: its previous twist less any approach into what it
+//    faster than the threshold, the step's external change pressing one of the two into
+//    the other, along its held path: its previous twist less any approach into what it
 //    touches, not the path its source integrated through its supports; its impacts are
 //    timed against that path, and one that does not close on it is a persistent contact
 //    from the start), except an impact of a

@@ -288,7 +288,8 @@ class StepSolver {
   std::vector<uint8_t> touched_, impacted_;
   std::vector<uint8_t> rested_;      // (N,) touching something from the start, no impact
   std::vector<uint8_t> ramped_;      // (N,) rested, in a row and touching something it was
-                                     // not leaving: the external change a share per substep
+                                     // not leaving faster than the restitution threshold:
+                                     // the external change a share per substep
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
                                      // until an impact: moves with its previous twist)
   std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)

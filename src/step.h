@@ -57,7 +57,10 @@
 //    cold, so no timing of the inputs can launch a resting body;
 // 5. iterate, in S = ceil(dt / max_substep) substeps (at most max_substeps; soft_step, as
 //    Box2D v3's soft step without its soft push-out): each adds 1/S of the step's external
-//    change to the rested bodies (the first: in to_travel), warm starts from the last
+//    change to the rested bodies that something holds (a row of theirs, and a contact
+//    touching them from the start that they were not leaving faster than the restitution
+//    threshold; any other rested body takes all of it at once, as its source did, in
+//    to_travel) (the first share: in to_travel), warm starts from the last
 //    substep's impulses (the first: from the cache, 1/S of last step's), lets each row
 //    approach by its separation now (its gap at the reference time plus how far the
 //    substeps so far moved its two points along the normal: no new detection) over the
@@ -296,6 +299,9 @@ class StepSolver {
   std::vector<int64_t> earliest_;    // (N,) its earliest detected impact (-1: none)
   std::vector<uint8_t> touched_, impacted_;
   std::vector<uint8_t> rested_;      // (N,) touching something from the start, no impact
+  std::vector<uint8_t> ramped_;      // (N,) rested, in a row and touching something it was
+                                     // not leaving faster than the restitution threshold:
+                                     // the external change a share per substep
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
                                      // until an impact: moves with its previous twist)
   std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)

@@ -267,6 +267,11 @@ class Resolver:
                 twist_in_body, rows = twist_in_body[use], index
             if held:
                 fresh = np.zeros(len(index), bool)
+            if not len(index) and history.repeated.any():
+                # every input already resolved at this stamp (a message delivered twice):
+                # no time passed, nothing to step; a world step of nothing was a fresh
+                # one, which woke every sleeping island and dropped the warm start
+                return self._repeated(stamp_ns, rejected, start)
 
         # 2. previous and current states of all N bodies: (N, 13) rows, one array each;
         # previous is the history itself unless a fresh start changes it (the world only
@@ -371,6 +376,18 @@ class Resolver:
                             else result.sleeping[rows] & ~bad,
                             number=self.number, unchanged=result.unchanged, values=values,
                             resumed_asleep=held)
+
+    def _repeated(self, stamp_ns: int, rejected: list[Rejection], start: float
+                  ) -> ResolvedStep:
+        """The answer to an input whose every body was already resolved at ``stamp_ns``:
+        no body, no contact, the refusals counted; the history is untouched."""
+        self.number += 1
+        self.totals.update(r.reason for r in rejected)
+        return ResolvedStep(stamp_ns, [], np.zeros(0, np.int64),
+                            BodyStates.zeros(0), np.zeros(0, bool), self.names,
+                            ContactReport.empty(), 0, rejected,
+                            step_time_s=time.perf_counter() - start,
+                            poses=self._values[:, 0:7].copy(), number=self.number)
 
     def _covers_dynamic(self, rows: np.ndarray | slice) -> bool:
         """Whether the scene rows ``rows`` (an input's, the same object step after step for

@@ -1,4 +1,5 @@
-"""A pile at rest given one input after a gap longer than ``max_dt`` stays at rest.
+"""A pile at rest given one input after a gap longer than ``max_dt``, or one input twice,
+stays at rest.
 
 A source that integrates gravity sends, after a gap, the pile's rest state advanced by one
 of its steps: every body g dt^2 into its supports and moving down at g dt, the change its
@@ -10,6 +11,11 @@ supports take away at every usual step. No timing of the inputs may launch a res
   the fresh step must not turn the input's g dt into motion: the supports carry it, the
   overlap goes as position (push-out), so the answer keeps a small fraction of the input's
   kinetic energy and no body leaves at a good part of g dt.
+
+An input delivered twice (the same stamp again) is refused and counted, and nothing else
+happens: no time passed (on 7ed1f81 the repeat was a fresh world step of nothing, which woke
+every island and dropped the warm start: the next steps shook the asleep pile up to
+0.057 m/s at 30 Hz, 0.15 m/s at 100 Hz, still moving 1 s later).
 
 On 8ac80a2 every body restarted, reading the input's g dt as its own velocity before a 1 ms
 step: the asleep pile woke, and the bodies held by friction (spheres against the walls and
@@ -102,3 +108,22 @@ def test_a_restarted_pile_gains_no_motion_from_its_input_after_a_gap(sleeping: b
           f'{_kinetic(mass, step.states):.2e} J out; fastest {fastest / g_dt:.2f} g dt')
     assert _kinetic(mass, step.states) < 0.01 * _kinetic(mass, given)
     assert fastest < 0.3 * g_dt
+
+
+def test_an_asleep_pile_whose_input_arrives_twice_stays_asleep_at_rest() -> None:
+    resolver, names, mass, rest, stamp = _settled(sleeping=True)
+    answer = rest
+    for k in range(int(RATE)):   # a second of the usual steps, the first input sent twice
+        stamp += int(round(1e9 / RATE))
+        batch = InputBatch(names, _values(integrate(answer, np.ones(len(names), bool),
+                                                    1.0 / RATE)), 'world', 'world')
+        step = resolver.resolve(stamp, batch)
+        if k == 0:
+            again = resolver.resolve(stamp, batch)
+            assert {r.reason for r in again.rejected} == {'repeated_stamp'}
+            assert again.names == [] and again.report.contacts.count == 0
+        answer = step.states
+        assert step.sleeping.all(), f'woke {1 + k} steps after the repeat'
+        assert _kinetic(mass, step.states) == 0.0
+    np.testing.assert_array_equal(answer.position, rest.position)
+    assert resolver.totals['repeated_stamp'] == len(names)

@@ -24,13 +24,14 @@ T0 = 5_000 * MS
 HALF = 0.1       # m, half edge of the box
 
 
-def floor_and_box():
+def floor_and_box(restitution=0.0):
     return scene_from_values({
         'bodies': ['floor', 'box'],
         'body.floor.shape': 'box', 'body.floor.size': [10.0, 10.0, 0.2],
         'body.floor.static': True, 'body.floor.position': [0.0, 0.0, -0.1],
+        'body.floor.restitution': restitution,
         'body.box.shape': 'box', 'body.box.size': [2 * HALF] * 3, 'body.box.mass': 1.0,
-        'body.box.restitution': 0.0, 'body.box.static_friction': 0.5,
+        'body.box.restitution': restitution, 'body.box.static_friction': 0.5,
         'body.box.kinetic_friction': 0.3})
 
 
@@ -94,3 +95,32 @@ def test_a_fresh_step_does_not_warm_start_the_next_and_a_step_of_like_length_doe
     assert after_fresh == cold
     assert warm < cold and long < cold
     assert stretched == cold
+
+
+@pytest.mark.parametrize('down', [0.0, 0.05])
+@pytest.mark.parametrize('gap_ms', [10, 100, 500])
+def test_a_box_that_bounced_and_is_put_back_on_its_floor_rests_there(gap_ms, down):
+    """A box lands at 1 m/s (e 0.5) at the end of a 100 Hz step and is answered leaving its
+    floor at 0.62 m/s; the next input, `gap_ms` later, puts it back on the floor, at rest or
+    moving down at `down` m/s. Nothing holds it from the step's start (it was leaving its
+    floor): it is not carried on by its bounce, but meets the floor as its input says and
+    rests there, its pose its last one advanced by its answered twist (within the slop it
+    closed). On 7ed1f81 the step's external change, spread over the substeps, carried the
+    bounce on: at rest 1.6 / 27 / 136 mm above the floor, moving down 1.2 / 24 / 122 mm."""
+    resolver = Resolver.for_scene(floor_and_box(restitution=0.5))
+    dt = 0.01
+    fall = -1.0 - 9.81 * dt
+    start = HALF - 0.999 * fall * dt   # touches the floor at the end of the step
+    resolver.resolve(T0, [box(start, (0.0, 0.0, -1.0))])
+    bounced = resolver.resolve(T0 + 10 * MS, [box(start + fall * dt, (0.0, 0.0, fall))])
+    leaving = bounced.states.linear[0, 2]
+    assert leaving > 0.5                          # m/s: it bounced
+    was = bounced.states.position[0].copy()
+    out = resolver.resolve(T0 + (10 + gap_ms) * MS, [box(HALF, (0.0, 0.0, -down))])
+    position, linear = out.states.position[0], out.states.linear[0]
+    print(f'{gap_ms} ms: bounced at {leaving:.3f} m/s, answered '
+          f'{(position[2] - HALF) * 1e3:.4f} mm above the floor at {linear} m/s')
+    assert out.report.contacts.count > 0
+    assert np.linalg.norm(linear) < 1e-6                       # at rest on the floor
+    assert abs(position[2] - HALF) < 1e-4                      # on its floor (the slop)
+    np.testing.assert_allclose(position, was + linear * gap_ms * 1e-3, atol=1e-4)

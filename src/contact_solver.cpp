@@ -1493,6 +1493,24 @@ void hold_back_gaps(const std::vector<ContactRow>& rows, const SolverBodies& bod
   members.resize(kept);
 }
 
+// A stage row's velocity along n, t1, t2 as its impulses move the bodies (`row`: the row
+// it copies): a row whose lower body is held (shock propagation) pushes its upper body
+// only, so the energy its impulses take or return is the upper body's alone, measured
+// with the held body's twist left out (the held body moving, its friction and its
+// approach could otherwise drive the upper body and the stage's energy budget would count
+// that work as taken from it)
+void stage_velocity(const ContactRow& c, const ContactRow& row, const double* v,
+                    double out[3]) {
+  row_velocity(c, v, out);
+  const bool held_a = c.ma == 0.0 && row.ma != 0.0, held_b = c.mb == 0.0 && row.mb != 0.0;
+  for (int k = 0; k < 3 && (held_a || held_b); ++k) {
+    const Vec3 d = direction(c, k);
+    using collres::dot;   // (the Vec3 one: this namespace's is for lanes)
+    if (held_a) out[k] += dot(lin(v, c.a), d) + dot(ang(v, c.a), c.ang_a[k]);
+    if (held_b) out[k] -= dot(lin(v, c.b), d) + dot(ang(v, c.b), c.ang_b[k]);
+  }
+}
+
 }  // namespace
 
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
@@ -1545,7 +1563,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
           c.allowance = std::max(towards, 0.0);
         }
       }
-      row_velocity(c, v, &work[7 * j]);
+      stage_velocity(c, rows[members[j]], v, &work[7 * j]);
       if (j == 0 || c.manifold != rows[members[j - 1]].manifold) {
         blocks.emplace_back();
         blocks.back().a = c.a;
@@ -1558,25 +1576,40 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
     for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
     // exact inelastic compression with friction; the energy it took (J). Coulomb
     // friction on coupled points can return energy (a slip turned around); such a stage
-    // is compressed again without friction, which never gains (a projection)
+    // is compressed again without friction, and if it still gains, without holding
+    // any body (below): a projection, which never gains
     double taken = 0.0;
-    for (int attempt = 0; attempt < 2; ++attempt) {
+    for (int attempt = 0; attempt < 3; ++attempt) {
       solve_velocities(scratch, blocks, bodies, settings.sweeps, settings.converged);
       taken = 0.0;
       for (size_t j = 0; j < k; ++j) {
         const ContactRow& c = scratch[j];
         double* w = &work[7 * j];
-        row_velocity(c, v, w + 3);
+        stage_velocity(c, rows[members[j]], v, w + 3);
         taken -= 0.5 * (c.normal * (w[0] + w[3]) + c.tangent[0] * (w[1] + w[4]) +
                         c.tangent[1] * (w[2] + w[5]));
       }
-      if (taken >= 0.0 || attempt == 1) break;
+      if (taken >= 0.0 || attempt == 2) break;
       for (size_t j = k; j-- > 0;) {       // undo: the twists before the stage
         const ContactRow& c = scratch[j];
         std::copy(saved + 12 * j, saved + 12 * j + 6, v + 6 * c.a);
         std::copy(saved + 12 * j + 6, saved + 12 * j + 12, v + 6 * c.b);
       }
       for (ContactRow& c : scratch) c.mu = c.normal = c.tangent[0] = c.tangent[1] = 0.0;
+      if (attempt == 0) continue;
+      // still a gain without friction: a held body that another row of the stage drives
+      // into its upper body pushes that one at no cost of its own (coal's clusters on a
+      // floor: +50 J of 3364). Last, every row with its own bodies' masses, no body held:
+      // a projection, which never gains
+      for (size_t j = 0; j < k; ++j) {
+        ContactRow& c = scratch[j];
+        const ContactRow& row = rows[members[j]];
+        if (c.ma == row.ma && c.mb == row.mb) continue;
+        c = row;
+        c.mu = c.normal = c.tangent[0] = c.tangent[1] = c.allowance = 0.0;
+        row_velocity(c, v, &work[7 * j]);
+      }
+      for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
     }
     // restitution: e times the compression impulse along each normal (per object: A's
     // and B's own e); the energy it returns, linear + quadratic in a common scale s
@@ -1599,9 +1632,10 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
     for (size_t j = 0; j < k; ++j) {
       const double r = work[7 * j + 6];
       if (r == 0.0) continue;
-      const double after = relative(scratch[j], v, 0, scratch[j].n);
+      double after[3];
+      stage_velocity(scratch[j], rows[members[j]], v, after);
       linear += r * work[7 * j + 3];
-      returned += 0.5 * r * (work[7 * j + 3] + after);
+      returned += 0.5 * r * (work[7 * j + 3] + after[0]);
     }
     double scale = 1.0;
     if (returned > std::max(taken, 0.0)) {

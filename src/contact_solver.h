@@ -345,7 +345,9 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
 // friction cone of one of the lower body's touching rows to the level below (what holds
 // it up takes the push; a sideways hit moves it), sees the lower body as immovable and
 // stops the upper body's own approach only (the lower body moving towards it does not
-// push it). So a heavy body landing on a light one resting on the floor stops (and
+// push it); the energy such a row takes and returns is the upper body's alone (the held
+// body's motion, which its friction may pass on, is no energy the upper body had). So a
+// heavy body landing on a light one resting on the floor stops (and
 // bounces) in one stage instead of passing m_light / m_heavy of its momentum down per
 // pair of stages. Stops when no row approaches or after `stages` stages (the rest is
 // left to the resting solve); returns the stages done. A stage's rows of one manifold

@@ -73,19 +73,20 @@
 //    a block (more sweeps while the resting contacts are new; sqrt(k) times as many for a
 //    step of k times the last one's load (growth), up to warm_start_ratio: whose
 //    residual would sink the poses k^2 times as far; and at least depth_sweeps per level
-//    of the deepest stack: a load passes down one level per sweep); an island
-//    (bodies joined by rows through movable bodies) whose kinetic energy the sweeps
-//    raised above what it had before the warm start is solved again from its pre-solve
-//    velocities without friction (coupled Coulomb friction can have no answer the sweeps
-//    converge to: they cycle, and may stop where energy was gained; the frictionless
-//    solve is a projection, which never gains) (hold_energy); then shock propagation
-//    from the ground up (a heavy body on a light one);
+//    of the deepest stack: a load passes down one level per sweep); then shock
+//    propagation from the ground up (a heavy body on a light one); then an island
+//    (bodies joined by rows through movable bodies) whose kinetic energy the sweeps and
+//    shock propagation raised above what it had before the warm start is solved again
+//    from its pre-solve velocities without friction (coupled Coulomb friction can have no
+//    answer the sweeps converge to: they cycle, and may stop where energy was gained; the
+//    frictionless solve is a projection, which never gains) (hold_energy);
 // 6. landing: the poses travel with the substeps' mean velocity; a speculative contact
 //    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
 //    is solved again with no allowance, for the velocities only, so it ends the step
-//    touching and with no approach left to bounce on next step (land); one that closes
-//    from a gap beyond the slop faster than the restitution threshold (its approach when
-//    the resting solve began) is an impact instead: the step is solved again from the
+//    touching and with no approach left to bounce on next step (land), an island it
+//    raised above the last substep's start energy solved as hold_energy does; one that
+//    closes from a gap beyond the slop faster than the restitution threshold (its approach
+//    when the resting solve began) is an impact instead: the step is solved again from the
 //    pre-solve velocities (stages 2-6) with it in the impact stages (struck_), where it
 //    bounces with its restitution;
 //    The net: at the landing's end every contact without a row is checked: if one ends

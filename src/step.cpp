@@ -791,7 +791,25 @@ void StepSolver::to_travel(StepContext& ctx, int substeps) {
       ramped_[c.a[k]] |= 2;
       ramped_[c.b[k]] |= 2;
     }
-  for (int64_t i = 0; i < n; ++i) ramped_[i] = ramped_[i] == 3 && rested_[i];
+  // ... and only while the change loads what holds it: it makes a point of one of its rows
+  // faster than it was, and than the sticking speed (gravity on a body at rest). A change
+  // that only slows its points (a rolling ball or a sliding box that its source stopped)
+  // is taken at once, as its source did (x0 + now dt): ramped, a ball rolling at 1 m/s
+  // put at its last pose with zero twist was answered 13.3 mm (30 Hz) further along with
+  // zero twist
+  for (int64_t i = 0; i < n; ++i) ramped_[i] = ramped_[i] == 3 && rested_[i] ? 1 : 0;
+  const double sticking = ctx.params.sticking_speed;
+  auto loads = [&](int32_t i, const Vec3& r) {
+    const double* v = now_.data() + 6 * i;
+    const double* u = then_.data() + 6 * i;
+    const double after = length(load3(v) + cross(load3(v + 3), r));
+    return after > sticking && after > length(load3(u) + cross(load3(u + 3), r));
+  };
+  for (const ContactRow& r : rows_) {
+    if (ramped_[r.a] == 1 && loads(r.a, r.ra)) ramped_[r.a] = 2;
+    if (ramped_[r.b] == 1 && loads(r.b, r.rb)) ramped_[r.b] = 2;
+  }
+  for (int64_t i = 0; i < n; ++i) ramped_[i] = ramped_[i] == 2;
   for (int64_t i = 0; i < n; ++i) {
     if (ramped_[i] && substeps > 1) {   // the first substep's share of the external change
       for (int d = 0; d < 6; ++d)

@@ -59,8 +59,11 @@
 //    Box2D v3's soft step without its soft push-out): each adds 1/S of the step's external
 //    change to the rested bodies that something holds (a row of theirs, and a contact
 //    touching them from the start that they were not leaving faster than the restitution
-//    threshold; any other rested body takes all of it at once, as its source did, in
-//    to_travel) (the first share: in to_travel), warm starts from the last
+//    threshold) while the change loads them (makes a point of one of their rows faster
+//    than it was and than the sticking speed, as gravity at rest; a source stopping a
+//    rolling ball only slows its points); any other rested body takes all of it at
+//    once, as its source did, in to_travel) (the first share: in to_travel), warm
+//    starts from the last
 //    substep's impulses (the first: from the cache, 1/S of last step's), lets each row
 //    approach by its separation now (its gap at the reference time plus how far the
 //    substeps so far moved its two points along the normal: no new detection) over the
@@ -301,7 +304,8 @@ class StepSolver {
   std::vector<uint8_t> touched_, impacted_;
   std::vector<uint8_t> rested_;      // (N,) touching something from the start, no impact
   std::vector<uint8_t> ramped_;      // (N,) rested, in a row and touching something it was
-                                     // not leaving faster than the restitution threshold:
+                                     // not leaving faster than the restitution threshold,
+                                     // the change making a point of one of its rows faster:
                                      // the external change a share per substep
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
                                      // until an impact: moves with its previous twist)

@@ -159,6 +159,7 @@ Detector::Detector(std::vector<BodyShape> shapes, int bodies)
       throw std::invalid_argument("shapes must come in body order, every body at least one");
     }
     compound_ = compound_ || body == next - 1;
+    if (body == next) first_shape_.push_back(k);
     next = body + 1;
     if (shapes_[k].kind == ShapeKind::triangle) {
       if (body >= 0 && body < bodies) mesh_[body] = true;
@@ -459,6 +460,7 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   }
   stored_.swap(lanes_[0].next);
   if (compound_) group_by_bodies(out);
+  drop_buried_faces(out);
   if (out.size() > static_cast<std::size_t>(std::max(settings_.max_contacts, 0))) {
     limit_rows(out);
   }
@@ -571,6 +573,97 @@ void Detector::merge_mesh_faces(ContactRows& out) {
   out.take(order_, grouped_);
   grouped_.manifolds.swap(manifolds);
   std::swap(out, grouped_);
+}
+
+int Detector::shape_of(std::int64_t body, std::int32_t piece) const {
+  return first_shape_[static_cast<std::size_t>(body)] + piece;
+}
+
+double Detector::buried_depth(int k, const Vec3& point) const {
+  const BodyShape& shape = shapes_[k];
+  const Body& body = bodies_[k];
+  if (shape.kind == ShapeKind::plane) {
+    const Vec3 normal = body.r1 * shape.plane_normal;
+    return shape.plane_offset + normal.dot(body.p1) - normal.dot(point);
+  }
+  if (shape.kind != ShapeKind::box) return -kInf;
+  const Vec3 local = (body.r1 * shape.rotation).transpose() *
+                     (point - body.p1 - body.r1 * shape.offset);
+  return (shape.half - local.cwiseAbs()).minCoeff();
+}
+
+void Detector::drop_buried_faces(ContactRows& out) {
+  constexpr double kOpposed = -0.5;   // cosine: two rows' normals push against each other
+  const std::size_t count = out.size();
+  // the moving bodies with rows on two static bodies or more: only theirs are looked at
+  static_of_.assign(static_cast<std::size_t>(bodies_count_), -1);
+  several_.assign(static_cast<std::size_t>(bodies_count_), 0);
+  bool any = false;
+  for (std::size_t r = 0; r < count; ++r) {
+    const bool sa = shapes_[shape_of(out.body_a[r], out.piece_a[r])].is_static;
+    if (sa == shapes_[shape_of(out.body_b[r], out.piece_b[r])].is_static) continue;
+    const auto moving = static_cast<std::size_t>(sa ? out.body_b[r] : out.body_a[r]);
+    const std::int64_t fixed = sa ? out.body_a[r] : out.body_b[r];
+    if (static_of_[moving] < 0) {
+      static_of_[moving] = fixed;
+    } else if (static_of_[moving] != fixed) {
+      several_[moving] = 1;
+      any = true;
+    }
+  }
+  if (!any) return;
+  buried_sides_.clear();
+  for (std::size_t r = 0; r < count; ++r) {
+    const int a = shape_of(out.body_a[r], out.piece_a[r]);
+    const int b = shape_of(out.body_b[r], out.piece_b[r]);
+    if (shapes_[a].is_static == shapes_[b].is_static) continue;
+    // the moving body, the static shape, the witness point on it, the normal out of it
+    const bool a_static = shapes_[a].is_static;
+    const std::int64_t moving = a_static ? out.body_b[r] : out.body_a[r];
+    if (!several_[static_cast<std::size_t>(moving)]) continue;
+    const Vec3 n(out.normal[3 * r], out.normal[3 * r + 1], out.normal[3 * r + 2]);
+    const Vec3 p(out.point[3 * r], out.point[3 * r + 1], out.point[3 * r + 2]);
+    const Vec3 outward = a_static ? n : Vec3(-n);
+    buried_sides_.push_back({moving, a_static ? a : b, r,
+                             p - 0.5 * out.separation[r] * outward, outward, 0.0});
+  }
+  std::stable_sort(buried_sides_.begin(), buried_sides_.end(),
+                   [](const StaticSide& x, const StaticSide& y) { return x.moving < y.moving; });
+  any = false;
+  for (std::size_t lo = 0; lo < buried_sides_.size();) {
+    std::size_t hi = lo + 1;
+    while (hi < buried_sides_.size() && buried_sides_[hi].moving == buried_sides_[lo].moving) {
+      ++hi;
+    }
+    // how deep each row's point lies in another static shape whose row opposes it
+    std::size_t least = lo;
+    for (std::size_t i = lo; i < hi; ++i) {
+      StaticSide& row = buried_sides_[i];
+      row.depth = 0.0;
+      for (std::size_t j = lo; j < hi; ++j) {
+        const StaticSide& other = buried_sides_[j];
+        if (shapes_[other.shape].body == shapes_[row.shape].body ||
+            !(row.outward.dot(other.outward) < kOpposed)) {
+          continue;
+        }
+        row.depth = std::max(row.depth, buried_depth(other.shape, row.witness));
+      }
+      if (row.depth < buried_sides_[least].depth) least = i;
+    }
+    // when every row of the body is buried, the least buried is its real surface
+    if (buried_sides_[least].depth > 0.0) buried_sides_[least].depth = 0.0;
+    for (std::size_t i = lo; i < hi; ++i) any = any || buried_sides_[i].depth > 0.0;
+    lo = hi;
+  }
+  if (!any) return;
+  buried_.assign(count, 0);
+  for (const StaticSide& row : buried_sides_) buried_[row.row] = row.depth > 0.0 ? 1 : 0;
+  std::vector<std::size_t> kept;
+  kept.reserve(count);
+  for (std::size_t r = 0; r < count; ++r) {
+    if (!buried_[r]) kept.push_back(r);
+  }
+  out.keep(kept);
 }
 
 // m, how far apart the pair's bounding spheres are at s = 1 (negative: overlapping); for a

@@ -167,6 +167,16 @@ class Detector {
   void limit_rows(ContactRows& out);
   void group_by_bodies(ContactRows& out);
   void merge_mesh_faces(ContactRows& out);
+  // Internal faces of overlapping static shapes (a box's end buried in the wall it meets):
+  // a moving body's row with a static shape whose witness point on that shape lies inside
+  // another static shape it also has a row with, the two rows' normals opposed (they would
+  // push the body against each other), is dropped; the other shape's row stands for the
+  // corner. When every such row of the body is buried, the least buried one stays.
+  void drop_buried_faces(ContactRows& out);
+  // The shape of piece `piece` of body `body`; how deep (m) the point lies inside static
+  // shape k (negative: outside; boxes and planes, -inf for other kinds)
+  int shape_of(std::int64_t body, std::int32_t piece) const;
+  double buried_depth(int k, const Vec3& point) const;
   // One thread's part of a step's pairs: its coal queries, scratch, the persistent
   // manifolds it found (for the store, in pair order) and, for the second, its rows.
   struct Lane {
@@ -225,6 +235,18 @@ class Detector {
   std::vector<int> merge_keep_;           // merge_mesh_faces: the kept ones
   ContactRows grouped_;        // scratch of group_by_bodies
   std::vector<int> planes_, finite_;
+  std::vector<int> first_shape_;   // per body, its first shape
+  std::vector<char> buried_;       // drop_buried_faces: per row, dropped
+  std::vector<std::int64_t> static_of_;  // drop_buried_faces: per body, a static body it
+  std::vector<char> several_;            // touches; whether it touches another too
+  struct StaticSide {   // drop_buried_faces: a row between a moving body and a static shape
+    std::int64_t moving;
+    int shape;
+    std::size_t row;
+    Vec3 witness, outward;   // m, the row's point on the static shape; unit, out of it
+    double depth;            // m, how deep `witness` lies in an opposed row's shape
+  };
+  std::vector<StaticSide> buried_sides_;
   DetectionSettings settings_;
   PairFilter filter_;   // default: every pair collides
   std::vector<Body> bodies_;

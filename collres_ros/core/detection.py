@@ -17,6 +17,13 @@ at most four points with stable feature ids, and the classification of each pair
 * TUNNELLED: apart at both ends but conservative advancement (coal distances) finds a
   hit, then the same bisection; point, normal and separation (about 0) at the impact.
 
+Internal faces of overlapping static shapes (boxes and half-spaces; a wall's end buried in
+the wall it meets, as bins are built): a moving body's row with a static shape whose point
+on that shape lies inside another static shape the body also has a row with, the two
+normals opposed (cosine below -0.5: they would push the body against each other), is
+dropped, so the other shape's row alone stops the body in the corner; when every such row
+of a body is buried, the least buried one stays (``Detector::drop_buried_faces``).
+
 A step budget (``max_pairs``, ``max_contacts``, as MuJoCo's nconmax) bounds each step's
 work and memory: beyond it the pairs whose bounding spheres overlap deepest, then the
 deepest rows, are kept (``budget`` says how many were dropped).

@@ -26,7 +26,8 @@ time (both world frame, before resolution) to corrected current states:
   a fixed shape than it was, by more than the slop (a body that turns far in a step
   takes its corners along arcs the rows do not follow), is held at the latest pose of
   that motion before, at rest (``Detection.hold_back``, as Box2D v3's continuous step); a
-  sphere keeps its twist (no corner of it follows an arc).
+  sphere with an impact in the step keeps its twist (no corner of it follows an arc), any
+  other sphere the part of it that its held motion travels.
 
 Static bodies (and inactive ones, for this step) have zero inverse mass and
 inertia: their ``current`` twist is a kinematic velocity, their state is
@@ -59,8 +60,8 @@ from collres_ros.core.detection import Detection
 from collres_ros.core.rotation import slerp
 from collres_ros.core.shapes import mass_properties
 from collres_ros.core.sleep import Sleep
-from collres_ros.core.types import (BodySpec, BodyStates, CollisionFilter, ContactReport,
-                                    ContactSet, Rejection, StepResult)
+from collres_ros.core.types import (BodySpec, BodyStates, CollisionFilter, ContactKind,
+                                    ContactReport, ContactState, ContactSet, Rejection, StepResult)
 
 
 class Detector(Protocol):
@@ -219,7 +220,7 @@ class World:
         states = _states(values)
         report, sweeps, rows, substeps = self._solve(previous, current, states, contacts,
                                                      active, dt, warm)
-        self._hold_back(previous, states, active)
+        self._hold_back(previous, states, active, report)
         # report: the final guard against non-finite output
         rejected += self._guard(values, current_rows)
         self.timing['solve'] += time.perf_counter() - detected
@@ -275,10 +276,12 @@ class World:
             reported_toi=report.contacts.toi, reported_kind=report.contacts.kind)
         return report, sweeps, rows, substeps
 
-    def _hold_back(self, previous: BodyStates, states: BodyStates, active: np.ndarray) -> None:
+    def _hold_back(self, previous: BodyStates, states: BodyStates, active: np.ndarray,
+                   report: ContactReport) -> None:
         """A body whose answer went deeper into a fixed shape than it was (by more than the
         slop) along its motion from ``previous`` is held at the latest pose of that motion
-        before, at rest, a sphere with its twist (``Detection.hold_back``); a hand-made
+        before, at rest; a sphere struck in the step keeps its twist, any other sphere the
+        part of it that its held motion travels (``Detection.hold_back``); a hand-made
         detector (tests) knows no shapes to hold it against."""
         hold_back = getattr(self._collision, 'hold_back', None)
         if hold_back is None:
@@ -292,11 +295,22 @@ class World:
             states.position[held] - previous.position[held])
         states.orientation[held] = slerp(previous.orientation[held], states.orientation[held],
                                          f[:, 0])
-        # at rest, but for a sphere: its surface turns in place (no corner follows an arc),
-        # so its twist is kept (an impact within the step that sent it on into a wall keeps
-        # its energy: the next step meets the wall)
-        turns = held[~self._round[held]]
+        # at rest, but for a sphere: its surface turns in place (no corner follows an arc).
+        # One struck in the step keeps its twist (sent on into a wall, it keeps its energy:
+        # the next step meets the wall); one without an impact is held by what it rolls on
+        # (a ball rolling off a fixed ball, answered deeper each step as its speed grew):
+        # its twist is the one its held motion travels with, else its pose stays while its
+        # twist grows, and gains energy (0.5 kg ball, 30 Hz: +1.3 J in 14 steps)
+        contacts = report.contacts
+        impacted = np.zeros(len(fraction), bool)
+        struck = (contacts.kind != ContactKind.PERSISTENT) | (report.state == ContactState.IMPACT)
+        impacted[contacts.body_a[struck]] = impacted[contacts.body_b[struck]] = True
+        round_ = self._round[held]
+        turns = held[~round_]
         states.linear[turns], states.angular[turns] = 0.0, 0.0
+        rolls = round_ & ~impacted[held]
+        states.linear[held[rolls]] *= f[rolls]
+        states.angular[held[rolls]] *= f[rolls]
 
     def _guard(self, values: np.ndarray, current: np.ndarray) -> list[Rejection]:
         """Bodies with a non-finite result ((N, 13) rows ``values``) keep their current input

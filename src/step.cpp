@@ -805,15 +805,49 @@ void StepSolver::to_travel(StepContext& ctx, int substeps) {
     const double after = length(load3(v) + cross(load3(v + 3), r));
     return after > sticking && after > length(load3(u) + cross(load3(u + 3), r));
   };
+  // (moved: a point of one of its rows was faster than the sticking speed before, turning
+  // included: a ball rolling without slip has its contact point at rest)
+  moving_.assign(n, 0);
+  auto moved = [&](int32_t i, const Vec3& r) {
+    const double* u = then_.data() + 6 * i;
+    return length(load3(u)) + length(load3(u + 3)) * length(r) > sticking;
+  };
   for (const ContactRow& r : rows_) {
     if (ramped_[r.a] == 1 && loads(r.a, r.ra)) ramped_[r.a] = 2;
     if (ramped_[r.b] == 1 && loads(r.b, r.rb)) ramped_[r.b] = 2;
+    moving_[r.a] |= moved(r.a, r.ra);
+    moving_[r.b] |= moved(r.b, r.rb);
   }
   for (int64_t i = 0; i < n; ++i) ramped_[i] = ramped_[i] == 2;
+  // Of a ramped body's change, only what loads is spread: the part that takes back the
+  // motion it had (a moving body's change projected on minus its twist, with the kinetic
+  // energy's metric, at most all of it) is its source's stop, taken at once; the rest (the
+  // step of gravity) a share per substep. Spread whole, a ball rolling at 1 m/s that the
+  // input stopped with one step of gravity was answered 13.3 mm (30 Hz) / 3.3 mm (100 Hz)
+  // further along with zero twist
+  const double* inv_mass = ctx.bodies.inv_mass;
+  ramp_.resize(6 * n);
+  for (int64_t i = 0; i < n; ++i) {
+    if (!ramped_[i]) continue;
+    const double* v = now_.data() + 6 * i;
+    const double* u = then_.data() + 6 * i;
+    for (int d = 0; d < 6; ++d) ramp_[6 * i + d] = v[d] - u[d];
+    if (!moving_[i] || substeps <= 1) continue;
+    const Mat3 inertia = inv_inertia_[i].inverse();
+    const double mass = 1.0 / inv_mass[i];
+    const Vec3 uv = load3(u), uw = load3(u + 3), iw = mul(inertia, uw);
+    const double motion = mass * dot(uv, uv) + dot(uw, iw);
+    const double against = -(mass * dot(load3(v) - uv, uv) + dot(load3(v + 3) - uw, iw));
+    if (!(against > 0.0 && motion > 0.0)) continue;
+    const double taken = std::min(1.0, against / motion);
+    for (int d = 0; d < 6; ++d) {
+      velocity_[6 * i + d] -= taken * u[d];
+      ramp_[6 * i + d] += taken * u[d];
+    }
+  }
   for (int64_t i = 0; i < n; ++i) {
     if (ramped_[i] && substeps > 1) {   // the first substep's share of the external change
-      for (int d = 0; d < 6; ++d)
-        velocity_[6 * i + d] += share * (now_[6 * i + d] - then_[6 * i + d]);
+      for (int d = 0; d < 6; ++d) velocity_[6 * i + d] += share * ramp_[6 * i + d];
       continue;
     }
     if (rested_[i]) {   // the whole step's external change: now plus what impacts changed
@@ -967,8 +1001,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
       // last substep's impulses (the spin rows start cold)
       for (int64_t i = 0; i < n; ++i)
         if (ramped_[i])
-          for (int d = 0; d < 6; ++d)
-            velocity_[6 * i + d] += share * (now_[6 * i + d] - then_[6 * i + d]);
+          for (int d = 0; d < 6; ++d) velocity_[6 * i + d] += share * ramp_[6 * i + d];
       start_.assign(velocity_.begin(), velocity_.end());
       for (SpinRow& spin : spins_) spin.torque = Vec3::Zero();
       warm_start(rows_, ctx.solver);

@@ -61,7 +61,9 @@
 //    touching them from the start that they were not leaving faster than the restitution
 //    threshold) while the change loads them (makes a point of one of their rows faster
 //    than it was and than the sticking speed, as gravity at rest; a source stopping a
-//    rolling ball only slows its points); any other rested body takes all of it at
+//    rolling ball only slows its points; of a body that moved, the part of the change
+//    that takes back its motion is its source's stop, taken at once: only the rest, the
+//    step of gravity, is spread); any other rested body takes all of it at
 //    once, as its source did, in to_travel) (the first share: in to_travel), warm
 //    starts from the last
 //    substep's impulses (the first: from the cache, 1/S of last step's), lets each row
@@ -307,6 +309,10 @@ class StepSolver {
                                      // not leaving faster than the restitution threshold,
                                      // the change making a point of one of its rows faster:
                                      // the external change a share per substep
+  std::vector<uint8_t> moving_;      // (N,) a point of one of its rows faster than the
+                                     // sticking speed before the step
+  std::vector<double> ramp_;         // (N, 6) a ramped body's change spread over the
+                                     // substeps (its stop taken at once, to_travel)
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
                                      // until an impact: moves with its previous twist)
   std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)

@@ -215,3 +215,32 @@ def test_a_ball_rolling_off_a_fixed_ball_gains_no_energy(rate):
         sim.step()
         assert sim.energy() <= energy + 1e-3
     assert sim.state.position[1, 2] < 0.0            # rolled off, below the fixed ball's centre
+
+
+@pytest.mark.parametrize('rate', [30.0, 100.0])
+def test_a_ball_stopped_with_a_step_of_gravity_is_answered_where_it_stands(rate):
+    """As above, the rolling ball, but the input also carries the step of gravity an
+    integrator adds (twist (0, 0, -g dt)). Gravity makes its contact point faster, so its
+    change is spread over the substeps; only the step of gravity, which loads the floor,
+    should be: the stop is its source's, taken at once. The answer is its last pose at
+    rest. On 7ed1f81 (and on ea4f33e) the whole change was spread: the ball was answered
+    13.3 mm (30 Hz) / 3.3 mm (100 Hz) further along with zero twist."""
+    v0 = 1.0
+    initial = states([[0, 0, -0.1], [0, 0, R]], [[0, 0, 0], [v0, 0, 0]],
+                     [[0, 0, 0], [0, v0 / R, 0]])
+    sim = Simulation([floor(), ball()], initial, rate)
+    for _ in range(3):
+        sim.step()
+    last = sim.state.copy()
+    assert last.linear[1, 0] > 0.3                       # m/s: still rolling along x
+    held = last.copy()
+    held.linear[:] = 0.0
+    held.angular[:] = 0.0
+    held.linear[1, 2] = -G * sim.dt
+    out = sim.world.step(last, held, sim.dt).states
+    moved = out.position[1] - last.position[1]
+    print(f'at {rate} Hz: rolling at {last.linear[1]} m/s, stopped with gravity: answered '
+          f'{moved * 1e3} mm away at {out.linear[1]} m/s {out.angular[1]} rad/s')
+    assert np.linalg.norm(out.linear[1]) < 1e-6
+    assert np.linalg.norm(out.angular[1]) < 1e-6
+    np.testing.assert_allclose(out.position[1], last.position[1], atol=1e-4)

@@ -244,3 +244,29 @@ def test_a_ball_stopped_with_a_step_of_gravity_is_answered_where_it_stands(rate)
     assert np.linalg.norm(out.linear[1]) < 1e-6
     assert np.linalg.norm(out.angular[1]) < 1e-6
     np.testing.assert_allclose(out.position[1], last.position[1], atol=1e-4)
+
+
+def test_a_slow_box_stopped_with_a_step_of_gravity_is_answered_where_it_stands():
+    """A box sliding on a floor (mu 0.05) at 0.23 m/s, slower than one step of gravity at
+    30 Hz (0.33 m/s), so gravity makes its corners faster and its change is spread; the
+    next input stops it at its last pose with that step of gravity. The answer is that
+    pose at rest. On 7ed1f81 (and ea4f33e) it was answered 1.9 mm further along, sliding
+    back at 0.031 m/s."""
+    rate = 30.0
+    initial = states([[0, 0, -0.1], [0, 0, R]], [[0, 0, 0], [0.3, 0, 0]],
+                     [[0, 0, 0], [0, 0, 0]])
+    sim = Simulation([floor(), slider(0.05)], initial, rate)
+    sim.step()
+    last = sim.state.copy()
+    assert 0.2 < last.linear[1, 0] < G * sim.dt          # m/s: sliding, slower than g dt
+    held = last.copy()
+    held.linear[:] = 0.0
+    held.angular[:] = 0.0
+    held.linear[1, 2] = -G * sim.dt
+    out = sim.world.step(last, held, sim.dt).states
+    moved = out.position[1] - last.position[1]
+    print(f'sliding at {last.linear[1]} m/s, stopped with gravity: answered '
+          f'{moved * 1e3} mm away at {out.linear[1]} m/s {out.angular[1]} rad/s')
+    assert np.linalg.norm(out.linear[1]) < 1e-4
+    assert np.linalg.norm(out.angular[1]) < 1e-3
+    np.testing.assert_allclose(out.position[1], last.position[1], atol=1e-4)

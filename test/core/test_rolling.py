@@ -166,6 +166,19 @@ def slider(mu=0.3) -> BodySpec:
                     static_friction=mu, kinetic_friction=mu)
 
 
+def answer_to_a_stop(sim, last, with_gravity):
+    """The answer when the input holds the ball or box (body 1) at its ``last`` answered pose
+    with zero twist (its source stopped it there), ``with_gravity`` plus the step of gravity
+    an integrator adds: the answered states and how far body 1 moved from ``last`` (m)."""
+    held = last.copy()
+    held.linear[:] = 0.0
+    held.angular[:] = 0.0
+    if with_gravity:
+        held.linear[1, 2] = -G * sim.dt
+    out = sim.world.step(last, held, sim.dt).states
+    return out, out.position[1] - last.position[1]
+
+
 @pytest.mark.parametrize('rate', [30.0, 100.0])
 @pytest.mark.parametrize('body', ['rolling ball', 'sliding box'])
 def test_a_body_its_source_stops_where_it_stands_is_answered_there(body, rate):
@@ -185,11 +198,7 @@ def test_a_body_its_source_stops_where_it_stands_is_answered_there(body, rate):
         sim.step()
     last = sim.state.copy()
     assert last.linear[1, 0] > 0.3                       # m/s: still moving along x
-    held = last.copy()
-    held.linear[:] = 0.0
-    held.angular[:] = 0.0
-    out = sim.world.step(last, held, sim.dt).states
-    moved = out.position[1] - last.position[1]
+    out, moved = answer_to_a_stop(sim, last, with_gravity=False)
     print(f'{body} at {rate} Hz: moving at {last.linear[1]} m/s, held: answered '
           f'{moved * 1e3} mm away at {out.linear[1]} m/s')
     assert np.linalg.norm(out.linear[1]) < 1e-6
@@ -233,12 +242,7 @@ def test_a_ball_stopped_with_a_step_of_gravity_is_answered_where_it_stands(rate)
         sim.step()
     last = sim.state.copy()
     assert last.linear[1, 0] > 0.3                       # m/s: still rolling along x
-    held = last.copy()
-    held.linear[:] = 0.0
-    held.angular[:] = 0.0
-    held.linear[1, 2] = -G * sim.dt
-    out = sim.world.step(last, held, sim.dt).states
-    moved = out.position[1] - last.position[1]
+    out, moved = answer_to_a_stop(sim, last, with_gravity=True)
     print(f'at {rate} Hz: rolling at {last.linear[1]} m/s, stopped with gravity: answered '
           f'{moved * 1e3} mm away at {out.linear[1]} m/s {out.angular[1]} rad/s')
     assert np.linalg.norm(out.linear[1]) < 1e-6
@@ -259,12 +263,7 @@ def test_a_slow_box_stopped_with_a_step_of_gravity_is_answered_where_it_stands()
     sim.step()
     last = sim.state.copy()
     assert 0.2 < last.linear[1, 0] < G * sim.dt          # m/s: sliding, slower than g dt
-    held = last.copy()
-    held.linear[:] = 0.0
-    held.angular[:] = 0.0
-    held.linear[1, 2] = -G * sim.dt
-    out = sim.world.step(last, held, sim.dt).states
-    moved = out.position[1] - last.position[1]
+    out, moved = answer_to_a_stop(sim, last, with_gravity=True)
     print(f'sliding at {last.linear[1]} m/s, stopped with gravity: answered '
           f'{moved * 1e3} mm away at {out.linear[1]} m/s {out.angular[1]} rad/s')
     assert np.linalg.norm(out.linear[1]) < 1e-4

@@ -68,7 +68,8 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
                       const py::array& held, const py::array& restitution,
                       const py::array& static_friction, const py::array& kinetic_friction,
                       const py::array& rolling_resistance,
-                      const py::array& torsional_friction, const py::array& a, const py::array& b, const py::array& point,
+                      const py::array& torsional_friction, const py::array& radius,
+                      const py::array& a, const py::array& b, const py::array& point,
                       const py::array& normal, const py::array& separation,
                       const py::array& toi, const py::array& kind, const py::array& feature,
                       const py::array& manifolds, double dt, bool warm, const SolverParams& params,
@@ -96,6 +97,7 @@ py::tuple solver_step(StepSolver& solver, const py::tuple& previous, const py::t
   bodies.kinetic_friction = checked<double>(kinetic_friction, "kinetic_friction", {n});
   bodies.rolling_resistance = checked<double>(rolling_resistance, "rolling_resistance", {n});
   bodies.torsional_friction = checked<double>(torsional_friction, "torsional_friction", {n});
+  bodies.radius = checked<double>(radius, "radius", {n});
   ContactsView c;
   c.count = m;
   c.a = checked<int64_t>(a, "body_a", {m});
@@ -206,6 +208,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("substep_sink", &SolverParams::substep_sink)
       .def_readwrite("later_impact", &SolverParams::later_impact)
       .def_readwrite("behind_cosine", &SolverParams::behind_cosine)
+      .def_readwrite("aim_turn", &SolverParams::aim_turn)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);
 
@@ -257,7 +260,8 @@ void bind_solver(py::module_& m) {
            py::arg("out"), py::arg("inv_mass"), py::arg("inv_inertia_body"),
            py::arg("movable"), py::arg("held"), py::arg("restitution"),
            py::arg("static_friction"), py::arg("kinetic_friction"),
-           py::arg("rolling_resistance"), py::arg("torsional_friction"), py::arg("body_a"),
+           py::arg("rolling_resistance"), py::arg("torsional_friction"), py::arg("radius"),
+           py::arg("body_a"),
            py::arg("body_b"), py::arg("point"), py::arg("normal"), py::arg("separation"),
            py::arg("toi"), py::arg("kind"), py::arg("feature"), py::arg("manifolds"),
            py::arg("dt"),

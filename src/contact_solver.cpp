@@ -327,8 +327,7 @@ double normal_velocity(const ContactRow& row, const double* v) {
   return relative(row, v, 0, row.n);
 }
 
-void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
-                 double sticking_speed, double mu_static, double mu_kinetic) {
+void frame_row(ContactRow& row, const SolverBodies& bodies) {
   tangent_basis(row.n, row.t1, row.t2);
   row.ma = bodies.inv_mass[row.a];
   row.mb = bodies.inv_mass[row.b];
@@ -351,6 +350,11 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
   row.kt[0] = block(1, 1);
   row.kt[1] = block(1, 2) + block(2, 1);
   row.kt[2] = block(2, 2);
+}
+
+void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
+                 double sticking_speed, double mu_static, double mu_kinetic) {
+  frame_row(row, bodies);
   double before[2];
   slip_velocity(row, slow, before);
   row.bounce = false;
@@ -1198,6 +1202,18 @@ void solve_spin_waves(SweepPlan& plan, std::vector<SpinRow>& spins,
 }
 
 }  // namespace
+
+void repack(SweepPlan& plan, const uint8_t* changed) {
+  plan.packed = false;
+  if (plan.packed_epoch != plan.rows_epoch) return;   // (no entry of these rows yet)
+  for (int32_t entry = 0; entry < static_cast<int32_t>(plan.pool_groups); ++entry) {
+    const WideGroup& g = plan.groups[static_cast<size_t>(entry)];
+    bool any = false;
+    for (int l = 0; l < kLanes && !any; ++l) any = changed[g.first[l]] != 0;
+    int32_t& at = plan.entry_at[static_cast<size_t>(g.first[0])];
+    if (any && at == entry) at = -1;
+  }
+}
 
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,

@@ -94,6 +94,8 @@ struct SolverParams {
                                         // later than its body's earliest ...
   double behind_cosine = 0.9;           // ... and behind it (normals out of the body within
                                         // acos of this) waits for it
+  double aim_turn = 1e-3;               // rad: an aimed row's frame is turned only where the
+                                        // centres' line leans from its normal more (aim)
   double substep_sink = 0.02;           // ... and so short that a substep's external change
                                         // sinks a body by at most this fraction of its
                                         // contact reach (a h^2 <= this * reach)
@@ -185,7 +187,11 @@ struct SolverBodies {
   double* velocity = nullptr;         // (N, 6) m/s, rad/s: updated in place
 };
 
-// Prepare one row: basis, lever arms, effective masses, and the friction coefficient:
+// A row's frame from its normal n and levers ra, rb: the tangents, the levers' cross
+// products and their images under the inverse inertias, the effective masses.
+void frame_row(ContactRow& row, const SolverBodies& bodies);
+
+// Prepare one row: its frame (frame_row), and the friction coefficient:
 // static where `slow` (N, 6), the velocity that decides sticking (e.g. before this step's
 // external forces), slips slower than sticking_speed, else kinetic.
 void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
@@ -291,6 +297,11 @@ struct SweepPlan {
                                           // manifold starting at that row, or -1
   std::vector<int32_t> fresh;             // the entries packed by the last packing
 };
+
+// The rows whose manifolds start at a row marked in `changed` (rows) have new constant
+// fields (their frames): the pool's groups holding one of them are packed anew by the next
+// solve_velocities (the others keep their entries).
+void repack(SweepPlan& plan, const uint8_t* changed);
 
 // Sequential impulses over the manifolds: normal clamped >= 0 against the speculative
 // allowance (a manifold's rows, 2 to 4 of them, solved exactly as one small LCP; one

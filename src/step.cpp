@@ -22,6 +22,8 @@ void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* 
   }
 }
 
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
 bool persistent(int8_t kind) { return kind == static_cast<int8_t>(ContactKind::persistent); }
 
 // Normal velocity of B's point relative to A's (< 0 approaching) for twists v (N, 6).
@@ -108,6 +110,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
         std::ceil(dt / longest_substep(ctx) * (1.0 - 1e-6)), 1.0,
         static_cast<double>(std::max(params.max_substeps, 1))));
     to_travel(ctx, substeps);
+    aim(ctx, nullptr, velocity_.data(), 0.5 * dt / substeps);
     // warm start from last step's impulses of the same pair and feature (a substep's share)
     double cold = warm(ctx, substeps);
     start_.assign(velocity_.begin(), velocity_.end());
@@ -213,6 +216,8 @@ void StepSolver::reference_frame(StepContext& ctx) {
   }
   uint8_t *const touching = touching_.data(), *const rested = rested_.data();
   uint8_t *const near = near_.data(), *const supported = supported_.data();
+  pressed_.assign(m, 0);
+  uint8_t* const pressed = pressed_.data();
   Vec3 *const ra = ra_.data(), *const rb = rb_.data(), *const travel = travelled_.data();
   double *const moved_a = moved_a_.data(), *const gap = gap_.data();
   double *const allowance = allowance_.data(), *const before = before_.data();
@@ -270,8 +275,8 @@ void StepSolver::reference_frame(StepContext& ctx) {
       const double* const now = now_.data();
       const Vec3 press_a = load3(now + 6 * a) - load3(then + 6 * a);
       const Vec3 press_b = load3(now + 6 * b) - load3(then + 6 * b);
-      if (dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0)
-        supported[a] = supported[b] = 1;
+      pressed[k] = dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0;
+      if (pressed[k]) supported[a] = supported[b] = 1;
     }
   }
   for (int64_t i = 0; i < n; ++i) {
@@ -544,6 +549,20 @@ void StepSolver::prepare(StepContext& ctx) {
       block.count = count;
     }
   }
+  // the rows aim turns: of two spheres, alone in their manifold, one pressed onto the
+  // other from the start (pressed_), neither body impacted
+  aimed_.clear();
+  aiming_.assign(rows_.size(), 0);
+  turned_.assign(rows_.size(), 0);
+  aimed_gap_.resize(rows_.size());
+  for (const Manifold& manifold : manifolds_) {
+    const ContactRow& r = rows_[manifold.first];
+    if (manifold.count == 1 && bodies.radius[r.a] > 0.0 && bodies.radius[r.b] > 0.0 &&
+        pressed_[r.contact] && !impact_[r.contact] && !impacted_[r.a] && !impacted_[r.b]) {
+      aimed_.push_back(manifold.first);
+      aiming_[manifold.first] = 1;
+    }
+  }
   // none in the sweeps yet (admit lets them in; the plan follows them), no block prepared
   // (only a manifold solved needs one: block())
   in_.assign(manifolds_.size(), 0);
@@ -768,6 +787,55 @@ double StepSolver::warm(StepContext& ctx, int substeps) {
     r.tangent[1] = ty;
   }
   return static_cast<double>(cold) / static_cast<double>(std::max<int64_t>(1, persistent));
+}
+
+void StepSolver::aim(StepContext& ctx, const double* moved, const double* velocity,
+                     double half) {
+  if (aimed_.empty()) return;
+  const double lean = std::sin(ctx.params.aim_turn);
+  bool any = false;
+  const double* x0 = ctx.previous.position;
+  const double* radius = ctx.bodies.radius;
+  auto centre = [&](int32_t i) {
+    Vec3 x = load3(x0 + 3 * i);
+    if (moved != nullptr) x += load3(moved + 6 * i);
+    return x;
+  };
+  for (const int32_t i : aimed_) {
+    ContactRow& r = rows_[static_cast<size_t>(i)];
+    const Vec3 centres = centre(r.b) - centre(r.a);
+    Vec3 mid = centres;
+    if (velocity != nullptr)
+      mid += half * (load3(velocity + 6 * r.b) - load3(velocity + 6 * r.a));
+    aimed_gap_[static_cast<size_t>(i)] = length(centres) - radius[r.a] - radius[r.b];
+    const double across = length(mid);
+    turned_[static_cast<size_t>(i)] = 0;
+    if (!(across > 0.0)) continue;
+    const Vec3 n = mid / across;
+    if (length(cross(n, r.n)) <= lean && dot(n, r.n) > 0.0) continue;
+    turned_[static_cast<size_t>(i)] = 1;
+    any = true;
+    const Vec3 friction = r.tangent[0] * r.t1 + r.tangent[1] * r.t2;
+    r.ra = length(r.ra) * n;
+    r.rb = -length(r.rb) * n;
+    r.n = n;
+    frame_row(r, ctx.solver);
+    r.tangent[0] = dot(friction, r.t1);
+    r.tangent[1] = dot(friction, r.t2);
+    const int32_t spin = manifolds_[static_cast<size_t>(r.manifold)].spin;
+    if (spin >= 0) {
+      SpinRow& s = spins_[static_cast<size_t>(spin)];
+      s.n = n;
+      s.k_n = dot(n, mul(s.inv_ab, n));
+    }
+  }
+  if (!any) return;
+  // the turned rows' wide groups packed anew; a manifold of theirs left out of the sweeps
+  // is tested again at the next sweep's start (its speed_ bound was along the old normal)
+  repack(plan_, turned_.data());
+  if (known_)
+    for (const int32_t i : aimed_)
+      if (turned_[static_cast<size_t>(i)]) speed_[static_cast<size_t>(i)] = -kInfinity;
 }
 
 void StepSolver::to_travel(StepContext& ctx, int substeps) {
@@ -1004,12 +1072,21 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
           for (int d = 0; d < 6; ++d) velocity_[6 * i + d] += share * ramp_[6 * i + d];
       start_.assign(velocity_.begin(), velocity_.end());
       for (SpinRow& spin : spins_) spin.torque = Vec3::Zero();
+      if (!aimed_.empty()) {
+        aim(ctx, moved_.data(), velocity_.data(), 0.5 * ctx.dt * share);
+        bool stale = false;   // (shock propagation's copy of a turned row)
+        for (const ContactRow& r : shock_rows_) stale = stale || turned_[r.contact];
+        if (stale) shock_rows(rows_, level_, order32_, shock_rows_, p.shock_ratio);
+      }
       warm_start(rows_, ctx.solver);
     }
     // each row may approach by its separation now: the reference gap plus how far its
-    // two points moved along the normal in the substeps so far (no new detection)
-    for (ContactRow& r : rows_) {
-      const double separation = gap_[r.contact] + normal_velocity(r, moved_.data());
+    // two points moved along the normal in the substeps so far (no new detection; two
+    // spheres': from their centres, aim)
+    for (size_t i = 0; i < rows; ++i) {
+      ContactRow& r = rows_[i];
+      const double separation = aiming_[i] ? aimed_gap_[i]
+                                           : gap_[r.contact] + normal_velocity(r, moved_.data());
       r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
     }
     sweeps += sweep(ctx, iterations);
@@ -1227,10 +1304,15 @@ void StepSolver::push_out(StepContext& ctx) {
   const double dt = ctx.dt;
   BodyStatesOut& out = ctx.out;
   // predicted gap at the end of the step = reference gap + new normal speed times the
-  // remaining time; beyond the slop a fraction of it (at most max_correction) is removed
-  for (ContactRow& r : rows_) {
+  // remaining time (two spheres: from their centres there, aimed along that line: moved_
+  // is the substeps' travel); beyond the slop a fraction of it (at most max_correction)
+  // is removed
+  aim(ctx, moved_.data(), nullptr, 0.0);
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    ContactRow& r = rows_[i];
     double predicted =
-        gap_[r.contact] + normal_velocity(r, travel_.data()) * remaining_[r.contact];
+        aiming_[i] ? aimed_gap_[i]
+                   : gap_[r.contact] + normal_velocity(r, travel_.data()) * remaining_[r.contact];
     double depth = std::min(p.position_correction *
                                 std::max(-predicted - p.linear_slop, 0.0),
                             p.max_correction);

@@ -69,7 +69,10 @@
 //    substep's impulses (the first: from the cache, 1/S of last step's), lets each row
 //    approach by its separation now (its gap at the reference time plus how far the
 //    substeps so far moved its two points along the normal: no new detection) over the
-//    substep, solves as below, and moves the poses by the substep's velocity; the poses
+//    substep (a contact of two spheres pressed one onto the other from the start, with
+//    no impact: aimed first along the line of their centres where the substeps moved
+//    them, half a substep on, and its separation measured there: aim), solves as below,
+//    and moves the poses by the substep's velocity; the poses
 //    travel with the substeps' mean velocity, the impulses are the substeps' sums.
 //    Each substep: sequential impulses over the manifolds that can carry something (an
 //    active set with verification: those idle and separating beyond their allowance are
@@ -105,7 +108,8 @@
 //    external); persistent-only bodies from the previous pose for dt with the substeps'
 //    mean velocity; the state's twist is the landed velocity (of the last substep);
 // 9. split-impulse position pass: penetration beyond the slop predicted at the end of the
-//    step is pushed out (poses only, no velocity: no energy gain);
+//    step (an aimed contact of two spheres: from their centres there) is pushed out
+//    (poses only, no velocity: no energy gain);
 // 10. report: normal impulse (with the impact stages' and landing's), friction impulse,
 //    state per contact; a sticking manifold whose friction impulses cancel is RESTING.
 // Bodies without contact keep their current state (the caller's output arrays start as
@@ -151,6 +155,8 @@ struct BodyProperties {
   const double* kinetic_friction = nullptr;  // (N,) >= 0
   const double* rolling_resistance = nullptr;  // (N,) >= 0, dimensionless (see SpinRow)
   const double* torsional_friction = nullptr;  // (N,) >= 0, dimensionless (see SpinRow)
+  const double* radius = nullptr;            // (N,) m: a sphere's radius about its centre
+                                             // of mass, 0 for every other shape (aim)
 };
 
 // M contacts from detection (types.ContactSet): finite, unit normals.
@@ -235,6 +241,17 @@ class StepSolver {
   // approaches faster than its allowance: its row would have carried an impulse. Each such
   // is marked in forced_ (a row from then on).
   bool escaped(const StepContext& ctx, bool landed);
+  // A contact of two spheres, one pressed onto the other from the start, without an
+  // impact in the step (aimed_), is aimed along the line of their centres where the solve
+  // moves them: at their previous poses plus `moved` (N, 6; null: none), plus half a
+  // substep `half` (s) at `velocity` (N, 6; null: none): its row's frame (the friction
+  // impulse kept as a vector) and spin row anew where that line leans from its normal by
+  // more than aim_turn (turned_), and its separation there (aimed_gap_).
+  // The normal at the middle of a motion is perpendicular to its chord between two points
+  // of the sphere of the radii's sum: a velocity along that surface keeps the gap
+  // (detection's normal, from the input pose that the source dropped by g dt^2, leaned
+  // downhill and took a ball rolling off a fixed ball deeper every step)
+  void aim(StepContext& ctx, const double* moved, const double* velocity, double half);
   void to_travel(StepContext& ctx, int substeps);  // impacted bodies: + (1 - f) / 2 external change;
                                      // rested ones: the whole of it
   int hold_energy(StepContext& ctx, int iterations);   // returns the sweeps done again
@@ -316,6 +333,10 @@ class StepSolver {
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
                                      // until an impact: moves with its previous twist)
   std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)
+  std::vector<uint8_t> pressed_;     // (M,) within the slop at the previous state, neither
+                                     // approaching nor leaving faster than the threshold,
+                                     // the step's external change pressing one body into
+                                     // the other (what makes its bodies supported_)
   std::vector<uint8_t> touching_;    // (M,) persistent, within the slop at the previous state
   std::vector<uint8_t> near_;        // (N,) movable, a persistent contact within the slop at
                                      // the previous state (approaching or not)
@@ -337,6 +358,14 @@ class StepSolver {
   std::vector<double> span_;         // s: the time a row's allowance spans (> 0)
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
+  std::vector<int32_t> aimed_;       // the rows that aim turns: two spheres, one row,
+                                     // pressed_, no impact in the step
+  std::vector<uint8_t> aiming_;      // (rows) 1: in aimed_
+  std::vector<uint8_t> turned_;      // (rows) 1: its frame turned by the last aim (its
+                                     // centres' line leaned from its normal by more than
+                                     // aim_turn)
+  std::vector<double> aimed_gap_;    // (rows) m: an aimed row's separation where aim
+                                     // measured it
   std::vector<int32_t> rowless_;     // the contacts without a row (prepare)
   std::vector<uint8_t> forced_;      // (M,) 1: a row whatever the bound (the net let it in)
   std::vector<uint8_t> struck_;      // (M,) 1: a speculative contact the impact stages take

@@ -94,7 +94,11 @@ class World:
         self.inv_mass = np.array([p[0] for p in props], dtype=float)           # (N,) 1/kg
         self.inv_inertia_body = np.array([p[1] for p in props]).reshape(-1, 3, 3)
         self.dynamic = np.array([not s.static for s in self.specs]) & (self.inv_mass > 0.0)
-        self._round = np.array([s.shape == 'sphere' for s in self.specs], bool)
+        # a sphere's radius (m), 0 for any other shape: the solver aims a contact of two
+        # spheres along the line of their centres on its own path (StepSolver::aim)
+        self.radius = np.array([s.size[0] if s.shape == 'sphere' else 0.0
+                                for s in self.specs], float)
+        self._round = self.radius > 0.0
         self.restitution = np.array([s.restitution for s in self.specs], dtype=float)
         self.static_friction = np.array([s.static_friction for s in self.specs], dtype=float)
         self.kinetic_friction = np.array([s.kinetic_friction for s in self.specs], dtype=float)
@@ -265,7 +269,7 @@ class World:
             movable=movable, held=~active, restitution=self.restitution,
             static_friction=self.static_friction, kinetic_friction=self.kinetic_friction,
             rolling_resistance=self.rolling_resistance,
-            torsional_friction=self.torsional_friction,
+            torsional_friction=self.torsional_friction, radius=self.radius,
             body_a=flat(contacts.body_a, np.int64), body_b=flat(contacts.body_b, np.int64),
             point=flat(contacts.point), normal=flat(contacts.normal),
             separation=flat(contacts.separation), toi=flat(contacts.toi),

@@ -53,27 +53,40 @@ def test_heavy_box_on_light_box_sinks_less_than_1mm_and_does_not_jitter():
     assert max(trace.energy) <= e0 * (1.0 + 1e-5)
 
 
-def _free_flight_gap_angle(radius: float, theta0: float, gap: float, dt: float) -> float:
-    """Angle (deg) from the top at the first step a point mass leaving a sphere at
-    acos(2/3 cos theta0) (a frictionless slide from rest at theta0) is `gap` off its
-    surface, integrated as the test's integrator does (semi-implicit Euler, dt)."""
+def _free_flight_gap_angle(radius: float, theta0: float, gap: float) -> float:
+    """Angle (deg) from the top where a point mass leaving a sphere at acos(2/3 cos theta0)
+    (a frictionless slide from rest at theta0) with the surface's speed and direction there
+    is `gap` off its surface: a free projectile, its exact parabola. (Integrated by
+    semi-implicit Euler from that velocity taken as a state's twist, it falls g dt / 2
+    faster from its first step on: a twist is the velocity over the step that led to the
+    pose, not the velocity at the pose; at 240 Hz that projectile's gap opened at
+    62.7 deg, the parabola's opens at 59.4.)"""
     theta = math.acos(2.0 / 3.0 * math.cos(theta0))
     speed = math.sqrt(2.0 * G * radius * (math.cos(theta0) - math.cos(theta)))
     x, z = radius * math.sin(theta), radius * math.cos(theta)
     vx, vz = speed * math.cos(theta), -speed * math.sin(theta)
-    while math.hypot(x, z) < radius + gap:
-        vz -= G * dt
-        x, z = x + vx * dt, z + vz * dt
-    return math.degrees(math.atan2(x, z))
+
+    def centre(t: float) -> tuple[float, float]:
+        return x + vx * t, z + vz * t - 0.5 * G * t * t
+
+    lo, hi = 0.0, 1.0                   # s: the gap grows from 0 and has opened after 1 s
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if math.hypot(*centre(mid)) > radius + gap else (mid, hi)
+    return math.degrees(math.atan2(*centre(hi)))
 
 
 def test_ball_over_a_dome_follows_its_surface_and_leaves_at_free_flight():
     """Frictionless ball r 0.05 m sliding from near the top of a static sphere R 0.1 m.
 
-    While the dome pushes (normal impulse > 0) the ball's centre stays within
-    0.2 mm of the radius R + r; the push ends near acos(2/3 cos theta0) and the
-    0.5 mm gap opens within 2 degrees of where a free projectile's would (leaving
-    at that angle and integrated at the same rate: at 240 Hz one step is ~2 degrees).
+    While the dome pushes (normal impulse > 0) the ball's centre stays within the slop
+    (0.1 mm) of the radius R + r; the push ends near acos(2/3 cos theta0) and the 0.5 mm
+    gap opens within 2 degrees of where a free projectile's would (leaving at that
+    angle: at 240 Hz one step is ~1.6 degrees there). (Before the solver aimed
+    a contact of two spheres along their centres' line over its own motion
+    (StepSolver::aim), the ball went up to 0.18 mm into the dome while pushed and its
+    gap opened at 63.2 deg, 3.8 deg after the projectile's: the normal was detection's,
+    from the input pose that the integrator had dropped by g dt^2, leaning downhill.)
     """
     big, small = 0.1, 0.05
     reach = big + small
@@ -96,11 +109,11 @@ def test_ball_over_a_dome_follows_its_surface_and_leaves_at_free_flight():
     last_push = int(np.flatnonzero(pushed)[-1])
     detach = math.degrees(math.acos(2.0 / 3.0 * math.cos(theta0)))
     opened = float(angle[np.argmax(off > 5e-4)])
-    expected = _free_flight_gap_angle(reach, theta0, 5e-4, 1.0 / RATE)
+    expected = _free_flight_gap_angle(reach, theta0, 5e-4)
     worst = np.abs(off[:last_push + 1]).max()
     print(f'while pushed: largest distance from the surface {worst * 1000:.3f} mm; '
           f'push ends at {angle[last_push]:.2f} deg (law {detach:.2f}); 0.5 mm gap at '
           f'{opened:.2f} deg (free flight {expected:.2f})')
-    assert worst < 2e-4
+    assert worst < 1e-4                                  # the slop
     assert abs(angle[last_push] - detach) < 2.0
     assert abs(opened - expected) < 2.0

@@ -226,20 +226,22 @@ def test_a_ball_rolling_off_a_fixed_ball_gains_no_energy(rate):
     assert sim.state.position[1, 2] < 0.0            # rolled off, below the fixed ball's centre
 
 
-def leaving_time(reach: float, theta0: float, mu_s: float, mu_k: float, gap: float) -> float:
-    """When (s) a ball released at rest theta0 from the top of a fixed ball, its centre
-    `reach` from the fixed ball's (the radii's sum), is `gap` off that sphere: physics.
+def leaving_time(reach: float, theta0: float, mu_s: float, mu_k: float, gap: float,
+                 rate0: float = 0.0) -> float:
+    """When (s) a ball set theta0 from the top of a fixed ball, rolling over it at rate0
+    (rad/s about the fixed ball's centre; 0: at rest), its centre `reach` from the fixed
+    ball's (the radii's sum), is `gap` off that sphere: physics.
     While it touches, its centre goes round the circle of radius `reach`, N / m = g cos
     theta - reach theta'^2; it rolls without slipping, theta'' = 5 g sin theta / (7 reach),
     while the friction that takes, (2/5) reach theta'' m, is within mu_s N (with enough
     friction it leaves at cos theta = 10/17 cos theta0), then slides with mu_k N against
     its slip (without friction: leaves at cos theta = 2/3 cos theta0); where N reaches 0 it
     leaves on a free parabola. Integrated in steps of 10 us (semi-implicit Euler)."""
-    h, t, theta, rate, spin = 1e-5, 0.0, theta0, 0.0, 0.0     # spin: r w / reach, rad/s
+    h, t, theta, rate, spin = 1e-5, 0.0, theta0, rate0, rate0   # spin: r w / reach, rad/s
     rolling = mu_s > 0.0
     while G * math.cos(theta) - reach * rate * rate > 0.0:
         normal = G * math.cos(theta) - reach * rate * rate
-        if rolling and 2.0 / 7.0 * G * math.sin(theta) > mu_s * normal:
+        if rolling and 2.0 / 7.0 * G * abs(math.sin(theta)) > mu_s * normal:
             rolling = False
         if rolling:
             rate += 5.0 * G * math.sin(theta) / (7.0 * reach) * h
@@ -268,11 +270,12 @@ def test_a_ball_on_a_fixed_ball_rolls_off_as_physics_says(friction, rate):
     30-240 Hz, and it is never deeper into the fixed ball than the slop. (On 0cd02dd the
     contact's normal was detection's, from the input pose that the integrator had
     dropped by g dt^2, leaning downhill: each step took the ball deeper, to 0.6-0.8 mm at
-    30 and 60 Hz and 0.17 mm at 240 Hz; at 30 Hz it had not left after 1.6 s, and at 60 Hz
-    without friction it left 0.09 s late.)"""
+    30 and 60 Hz and 0.17 mm at 240 Hz; at 30 Hz it left 0.38 s late with friction and had
+    not left after 0.6 s without, at 60 Hz without friction it left 0.09 s late.) No
+    rolling resistance: physics has none."""
     r, theta0, gap = 0.1, math.radians(19.0), 0.005
     material = dict(restitution=0.2, static_friction=friction,
-                    kinetic_friction=2.0 / 3.0 * friction)
+                    kinetic_friction=2.0 / 3.0 * friction, rolling_resistance=0.0)
     bodies = [BodySpec('base', 'sphere', (r,), static=True, **material),
               BodySpec('ball', 'sphere', (r,), mass=0.5, **material)]
     start = 2.0 * r * np.array([-math.sin(theta0), 0.0, math.cos(theta0)])
@@ -286,6 +289,37 @@ def test_a_ball_on_a_fixed_ball_rolls_off_as_physics_says(friction, rate):
     print(f'friction {friction} at {rate} Hz: {gap * 1e3} mm off at {sim.time:.4f} s '
           f'(physics {expected:.4f} s), deepest {deepest * 1e3:.4f} mm')
     assert off >= gap
+    assert abs(sim.time - expected) <= 2.0 / rate
+    assert deepest <= SolverSettings().linear_slop
+
+
+@pytest.mark.parametrize('rate', [30.0, 60.0, 120.0, 240.0])
+def test_a_ball_rolled_over_a_fixed_ball_leaves_on_the_far_side_as_physics_says(rate):
+    """The ball of the test above, 10 deg before the top of the fixed ball, rolling towards
+    it at 0.4 m/s without slip (friction 0.6 / 0.4): it rolls over the top and leaves on
+    the far side, 5 mm off when physics says (leaving_time: 0.468 s), within two steps, and
+    never deeper than the slop. (On 0cd02dd each step took it deeper, 0.7-0.8 mm at 30 and
+    60 Hz, 0.18 mm at 240 Hz, and at 30 Hz the hold-back stopped it short of the top: it
+    rolled back down the side it came from.)"""
+    r, theta0, v0, gap = 0.1, math.radians(-10.0), 0.4, 0.005
+    material = dict(restitution=0.2, static_friction=0.6, kinetic_friction=0.4,
+                    rolling_resistance=0.0)
+    bodies = [BodySpec('base', 'sphere', (r,), static=True, **material),
+              BodySpec('ball', 'sphere', (r,), mass=0.5, **material)]
+    start = 2.0 * r * np.array([math.sin(theta0), 0.0, math.cos(theta0)])
+    along = v0 * np.array([math.cos(theta0), 0.0, -math.sin(theta0)])
+    sim = Simulation(bodies, states([[0.0, 0.0, 0.0], start], [[0, 0, 0], along],
+                                    [[0, 0, 0], [0.0, v0 / r, 0.0]]), rate)
+    expected = leaving_time(2.0 * r, theta0, 0.6, 0.4, gap, v0 / (2.0 * r))
+    deepest, off = 0.0, 0.0
+    while off < gap and sim.time < 2.0 * expected:
+        sim.step()
+        off = float(np.linalg.norm(sim.state.position[1])) - 2.0 * r
+        deepest = max(deepest, -off)
+    print(f'at {rate} Hz: {gap * 1e3} mm off at {sim.time:.4f} s at x '
+          f'{sim.state.position[1, 0]:.3f} m (physics {expected:.4f} s), deepest '
+          f'{deepest * 1e3:.4f} mm')
+    assert off >= gap and sim.state.position[1, 0] > 0.0      # over the top, on the far side
     assert abs(sim.time - expected) <= 2.0 / rate
     assert deepest <= SolverSettings().linear_slop
 

@@ -62,18 +62,23 @@ def test_first_sight_starts_fresh_then_previous_is_last_corrected():
     assert out.states.position[0, 2] == 0.98
 
 
-def test_time_backwards_resets_that_body():
+def test_time_backwards_is_refused_and_a_second_one_later_is_a_new_run():
     resolver, world = make()
     resolver.resolve(T0, [body('ball', 1.0)])
     resolver.resolve(T0 + 4 * MS, [body('ball', 0.9)])
     world.forgotten.clear()
-    out = resolver.resolve(T0 + 2 * MS, [body('ball', 0.5)])
+    calls = len(world.calls)
+    out = resolver.resolve(T0 + 2 * MS, [body('ball', 0.5)])   # a glitch: nothing changes
+    assert [r.reason for r in out.rejected] == ['time_backwards'] and not out.resets
+    assert out.names == [] and len(world.calls) == calls and not world.forgotten
+    assert resolver.last_stamp[1] == T0 + 4 * MS
+    out = resolver.resolve(T0 + 3 * MS, [body('ball', 0.5)])   # behind again, later: a new run
     call = world.calls[-1]
-    assert [r.reason for r in out.resets] == ['time_backwards']
+    assert [r.reason for r in out.resets] == ['time_backwards'] and not out.rejected
     assert out.names == ['ball'] and out.states.position[0, 2] == 0.5
     assert call['previous'].position[1, 2] == 0.5 and call['dt'] == FRESH_DT
     assert [1] in world.forgotten
-    assert resolver.totals['time_backwards'] == 1
+    assert resolver.totals['time_backwards'] == 2
 
 
 def test_huge_dt_is_a_fresh_start():

@@ -7,9 +7,13 @@ array of rows (position, orientation, linear, angular: the wire's order), so tha
 gathers, scatters and copies are one array operation each, whatever N; and it:
 
 * validates the inputs (``validation.check_inputs``); a refused body is held
-  at its last good state (inactive: infinite mass this step) and reported;
+  at its last good state (inactive: infinite mass this step) and reported; an input
+  stamped at or behind its body's last stamp is refused and changes nothing (the next
+  good input is answered bit for bit as if it never came), unless the step before was
+  refused behind at an older stamp: the source's clock runs on from an earlier time (a
+  new run), and its bodies start fresh;
 * previous = the body's last corrected state, current = its input; a body seen
-  for the first time, after its stamp went backwards, after a gap longer than
+  for the first time, in a new run of its source, after a gap longer than
   ``settings.max_dt`` or after missing the previous step starts fresh
   (previous = current, its warm-start entries forgotten; one resumed forward, after a
   gap or a missed step, keeps its last answer's twist as the one before the step); but
@@ -224,6 +228,9 @@ class Resolver:
         # same object again (an input of the same names) needs no comparison of stamps
         self._stamped: object = None
         self.previous_step_ns = NO_STAMP
+        # the stamp of the last step, if every input of it was refused behind its body's
+        # last stamp (``NO_STAMP`` otherwise): a later one behind too is a new run
+        self.behind_ns = NO_STAMP
         self.period_ns = 0   # length of the last usable step (ns; 0: none yet)
         self.totals: Counter[str] = Counter()
         if len(self.bodies):
@@ -259,19 +266,31 @@ class Resolver:
                 name = self.names[checked.index[k]]
                 rejected.append(Rejection(name, 'repeated_stamp',
                                           f'{name}: already resolved at stamp {stamp_ns} ns'))
-            held = self._resumes_asleep(checked.index, checked.values, history, stamp_ns)
-            resets = self._resets(checked.index, history, stamp_ns)
-            use = ~history.repeated
+            # a stamp behind the body's last one is refused and changes nothing (a timing
+            # glitch), unless a step before it was refused so and is older: the source's
+            # clock runs on from an earlier time (a new run), its bodies start fresh
+            new_run = NO_STAMP < self.behind_ns < stamp_ns
+            refused = history.repeated if new_run else history.repeated | history.backwards
+            if not new_run:
+                for k in np.flatnonzero(history.backwards):
+                    rejected.append(self._backwards(checked.index[k], stamp_ns, 'refused'))
+            held = self._resumes_asleep(checked.index, checked.values,
+                                        history.fresh & ~refused, stamp_ns)
+            resets = self._resets(checked.index, history, stamp_ns, new_run)
+            use = ~refused
             if not use.all():
                 index, fresh, entered = index[use], fresh[use], entered[use]
                 twist_in_body, rows = twist_in_body[use], index
             if held:
                 fresh = np.zeros(len(index), bool)
-            if not len(index) and history.repeated.any():
-                # every input already resolved at this stamp (a message delivered twice):
-                # no time passed, nothing to step; a world step of nothing was a fresh
-                # one, which woke every sleeping island and dropped the warm start
+            if not len(index) and refused.any():
+                # every input already resolved at this stamp (a message delivered twice) or
+                # behind it: nothing to step; a world step of nothing was a fresh one, which
+                # woke every sleeping island and dropped the warm start
+                if history.backwards.any():
+                    self.behind_ns = stamp_ns
                 return self._repeated(stamp_ns, rejected, start)
+        self.behind_ns = NO_STAMP
 
         # 2. previous and current states of all N bodies: (N, 13) rows, one array each;
         # previous is the history itself unless a fresh start changes it (the world only
@@ -398,19 +417,18 @@ class Resolver:
             self._covered = (rows, not (self.dynamic & ~held).any())
         return self._covered[1]
 
-    def _resumes_asleep(self, index: np.ndarray, entered: np.ndarray, history: StampCheck,
+    def _resumes_asleep(self, index: np.ndarray, entered: np.ndarray, fresh: np.ndarray,
                         stamp_ns: int) -> bool:
-        """Whether every fresh body of this step (``index``; ``entered``, the (K, 13) input
-        rows, world frame) resumes forward (a gap or a missed step, not time going back nor
-        a first input) asleep, within a period's reach, after a usable step of known length:
-        its island is held at rest, so the step is the usual one of that length from the
-        held states, and the sleep rule judges the inputs against them (a source that kept
-        integrating the rest sends the held state advanced by one period, gravity's g dt
-        and g dt^2: the island stays asleep, answered at rest; anything else wakes it, as on
-        a usual step). A restart instead would solve every body cold from its input, sunk
-        g dt^2 and moving at g dt into its supports, and shake the pile awake."""
+        """Whether every fresh body of this step (``fresh`` of ``index``, the inputs not refused;
+        ``entered``, the (K, 13) input rows, world frame) resumes forward (a gap or a missed step,
+        not time going back nor a first input) asleep, within a period's reach, after a usable step
+        of known length: its island is held at rest, so the step is the usual one of that length
+        from the held states, and the sleep rule judges the inputs against them (a source that kept
+        integrating the rest sends the held state advanced by one period, gravity's g dt and g
+        dt^2: the island stays asleep, answered at rest; anything else wakes it, as on a usual
+        step). A restart instead would solve every body cold from its input, sunk g dt^2 and moving
+        at g dt into its supports, and shake the pile awake."""
         sleep = self.world.sleep
-        fresh = history.fresh & ~history.repeated
         if not self.period_ns or not sleep.enabled or not fresh.any():
             return False
         resumed = index[fresh]
@@ -425,16 +443,19 @@ class Resolver:
                  + self._settings.sleep_threshold) * self.period_ns * 1e-9
         return bool((moved <= reach).all())
 
-    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int
+    def _backwards(self, i: int, stamp_ns: int, what: str) -> Rejection:
+        """Body ``i``'s input stamped behind its last one; ``what`` became of it."""
+        name = self.names[i]
+        return Rejection(name, 'time_backwards', f'{name}: stamp {stamp_ns} ns is older than '
+                         f'its last one {self.last_stamp[i]} ns; {what}')
+
+    def _resets(self, index: np.ndarray, history: StampCheck, stamp_ns: int, new_run: bool
                 ) -> list[Rejection]:
-        """This step's inputs after a gap or with time going back, reported (fresh starts,
-        unless the gap's bodies resume asleep: ``ResolvedStep.resumed_asleep``)."""
-        resets = []
-        for k in np.flatnonzero(history.backwards):
-            name = self.names[index[k]]
-            resets.append(Rejection(name, 'time_backwards',
-                                    f'{name}: stamp {stamp_ns} ns is older than its last one '
-                                    f'{self.last_stamp[index[k]]} ns; history reset'))
+        """This step's inputs after a gap or, in a new run of the source, with time going
+        back, reported (fresh starts, unless the gap's bodies resume asleep:
+        ``ResolvedStep.resumed_asleep``)."""
+        resets = [self._backwards(index[k], stamp_ns, 'a new run of the source: history '
+                                  'reset') for k in np.flatnonzero(history.backwards & new_run)]
         for k in np.flatnonzero(history.gap & ~history.backwards):
             name = self.names[index[k]]
             gap = (stamp_ns - self.last_stamp[index[k]]) * 1e-9

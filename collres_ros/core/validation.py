@@ -17,9 +17,12 @@ in /diagnostics and in replay summaries):
 * ``non_unit_quaternion``: norm off 1 by more than the tolerance (within it the
   quaternion is normalised silently).
 * ``repeated_stamp``: the body already has a state at this very stamp (dt = 0).
+* ``time_backwards``: the stamp is older than the body's last one (a timing glitch:
+  nothing changes), unless the step before was refused so at an older stamp: then the
+  source's clock runs on from an earlier time (a new run) and the input is used, as a
+  fresh start (the Resolver decides: ``StampCheck.backwards``).
 
-History notices (the input is used, as a fresh start: previous = current):
-``time_backwards`` (stamp older than the body's last one) and ``large_gap``
+History notice (the input is used, as a fresh start: previous = current): ``large_gap``
 (more than ``max_dt`` since the body's last state). ``stale`` marks a known
 body that has not been updated for longer than a timeout.
 

@@ -34,6 +34,7 @@ from contacts import box, contact_set, FixedContacts, sphere, states  # noqa: E4
 from integrator import Simulation  # noqa: E402
 from pile import make_pile  # noqa: E402
 from test_impact_laws import elastic_gas, GAS_SIDE  # noqa: E402
+from test_mirror_friction import asymmetry, mirror_hit  # noqa: E402
 from test_stacks import pyramid, stand  # noqa: E402
 
 G = 9.81
@@ -287,6 +288,18 @@ def mirror() -> None:
             abs(w[2]) < 1e-6 and k1 <= k0 * (1 + 1e-9) and p.sum() > 0
         row('mirror impulses', f'cube flat on 4 corners, spin x, dt {dt:.3g}, e {e}, mu {mu}',
             f'P {np.round(p, 5)}, w {np.round(w, 6)}, E {k1 / k0:.6f}', ok)
+
+    # random mirror hits (test_mirror_friction's, which runs the first class): the hits
+    # above slide at the cone limit through the whole impact, where the order in which a
+    # manifold's points are swept does not matter; these stick, start or stop sliding
+    rng = np.random.default_rng(14)
+    for fixed in (False, True):
+        for pairs in (1, 2):
+            errors = [asymmetry(*mirror_hit(rng, fixed, pairs)) for _ in range(500)]
+            bad = sum(e > 1e-6 for e in errors)
+            row('mirror impulses', f'500 random hits, {2 * pairs} points, '
+                + ('fixed wall' if fixed else 'dynamic pair'),
+                f'{bad} asymmetric, worst {max(errors):.1e}', bad == 0)
 
 
 @check('iterations')

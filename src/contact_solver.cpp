@@ -92,6 +92,80 @@ double solve_friction(ContactRow& r, Twists& v) {
   return std::max(std::fabs(d_x), std::fabs(d_y));
 }
 
+// Friction of a manifold of 2 to 4 rows after its normal update, whatever the order of its
+// points (a mirror-symmetric hit gets mirror-symmetric friction): first each row's
+// friction is brought into its cone (its normal may have shrunk), then every row proposes
+// solve_friction's update from the same twists (oppose its own slip, within its cone), and
+// the proposals are taken together, scaled by the s in [0, 1] that leaves the least
+// kinetic energy along them (exact: it is quadratic in the impulses). Each row's new
+// impulse lies between two points of its cone, so in it; the fixed points are
+// solve_friction's (each row's friction opposes its slip or stops it). Returns the largest
+// impulse change (N s).
+double solve_friction_block(ContactRow* r, int k, Twists& v) {
+  double change = 0.0;
+  for (int i = 0; i < k; ++i) {   // into the cones
+    const double size = norm2(r[i].tangent[0], r[i].tangent[1]);
+    const double limit = r[i].mu * r[i].normal;
+    if (!(size > limit)) continue;
+    const double scale = limit / size;
+    const double d_x = r[i].tangent[0] * scale - r[i].tangent[0];
+    const double d_y = r[i].tangent[1] * scale - r[i].tangent[1];
+    r[i].tangent[0] += d_x;
+    r[i].tangent[1] += d_y;
+    if (d_x != 0.0) apply(r[i], v, 1, r[i].t1, d_x);
+    if (d_y != 0.0) apply(r[i], v, 2, r[i].t2, d_y);
+    change = std::max({change, std::fabs(d_x), std::fabs(d_y)});
+  }
+  double d[4][2];
+  double along = 0.0;   // slip . proposal (N m/s, < 0 unless nothing changes)
+  Twists moved = v;
+  for (int i = 0; i < k; ++i) {
+    ContactRow& c = r[i];
+    const double x = relative(c, v, 1, c.t1), y = relative(c, v, 2, c.t2);
+    d[i][0] = d[i][1] = 0.0;
+    // no load and no friction held: the cone is a point (solve_friction)
+    if (c.normal == 0.0 && c.tangent[0] == 0.0 && c.tangent[1] == 0.0) continue;
+    const double speed2 = x * x + y * y;
+    const double stiffness = c.kt[0] * x * x + c.kt[1] * x * y + c.kt[2] * y * y;
+    const double step = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
+    double tx = c.tangent[0] - x * step, ty = c.tangent[1] - y * step;
+    const double size = norm2(tx, ty);
+    const double limit = c.mu * c.normal;
+    if (size > limit) {
+      const double scale = size > 0.0 ? limit / size : 0.0;
+      tx *= scale;
+      ty *= scale;
+    }
+    d[i][0] = tx - c.tangent[0];
+    d[i][1] = ty - c.tangent[1];
+    along += d[i][0] * x + d[i][1] * y;
+    if (d[i][0] != 0.0) apply(c, moved, 1, c.t1, d[i][0]);
+    if (d[i][1] != 0.0) apply(c, moved, 2, c.t2, d[i][1]);
+  }
+  if (!(along < 0.0)) return change;
+  // the twists' change the proposals make, and the change of each row's slip
+  Twists delta;
+  delta.va = moved.va - v.va;
+  delta.wa = moved.wa - v.wa;
+  delta.vb = moved.vb - v.vb;
+  delta.wb = moved.wb - v.wb;
+  double curve = 0.0;   // proposal . K proposal (N^2 s / kg), > 0
+  for (int i = 0; i < k; ++i)
+    curve += d[i][0] * relative(r[i], delta, 1, r[i].t1) + d[i][1] * relative(r[i], delta, 2, r[i].t2);
+  const double s = curve > -along ? -along / curve : 1.0;
+  v.va = v.va + s * delta.va;
+  v.wa = v.wa + s * delta.wa;
+  v.vb = v.vb + s * delta.vb;
+  v.wb = v.wb + s * delta.wb;
+  for (int i = 0; i < k; ++i) {
+    const double d_x = s * d[i][0], d_y = s * d[i][1];
+    r[i].tangent[0] += d_x;
+    r[i].tangent[1] += d_y;
+    change = std::max({change, std::fabs(d_x), std::fabs(d_y)});
+  }
+  return change;
+}
+
 // Normal update of one row: approach no faster than the speculative allowance,
 // accumulated impulse >= 0. Returns the impulse change (N s).
 double solve_normal(ContactRow& r, Twists& v) {
@@ -413,7 +487,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
   }
   double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
   if (step >= 0.0) {
-    for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_friction(rows[i], t));
+    step = std::max(step, solve_friction_block(&rows[lo], k, t));
   } else {
     step = 0.0;
     for (size_t i = lo; i < hi; ++i) step = std::max(step, solve_row(rows[i], t));
@@ -624,6 +698,80 @@ WIDE Lanes solve_friction(WideRow& r, const WideGroup& g, WideTwists& t, Mask li
   apply(r, g, t, 1, r.t1, d_x);
   apply(r, g, t, 2, r.t2, d_y);
   return maximum(magnitude(d_x), magnitude(d_y));
+}
+
+// solve_friction_block() on the k rows of the lanes of `live`; returns the largest impulse
+// change per lane (0 elsewhere)
+template <int k>
+WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, Mask live) {
+  const Lanes zero = splat(0.0);
+  Lanes change = zero;
+  for (int i = 0; i < k; ++i) {   // into the cones
+    WideRow& r = w[i];
+    const Lanes size = root(r.tangent[0] * r.tangent[0] + r.tangent[1] * r.tangent[1]);
+    const Lanes limit = r.mu * r.normal;
+    const Mask over = live & (size > limit);
+    if (!any(over)) continue;
+    const Lanes scale = limit / size;
+    const Lanes d_x = pick(over, r.tangent[0] * scale - r.tangent[0], zero);
+    const Lanes d_y = pick(over, r.tangent[1] * scale - r.tangent[1], zero);
+    r.tangent[0] = pick(over, r.tangent[0] + d_x, r.tangent[0]);
+    r.tangent[1] = pick(over, r.tangent[1] + d_y, r.tangent[1]);
+    apply(r, g, t, 1, r.t1, d_x);
+    apply(r, g, t, 2, r.t2, d_y);
+    change = maximum(change, maximum(magnitude(d_x), magnitude(d_y)));
+  }
+  Lanes d[4][2];
+  Lanes along = zero;
+  WideTwists moved = t;
+  for (int i = 0; i < k; ++i) {
+    WideRow& r = w[i];
+    const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
+    const Mask on = live & ((r.normal != 0.0) | (r.tangent[0] != 0.0) | (r.tangent[1] != 0.0));
+    const Lanes speed2 = x * x + y * y;
+    const Lanes stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
+    const Lanes step = speed2 / maximum(stiffness, splat(kTiny) * speed2 + 1e-300);
+    Lanes tx = r.tangent[0] - x * step, ty = r.tangent[1] - y * step;
+    const Lanes size = root(tx * tx + ty * ty);
+    const Lanes limit = r.mu * r.normal;
+    const Lanes scale = pick(size > 0.0, limit / size, zero);
+    const Mask over = size > limit;
+    tx = pick(over, tx * scale, tx);
+    ty = pick(over, ty * scale, ty);
+    d[i][0] = pick(on, tx - r.tangent[0], zero);
+    d[i][1] = pick(on, ty - r.tangent[1], zero);
+    along = pick(on, along + (d[i][0] * x + d[i][1] * y), along);
+    apply(r, g, moved, 1, r.t1, d[i][0]);
+    apply(r, g, moved, 2, r.t2, d[i][1]);
+  }
+  const Mask go = live & (along < 0.0);
+  if (!any(go)) return change;
+  WideTwists delta = moved;
+  delta.va = WideVec{moved.va.x - t.va.x, moved.va.y - t.va.y, moved.va.z - t.va.z};
+  delta.wa = WideVec{moved.wa.x - t.wa.x, moved.wa.y - t.wa.y, moved.wa.z - t.wa.z};
+  delta.vb = WideVec{moved.vb.x - t.vb.x, moved.vb.y - t.vb.y, moved.vb.z - t.vb.z};
+  delta.wb = WideVec{moved.wb.x - t.wb.x, moved.wb.y - t.wb.y, moved.wb.z - t.wb.z};
+  Lanes curve = zero;
+  for (int i = 0; i < k; ++i)
+    curve += d[i][0] * relative(w[i], delta, 1, w[i].t1) +
+             d[i][1] * relative(w[i], delta, 2, w[i].t2);
+  const Lanes s = pick(curve > -along, -along / curve, splat(1.0));
+  auto take = [&](WideVec& to, const WideVec& by) __attribute__((always_inline)) {
+    to.x = pick(go, to.x + s * by.x, to.x);
+    to.y = pick(go, to.y + s * by.y, to.y);
+    to.z = pick(go, to.z + s * by.z, to.z);
+  };
+  take(t.va, delta.va);
+  take(t.wa, delta.wa);
+  take(t.vb, delta.vb);
+  take(t.wb, delta.wb);
+  for (int i = 0; i < k; ++i) {
+    const Lanes d_x = s * d[i][0], d_y = s * d[i][1];
+    w[i].tangent[0] = pick(go, w[i].tangent[0] + d_x, w[i].tangent[0]);
+    w[i].tangent[1] = pick(go, w[i].tangent[1] + d_y, w[i].tangent[1]);
+    change = maximum(change, pick(go, maximum(magnitude(d_x), magnitude(d_y)), zero));
+  }
+  return change;
 }
 
 // solve_normal() of a one-row manifold, every lane
@@ -907,7 +1055,11 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       live = ~search;
     }
   }
-  for (int i = 0; i < k; ++i) step = maximum(step, solve_friction(w[i], g, t, live));
+  if (k == 1) {
+    step = maximum(step, solve_friction(w[0], g, t, live));
+  } else {
+    step = maximum(step, solve_friction_block<k>(w, g, t, live));
+  }
   t.store(v, g);
   Lanes largest = splat(0.0), load = splat(0.0);
   for (int i = 0; i < k; ++i) {

@@ -631,8 +631,10 @@ void Detector::drop_buried_faces(ContactRows& out) {
     const Body& body = bodies_[mover];
     const Vec3 on_body = p + 0.5 * out.separation[r] * outward;
     const Vec3 then = body.q0 * (body.r1.transpose() * (on_body - body.p1)) + body.p0;
-    const bool behind = (then - witness).dot(outward) < -kDeepFraction * shapes_[mover].thickness;
-    buried_sides_.push_back({moving, a_static ? a : b, r, witness, outward, 0.0, behind});
+    const double ahead = (then - witness).dot(outward);
+    const bool behind = ahead < -kDeepFraction * shapes_[mover].thickness;
+    buried_sides_.push_back({moving, a_static ? a : b, r, witness, then - ahead * outward,
+                             outward, 0.0, behind});
   }
   std::stable_sort(buried_sides_.begin(), buried_sides_.end(),
                    [](const StaticSide& x, const StaticSide& y) { return x.moving < y.moving; });
@@ -656,7 +658,12 @@ void Detector::drop_buried_faces(ContactRows& out) {
         // a face the body was behind at its previous pose (beyond the depth EPA is trusted
         // to): reached only through the other shape (a ball driven through a corner of two
         // walls that end together, out to their ends' faces)
-        row.depth = std::max(row.depth, row.behind ? kInf : buried_depth(other.shape, row.witness));
+        // a face point buried now and where the body's point was at its previous pose: the
+        // row of a body that touched a face and is now out past the corner into a third
+        // wall (its point now, projected on the face, inside that wall) is not buried
+        row.depth = std::max(row.depth, row.behind ? kInf
+                                                   : std::min(buried_depth(other.shape, row.witness),
+                                                              buried_depth(other.shape, row.then)));
       }
       if (row.depth < buried_sides_[least].depth) least = i;
     }

@@ -169,7 +169,8 @@ class Detector {
   void merge_mesh_faces(ContactRows& out);
   // Internal faces of overlapping static shapes (a box's end buried in the wall it meets):
   // a moving body's row with a static shape whose witness point on that shape lies inside
-  // another static shape it also has a row with, the two rows' normals opposed (they would
+  // another static shape it also has a row with (and so does the body's point at its
+  // previous pose, on the face's plane), the two rows' normals opposed (they would
   // push the body against each other), is dropped; the other shape's row stands for the
   // corner. So is such a row whose point on the body lay behind its face at the body's
   // previous pose (deeper than kDeepFraction of the body's thickness): the body reached that
@@ -249,7 +250,9 @@ class Detector {
     std::int64_t moving;
     int shape;
     std::size_t row;
-    Vec3 witness, outward;   // m, the row's point on the static shape; unit, out of it
+    Vec3 witness, then;      // m, the row's point on the static shape, now and where the
+                             // body's point was at its previous pose (on the face's plane)
+    Vec3 outward;            // unit, out of the static shape
     double depth;            // m, how deep `witness` lies in an opposed row's shape
     bool behind;             // the body's point was behind the face at its previous pose
   };

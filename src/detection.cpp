@@ -624,8 +624,17 @@ void Detector::drop_buried_faces(ContactRows& out) {
     const Vec3 n(out.normal[3 * r], out.normal[3 * r + 1], out.normal[3 * r + 2]);
     const Vec3 p(out.point[3 * r], out.point[3 * r + 1], out.point[3 * r + 2]);
     const Vec3 outward = a_static ? n : Vec3(-n);
-    buried_sides_.push_back({moving, a_static ? a : b, r,
-                             p - 0.5 * out.separation[r] * outward, outward, 0.0});
+    const Vec3 witness = p - 0.5 * out.separation[r] * outward;
+    // the row's point on the moving body, carried back to the body's previous pose: how
+    // far in front of the face's plane it was then (negative: behind it)
+    const int mover = a_static ? b : a;
+    const Body& body = bodies_[mover];
+    const Vec3 on_body = p + 0.5 * out.separation[r] * outward;
+    const Vec3 then = body.q0 * (body.r1.transpose() * (on_body - body.p1)) + body.p0;
+    const double ahead = (then - witness).dot(outward);
+    const bool behind = ahead < -kDeepFraction * shapes_[mover].thickness;
+    buried_sides_.push_back({moving, a_static ? a : b, r, witness, then - ahead * outward,
+                             outward, 0.0, behind});
   }
   std::stable_sort(buried_sides_.begin(), buried_sides_.end(),
                    [](const StaticSide& x, const StaticSide& y) { return x.moving < y.moving; });
@@ -646,7 +655,15 @@ void Detector::drop_buried_faces(ContactRows& out) {
             !(row.outward.dot(other.outward) < kOpposed)) {
           continue;
         }
-        row.depth = std::max(row.depth, buried_depth(other.shape, row.witness));
+        // a face the body was behind at its previous pose (beyond the depth EPA is trusted
+        // to): reached only through the other shape (a ball driven through a corner of two
+        // walls that end together, out to their ends' faces)
+        // a face point buried now and where the body's point was at its previous pose: the
+        // row of a body that touched a face and is now out past the corner into a third
+        // wall (its point now, projected on the face, inside that wall) is not buried
+        row.depth = std::max(row.depth, row.behind ? kInf
+                                                   : std::min(buried_depth(other.shape, row.witness),
+                                                              buried_depth(other.shape, row.then)));
       }
       if (row.depth < buried_sides_[least].depth) least = i;
     }
@@ -836,12 +853,12 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
     return;
   }
   if (near || (settings_.ccd && relative > distance)) {
-    classify(lane, a, b, distance, relative, speed, near, out);
+    classify(lane, a, b, distance, normal, relative, speed, near, out);
   }
 }
 
-void Detector::classify(Lane& lane, int a, int b, double distance_now, double relative,
-                        double speed, bool near, ContactRows& out) const {
+void Detector::classify(Lane& lane, int a, int b, double distance_now, const Vec3& normal_now,
+                        double relative, double speed, bool near, ContactRows& out) const {
   const coal::CollisionGeometry& ga = *shapes_[a].geometry;
   const coal::CollisionGeometry& gb = *shapes_[b].geometry;
   const Motion ma = motion(a), mb = motion(b);
@@ -856,17 +873,25 @@ void Detector::classify(Lane& lane, int a, int b, double distance_now, double re
         time_of_impact(lane, a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, true, out)) {
       return;
     }
-    // near at both ends but apart, moved farther than both gaps: it may have passed
-    // through (a thin body at a low rate)
-    const bool passed = distance_now >= 0.0 && relative > before + distance_now;
-    if (settings_.ccd && passed && !touched && tunnelled(lane, a, b, ma, mb, relative, out)) return;
-    // touching before and past each other now (a step of several periods after dropped
-    // inputs: the source integrated a resting body through its floor): the contact of the
-    // previous state, carried along with each body
-    if (settings_.ccd && passed && touched && !near) {
-      const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
-      deep_persistent(lane, a, b, deep, settings_.speculative_margin, out);
+    // moved farther than both gaps: it may have passed through (a thin body at a low rate)
+    const bool passed = relative > before + distance_now;
+    // near at both ends but apart
+    if (settings_.ccd && passed && !touched && distance_now >= 0.0 &&
+        tunnelled(lane, a, b, ma, mb, relative, out)) {
       return;
+    }
+    // touching before and past each other now (a step of several periods after dropped
+    // inputs: the source integrated a resting body through its floor; a ball driven at a
+    // wall it touches, farther in a step than half the wall is thick, whose contact now
+    // faces out of the wall's far side or its end): the contact of the previous state,
+    // carried along with each body
+    if (settings_.ccd && passed && touched) {
+      const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
+      if (!near) {
+        deep_persistent(lane, a, b, deep, settings_.speculative_margin, out);
+        return;
+      }
+      if (deep_persistent(lane, a, b, deep, settings_.speculative_margin, out, &normal_now)) return;
     }
     if (near) current_manifold(lane, a, b, out);  // in contact at both ends
     return;
@@ -993,10 +1018,13 @@ void Detector::speculate(Lane& lane, int a, int b, const Vec3& normal, const Poi
       // already, or one beside the partner's face (the patch holds the face's points)
       const bool known = skip_known && std::fabs(height - gap) < kPatchTolerance;
       // on the partner: its projection within the partner's box (grown by the margin); a
-      // plane has no box (it is unbounded: every corner is over it)
+      // plane has no box (it is unbounded: every corner is over it), and a sphere's point
+      // carried from the previous state touched it there (a ball driven through a corner
+      // of two walls is beside both faces at the end of the step)
       const Vec3 local = r_partner.transpose() * (q + height * towards - p_partner);
       const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
       const bool over = shapes_[partner].kind == ShapeKind::plane ||
+                        (!skip_known && shape.single_point) ||
                         ((local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
                          (local.array() <= (shapes_[partner].local_hi + grow).array()).all());
       if (!known && over) lane.heights.emplace_back(height, static_cast<int>(k));
@@ -1056,7 +1084,7 @@ void Detector::current_manifold(Lane& lane, int a, int b, ContactRows& out) cons
 }
 
 bool Detector::deep_persistent(Lane& lane, int a, int b, double deep, double reach,
-                               ContactRows& out) const {
+                               ContactRows& out, const Vec3* facing) const {
   const Motion ma = motion(a), mb = motion(b);
   double distance = 0.0;
   Vec3 normal;
@@ -1073,6 +1101,10 @@ bool Detector::deep_persistent(Lane& lane, int a, int b, double deep, double rea
   const Mat3 turn_a = A.r1 * ma.rotation_at(0.0).transpose();
   const Mat3 turn_b = B.r1 * mb.rotation_at(0.0).transpose();
   const Vec3 unit = (turn_a * normal).normalized();
+  // past each other: the contact now faces more than 60 deg away from the one they touched
+  // at (a ball driven into a wall's inner face out of its far face or its end)
+  constexpr double kTurned = 0.5;   // cosine
+  if (facing != nullptr && !(unit.dot(facing->normalized()) < kTurned)) return false;
   const PointPair plane{turn_a * (witness.on_a - ma.position_at(0.0)) + A.p1,
                         turn_b * (witness.on_b - mb.position_at(0.0)) + B.p1};
   const std::size_t first = out.size();

@@ -169,9 +169,13 @@ class Detector {
   void merge_mesh_faces(ContactRows& out);
   // Internal faces of overlapping static shapes (a box's end buried in the wall it meets):
   // a moving body's row with a static shape whose witness point on that shape lies inside
-  // another static shape it also has a row with, the two rows' normals opposed (they would
+  // another static shape it also has a row with (and so does the body's point at its
+  // previous pose, on the face's plane), the two rows' normals opposed (they would
   // push the body against each other), is dropped; the other shape's row stands for the
-  // corner. When every such row of the body is buried, the least buried one stays.
+  // corner. So is such a row whose point on the body lay behind its face at the body's
+  // previous pose (deeper than kDeepFraction of the body's thickness): the body reached that
+  // face only through the other shape. When every such row of the body is buried, the
+  // least buried one stays.
   void drop_buried_faces(ContactRows& out);
   // The shape of piece `piece` of body `body`; how deep (m) the point lies inside static
   // shape k (negative: outside; boxes and planes, -inf for other kinds)
@@ -194,8 +198,8 @@ class Detector {
   // writes only `lane` and `out` (so two lanes run at once).
   bool reuse(Lane& lane, int a, int b, ContactRows& out) const;
   void narrow_phase(Lane& lane, int a, int b, ContactRows& out) const;
-  void classify(Lane& lane, int a, int b, double distance_now, double relative, double speed,
-                bool near, ContactRows& out) const;
+  void classify(Lane& lane, int a, int b, double distance_now, const Vec3& normal_now,
+                double relative, double speed, bool near, ContactRows& out) const;
   bool time_of_impact(Lane& lane, int a, int b, const Motion& ma, const Motion& mb, double s0,
                       double s1, ContactKind kind, double cap, bool only_if_fast,
                       ContactRows& out) const;
@@ -207,8 +211,11 @@ class Detector {
   void speculate(Lane& lane, int a, int b, const Vec3& normal, const PointPair* plane,
                  bool skip_known, double toi, ContactKind kind, double reach, const Mat3& ra,
                  const Vec3& pa, const Mat3& rb, const Vec3& pb, ContactRows& out) const;
+  // The previous state's contact carried along with each body, when that state is a
+  // shallow touch; with `facing` (the current contact's normal), only when the carried
+  // normal turned more than 60 deg from it (the bodies passed each other). False: no rows.
   bool deep_persistent(Lane& lane, int a, int b, double deep, double reach,
-                       ContactRows& out) const;
+                       ContactRows& out, const Vec3* facing = nullptr) const;
   void emit(Lane& lane, int a, int b, const Vec3& normal, double toi, ContactKind kind,
             double cap, const Mat3& ra, const Vec3& pa, const Mat3& rb, const Vec3& pb,
             ContactRows& out) const;
@@ -243,8 +250,11 @@ class Detector {
     std::int64_t moving;
     int shape;
     std::size_t row;
-    Vec3 witness, outward;   // m, the row's point on the static shape; unit, out of it
+    Vec3 witness, then;      // m, the row's point on the static shape, now and where the
+                             // body's point was at its previous pose (on the face's plane)
+    Vec3 outward;            // unit, out of the static shape
     double depth;            // m, how deep `witness` lies in an opposed row's shape
+    bool behind;             // the body's point was behind the face at its previous pose
   };
   std::vector<StaticSide> buried_sides_;
   DetectionSettings settings_;

@@ -21,8 +21,19 @@ Internal faces of overlapping static shapes (boxes and half-spaces; a wall's end
 the wall it meets, as bins are built): a moving body's row with a static shape whose point
 on that shape lies inside another static shape the body also has a row with, the two
 normals opposed (cosine below -0.5: they would push the body against each other), is
-dropped, so the other shape's row alone stops the body in the corner; when every such row
-of a body is buried, the least buried one stays (``Detector::drop_buried_faces``).
+dropped (when the body's point at its previous pose, on that face's plane, lies inside the
+other shape too: a ball carried out past a corner beside a third wall keeps the face it
+touched), so the other shape's row alone stops the body in the corner; so is such a row
+whose point on the body lay behind that face at the body's previous pose (it reached the
+face only through the other shape: a ball driven out past a corner where two walls end
+together, to their end faces); when every such row of a body is buried, the least buried
+one stays (``Detector::drop_buried_faces``).
+
+A pair touching at the previous state that the step carried past each other keeps the
+contact of the previous state, carried along with each body: when they are apart by more
+than the margin now, or when the contact now faces more than 60 deg away from the one they
+touched at (a ball driven into a wall it touches, farther in a step than half the wall is
+thick, out of its far face or its end: it bounces off the face it touched).
 
 A step budget (``max_pairs``, ``max_contacts``, as MuJoCo's nconmax) bounds each step's
 work and memory: beyond it the pairs whose bounding spheres overlap deepest, then the

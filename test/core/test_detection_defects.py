@@ -147,3 +147,56 @@ def test_a_ball_driven_into_a_corner_of_overlapping_walls_is_only_stopped(
     print('largest impulse of a step', worst, 'N s; fastest', fastest, 'm/s')
     assert worst <= 1.5 * speed * float(np.sum(np.abs(d))) * 1.01
     assert fastest <= speed * 1.01
+
+
+WALL = 0.02   # m, thick
+
+
+def touching_ball_driven_in(walls, start, velocity, rate=30.0):
+    """A 1 kg ball of 5 mm (e 1) touching a wall (0.05 mm into its face), driven into it at
+    ``velocity``, no gravity: its state after each of three steps and the energy ratio."""
+    bodies = [box(name, size, 1.0, e=1.0, static=True) for name, size, _ in walls]
+    bodies.append(sphere('ball', 0.005, 1.0, e=1.0))
+    zero = [0.0] * 3
+    sim = Simulation(bodies, states([at for _, _, at in walls] + [start],
+                                    [zero] * len(walls) + [velocity]), rate,
+                     gravity=np.zeros(3))
+    energy = sim.energy()
+    for _ in range(3):
+        sim.step()
+    return sim.state.position[-1], sim.state.linear[-1], sim.energy() / energy
+
+
+def test_a_ball_driven_through_more_than_half_a_wall_bounces_off_the_face_it_touches() -> None:
+    """A ball touching a 20 mm wall, driven into it at 1.2 m/s at 30 Hz (40 mm a step: its
+    end pose is past the wall's middle, its contact there faces out of the far face), as a
+    ball struck into a wall within a step waits there for the next step: it bounces off the
+    face it touched, its energy kept. (Was: the far face's contact, then the hold-back,
+    stopped it dead: all its energy lost.)"""
+    r = 0.005
+    position, velocity, energy = touching_ball_driven_in(
+        [('wall', (0.2, WALL, 0.2), [0.0, -WALL / 2, 0.0])], [0.0, r - 5e-5, 0.0],
+        [0.3, -1.2, 0.0])
+    print('position', position, 'velocity', velocity, 'energy ratio', energy)
+    assert np.allclose(velocity, [0.3, 1.2, 0.0], atol=1e-6)
+    assert abs(energy - 1.0) < 1e-6
+    assert position[1] > r
+
+
+def test_a_ball_driven_through_a_corner_of_two_walls_ending_together_bounces_off_both() -> None:
+    """A floor and a side wall (20 mm thick) meet in an L whose outer ends are flush (as a
+    bin's walls); a ball touching the floor 20 mm from the side wall is driven at
+    (2.4, -1.5) m/s at 30 Hz: its end pose is out beyond both walls, where the side wall's
+    end face is exposed. It bounces off the floor at once and off the side wall within the
+    step, and stays in the corner's inside, its energy kept. (Was: the floor's contact
+    was dropped as buried in the side wall, the end face's row as well: the ball left
+    through the floor.)"""
+    r, side = 0.005, 0.05
+    position, velocity, energy = touching_ball_driven_in(
+        [('floor', (side + WALL, WALL, 0.2), [(side + WALL) / 2 - WALL, -WALL / 2, 0.0]),
+         ('side', (WALL, side + WALL, 0.2), [side + WALL / 2, (side + WALL) / 2 - WALL, 0.0])],
+        [side - 0.02, r - 5e-5, 0.0], [2.4, -1.5, 0.0])
+    print('position', position, 'velocity', velocity, 'energy ratio', energy)
+    assert np.allclose(velocity, [-2.4, 1.5, 0.0], atol=1e-6)
+    assert abs(energy - 1.0) < 1e-6
+    assert position[1] > r and position[0] < side - r

@@ -9,7 +9,8 @@ behind restarted cold, its bodies moved again (up to 0.0295 m/s) and it was stil
 or 5.7 mJ (1 ns) of kinetic and potential energy in the step after, and ended up to
 1.09 mm off the path it takes without it. A second input behind the last resolved stamp,
 later than the refused one, is a new run of the source (a simulator restarted, a bag
-played again): it starts fresh.
+played again): it starts fresh. A body behind in part of a batch is refused the same way,
+the batch answered as without it.
 """
 
 from __future__ import annotations
@@ -123,3 +124,51 @@ def test_a_source_restarted_behind_starts_fresh_from_its_second_input():
     third = restarted.resolve(10**9 + 20 * MS, InputBatch(names, _values(second.states),
                                                           'world', 'world'))
     assert not third.resets and not third.rejected and third.dt == pytest.approx(0.01)
+
+
+@pytest.mark.parametrize('ahead_ns', [5 * MS, 1])
+def test_a_body_behind_in_part_of_a_batch_is_refused_as_if_absent_and_the_pile_sleeps_on(
+        ahead_ns):
+    """The 100-body pile asleep at 30 Hz; one body's input comes alone, stamped
+    ``ahead_ns`` after the step's stamp, then the whole batch of that step: that body is
+    behind in it, the 99 others are not. It is refused there (``time_backwards``, not
+    answered) and the batch is answered bit for bit as the batch without it, then and on
+    every later step; the pile stays asleep, every answer as without the glitch. On
+    0cd02dd the body's input behind was used as a fresh start: the pile woke (up to
+    0.164 m/s) and was still awake 1 s later."""
+    bodies, state = make_pile(100, seed=1, kind='mixed')
+    moving = np.flatnonzero([not b.static for b in bodies])
+    names = [bodies[i].name for i in moving]
+    clean, glitched, absent = (Resolver(bodies, SolverSettings(sleeping=True))
+                               for _ in range(3))
+    answer = BodyStates(state.position[moving], state.orientation[moving],
+                        state.linear[moving], state.angular[moving])
+    stamp, period, glitch_at, j = 10**12, int(round(1e9 / 30.0)), 120, 5
+    others = [k for k in range(len(names)) if k != j]
+    fastest = 0.0
+    for k in range(glitch_at + 31):
+        stamp += period
+        values = _values(integrate(answer, np.ones(len(names), bool), 1.0 / 30.0))
+        batch = InputBatch(names, values, 'world', 'world')
+        expected = clean.resolve(stamp, batch)
+        if k == glitch_at:
+            assert expected.sleeping.all()   # asleep before the glitch (settles in ~3.7 s)
+            alone = InputBatch([names[j]], values[j:j + 1], 'world', 'world')
+            for run in (glitched, absent):
+                run.resolve(stamp + ahead_ns, alone)
+            got = glitched.resolve(stamp, batch)
+            without = absent.resolve(stamp, InputBatch([names[k] for k in others],
+                                                       values[others], 'world', 'world'))
+            assert [(r.body, r.reason) for r in got.rejected] == [(names[j], 'time_backwards')]
+            assert got.names == without.names and names[j] not in got.names
+        else:
+            got, without = (run.resolve(stamp, batch) for run in (glitched, absent))
+        np.testing.assert_array_equal(got.values, without.values)
+        np.testing.assert_array_equal(got.sleeping, without.sleeping)
+        if k > glitch_at:
+            fastest = max(fastest, float(np.linalg.norm(got.states.linear, axis=1).max()))
+            np.testing.assert_array_equal(got.values, expected.values)
+            assert got.sleeping.all()
+        answer = expected.states
+    print(f'fastest body after the glitch {fastest:.3g} m/s')
+    assert fastest == 0.0

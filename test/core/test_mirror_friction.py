@@ -1,4 +1,4 @@
-"""Issue 14's law: mirror-symmetric hits give mirror-symmetric impulses, with friction.
+"""The law: mirror-symmetric hits give mirror-symmetric impulses, with friction.
 
 A box strikes (or rests on) another through a manifold of two points mirror images of each
 other through the plane y = 0, which holds both centres of mass, the normal, every velocity

@@ -65,25 +65,33 @@ inline void apply(const ContactRow& r, double* v, int k, const Vec3& d, double s
 
 inline Vec3 direction(const ContactRow& r, int k) { return k == 0 ? r.n : (k == 1 ? r.t1 : r.t2); }
 
-// Friction of a row after its normal update: oppose the slip (the classic tangent,
-// v_t / |v_t|), as much as stops it along that direction, within mu * normal. Returns
-// the largest impulse change (N s).
+// The friction impulse of row r (N s, along t1 and t2) that opposes its slip (x, y) (m/s;
+// the classic tangent, v_t / |v_t|), as much as stops it along that direction, within
+// mu * normal.
+inline void friction_target(const ContactRow& r, double x, double y, double& tx, double& ty) {
+  const double speed2 = x * x + y * y;
+  const double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
+  const double slip = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
+  tx = r.tangent[0] - x * slip;
+  ty = r.tangent[1] - y * slip;
+  const double size = norm2(tx, ty);
+  const double limit = r.mu * r.normal;
+  if (size > limit) {
+    const double scale = size > 0.0 ? limit / size : 0.0;
+    tx *= scale;
+    ty *= scale;
+  }
+}
+
+// Friction of a row after its normal update: friction_target() from the current twists.
+// Returns the largest impulse change (N s).
 double solve_friction(ContactRow& r, Twists& v) {
   // no load and no friction held: the cone is a point, nothing changes (a speculative row
   // that did not activate; in a settled pile at 30 Hz most rows)
   if (r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0) return 0.0;
   double x = relative(r, v, 1, r.t1), y = relative(r, v, 2, r.t2);
-  double speed2 = x * x + y * y;
-  double stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
-  double slip = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
-  double tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
-  double size = norm2(tx, ty);
-  double limit = r.mu * r.normal;
-  if (size > limit) {
-    double scale = size > 0.0 ? limit / size : 0.0;
-    tx *= scale;
-    ty *= scale;
-  }
+  double tx, ty;
+  friction_target(r, x, y, tx, ty);
   double d_x = tx - r.tangent[0], d_y = ty - r.tangent[1];
   r.tangent[0] = tx;
   r.tangent[1] = ty;
@@ -125,17 +133,8 @@ double solve_friction_block(ContactRow* r, int k, Twists& v) {
     d[i][0] = d[i][1] = 0.0;
     // no load and no friction held: the cone is a point (solve_friction)
     if (c.normal == 0.0 && c.tangent[0] == 0.0 && c.tangent[1] == 0.0) continue;
-    const double speed2 = x * x + y * y;
-    const double stiffness = c.kt[0] * x * x + c.kt[1] * x * y + c.kt[2] * y * y;
-    const double step = speed2 / std::max(stiffness, kTiny * speed2 + 1e-300);
-    double tx = c.tangent[0] - x * step, ty = c.tangent[1] - y * step;
-    const double size = norm2(tx, ty);
-    const double limit = c.mu * c.normal;
-    if (size > limit) {
-      const double scale = size > 0.0 ? limit / size : 0.0;
-      tx *= scale;
-      ty *= scale;
-    }
+    double tx, ty;
+    friction_target(c, x, y, tx, ty);
     d[i][0] = tx - c.tangent[0];
     d[i][1] = ty - c.tangent[1];
     along += d[i][0] * x + d[i][1] * y;
@@ -675,22 +674,29 @@ WIDE void apply(const WideRow& r, const WideGroup& g, WideTwists& t, int k, cons
   t.wb.z = pick(on, t.wb.z + s * r.dw_b[k][2], t.wb.z);
 }
 
-// solve_friction() in the lanes of `live`; returns the largest impulse change per lane
-// (0 elsewhere)
-WIDE Lanes solve_friction(WideRow& r, const WideGroup& g, WideTwists& t, Mask live) {
-  const Mask held = (r.normal != 0.0) | (r.tangent[0] != 0.0) | (r.tangent[1] != 0.0);
-  live &= held;
-  const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
+// friction_target() in every lane
+WIDE void friction_target(const WideRow& r, Lanes x, Lanes y, Lanes& tx, Lanes& ty) {
   const Lanes speed2 = x * x + y * y;
   const Lanes stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
   const Lanes slip = speed2 / maximum(stiffness, splat(kTiny) * speed2 + 1e-300);
-  Lanes tx = r.tangent[0] - x * slip, ty = r.tangent[1] - y * slip;
+  tx = r.tangent[0] - x * slip;
+  ty = r.tangent[1] - y * slip;
   const Lanes size = root(tx * tx + ty * ty);
   const Lanes limit = r.mu * r.normal;
   const Lanes scale = pick(size > 0.0, limit / size, splat(0.0));
   const Mask over = size > limit;
   tx = pick(over, tx * scale, tx);
   ty = pick(over, ty * scale, ty);
+}
+
+// solve_friction() in the lanes of `live`; returns the largest impulse change per lane
+// (0 elsewhere)
+WIDE Lanes solve_friction(WideRow& r, const WideGroup& g, WideTwists& t, Mask live) {
+  const Mask held = (r.normal != 0.0) | (r.tangent[0] != 0.0) | (r.tangent[1] != 0.0);
+  live &= held;
+  const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
+  Lanes tx, ty;
+  friction_target(r, x, y, tx, ty);
   const Lanes zero = splat(0.0);
   const Lanes d_x = pick(live, tx - r.tangent[0], zero), d_y = pick(live, ty - r.tangent[1], zero);
   r.tangent[0] = pick(live, tx, r.tangent[0]);
@@ -728,16 +734,8 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
     WideRow& r = w[i];
     const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
     const Mask on = live & ((r.normal != 0.0) | (r.tangent[0] != 0.0) | (r.tangent[1] != 0.0));
-    const Lanes speed2 = x * x + y * y;
-    const Lanes stiffness = r.kt[0] * x * x + r.kt[1] * x * y + r.kt[2] * y * y;
-    const Lanes step = speed2 / maximum(stiffness, splat(kTiny) * speed2 + 1e-300);
-    Lanes tx = r.tangent[0] - x * step, ty = r.tangent[1] - y * step;
-    const Lanes size = root(tx * tx + ty * ty);
-    const Lanes limit = r.mu * r.normal;
-    const Lanes scale = pick(size > 0.0, limit / size, zero);
-    const Mask over = size > limit;
-    tx = pick(over, tx * scale, tx);
-    ty = pick(over, ty * scale, ty);
+    Lanes tx, ty;
+    friction_target(r, x, y, tx, ty);
     d[i][0] = pick(on, tx - r.tangent[0], zero);
     d[i][1] = pick(on, ty - r.tangent[1], zero);
     along = pick(on, along + (d[i][0] * x + d[i][1] * y), along);

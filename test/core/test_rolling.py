@@ -281,16 +281,24 @@ def test_a_ball_on_a_fixed_ball_rolls_off_as_physics_says(friction, rate):
     start = 2.0 * r * np.array([-math.sin(theta0), 0.0, math.cos(theta0)])
     sim = Simulation(bodies, states([[0.0, 0.0, 0.0], start], np.zeros((2, 3))), rate)
     expected = leaving_time(2.0 * r, theta0, friction, 2.0 / 3.0 * friction, gap)
-    deepest, off = 0.0, 0.0
-    while off < gap and sim.time < 2.0 * expected:
-        sim.step()
-        off = float(np.linalg.norm(sim.state.position[1])) - 2.0 * r
-        deepest = max(deepest, -off)
+    off, deepest = roll_off(sim, r, gap, expected)
     print(f'friction {friction} at {rate} Hz: {gap * 1e3} mm off at {sim.time:.4f} s '
           f'(physics {expected:.4f} s), deepest {deepest * 1e3:.4f} mm')
     assert off >= gap
     assert abs(sim.time - expected) <= 2.0 / rate
     assert deepest <= SolverSettings().linear_slop
+
+
+def roll_off(sim, r, gap, expected):
+    """Steps the ball (body 1) on the fixed ball of radius ``r`` at the origin until it is
+    ``gap`` off it or twice the ``expected`` time has passed: how far off it ends and the
+    deepest it went into the fixed ball (m)."""
+    deepest, off = 0.0, 0.0
+    while off < gap and sim.time < 2.0 * expected:
+        sim.step()
+        off = float(np.linalg.norm(sim.state.position[1])) - 2.0 * r
+        deepest = max(deepest, -off)
+    return off, deepest
 
 
 @pytest.mark.parametrize('rate', [30.0, 60.0, 120.0, 240.0])
@@ -311,11 +319,7 @@ def test_a_ball_rolled_over_a_fixed_ball_leaves_on_the_far_side_as_physics_says(
     sim = Simulation(bodies, states([[0.0, 0.0, 0.0], start], [[0, 0, 0], along],
                                     [[0, 0, 0], [0.0, v0 / r, 0.0]]), rate)
     expected = leaving_time(2.0 * r, theta0, 0.6, 0.4, gap, v0 / (2.0 * r))
-    deepest, off = 0.0, 0.0
-    while off < gap and sim.time < 2.0 * expected:
-        sim.step()
-        off = float(np.linalg.norm(sim.state.position[1])) - 2.0 * r
-        deepest = max(deepest, -off)
+    off, deepest = roll_off(sim, r, gap, expected)
     print(f'at {rate} Hz: {gap * 1e3} mm off at {sim.time:.4f} s at x '
           f'{sim.state.position[1, 0]:.3f} m (physics {expected:.4f} s), deepest '
           f'{deepest * 1e3:.4f} mm')

@@ -179,6 +179,26 @@ def answer_to_a_stop(sim, last, with_gravity):
     return out, out.position[1] - last.position[1]
 
 
+def moving_on_a_floor(shape, rate, v0, spin, steps):
+    """The ball or box ``shape`` (body 1) started on the floor at ``v0`` m/s along x,
+    spinning at ``spin`` rad/s about y, after ``steps`` steps at ``rate``: the simulation
+    and its last answered state."""
+    initial = states([[0, 0, -0.1], [0, 0, R]], [[0, 0, 0], [v0, 0, 0]],
+                     [[0, 0, 0], [0, spin, 0]])
+    sim = Simulation([floor(), shape], initial, rate)
+    for _ in range(steps):
+        sim.step()
+    return sim, sim.state.copy()
+
+
+def assert_answered_at_rest_where_it_stands(out, last, linear=1e-6, angular=1e-6):
+    """Body 1 answered at its ``last`` pose (within 0.1 mm) with a twist under ``linear``
+    m/s and ``angular`` rad/s."""
+    assert np.linalg.norm(out.linear[1]) < linear
+    assert np.linalg.norm(out.angular[1]) < angular
+    np.testing.assert_allclose(out.position[1], last.position[1], atol=1e-4)
+
+
 @pytest.mark.parametrize('rate', [30.0, 100.0])
 @pytest.mark.parametrize('body', ['rolling ball', 'sliding box'])
 def test_a_body_its_source_stops_where_it_stands_is_answered_there(body, rate):
@@ -191,19 +211,12 @@ def test_a_body_its_source_stops_where_it_stands_is_answered_there(body, rate):
     v0 = 1.0
     spin = v0 / R if body == 'rolling ball' else 0.0
     shape = ball() if body == 'rolling ball' else slider()
-    initial = states([[0, 0, -0.1], [0, 0, R]], [[0, 0, 0], [v0, 0, 0]],
-                     [[0, 0, 0], [0, spin, 0]])
-    sim = Simulation([floor(), shape], initial, rate)
-    for _ in range(3):
-        sim.step()
-    last = sim.state.copy()
+    sim, last = moving_on_a_floor(shape, rate, v0, spin, steps=3)
     assert last.linear[1, 0] > 0.3                       # m/s: still moving along x
     out, moved = answer_to_a_stop(sim, last, with_gravity=False)
     print(f'{body} at {rate} Hz: moving at {last.linear[1]} m/s, held: answered '
           f'{moved * 1e3} mm away at {out.linear[1]} m/s')
-    assert np.linalg.norm(out.linear[1]) < 1e-6
-    assert np.linalg.norm(out.angular[1]) < 1e-6
-    np.testing.assert_allclose(out.position[1], last.position[1], atol=1e-4)
+    assert_answered_at_rest_where_it_stands(out, last)
 
 
 @pytest.mark.parametrize('rate', [30.0, 60.0])
@@ -337,19 +350,12 @@ def test_a_ball_stopped_with_a_step_of_gravity_is_answered_where_it_stands(rate)
     rest. On 7ed1f81 (and on ea4f33e) the whole change was spread: the ball was answered
     13.3 mm (30 Hz) / 3.3 mm (100 Hz) further along with zero twist."""
     v0 = 1.0
-    initial = states([[0, 0, -0.1], [0, 0, R]], [[0, 0, 0], [v0, 0, 0]],
-                     [[0, 0, 0], [0, v0 / R, 0]])
-    sim = Simulation([floor(), ball()], initial, rate)
-    for _ in range(3):
-        sim.step()
-    last = sim.state.copy()
+    sim, last = moving_on_a_floor(ball(), rate, v0, v0 / R, steps=3)
     assert last.linear[1, 0] > 0.3                       # m/s: still rolling along x
     out, moved = answer_to_a_stop(sim, last, with_gravity=True)
     print(f'at {rate} Hz: rolling at {last.linear[1]} m/s, stopped with gravity: answered '
           f'{moved * 1e3} mm away at {out.linear[1]} m/s {out.angular[1]} rad/s')
-    assert np.linalg.norm(out.linear[1]) < 1e-6
-    assert np.linalg.norm(out.angular[1]) < 1e-6
-    np.testing.assert_allclose(out.position[1], last.position[1], atol=1e-4)
+    assert_answered_at_rest_where_it_stands(out, last)
 
 
 def test_a_slow_box_stopped_with_a_step_of_gravity_is_answered_where_it_stands():
@@ -358,16 +364,9 @@ def test_a_slow_box_stopped_with_a_step_of_gravity_is_answered_where_it_stands()
     next input stops it at its last pose with that step of gravity. The answer is that
     pose at rest. On 7ed1f81 (and ea4f33e) it was answered 1.9 mm further along, sliding
     back at 0.031 m/s."""
-    rate = 30.0
-    initial = states([[0, 0, -0.1], [0, 0, R]], [[0, 0, 0], [0.3, 0, 0]],
-                     [[0, 0, 0], [0, 0, 0]])
-    sim = Simulation([floor(), slider(0.05)], initial, rate)
-    sim.step()
-    last = sim.state.copy()
+    sim, last = moving_on_a_floor(slider(0.05), 30.0, 0.3, 0.0, steps=1)
     assert 0.2 < last.linear[1, 0] < G * sim.dt          # m/s: sliding, slower than g dt
     out, moved = answer_to_a_stop(sim, last, with_gravity=True)
     print(f'sliding at {last.linear[1]} m/s, stopped with gravity: answered '
           f'{moved * 1e3} mm away at {out.linear[1]} m/s {out.angular[1]} rad/s')
-    assert np.linalg.norm(out.linear[1]) < 1e-4
-    assert np.linalg.norm(out.angular[1]) < 1e-3
-    np.testing.assert_allclose(out.position[1], last.position[1], atol=1e-4)
+    assert_answered_at_rest_where_it_stands(out, last, linear=1e-4, angular=1e-3)

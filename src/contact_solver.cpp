@@ -1464,7 +1464,8 @@ static bool hold_lower(ContactRow& r, bool upper_b) {
 }
 
 void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
-                std::vector<int32_t>& order, std::vector<ContactRow>& scratch, double ratio) {
+                std::vector<int32_t>& order, std::vector<ContactRow>& scratch,
+                std::vector<Manifold>& blocks, std::vector<uint8_t>& holding, double ratio) {
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
     const ContactRow& row = rows[r];
@@ -1495,11 +1496,37 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
     r.contact = index;               // (the row it stands for, while it is a copy)
     scratch.push_back(r);
   }
+  // a manifold's copies on an immovable body (consecutive: the sort is stable) are one
+  // block, solved as the sweeps solve a manifold, whatever the order of its points (a
+  // mirror-symmetric hit on a wall gets mirror-symmetric impulses); a row whose lower
+  // body is held, and the rows under a body that holds another, stay one by one (a
+  // manifold's block friction in two sweeps let a 1000 kg box slide 20 mm on a 1 kg one
+  // at 240 Hz; the 1 kg box stopped exactly on the floor under it, the 1000 kg box
+  // tilted on it and rose by 1.6 um in the first two steps)
+  holding.assign(level.size(), 0);
+  auto held = [&](const ContactRow& r) {
+    return (level[r.b] > level[r.a] ? rows[r.contact].ma : rows[r.contact].mb) != 0.0;
+  };
+  for (const ContactRow& r : scratch)
+    if (held(r)) holding[level[r.b] > level[r.a] ? r.a : r.b] = 1;
+  blocks.clear();
+  for (size_t j = 0; j < scratch.size(); ++j) {
+    const ContactRow& r = scratch[j];
+    const bool alone = held(r) || holding[level[r.b] > level[r.a] ? r.b : r.a];
+    if (j == 0 || alone || r.manifold != scratch[j - 1].manifold || blocks.back().count == 4) {
+      blocks.emplace_back();
+      blocks.back().a = r.a;
+      blocks.back().b = r.b;
+      blocks.back().first = static_cast<int32_t>(j);
+    }
+    ++blocks.back().count;
+  }
+  for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
 }
 
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
-                     int sweeps) {
+                     const std::vector<Manifold>& blocks, int sweeps) {
   double* v = bodies.velocity;
   // the copies take the fields that change within a step from the rows they stand for
   for (ContactRow& r : scratch) {
@@ -1510,26 +1537,32 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
     r.tangent[0] = row.tangent[0];
     r.tangent[1] = row.tangent[1];
   }
-  for (size_t lo = 0; lo < scratch.size();) {
+  auto lower_of = [&](const Manifold& m) { return std::min(level[m.a], level[m.b]); };
+  Progress progress;
+  for (size_t lo = 0; lo < blocks.size();) {
     size_t hi = lo;
-    auto lower_of = [&](const ContactRow& r) { return std::min(level[r.a], level[r.b]); };
-    while (hi < scratch.size() && lower_of(scratch[hi]) == lower_of(scratch[lo])) ++hi;
+    while (hi < blocks.size() && lower_of(blocks[hi]) == lower_of(blocks[lo])) ++hi;
     for (int sweep = 0; sweep < sweeps; ++sweep) {
       for (size_t q = lo; q < hi; ++q) {
-        ContactRow& r = scratch[q];
+        const Manifold& m = blocks[q];
         // the lower body moving towards the upper one does not push it (no energy
         // gain): only the upper body's own approach is stopped
-        bool upper_b = level[r.b] > level[r.a];
-        const int32_t low = upper_b ? r.a : r.b;
-        double towards = (upper_b ? 1.0 : -1.0) *
-                         (dot(lin(v, low), r.n) +
-                          dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
-        double allowance = r.allowance;
-        r.allowance += std::max(towards, 0.0);
-        Twists t(v, r.a, r.b);
-        solve_row(r, t);
-        t.store(v, r.a, r.b);
-        r.allowance = allowance;
+        const bool upper_b = level[m.b] > level[m.a];
+        const int32_t low = upper_b ? m.a : m.b;
+        double allowance[4];
+        for (int i = 0; i < m.count; ++i) {
+          ContactRow& r = scratch[static_cast<size_t>(m.first + i)];
+          const double towards = (upper_b ? 1.0 : -1.0) *
+                                 (dot(lin(v, low), r.n) +
+                                  dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
+          allowance[i] = r.allowance;
+          r.allowance += std::max(towards, 0.0);
+        }
+        Twists t(v, m.a, m.b);
+        solve_manifold(scratch, m, t, nullptr, progress);
+        t.store(v, m.a, m.b);
+        for (int i = 0; i < m.count; ++i)
+          scratch[static_cast<size_t>(m.first + i)].allowance = allowance[i];
       }
     }
     lo = hi;

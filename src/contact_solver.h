@@ -325,16 +325,19 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
 // on a light one is held in the same step instead of after m_heavy / m_light sweeps,
 // while between equal masses the one-sided rows would disturb the converging sweeps (a
 // tower of equal cubes walks). The rows' accumulated normal impulses take up the change
-// (what the next step warm starts from). `scratch`: shock_rows' copies of those rows
+// (what the next step warm starts from); `blocks` (shock_rows) are solved as the sweeps
+// solve a manifold. `scratch`: shock_rows' copies of those rows
 // (their masses, bounce and the levels stay as prepared for the step: built once, each
 // call refreshes what changes, the allowances, friction coefficients and impulses).
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
-                     int sweeps);
-// propagate_shock's rows (`scratch`), in order, with their lower bodies held; `order` is
-// scratch space.
+                     const std::vector<Manifold>& blocks, int sweeps);
+// propagate_shock's rows (`scratch`), in order, with their lower bodies held, and its
+// blocks: a manifold's rows on an immovable body together, any other row alone; `order`
+// and `holding` are scratch space.
 void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
-                std::vector<int32_t>& order, std::vector<ContactRow>& scratch, double ratio);
+                std::vector<int32_t>& order, std::vector<ContactRow>& scratch,
+                std::vector<Manifold>& blocks, std::vector<uint8_t>& holding, double ratio);
 
 // Impacts as successive stages, before the resting contacts are solved. A stage takes
 // every row that approaches faster than `threshold` (and faster than its speculative

@@ -1061,7 +1061,8 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   moved_.assign(6 * n, 0.0);
   travel_.assign(6 * n, 0.0);
   total_.assign(3 * rows, 0.0);
-  shock_rows(rows_, level_, order32_, shock_rows_, p.shock_ratio);   // (for every substep)
+  shock_rows(rows_, level_, order32_, shock_rows_, shock_blocks_, holding_,
+             p.shock_ratio);   // (for every substep)
   int sweeps = 0;
   for (int s = 0; s < substeps; ++s) {
     if (s > 0) {
@@ -1076,7 +1077,8 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
         aim(ctx, moved_.data(), velocity_.data(), 0.5 * ctx.dt * share);
         bool stale = false;   // (shock propagation's copy of a turned row)
         for (const ContactRow& r : shock_rows_) stale = stale || turned_[r.contact];
-        if (stale) shock_rows(rows_, level_, order32_, shock_rows_, p.shock_ratio);
+        if (stale)
+          shock_rows(rows_, level_, order32_, shock_rows_, shock_blocks_, holding_, p.shock_ratio);
       }
       warm_start(rows_, ctx.solver);
     }
@@ -1090,7 +1092,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
       r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
     }
     sweeps += sweep(ctx, iterations);
-    propagate_shock(rows_, ctx.solver, level_, shock_rows_, p.shock_sweeps);
+    propagate_shock(rows_, ctx.solver, level_, shock_rows_, shock_blocks_, p.shock_sweeps);
     // judged after shock propagation: its rows, swept one by one from the sweeps'
     // impulses, can raise the energy the sweeps kept (a box on one point of a fixed
     // sphere: +2.6e-4)

@@ -151,9 +151,11 @@ def test_sleeping_answer_equals_the_solvers_for_a_resting_body_and_skips_detecti
                 np.testing.assert_array_equal(ours.states.position[1], previous.position[1])
                 np.testing.assert_array_equal(ours.states.orientation[1],
                                               previous.orientation[1])
+            # (the awake solver's resting answer keeps the manifold block's regularisation,
+            # 1e-8 of the step's change g dt: a few nm/s)
             for name in ('position', 'orientation', 'linear', 'angular'):
                 np.testing.assert_allclose(getattr(ours.states, name)[1],
-                                           getattr(theirs.states, name)[1], rtol=0, atol=1e-9)
+                                           getattr(theirs.states, name)[1], rtol=0, atol=1e-8)
             # its contacts are still reported (from the next step on: held, SLEEPING)
             assert ours.report.contacts.count == 4
             assert (ours.report.state == ContactState.SLEEPING).all() == (asleep_steps > 1)

@@ -851,11 +851,16 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
       fits &= x[i] >= -1e-12 * (1.0 + magnitude(x[i]));
     }
+    // take_block's changes of the normal impulses, per row: each lane's from the one answer
+    // that fits it (all-active, edge or face; the three take disjoint lanes), applied to the
+    // twists once, below, the same operations on each lane as one apply per answer (a lane
+    // whose change is 0 in an apply is left alone by it)
+    Lanes taken[4];
     const Mask take = fits & ~idle;
     for (int i = 0; i < k; ++i) {   // take_block
       const Lanes d = pick(take, maximum(x[i], splat(0.0)) - w[i].normal, splat(0.0));
       w[i].normal += d;
-      apply(w[i], g, t, 0, w[i].n, d);
+      taken[i] = d;
       step = maximum(step, magnitude(d));
     }
     Mask search = ~(fits | idle);
@@ -905,7 +910,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       for (int i = 0; i < 2; ++i) {   // take_block
         const Lanes d = pick(chosen, maximum(found[i], zero) - w[i].normal, zero);
         w[i].normal += d;
-        apply(w[i], g, t, 0, w[i].n, d);
+        taken[i] = pick(chosen, d, taken[i]);
         step = maximum(step, magnitude(d));
       }
       search &= ~chosen;
@@ -1032,12 +1037,13 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         for (int i = 0; i < k; ++i) {   // take_block
           const Lanes d = pick(ok, maximum(xs[i], zero) - w[i].normal, zero);
           w[i].normal += d;
-          apply(w[i], g, t, 0, w[i].n, d);
+          taken[i] = pick(ok, d, taken[i]);
           step = maximum(step, magnitude(d));
         }
         search &= ~ok;
       }
     }
+    for (int i = 0; i < k; ++i) apply(w[i], g, t, 0, w[i].n, taken[i]);
     if (any(search)) {
       for (int l = 0; l < kLanes; ++l) {
         if (!search[l]) continue;

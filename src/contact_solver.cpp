@@ -674,6 +674,30 @@ WIDE void apply(const WideRow& r, const WideGroup& g, WideTwists& t, int k, cons
   t.wb.z = pick(on, t.wb.z + s * r.dw_b[k][2], t.wb.z);
 }
 
+// apply() in every lane, lanes where s is 0 included: each adds or subtracts products
+// that are +-0 there, which leave a number unchanged but for the sign of a zero. For
+// twists whose change from the start is all that is read (solve_friction_block's `moved`,
+// read as moved - start) that is the same bits as apply(): along a lane, the sums take
+// the same values, so differ at most in the sign of a zero result, and a zero's
+// difference from its start is +0 whatever its sign and the start's (a start of +0 stays
+// +0 under sums of zeros and exact cancellations; -0 - -0 and +0 - -0 are both +0)
+WIDE void apply_all(const WideRow& r, const WideGroup& g, WideTwists& t, int k,
+                    const Lanes* d, Lanes s) {
+  const Lanes sa = s * g.ma, sb = s * g.mb;
+  t.va.x = t.va.x - sa * d[0];
+  t.va.y = t.va.y - sa * d[1];
+  t.va.z = t.va.z - sa * d[2];
+  t.wa.x = t.wa.x - s * r.dw_a[k][0];
+  t.wa.y = t.wa.y - s * r.dw_a[k][1];
+  t.wa.z = t.wa.z - s * r.dw_a[k][2];
+  t.vb.x = t.vb.x + sb * d[0];
+  t.vb.y = t.vb.y + sb * d[1];
+  t.vb.z = t.vb.z + sb * d[2];
+  t.wb.x = t.wb.x + s * r.dw_b[k][0];
+  t.wb.y = t.wb.y + s * r.dw_b[k][1];
+  t.wb.z = t.wb.z + s * r.dw_b[k][2];
+}
+
 // friction_target() in every lane
 WIDE void friction_target(const WideRow& r, Lanes x, Lanes y, Lanes& tx, Lanes& ty) {
   const Lanes speed2 = x * x + y * y;
@@ -739,8 +763,8 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
     d[i][0] = pick(on, tx - r.tangent[0], zero);
     d[i][1] = pick(on, ty - r.tangent[1], zero);
     along = pick(on, along + (d[i][0] * x + d[i][1] * y), along);
-    apply(r, g, moved, 1, r.t1, d[i][0]);
-    apply(r, g, moved, 2, r.t2, d[i][1]);
+    apply_all(r, g, moved, 1, r.t1, d[i][0]);   // (moved: read as its change, delta)
+    apply_all(r, g, moved, 2, r.t2, d[i][1]);
   }
   const Mask go = live & (along < 0.0);
   if (!any(go)) return change;

@@ -796,10 +796,10 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
   return change;
 }
 
-// solve_normal() of a one-row manifold, every lane
-WIDE Lanes solve_normal(WideRow& r, const WideGroup& g, WideTwists& t) {
-  const Lanes v_n = relative(r, t, 0, r.n);
-  const Lanes new_n = maximum(r.normal - r.normal_mass * (v_n + r.allowance), splat(0.0));
+// solve_normal() of a one-row manifold, every lane; `free` its normal speed plus its
+// allowance (m/s) at the twists t
+WIDE Lanes solve_normal(WideRow& r, const WideGroup& g, WideTwists& t, Lanes free) {
+  const Lanes new_n = maximum(r.normal - r.normal_mass * free, splat(0.0));
   const Lanes d_n = new_n - r.normal;
   r.normal = new_n;
   apply(r, g, t, 0, r.n, d_n);
@@ -836,13 +836,16 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   // allowance, so each lane's update would change nothing (solve_block's idle answer x = 0,
   // solve_normal's max(0 - m q, 0) = +0, solve_friction's empty cone): the group is done
   // (a speculative group that did not activate: most groups of a settled pile at 30 Hz)
+  // (free[i]: row i's normal speed plus its allowance, m/s, from the twists as loaded: what
+  // the normal updates below start from too)
+  Lanes free[4];
+  for (int i = 0; i < k; ++i) free[i] = relative(w[i], t, 0, w[i].n) + w[i].allowance;
   {
     Mask idle = (Mask){-1, -1, -1, -1};
     const Mask zero = (Mask){0, 0, 0, 0};
     for (int i = 0; i < k; ++i)
       idle &= ((Mask)w[i].normal == zero) & ((Mask)w[i].tangent[0] == zero) &
-              ((Mask)w[i].tangent[1] == zero) &
-              (relative(w[i], t, 0, w[i].n) + w[i].allowance >= 0.0);
+              ((Mask)w[i].tangent[1] == zero) & (free[i] >= 0.0);
     if (!any(~idle)) {
       if (spin_lanes != nullptr) {
         spin_lanes->load = splat(0.0);
@@ -858,14 +861,14 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   Lanes step = splat(0.0);
   Mask live = (Mask){-1, -1, -1, -1};   // lanes whose friction is solved here
   if (k == 1) {
-    step = solve_normal(w[0], g, t);
+    step = solve_normal(w[0], g, t, free[0]);
   } else {
     // solve_block: q = J v + allowance - A normal; x = 0 when idle, else A^-1 (-q) when
     // every row ends active, else the lane's own search
     Lanes q[4], x[4];
     Mask idle = (Mask){-1, -1, -1, -1};
     for (int i = 0; i < k; ++i) {
-      q[i] = relative(w[i], t, 0, w[i].n) + w[i].allowance;
+      q[i] = free[i];
       for (int j = 0; j < k; ++j) q[i] -= g.plain[i][j] * w[j].normal;
       idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
     }

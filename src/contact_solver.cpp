@@ -674,6 +674,30 @@ WIDE void apply(const WideRow& r, const WideGroup& g, WideTwists& t, int k, cons
   t.wb.z = pick(on, t.wb.z + s * r.dw_b[k][2], t.wb.z);
 }
 
+// apply() in every lane, lanes where s is 0 included: each adds or subtracts products
+// that are +-0 there, which leave a number unchanged but for the sign of a zero. For
+// twists whose change from the start is all that is read (solve_friction_block's `moved`,
+// read as moved - start) that is the same bits as apply(): along a lane, the sums take
+// the same values, so differ at most in the sign of a zero result, and a zero's
+// difference from its start is +0 whatever its sign and the start's (a start of +0 stays
+// +0 under sums of zeros and exact cancellations; -0 - -0 and +0 - -0 are both +0)
+WIDE void apply_all(const WideRow& r, const WideGroup& g, WideTwists& t, int k,
+                    const Lanes* d, Lanes s) {
+  const Lanes sa = s * g.ma, sb = s * g.mb;
+  t.va.x = t.va.x - sa * d[0];
+  t.va.y = t.va.y - sa * d[1];
+  t.va.z = t.va.z - sa * d[2];
+  t.wa.x = t.wa.x - s * r.dw_a[k][0];
+  t.wa.y = t.wa.y - s * r.dw_a[k][1];
+  t.wa.z = t.wa.z - s * r.dw_a[k][2];
+  t.vb.x = t.vb.x + sb * d[0];
+  t.vb.y = t.vb.y + sb * d[1];
+  t.vb.z = t.vb.z + sb * d[2];
+  t.wb.x = t.wb.x + s * r.dw_b[k][0];
+  t.wb.y = t.wb.y + s * r.dw_b[k][1];
+  t.wb.z = t.wb.z + s * r.dw_b[k][2];
+}
+
 // friction_target() in every lane
 WIDE void friction_target(const WideRow& r, Lanes x, Lanes y, Lanes& tx, Lanes& ty) {
   const Lanes speed2 = x * x + y * y;
@@ -739,8 +763,8 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
     d[i][0] = pick(on, tx - r.tangent[0], zero);
     d[i][1] = pick(on, ty - r.tangent[1], zero);
     along = pick(on, along + (d[i][0] * x + d[i][1] * y), along);
-    apply(r, g, moved, 1, r.t1, d[i][0]);
-    apply(r, g, moved, 2, r.t2, d[i][1]);
+    apply_all(r, g, moved, 1, r.t1, d[i][0]);   // (moved: read as its change, delta)
+    apply_all(r, g, moved, 2, r.t2, d[i][1]);
   }
   const Mask go = live & (along < 0.0);
   if (!any(go)) return change;
@@ -772,10 +796,10 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
   return change;
 }
 
-// solve_normal() of a one-row manifold, every lane
-WIDE Lanes solve_normal(WideRow& r, const WideGroup& g, WideTwists& t) {
-  const Lanes v_n = relative(r, t, 0, r.n);
-  const Lanes new_n = maximum(r.normal - r.normal_mass * (v_n + r.allowance), splat(0.0));
+// solve_normal() of a one-row manifold, every lane; `free` its normal speed plus its
+// allowance (m/s) at the twists t
+WIDE Lanes solve_normal(WideRow& r, const WideGroup& g, WideTwists& t, Lanes free) {
+  const Lanes new_n = maximum(r.normal - r.normal_mass * free, splat(0.0));
   const Lanes d_n = new_n - r.normal;
   r.normal = new_n;
   apply(r, g, t, 0, r.n, d_n);
@@ -812,13 +836,16 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   // allowance, so each lane's update would change nothing (solve_block's idle answer x = 0,
   // solve_normal's max(0 - m q, 0) = +0, solve_friction's empty cone): the group is done
   // (a speculative group that did not activate: most groups of a settled pile at 30 Hz)
+  // (free[i]: row i's normal speed plus its allowance, m/s, from the twists as loaded: what
+  // the normal updates below start from too)
+  Lanes free[4];
+  for (int i = 0; i < k; ++i) free[i] = relative(w[i], t, 0, w[i].n) + w[i].allowance;
   {
     Mask idle = (Mask){-1, -1, -1, -1};
     const Mask zero = (Mask){0, 0, 0, 0};
     for (int i = 0; i < k; ++i)
       idle &= ((Mask)w[i].normal == zero) & ((Mask)w[i].tangent[0] == zero) &
-              ((Mask)w[i].tangent[1] == zero) &
-              (relative(w[i], t, 0, w[i].n) + w[i].allowance >= 0.0);
+              ((Mask)w[i].tangent[1] == zero) & (free[i] >= 0.0);
     if (!any(~idle)) {
       if (spin_lanes != nullptr) {
         spin_lanes->load = splat(0.0);
@@ -834,14 +861,14 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   Lanes step = splat(0.0);
   Mask live = (Mask){-1, -1, -1, -1};   // lanes whose friction is solved here
   if (k == 1) {
-    step = solve_normal(w[0], g, t);
+    step = solve_normal(w[0], g, t, free[0]);
   } else {
     // solve_block: q = J v + allowance - A normal; x = 0 when idle, else A^-1 (-q) when
     // every row ends active, else the lane's own search
     Lanes q[4], x[4];
     Mask idle = (Mask){-1, -1, -1, -1};
     for (int i = 0; i < k; ++i) {
-      q[i] = relative(w[i], t, 0, w[i].n) + w[i].allowance;
+      q[i] = free[i];
       for (int j = 0; j < k; ++j) q[i] -= g.plain[i][j] * w[j].normal;
       idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
     }
@@ -851,11 +878,16 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
       fits &= x[i] >= -1e-12 * (1.0 + magnitude(x[i]));
     }
+    // take_block's changes of the normal impulses, per row: each lane's from the one answer
+    // that fits it (all-active, edge or face; the three take disjoint lanes), applied to the
+    // twists once, below, the same operations on each lane as one apply per answer (a lane
+    // whose change is 0 in an apply is left alone by it)
+    Lanes taken[4];
     const Mask take = fits & ~idle;
     for (int i = 0; i < k; ++i) {   // take_block
       const Lanes d = pick(take, maximum(x[i], splat(0.0)) - w[i].normal, splat(0.0));
       w[i].normal += d;
-      apply(w[i], g, t, 0, w[i].n, d);
+      taken[i] = d;
       step = maximum(step, magnitude(d));
     }
     Mask search = ~(fits | idle);
@@ -905,7 +937,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       for (int i = 0; i < 2; ++i) {   // take_block
         const Lanes d = pick(chosen, maximum(found[i], zero) - w[i].normal, zero);
         w[i].normal += d;
-        apply(w[i], g, t, 0, w[i].n, d);
+        taken[i] = pick(chosen, d, taken[i]);
         step = maximum(step, magnitude(d));
       }
       search &= ~chosen;
@@ -1032,12 +1064,13 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         for (int i = 0; i < k; ++i) {   // take_block
           const Lanes d = pick(ok, maximum(xs[i], zero) - w[i].normal, zero);
           w[i].normal += d;
-          apply(w[i], g, t, 0, w[i].n, d);
+          taken[i] = pick(ok, d, taken[i]);
           step = maximum(step, magnitude(d));
         }
         search &= ~ok;
       }
     }
+    for (int i = 0; i < k; ++i) apply(w[i], g, t, 0, w[i].n, taken[i]);
     if (any(search)) {
       for (int l = 0; l < kLanes; ++l) {
         if (!search[l]) continue;

@@ -754,11 +754,12 @@ void Detector::limit_rows(ContactRows& out) {
 
 bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
-  if (shapes_[a].curved || shapes_[b].curved) return false;
   const StoredManifold* stored = stored_.find(key, lane.cursor);
   if (stored == nullptr) return false;
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
+  if (stored->apart > 0.0) return still_apart(lane, key, a, b, *stored);
+  if (shapes_[a].curved || shapes_[b].curved) return false;
   // the pair's own motion over the step, as the narrow phase classifies it: the motion
   // both share (a pile that its source integrated one long period under gravity) moves no
   // point of one relative to the other
@@ -804,6 +805,29 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   return true;
 }
 
+bool Detector::may_store_apart(int a, int b) const {
+  return shapes_[a].kind != ShapeKind::triangle && shapes_[b].kind != ShapeKind::triangle &&
+         std::isfinite(shapes_[a].radius) && std::isfinite(shapes_[b].radius);
+}
+
+bool Detector::still_apart(Lane& lane, std::int64_t key, int a, int b,
+                           const StoredManifold& stored) const {
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  // how far any point of B moved in A's frame since the distance was measured: the shift of
+  // B's origin, and the chord of the turn (2 sin(angle / 2)) times B's bounding radius
+  const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
+  const Quat rel_q = A.q1.conjugate() * B.q1;
+  const double cosine = std::min(1.0, std::abs(rel_q.dot(stored.rel_q)));
+  const double drift = (rel_p - stored.rel_p).norm() +
+                       2.0 * std::sqrt(1.0 - cosine * cosine) * shapes_[b].radius;
+  // the distance of two convex shapes changes by no more than that drift
+  const double least = stored.apart - drift - kApartSlack;
+  if (!(least > settings_.speculative_margin && least >= relative_motion(a, b))) return false;
+  lane.next.begin_apart(key, stored.rel_p, stored.rel_q, stored.apart);
+  return true;
+}
+
 double Detector::radius_or_zero(int body) const {
   const double r = shapes_[body].radius;
   return std::isfinite(r) ? r : 0.0;
@@ -828,6 +852,10 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
   const double distance = lane.query.signed_distance(*shapes_[a].geometry, A.pose1,
                                                  *shapes_[b].geometry, B.pose1, normal, witness);
   const bool near = distance <= margin;
+  if (!near && distance > 0.0 && std::isfinite(distance) && may_store_apart(a, b)) {
+    lane.next.begin_apart(static_cast<std::int64_t>(a) * pieces() + b,
+                          A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1, distance);
+  }
   // bound on the speed of any point of B relative to A (current twists), m/s
   const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
                        B.angular.norm() * radius_or_zero(b);

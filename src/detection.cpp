@@ -806,8 +806,11 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
 }
 
 bool Detector::may_store_apart(int a, int b) const {
-  return shapes_[a].kind != ShapeKind::triangle && shapes_[b].kind != ShapeKind::triangle &&
-         std::isfinite(shapes_[a].radius) && std::isfinite(shapes_[b].radius);
+  auto gjk = [this](int k) {
+    const ShapeKind kind = shapes_[k].kind;
+    return kind != ShapeKind::sphere && kind != ShapeKind::triangle && kind != ShapeKind::plane;
+  };
+  return gjk(a) && gjk(b);
 }
 
 bool Detector::still_apart(Lane& lane, std::int64_t key, int a, int b,

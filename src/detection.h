@@ -208,7 +208,8 @@ class Detector {
   // the narrow phase would give it no rows (true; the record carried to the next step).
   bool still_apart(Lane& lane, std::int64_t key, int a, int b,
                    const StoredManifold& stored) const;
-  // Pairs whose distance may be stored: finite shapes other than mesh triangles.
+  // Pairs whose distance is worth storing: neither a sphere (coal's closed forms cost
+  // about as much as the check), a plane or a mesh triangle.
   bool may_store_apart(int a, int b) const;
   void narrow_phase(Lane& lane, int a, int b, ContactRows& out) const;
   void classify(Lane& lane, int a, int b, double distance_now, const Vec3& normal_now,

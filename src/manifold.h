@@ -197,8 +197,13 @@ class ManifoldStore {
   // start; one per reader): keys asked in increasing order cost O(1) each.
   const StoredManifold* find(std::int64_t key, std::size_t& cursor) const {
     if (cursor > keys_.size() || (cursor > 0 && keys_[cursor - 1] > key)) cursor = 0;
-    cursor = static_cast<std::size_t>(
-        std::lower_bound(keys_.begin() + cursor, keys_.end(), key) - keys_.begin());
+    // the next keys first (the asked keys mostly follow the stored ones), then a search
+    const std::size_t near = std::min(keys_.size(), cursor + 4);
+    while (cursor < near && keys_[cursor] < key) ++cursor;
+    if (cursor == near && near < keys_.size()) {
+      cursor = static_cast<std::size_t>(
+          std::lower_bound(keys_.begin() + cursor, keys_.end(), key) - keys_.begin());
+    }
     if (cursor == keys_.size() || keys_[cursor] != key) return nullptr;
     return &pairs_[cursor];
   }

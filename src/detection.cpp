@@ -772,12 +772,18 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
       std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
     return false;
   }
-  // a pair whose every point left the margin is no longer in contact
+  // a pair whose every point left the margin is no longer in contact (the rows of a
+  // manifold share one normal); each row's points at the current poses, for its row too
+  if (stored->count == 0) return true;
+  const Vec3 normal = A.r1 * stored_.row(stored->first).normal_a;
+  lane.reused_a.clear();
+  lane.reused_b.clear();
   double gap = kInf;
   for (int k = 0; k < stored->count; ++k) {
     const StoredRow& row = stored_.row(stored->first + k);
-    const Vec3 normal = A.r1 * row.normal_a;
-    gap = std::min(gap, ((B.r1 * row.local_b + B.p1) - (A.r1 * row.local_a + A.p1)).dot(normal));
+    lane.reused_a.push_back(A.r1 * row.local_a + A.p1);
+    lane.reused_b.push_back(B.r1 * row.local_b + B.p1);
+    gap = std::min(gap, (lane.reused_b.back() - lane.reused_a.back()).dot(normal));
   }
   if (gap > margin) return true;
   // what the narrow phase would not call persistent goes to it: apart at the previous
@@ -794,9 +800,8 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::size_t first = out.size();
   for (int k = 0; k < stored->count; ++k) {
     const StoredRow& row = stored_.row(stored->first + k);
-    const Vec3 on_a = A.r1 * row.local_a + A.p1;
-    const Vec3 on_b = B.r1 * row.local_b + B.p1;
-    const Vec3 normal = A.r1 * row.normal_a;
+    const Vec3& on_a = lane.reused_a[k];
+    const Vec3& on_b = lane.reused_b[k];
     out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, (on_b - on_a).dot(normal),
             0.0, ContactKind::persistent, row.feature);
     lane.next.add_row(row);

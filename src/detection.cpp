@@ -321,15 +321,17 @@ void Detector::find_pairs() {
   bucket_fill_.assign(bucket_start_.begin(), bucket_start_.end() - 1);
   bucket_.resize(pairs_.size());
   for (const auto& pair : pairs_) bucket_[bucket_fill_[pair.first]++] = pair.second;
-  pairs_.clear();
+  pairs_.resize(bucket_.size());   // room for every pair, cut to the distinct ones
+  std::size_t kept = 0;
   for (int a = 0; a < pieces(); ++a) {
     const auto first = bucket_.begin() + bucket_start_[a];
     const auto last = bucket_.begin() + bucket_start_[a + 1];
     std::sort(first, last);
     for (auto it = first; it != last; ++it) {
-      if (it == first || *it != *(it - 1)) pairs_.emplace_back(a, *it);
+      if (it == first || *it != *(it - 1)) pairs_[kept++] = {a, *it};
     }
   }
+  pairs_.resize(kept);
 }
 
 void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {

@@ -112,15 +112,19 @@ void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
     fat_pairs_.clear();
     overlapping_pairs(fat_, fat_pairs_);
   }
-  // the exact test, axis by axis with an early out (most fat pairs that fail, fail on one)
+  // the exact test, axis by axis with an early out (most fat pairs that fail, fail on one),
+  // into room for every fat pair (cut to those kept)
+  std::size_t kept = pairs.size();
+  pairs.resize(kept + fat_pairs_.size());
   for (const auto& [i, j] : fat_pairs_) {
     const Aabb& p = boxes[i];
     const Aabb& q = boxes[j];
     if (p.lo.x() <= q.hi.x() && q.lo.x() <= p.hi.x() && p.lo.y() <= q.hi.y() &&
         q.lo.y() <= p.hi.y() && p.lo.z() <= q.hi.z() && q.lo.z() <= p.hi.z()) {
-      pairs.emplace_back(i, j);
+      pairs[kept++] = {i, j};
     }
   }
+  pairs.resize(kept);
 }
 
 PairFilter::PairFilter(int count, std::vector<std::uint64_t> group,

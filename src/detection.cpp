@@ -321,15 +321,17 @@ void Detector::find_pairs() {
   bucket_fill_.assign(bucket_start_.begin(), bucket_start_.end() - 1);
   bucket_.resize(pairs_.size());
   for (const auto& pair : pairs_) bucket_[bucket_fill_[pair.first]++] = pair.second;
-  pairs_.clear();
+  pairs_.resize(bucket_.size());   // room for every pair, cut to the distinct ones
+  std::size_t kept = 0;
   for (int a = 0; a < pieces(); ++a) {
     const auto first = bucket_.begin() + bucket_start_[a];
     const auto last = bucket_.begin() + bucket_start_[a + 1];
     std::sort(first, last);
     for (auto it = first; it != last; ++it) {
-      if (it == first || *it != *(it - 1)) pairs_.emplace_back(a, *it);
+      if (it == first || *it != *(it - 1)) pairs_[kept++] = {a, *it};
     }
   }
+  pairs_.resize(kept);
 }
 
 void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {
@@ -754,11 +756,12 @@ void Detector::limit_rows(ContactRows& out) {
 
 bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
-  if (shapes_[a].curved || shapes_[b].curved) return false;
   const StoredManifold* stored = stored_.find(key, lane.cursor);
   if (stored == nullptr) return false;
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
+  if (stored->apart > 0.0) return still_apart(lane, key, a, b, *stored);
+  if (shapes_[a].curved || shapes_[b].curved) return false;
   // the pair's own motion over the step, as the narrow phase classifies it: the motion
   // both share (a pile that its source integrated one long period under gravity) moves no
   // point of one relative to the other
@@ -771,12 +774,18 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
       std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
     return false;
   }
-  // a pair whose every point left the margin is no longer in contact
+  // a pair whose every point left the margin is no longer in contact (the rows of a
+  // manifold share one normal); each row's points at the current poses, for its row too
+  if (stored->count == 0) return true;
+  const Vec3 normal = A.r1 * stored_.row(stored->first).normal_a;
+  lane.reused_a.clear();
+  lane.reused_b.clear();
   double gap = kInf;
   for (int k = 0; k < stored->count; ++k) {
     const StoredRow& row = stored_.row(stored->first + k);
-    const Vec3 normal = A.r1 * row.normal_a;
-    gap = std::min(gap, ((B.r1 * row.local_b + B.p1) - (A.r1 * row.local_a + A.p1)).dot(normal));
+    lane.reused_a.push_back(A.r1 * row.local_a + A.p1);
+    lane.reused_b.push_back(B.r1 * row.local_b + B.p1);
+    gap = std::min(gap, (lane.reused_b.back() - lane.reused_a.back()).dot(normal));
   }
   if (gap > margin) return true;
   // what the narrow phase would not call persistent goes to it: apart at the previous
@@ -793,14 +802,39 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::size_t first = out.size();
   for (int k = 0; k < stored->count; ++k) {
     const StoredRow& row = stored_.row(stored->first + k);
-    const Vec3 on_a = A.r1 * row.local_a + A.p1;
-    const Vec3 on_b = B.r1 * row.local_b + B.p1;
-    const Vec3 normal = A.r1 * row.normal_a;
+    const Vec3& on_a = lane.reused_a[k];
+    const Vec3& on_b = lane.reused_b[k];
     out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, (on_b - on_a).dot(normal),
             0.0, ContactKind::persistent, row.feature);
     lane.next.add_row(row);
   }
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
+  return true;
+}
+
+bool Detector::may_store_apart(int a, int b) const {
+  auto gjk = [this](int k) {
+    const ShapeKind kind = shapes_[k].kind;
+    return kind != ShapeKind::sphere && kind != ShapeKind::triangle && kind != ShapeKind::plane;
+  };
+  return gjk(a) && gjk(b);
+}
+
+bool Detector::still_apart(Lane& lane, std::int64_t key, int a, int b,
+                           const StoredManifold& stored) const {
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  // how far any point of B moved in A's frame since the distance was measured: the shift of
+  // B's origin, and the chord of the turn (2 sin(angle / 2)) times B's bounding radius
+  const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
+  const Quat rel_q = A.q1.conjugate() * B.q1;
+  const double cosine = std::min(1.0, std::abs(rel_q.dot(stored.rel_q)));
+  const double drift = (rel_p - stored.rel_p).norm() +
+                       2.0 * std::sqrt(1.0 - cosine * cosine) * shapes_[b].radius;
+  // the distance of two convex shapes changes by no more than that drift
+  const double least = stored.apart - drift - kApartSlack;
+  if (!(least > settings_.speculative_margin && least >= relative_motion(a, b))) return false;
+  lane.next.begin_apart(key, stored.rel_p, stored.rel_q, stored.apart);
   return true;
 }
 
@@ -828,6 +862,10 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
   const double distance = lane.query.signed_distance(*shapes_[a].geometry, A.pose1,
                                                  *shapes_[b].geometry, B.pose1, normal, witness);
   const bool near = distance <= margin;
+  if (!near && distance > 0.0 && std::isfinite(distance) && may_store_apart(a, b)) {
+    lane.next.begin_apart(static_cast<std::int64_t>(a) * pieces() + b,
+                          A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1, distance);
+  }
   // bound on the speed of any point of B relative to A (current twists), m/s
   const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
                        B.angular.norm() * radius_or_zero(b);

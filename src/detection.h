@@ -18,7 +18,11 @@
 //    relative motion over the step within the margin, no hit fast enough to bounce, no
 //    deep overlap). Motion the two bodies share does not count: a pile that its source
 //    integrated one 30 Hz period under gravity keeps its points. A curved body's points
-//    are never reused: on a rolling surface they would turn with the body.
+//    are never reused: on a rolling surface they would turn with the body. A pair the
+//    narrow phase measured apart (beyond the margin) keeps that distance with its relative
+//    pose; while the distance less how far a point of either body has since moved relative
+//    to the other stays beyond the margin and the step's relative motion, the narrow phase
+//    would give it no rows and it is not queried.
 // 4. Narrow phase of the other pairs at the current state (coal), then per pair:
 //    PERSISTENT when within the margin at the previous state too (or within it now and
 //    apart before without a hit: a speculative contact); IMPACT when apart before and
@@ -94,6 +98,8 @@ constexpr double kDeepFraction = 0.25;     // EPA's normal is not trusted deeper
 constexpr double kReuseTranslation = 1e-3; // m: a manifold is reused while its pair has
                                            // moved less than this ...
 constexpr double kReuseRotation = 1e-2;    // rad: ... and turned less than this
+constexpr double kApartSlack = 1e-5;      // m: a stored distance counts this much less (GJK's
+                                           // tolerance and the retry step on either measure)
 constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs of boxes
                                            // grown by this while no box leaves its own
 constexpr std::size_t kParallelPairs = 64; // a step of fewer pairs runs on one thread
@@ -190,6 +196,7 @@ class Detector {
     std::vector<Vec3> corners;                    // speculate: candidate corners
     std::vector<std::pair<double, int>> heights;  // speculate: (height, corner) kept
     std::vector<std::int64_t> row_codes;
+    std::vector<Vec3> reused_a, reused_b;         // reuse: the stored points, current poses
     ManifoldStore next;
     std::size_t cursor = 0;     // its place in stored_
     ContactRows rows;           // the second lane's rows (the first writes the step's)
@@ -197,6 +204,14 @@ class Detector {
   // The per-pair stages: each reads the step's bodies and the stored manifolds and
   // writes only `lane` and `out` (so two lanes run at once).
   bool reuse(Lane& lane, int a, int b, ContactRows& out) const;
+  // A pair stored apart (step 3) whose distance then, less how far either body moved
+  // relative to the other since, is still beyond the margin and the step's relative motion:
+  // the narrow phase would give it no rows (true; the record carried to the next step).
+  bool still_apart(Lane& lane, std::int64_t key, int a, int b,
+                   const StoredManifold& stored) const;
+  // Pairs whose distance is worth storing: neither a sphere (coal's closed forms cost
+  // about as much as the check), a plane or a mesh triangle.
+  bool may_store_apart(int a, int b) const;
   void narrow_phase(Lane& lane, int a, int b, ContactRows& out) const;
   void classify(Lane& lane, int a, int b, double distance_now, const Vec3& normal_now,
                 double relative, double speed, bool near, ContactRows& out) const;

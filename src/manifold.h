@@ -170,11 +170,13 @@ void reduce_manifold(const std::vector<Vec3>& polygon, const std::vector<double>
 std::int64_t feature_code(const Vec3& local_a, const Vec3& half_a, const Vec3& local_b,
                           const Vec3& half_b);
 
-// Last step's persistent manifolds, in the two body frames, keyed by pair.
+// Last step's persistent manifolds, in the two body frames, keyed by pair; and the pairs
+// measured apart (beyond the margin), with their distance.
 struct StoredManifold {
   Vec3 rel_p = Vec3::Zero();        // m, B's origin in A's frame when computed
   Quat rel_q = Quat::Identity();    // B's orientation in A's frame when computed
   int first = 0, count = 0;         // rows in ManifoldStore's row arrays
+  double apart = 0.0;               // m, > 0: the pair's distance then (no rows); 0: a manifold
 };
 
 struct StoredRow {
@@ -195,8 +197,13 @@ class ManifoldStore {
   // start; one per reader): keys asked in increasing order cost O(1) each.
   const StoredManifold* find(std::int64_t key, std::size_t& cursor) const {
     if (cursor > keys_.size() || (cursor > 0 && keys_[cursor - 1] > key)) cursor = 0;
-    cursor = static_cast<std::size_t>(
-        std::lower_bound(keys_.begin() + cursor, keys_.end(), key) - keys_.begin());
+    // the next keys first (the asked keys mostly follow the stored ones), then a search
+    const std::size_t near = std::min(keys_.size(), cursor + 4);
+    while (cursor < near && keys_[cursor] < key) ++cursor;
+    if (cursor == near && near < keys_.size()) {
+      cursor = static_cast<std::size_t>(
+          std::lower_bound(keys_.begin() + cursor, keys_.end(), key) - keys_.begin());
+    }
     if (cursor == keys_.size() || keys_[cursor] != key) return nullptr;
     return &pairs_[cursor];
   }
@@ -205,6 +212,11 @@ class ManifoldStore {
   void begin(std::int64_t key, const Vec3& rel_p, const Quat& rel_q) {
     keys_.push_back(key);
     pairs_.push_back({rel_p, rel_q, static_cast<int>(rows_.size()), 0});
+  }
+  // A pair measured `distance` (> 0) apart at the relative pose rel_p, rel_q (no rows).
+  void begin_apart(std::int64_t key, const Vec3& rel_p, const Quat& rel_q, double distance) {
+    keys_.push_back(key);
+    pairs_.push_back({rel_p, rel_q, static_cast<int>(rows_.size()), 0, distance});
   }
   void add_row(const StoredRow& row) {
     rows_.push_back(row);

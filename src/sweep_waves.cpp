@@ -44,8 +44,8 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   order.resize(count);
   for (size_t index = 0; index < count; ++index)
     order[start[bucket[index]]++] = chosen[index];   // (start: ends now)
-  // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then the
-  // rest one by one (counts 1..4's remainders, then longer manifolds)
+  // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
+  // 1..4's remainders (padded groups), then the longer manifolds (one by one)
   out.resize(count);
   Manifold* to = out.data();
   auto place = [&](size_t from, size_t end) {
@@ -71,6 +71,7 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
       const size_t n = first[k + 1] - first[k];
       place(first[k] + (n - n % kLanes), first[k + 1]);
     }
+    part.lone = static_cast<size_t>(to - out.data());
     place(first[4], first[5]);
     part.end = static_cast<size_t>(to - out.data());
     plan.waves.push_back(part);

@@ -236,8 +236,9 @@ void bind_solver(py::module_& m) {
         return waves;
       }, "The last step's sweep waves, in order: (first, wide_end, lone, end) each; "
          "manifolds [first, wide_end) in wide groups of 4, [wide_end, lone) in wide groups "
-         "of fewer (one per row count 1 to 4, padded with idle lanes), [lone, end) one by "
-         "one (more than 4 rows); no two manifolds of a wave share a movable body.")
+         "of 2 or 3 (one per row count 1 to 4, padded with idle lanes), [lone, end) one by "
+         "one (the one left of a row count, then more than 4 rows); no two manifolds of a "
+         "wave share a movable body.")
       .def_property_readonly("sweep_bodies", [](const StepSolver& solver) {
         const std::vector<Manifold>& manifolds = solver.manifolds();
         py::array_t<int32_t> out({static_cast<py::ssize_t>(manifolds.size()),

@@ -267,8 +267,9 @@ struct WideSpin {
 // no two manifolds of a wave sharing a movable body, so that a wave's manifolds may be
 // solved in any order, in lanes and on two threads, with the bits of the sweep in the
 // solve's order. Wave w is manifolds [first, wide_end) in wide groups of kLanes (one row
-// count each), [wide_end, lone) the rest of each row count 1 to 4 (fewer than kLanes
-// each) in wide groups padded with idle lanes, and [lone, end) one by one (more rows).
+// count each), [wide_end, lone) the rest of each row count 1 to 4 left two or three in
+// wide groups padded with idle lanes, and [lone, end) one by one (a row count's one left,
+// then the manifolds of more rows).
 struct SweepWave {
   size_t first = 0, wide_end = 0, lone = 0, end = 0;
 };

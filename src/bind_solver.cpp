@@ -232,11 +232,13 @@ void bind_solver(py::module_& m) {
       .def_property_readonly("waves", [](const StepSolver& solver) {
         py::list waves;
         for (const SweepWave& w : solver.plan().waves)
-          waves.append(py::make_tuple(w.first, w.wide_end, w.end));
+          waves.append(py::make_tuple(w.first, w.wide_end, w.lone, w.end));
         return waves;
-      }, "The last step's sweep waves, in order: (first, wide_end, end) each; manifolds "
-         "[first, wide_end) in wide groups of 4, [wide_end, end) one by one; no two "
-         "manifolds of a wave share a movable body.")
+      }, "The last step's sweep waves, in order: (first, wide_end, lone, end) each; "
+         "manifolds [first, wide_end) in wide groups of 4, [wide_end, lone) in wide groups "
+         "of 2 or 3 (one per row count 1 to 4, padded with idle lanes), [lone, end) one by "
+         "one (the one left of a row count, then more than 4 rows); no two manifolds of a "
+         "wave share a movable body.")
       .def_property_readonly("sweep_bodies", [](const StepSolver& solver) {
         const std::vector<Manifold>& manifolds = solver.manifolds();
         py::array_t<int32_t> out({static_cast<py::ssize_t>(manifolds.size()),

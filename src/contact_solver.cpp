@@ -822,9 +822,10 @@ void rows_to_lane(const ContactRow* r, int count, WideRow* w, int l) {
   }
 }
 
-// One sweep's update of a wide group of k rows (g.count): solve_manifold on its kLanes
-// manifolds. A block whose all-active answer does not fit (the active-set search, or rows
-// one by one) is handed to solve_manifold in its lane. (k a constant: each row count's
+// One sweep's update of a wide group of k rows (g.count): solve_manifold on its manifolds
+// (its padding lanes idle: nothing taken, nothing searched, nothing stored). A block whose
+// all-active answer does not fit (the active-set search, or rows one by one) is handed to
+// solve_manifold in its lane. (k a constant: each row count's
 // loops unrolled, their values in registers; solve_group picks one.)
 template <int k>
 WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
@@ -850,7 +851,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       if (spin_lanes != nullptr) {
         spin_lanes->load = splat(0.0);
       } else {
-        for (int l = 0; l < kLanes; ++l) {
+        for (int l = 0; l < g.lanes; ++l) {
           const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
           if (spins != nullptr && spin >= 0) (*spins)[spin].load = 0.0;
         }
@@ -1105,7 +1106,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     spin_lanes->load = load;
     return;
   }
-  for (int l = 0; l < kLanes; ++l) {
+  for (int l = 0; l < g.lanes; ++l) {
     const int32_t spin = manifolds[g.manifold + static_cast<size_t>(l)].spin;
     if (spins != nullptr && spin >= 0) (*spins)[spin].load = load[l];
   }
@@ -1205,10 +1206,32 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
 
 // The plan's wide groups and their rows from the manifolds and rows (plan.groups,
 // wide_rows, wave_groups, slot): the fields that stay as prepared for the whole step (once
-// per plan); refresh_groups writes the others. A group of the same four manifolds in the
-// same lanes as one in the pool since the rows were prepared (plan.rows_epoch) keeps its
+// per plan); refresh_groups writes the others. A group of the same manifolds in the same
+// lanes as one in the pool since the rows were prepared (plan.rows_epoch) keeps its
 // entry and kept elimination (the same fields from the same rows: the same bits); the
-// others are packed into new entries.
+// others are packed into new entries. A wave's groups: its full ones, then its padded
+// ones (each run of one row count in [wide_end, lone)).
+// Lane l of group g an idle pad (WideGroup): its rows zero, lane 0's bodies, not written.
+void pad_lane(WideGroup& g, WideRow* w, int l) {
+  g.offset_a[l] = g.offset_a[0];
+  g.offset_b[l] = g.offset_b[0];
+  g.write_a[l] = g.write_b[l] = false;
+  g.ma[l] = g.mb[l] = 0.0;
+  g.invertible[l] = 0.0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) g.plain[i][j][l] = g.inverse[i][j][l] = g.delassus[i][j][l] = 0.0;
+  for (int i = 0; i < g.count; ++i) {
+    WideRow& r = w[i];
+    for (int e = 0; e < 3; ++e) {
+      r.n[e][l] = r.t1[e][l] = r.t2[e][l] = r.kt[e][l] = 0.0;
+      for (int d = 0; d < 3; ++d)
+        r.ang_a[d][e][l] = r.ang_b[d][e][l] = r.dw_a[d][e][l] = r.dw_b[d][e][l] = 0.0;
+    }
+    r.normal_mass[l] = r.allowance[l] = r.mu[l] = 0.0;
+    r.normal[l] = r.tangent[0][l] = r.tangent[1][l] = 0.0;
+  }
+}
+
 void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, const double* inv_mass) {
   if (plan.packed_epoch != plan.rows_epoch) {   // rows anew: an empty pool
@@ -1219,25 +1242,33 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
   plan.wave_groups.assign(1, 0);
   plan.slot.clear();
   plan.fresh.clear();
+  // the group of manifolds [m, m + lanes) (one row count)
+  auto group = [&](size_t m, int lanes) {
+    int32_t first[kLanes];
+    for (int l = 0; l < kLanes; ++l)
+      first[l] = l < lanes ? manifolds[m + static_cast<size_t>(l)].first : -1;
+    int32_t entry = plan.entry_at[static_cast<size_t>(first[0])];
+    if (entry < 0 || !std::equal(first, first + kLanes, plan.groups[entry].first)) {
+      // a new entry (sized, not cleared: every field below is written)
+      entry = static_cast<int32_t>(plan.pool_groups++);
+      if (plan.groups.size() < plan.pool_groups) plan.groups.resize(plan.pool_groups);
+      WideGroup& g = plan.groups[entry];
+      g.count = manifolds[m].count;
+      g.lanes = lanes;
+      g.row = plan.pool_rows;
+      plan.pool_rows += static_cast<size_t>(g.count);
+      std::copy(first, first + kLanes, g.first);
+      plan.entry_at[static_cast<size_t>(first[0])] = entry;
+      plan.fresh.push_back(entry);
+    }
+    plan.groups[entry].manifold = m;
+    plan.slot.push_back(entry);
+  };
   for (const SweepWave& c : plan.waves) {
-    for (size_t m = c.first; m < c.wide_end; m += kLanes) {
-      int32_t first[kLanes];
-      for (int l = 0; l < kLanes; ++l) first[l] = manifolds[m + static_cast<size_t>(l)].first;
-      int32_t entry = plan.entry_at[static_cast<size_t>(first[0])];
-      if (entry < 0 || !std::equal(first, first + kLanes, plan.groups[entry].first)) {
-        // a new entry (sized, not cleared: every field below is written)
-        entry = static_cast<int32_t>(plan.pool_groups++);
-        if (plan.groups.size() < plan.pool_groups) plan.groups.resize(plan.pool_groups);
-        WideGroup& g = plan.groups[entry];
-        g.count = manifolds[m].count;
-        g.row = plan.pool_rows;
-        plan.pool_rows += static_cast<size_t>(g.count);
-        std::copy(first, first + kLanes, g.first);
-        plan.entry_at[static_cast<size_t>(first[0])] = entry;
-        plan.fresh.push_back(entry);
-      }
-      plan.groups[entry].manifold = m;
-      plan.slot.push_back(entry);
+    for (size_t m = c.first; m < c.wide_end; m += kLanes) group(m, kLanes);
+    for (size_t m = c.wide_end, end = m; m < c.lone; m = end) {
+      while (end < c.lone && manifolds[end].count == manifolds[m].count) ++end;
+      group(m, static_cast<int>(end - m));
     }
     plan.wave_groups.push_back(plan.slot.size());
   }
@@ -1246,7 +1277,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
   for (const int32_t entry : plan.fresh) {
     WideGroup& g = plan.groups[entry];
     for (int l = 0; l < kLanes; ++l) plan.faces[entry].set[l] = -1;   // (nothing kept)
-    for (int l = 0; l < kLanes; ++l) {
+    for (int l = 0; l < g.lanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
       g.offset_b[l] = 6 * static_cast<int64_t>(m.b);
@@ -1280,6 +1311,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
         w.normal_mass[l] = c.normal_mass;
       }
     }
+    for (int l = g.lanes; l < kLanes; ++l) pad_lane(g, &plan.wide_rows[g.row], l);
   }
 }
 
@@ -1289,7 +1321,7 @@ void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                     const std::vector<Manifold>& manifolds) {
   for (const int32_t entry : plan.slot) {
     const WideGroup& g = plan.groups[entry];
-    for (int l = 0; l < kLanes; ++l) {
+    for (int l = 0; l < g.lanes; ++l) {   // (a padding lane stays zero)
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];
       WideRow* w = &plan.wide_rows[g.row];
@@ -1309,7 +1341,7 @@ void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
   for (const int32_t entry : plan.fresh) {   // (the entries kept keep theirs)
     const WideGroup& g = plan.groups[entry];
     WideSpin& w = plan.spin_groups[entry];
-    bool all = spins != nullptr;
+    bool all = spins != nullptr && g.lanes == kLanes;   // (padded: one by one)
     for (int l = 0; l < kLanes && all; ++l) all = manifolds[g.manifold + static_cast<size_t>(l)].spin >= 0;
     for (int l = 0; l < kLanes; ++l)
       w.spin[l] = all ? manifolds[g.manifold + static_cast<size_t>(l)].spin : -1;
@@ -1350,7 +1382,7 @@ void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
   for (const int32_t entry : plan.slot) {
     const WideGroup& g = plan.groups[entry];
     const WideSpin& w = plan.spin_groups[entry];
-    for (int l = 0; l < kLanes; ++l) {
+    for (int l = 0; l < g.lanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       lane_to_rows(&plan.wide_rows[g.row], l, &rows[static_cast<size_t>(m.first)], g.count);
       if (spins != nullptr && w.spin[l] >= 0)
@@ -1377,10 +1409,10 @@ void solve_spin_waves(SweepPlan& plan, std::vector<SpinRow>& spins,
       if (plan.spin_groups[entry].spin[0] >= 0) {
         solve_wide_spin(plan.spin_groups[entry], g, v, progress);
       } else {
-        for (int lane = 0; lane < kLanes; ++lane) one(g.manifold + static_cast<size_t>(lane));
+        for (int lane = 0; lane < g.lanes; ++lane) one(g.manifold + static_cast<size_t>(lane));
       }
     }
-    for (size_t m = plan.waves[l].wide_end; m < plan.waves[l].end; ++m) one(m);
+    for (size_t m = plan.waves[l].lone; m < plan.waves[l].end; ++m) one(m);
   }
 }
 
@@ -1392,7 +1424,7 @@ void repack(SweepPlan& plan, const uint8_t* changed) {
   for (int32_t entry = 0; entry < static_cast<int32_t>(plan.pool_groups); ++entry) {
     const WideGroup& g = plan.groups[static_cast<size_t>(entry)];
     bool any = false;
-    for (int l = 0; l < kLanes && !any; ++l) any = changed[g.first[l]] != 0;
+    for (int l = 0; l < g.lanes && !any; ++l) any = changed[g.first[l]] != 0;
     int32_t& at = plan.entry_at[static_cast<size_t>(g.first[0])];
     if (any && at == entry) at = -1;
   }
@@ -1413,11 +1445,12 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     if (spins != nullptr) refresh_spins(*plan, *spins);
   }
   double* v = bodies.velocity;
-  // wave l's part [lo, hi) of its work: its wide groups, then its manifolds one by one
+  // wave l's part [lo, hi) of its work: its wide groups (full, then padded), then its
+  // manifolds one by one
   auto wave_part = [&](size_t l, size_t lo, size_t hi, Progress& progress) {
     const SweepWave& span = plan->waves[l];
     const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
-    const size_t first = wide ? span.wide_end : span.first;
+    const size_t first = wide ? span.lone : span.first;
     for (size_t item = lo; item < hi; ++item) {
       if (item < groups) {
         const int32_t entry = plan->slot[plan->wave_groups[l] + item];
@@ -1442,7 +1475,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
       for (size_t l = 0; l < plan->waves.size(); ++l) {
         const SweepWave& span = plan->waves[l];
         const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
-        const size_t items = groups + (span.end - (wide ? span.wide_end : span.first));
+        const size_t items = groups + (span.end - (wide ? span.lone : span.first));
         const size_t size = span.end - span.first;
         if (plan->worker == nullptr || size < plan->parallel) {
           wave_part(l, 0, items, part[0]);

@@ -217,13 +217,17 @@ struct WideRow {
   Lanes normal, tangent[2];
 };
 
-// Four manifolds of one wave with the same number of rows (1 to 4), solved in lanes:
-// their rows are WideRows [row, row + count); `manifold` is the first of the four
-// (consecutive in the solve's order).
+// Up to four manifolds of one wave with the same number of rows (1 to 4), solved in
+// lanes: their rows are WideRows [row, row + count); `manifold` is the first of them
+// (consecutive in the solve's order, in lanes [0, lanes)). A lane past them is idle
+// padding: its rows all zero (no impulse, no mass, allowance 0: every update leaves it
+// at +0 and changes no twist), its bodies lane 0's, read and never written.
 struct WideGroup {
   size_t manifold = 0, row = 0;
   int count = 0;
-  int32_t first[kLanes] = {};    // its lanes' manifolds' first rows (Manifold::first)
+  int lanes = 0;                 // its manifolds (1 to kLanes)
+  int32_t first[kLanes] = {};    // its lanes' manifolds' first rows (Manifold::first; -1
+                                 // in a padding lane)
   int64_t offset_a[kLanes] = {}, offset_b[kLanes] = {};   // 6 * body index: the first of
                                                          // its twist's numbers in velocity
   bool write_a[kLanes] = {}, write_b[kLanes] = {};   // movable: its twist is stored
@@ -263,9 +267,11 @@ struct WideSpin {
 // no two manifolds of a wave sharing a movable body, so that a wave's manifolds may be
 // solved in any order, in lanes and on two threads, with the bits of the sweep in the
 // solve's order. Wave w is manifolds [first, wide_end) in wide groups of kLanes (one row
-// count each) and [wide_end, end) one by one.
+// count each), [wide_end, lone) the rest of each row count 1 to 4 left two or three in
+// wide groups padded with idle lanes, and [lone, end) one by one (a row count's one left,
+// then the manifolds of more rows).
 struct SweepWave {
-  size_t first = 0, wide_end = 0, end = 0;
+  size_t first = 0, wide_end = 0, lone = 0, end = 0;
 };
 struct SweepPlan {
   std::vector<SweepWave> waves;         // in sweep order

@@ -44,8 +44,9 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   order.resize(count);
   for (size_t index = 0; index < count; ++index)
     order[start[bucket[index]]++] = chosen[index];   // (start: ends now)
-  // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then the
-  // rest one by one (counts 1..4's remainders, then longer manifolds)
+  // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
+  // 1..4's remainders of two or three (padded groups), then the remainders of one and the
+  // longer manifolds (one by one: a group of one lane costs more than its one manifold)
   out.resize(count);
   Manifold* to = out.data();
   auto place = [&](size_t from, size_t end) {
@@ -69,7 +70,12 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     part.wide_end = static_cast<size_t>(to - out.data());
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
-      place(first[k] + (n - n % kLanes), first[k + 1]);
+      if (n % kLanes >= 2) place(first[k] + (n - n % kLanes), first[k + 1]);
+    }
+    part.lone = static_cast<size_t>(to - out.data());
+    for (int k = 0; k < 4; ++k) {
+      const size_t n = first[k + 1] - first[k];
+      if (n % kLanes == 1) place(first[k + 1] - 1, first[k + 1]);
     }
     place(first[4], first[5]);
     part.end = static_cast<size_t>(to - out.data());

@@ -21,7 +21,8 @@ namespace collres {
 
 // The manifolds `chosen` (indices into `manifolds`, ascending: the sweep's order) wave by
 // wave into `out` (SweepPlan's layout: within a wave, wide groups of kLanes manifolds of
-// one row count 1..4 first, then the rest one by one; within a row count the speculative
+// one row count 1..4 first, then the rest of each row count 1..4 left two or three
+// (padded groups), then the rest left one and the longer manifolds one by one; within a row count the speculative
 // manifolds, every row with allowance > 0, last), each copied once; fills plan.waves and
 // clears plan.packed (its other fields are left as they are). The manifolds keep their
 // rows and spin rows (Manifold::spin); the rows keep their ContactRow::manifold.

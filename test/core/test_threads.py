@@ -1,18 +1,20 @@
 """The velocity sweeps give the same bits whatever their layout: waves, lanes, threads.
 
 A sweep visits a solve's manifolds wave by wave (src/sweep_waves.h): a manifold's wave is
-one more than the highest wave of the manifolds before it that share a movable body, so
-the manifolds of a wave share no movable body and the waves in turn are the sweep in the
-solve's order, bit for bit. A wave is solved four manifolds at a time in wide rows
-(``SOLVER_TUNING`` ``wide_rows``) and, when it has at least ``parallel_wave`` manifolds,
-shared by two threads (``threads``). Detection shares a step's pairs between the two
-threads too (``src/detection.h``: the first half here, the second on the worker, each into
-its own lane, joined in pair order). The laws: the waves hold (no movable body twice in a
-wave, each after one that moved its bodies, wide groups of one row count); whatever the
-thread count and with wide rows on or off, every step's corrected states and impulses are
-the same bytes, and so is every array detection gives. Here a pile of cubes and spheres
-falls into a bin and settles (impacts, stacking, friction, rolling resistance), with a low
-``parallel_wave`` so that most steps share waves between the threads.
+one more than the highest wave of the manifolds before it that share a movable body, so the
+manifolds of a wave share no movable body and the waves in turn are the sweep in the solve's
+order, bit for bit. A wave is solved four manifolds at a time in wide rows
+(``SOLVER_TUNING`` ``wide_rows``; the two or three left of a row count in a group padded
+with idle lanes) and, when it has at least ``parallel_wave`` manifolds, shared by two
+threads (``threads``). Detection shares a step's pairs between the two threads too
+(``src/detection.h``: the first half here, the second on the worker, each into its own lane,
+joined in pair order). The laws: the waves hold (no movable body twice in a wave, each after
+one that moved its bodies, wide groups of one row count, every manifold of up to four rows
+in one but the one left of a row count); whatever the thread count and with wide rows on or
+off, every step's corrected states and impulses are the same bytes, and so is every array
+detection gives. Here a pile of cubes and spheres falls into a bin and settles (impacts,
+stacking, friction, rolling resistance), with a low ``parallel_wave`` so that most steps
+share waves between the threads.
 """
 
 from __future__ import annotations
@@ -90,7 +92,7 @@ def test_two_threads_and_one_by_one_give_the_bytes_of_one_thread_in_lanes():
             states[k] = result.states
             answers.append(answer(result))
         assert all(a == answers[0] for a in answers[1:])
-        shared_steps += any(end - first >= 8 for first, _, end in worlds[1]._solver.waves)
+        shared_steps += any(end - first >= 8 for first, _, _, end in worlds[1]._solver.waves)
     # the pile was in contact with waves shared by the threads nearly all the time
     assert shared_steps > STEPS // 2
     assert np.isfinite(states[0].position).all()
@@ -101,19 +103,26 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
     bodies, state = pile()
     w = world(bodies, 1)
     movable = w.dynamic
-    total = wide = 0
+    total = wide = lanes = 0
     for _ in range(STEPS):
         state = w.step(state, euler_step(state, w.dynamic, GRAVITY, DT), DT).states
         waves = w._solver.waves
         sweep = w._solver.sweep_bodies
-        assert [s[0] for s in waves[1:]] == [s[2] for s in waves[:-1]]    # in a row
-        assert (waves[-1][2] if waves else 0) == len(sweep)                # all of them
+        assert [s[0] for s in waves[1:]] == [s[3] for s in waves[:-1]]    # in a row
+        assert (waves[-1][3] if waves else 0) == len(sweep)                # all of them
         seen = set()     # the movable bodies of the waves before
-        for first, wide_end, end in waves:
+        for first, wide_end, lone, end in waves:
             assert first < wide_end or wide_end < end              # never empty
-            assert first <= wide_end <= end and (wide_end - first) % 4 == 0
+            assert first <= wide_end <= lone <= end and (wide_end - first) % 4 == 0
             counts = sweep[first:wide_end, 2].reshape(-1, 4)
             assert (counts == counts[:, :1]).all()     # a wide group: one row count
+            # the two or three left of a row count 1 to 4: one padded group each, in order
+            # of row count; one left, or more than four rows: one by one after them
+            rest = sweep[wide_end:lone, 2]
+            assert (np.diff(rest) >= 0).all() and (rest >= 1).all() and (rest <= 4).all()
+            assert np.isin(np.bincount(rest, minlength=5), (0, 2, 3)).all()
+            alone = sweep[lone:end, 2]
+            assert np.isin(np.bincount(alone[alone <= 4], minlength=5), (0, 1)).all()
             pairs = sweep[first:end, :2]
             used = pairs[movable[pairs]]
             assert len(np.unique(used)) == len(used)   # none twice in a wave
@@ -123,8 +132,10 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
                 assert all(any(b in seen for b in pair if movable[b]) for pair in pairs)
             seen.update(used.tolist())
             wide += wide_end - first
+            lanes += lone - first
             total += end - first
-    assert total > 0 and wide > total // 2   # most manifolds solved in lanes
+    assert total > 0 and wide > total // 2   # most manifolds solved in full groups
+    assert lanes > wide                      # and the rest of them in padded ones
 
 
 def test_detection_on_two_threads_gives_the_bytes_of_one_thread():

@@ -976,9 +976,15 @@ bool Detector::time_of_impact(Lane& lane, int a, int b, const Motion& ma, const 
     }
   }
   Vec3 used = normal;
-  if (-distance > kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness)) {
-    // EPA on a deep overlap is not trusted: the classic direction from the closest
-    // points of the last separated configuration
+  // (faces meeting faces: a curved surface's EPA answer, its normal through the curve, holds)
+  const bool shallow = -distance < settings_.linear_slop && !shapes_[a].curved &&
+                       !shapes_[b].curved;
+  if (shallow ||
+      -distance > kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness)) {
+    // EPA is not trusted on a deep overlap, nor on a shallow one (faces just touching: a
+    // cube landing flat on another got a normal 25-85 deg off the faces' and one corner's
+    // impulse, a spin that sank it 9-17 mm into the other): the classic direction from the
+    // closest points of the last separated configuration
     PointPair closest;
     const double gap = lane.query.distance(ga, ma.at(s0), gb, mb.at(s0), closest);
     const Vec3 direction = closest.on_b - closest.on_a;
@@ -988,6 +994,7 @@ bool Detector::time_of_impact(Lane& lane, int a, int b, const Motion& ma, const 
   if (shapes_[a].single_point || shapes_[b].single_point) {
     lane.points.push_back(witness);
   } else {
+    if (shallow) lane.query.turn_loaded(used);   // its patch about that normal
     lane.query.manifold(ga, ma.at(s1), gb, mb.at(s1), settings_.linear_slop, lane.points);
   }
   const Mat3 ra = ma.rotation_at(s1), rb = mb.rotation_at(s1);

@@ -221,6 +221,13 @@ bool PairQuery::contact(const coal::CollisionGeometry& ga, const coal::Transform
   return true;
 }
 
+void PairQuery::turn_loaded(const Vec3& normal) {
+  coal::Contact c = result_.getContact(0);
+  c.normal = normal;
+  result_.clear();
+  result_.addContact(c);
+}
+
 bool PairQuery::onto_face(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                           const coal::CollisionGeometry& gb, const coal::Transform3s& tb) {
   const bool on_a = ga.getNodeType() == coal::GEOM_TRIANGLE;

@@ -98,6 +98,9 @@ class PairQuery {
   bool contact(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                double margin, double& distance, Vec3& normal, PointPair& witness);
+  // The loaded contact's normal replaced by `normal` (a unit direction trusted over EPA's
+  // on a shallow overlap): `manifold` then finds the patch about it.
+  void turn_loaded(const Vec3& normal);
   // True when the shapes interpenetrate (distance < 0); a failed coal query counts as apart.
   bool overlaps(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
                 const coal::CollisionGeometry& gb, const coal::Transform3s& tb);

@@ -313,9 +313,13 @@ void StepSolver::reference_frame(StepContext& ctx) {
   // one resting on the floor: g dt per step, not the none of two falling together), and
   // its contact rests below factor times that (else a column of cubes dropped apart at
   // 30 Hz took their slow landings as impacts and sank 16 mm into itself)
+  // (none where no free movable body meets a supported one: a body on the floor, two
+  // supported bodies)
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
-    if (!supported_[a] && !supported_[b]) continue;
+    const bool free_a = bodies.movable[a] && !supported_[a];
+    const bool free_b = bodies.movable[b] && !supported_[b];
+    if ((!supported_[a] && !supported_[b]) || (!free_a && !free_b)) continue;
     const double held = before_[k] - normal_speed(path_.data(), a, b, ra_[k], rb_[k],
                                                   load3(c.normal + 3 * k));
     resting_speed_[k] = std::max(resting_speed_[k], ctx.params.resting_factor * held);

@@ -25,7 +25,7 @@ sys.path.insert(0, os.path.join(HERE, '..'))
 sys.path.insert(0, os.path.join(HERE, '..', 'test', 'core'))
 sys.path.insert(0, HERE)
 
-from collres_ros.core.config import SolverSettings  # noqa: E402
+from collres_ros.core.config import SOLVER_TUNING, SolverSettings  # noqa: E402
 from collres_ros.core.rotation import to_matrix  # noqa: E402
 from collres_ros.core.types import BodySpec, ContactKind  # noqa: E402
 from collres_ros.core.world import World  # noqa: E402
@@ -455,13 +455,12 @@ def bounces_to_rest(e, h, threshold):
 
 @check('rest')
 def rest() -> None:
-    """A ball dropped from 0.3 m (e 0.8) comes to rest when the bounce law with the
-    threshold says (within 8 steps) and then stays; with a small threshold at
-    t0 (1 + e) / (1 - e) within 3 %."""
+    """A ball dropped from 0.3 m (e 0.8) comes to rest when the bounce law at its resting
+    speed says (the threshold or resting_factor g dt, whichever is larger; within 8 steps)
+    and then stays; any threshold, also below g dt."""
+    factor = next(spec.default for spec in SOLVER_TUNING if spec.name == 'resting_factor')
     for rate in RATES:
         for threshold in (0.5, 1.1 * G / rate, 0.05):
-            if threshold < G / rate:
-                continue
             r, e, h = 0.1, 0.8, 0.3
             sim = Simulation([plane(e=0.0), sphere('ball', r, 1.0, e=e)],
                              states([[0, 0, 0], [0, 0, h + r]], np.zeros((2, 3))), rate,
@@ -469,7 +468,7 @@ def rest() -> None:
             height = sim.run(4.0).positions()[:, 1, 2] - r
             above = np.flatnonzero(height > 1e-5)
             t = (above[-1] + 1) / rate
-            law = bounces_to_rest(e, h, threshold)
+            law = bounces_to_rest(e, h, max(threshold, factor * G / rate))
             limit = np.sqrt(2 * h / G) * (1 + e) / (1 - e)
             ok = abs(t - law) <= 8 / rate and np.all(np.abs(height[above[-1] + 1:]) < 1e-5)
             row('rest that is rest', f'{rate:g} Hz, threshold {threshold:.3f}',

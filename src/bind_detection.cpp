@@ -32,12 +32,13 @@ py::array owned(std::vector<T>&& data, std::vector<py::ssize_t> shape) {
 // gathered into `scratch` (float_rows, bindings.h), and the (N,) uint8 active mask.
 struct Poses {
   collres::StepPoses poses;
-  std::vector<double> scratch[6];
+  std::vector<double> scratch[8];
 };
 
 void poses_of(const collres::Detector& detector, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,
-              const py::array& angular, const std::optional<py::array>& active, Poses& out) {
+              const py::array& angular, const py::array& linear0, const py::array& angular0,
+              const std::optional<py::array>& active, Poses& out) {
   const py::ssize_t n = detector.count();
   collres::StepPoses& poses = out.poses;
   poses.count = detector.count();
@@ -47,6 +48,8 @@ void poses_of(const collres::Detector& detector, const py::array& p0, const py::
   poses.q1 = float_rows(q1, n, 4, "q1", out.scratch[3]);
   poses.linear = float_rows(linear, n, 3, "linear", out.scratch[4]);
   poses.angular = float_rows(angular, n, 3, "angular", out.scratch[5]);
+  poses.linear0 = float_rows(linear0, n, 3, "linear0", out.scratch[6]);
+  poses.angular0 = float_rows(angular0, n, 3, "angular0", out.scratch[7]);
   if (active) {
     if (!py::isinstance<Mask>(*active) || active->ndim() != 1 || active->shape(0) != n) {
       throw py::value_error("active: expected a C-contiguous uint8 array of shape (N,)");
@@ -112,6 +115,7 @@ void bind_detection(py::module_& m) {
       .def_readwrite("linear_slop", &collres::DetectionSettings::linear_slop)
       .def_readwrite("restitution_threshold",
                      &collres::DetectionSettings::restitution_threshold)
+      .def_readwrite("resting_factor", &collres::DetectionSettings::resting_factor)
       .def_readwrite("max_pairs", &collres::DetectionSettings::max_pairs)
       .def_readwrite("max_contacts", &collres::DetectionSettings::max_contacts)
       .def_readwrite("max_contacts_per_pair",
@@ -189,11 +193,12 @@ void bind_detection(py::module_& m) {
       .def("detect",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,
-              const py::array& angular, const std::optional<py::array>& active,
+              const py::array& angular, const py::array& linear0,
+              const py::array& angular0, const std::optional<py::array>& active,
               int threads) {
              if (threads < 1 || threads > 2) throw py::value_error("threads: 1 or 2");
              Poses in;
-             poses_of(d, p0, q0, p1, q1, linear, angular, active, in);
+             poses_of(d, p0, q0, p1, q1, linear, angular, linear0, angular0, active, in);
              const collres::StepPoses& poses = in.poses;
              collres::ContactRows rows;
              {
@@ -214,16 +219,19 @@ void bind_detection(py::module_& m) {
                  owned(std::move(rows.piece_a), {m_rows}), owned(std::move(rows.piece_b), {m_rows}));
            },
            py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
-           py::arg("angular"), py::arg("active") = py::none(), py::arg("threads") = 1,
+           py::arg("angular"),
+           py::arg("linear0"), py::arg("angular0"), py::arg("active") = py::none(),
+           py::arg("threads") = 1,
            "Contacts of the step: (body_a, body_b, point, normal, separation, toi, kind, "
            "feature, manifolds, piece_a, piece_b), the fields of ContactSet; the same bits "
            "with `threads` 1 or 2.")
       .def("hold_back",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,
-              const py::array& angular, const std::optional<py::array>& active) {
+              const py::array& angular, const py::array& linear0,
+              const py::array& angular0, const std::optional<py::array>& active) {
              Poses in;
-             poses_of(d, p0, q0, p1, q1, linear, angular, active, in);
+             poses_of(d, p0, q0, p1, q1, linear, angular, linear0, angular0, active, in);
              const collres::StepPoses& poses = in.poses;
              std::vector<double> fraction;
              {
@@ -234,16 +242,18 @@ void bind_detection(py::module_& m) {
              return owned(std::move(fraction), {n});
            },
            py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
-           py::arg("angular"), py::arg("active") = py::none(),
+           py::arg("angular"),
+           py::arg("linear0"), py::arg("angular0"), py::arg("active") = py::none(),
            "Per body, the fraction of its motion from the previous pose (p0, q0) to the "
            "answer (p1, q1) it may keep against fixed shapes (1: all of it; Detector::"
            "hold_back).")
       .def("candidate_pairs",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,
-              const py::array& angular, const std::optional<py::array>& active) {
+              const py::array& angular, const py::array& linear0,
+              const py::array& angular0, const std::optional<py::array>& active) {
              Poses in;
-             poses_of(d, p0, q0, p1, q1, linear, angular, active, in);
+             poses_of(d, p0, q0, p1, q1, linear, angular, linear0, angular0, active, in);
              const collres::StepPoses& poses = in.poses;
              std::vector<std::pair<int, int>> pairs;
              {
@@ -253,7 +263,8 @@ void bind_detection(py::module_& m) {
              return pairs;
            },
            py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
-           py::arg("angular"), py::arg("active") = py::none(),
+           py::arg("angular"),
+           py::arg("linear0"), py::arg("angular0"), py::arg("active") = py::none(),
            "Broad-phase pairs (a < b), sorted.")
       .def("reset", &collres::Detector::reset, "Forget the stored manifolds.");
 }

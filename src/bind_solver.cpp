@@ -189,6 +189,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("shock_ratio", &SolverParams::shock_ratio)
       .def_readwrite("depth_sweeps", &SolverParams::depth_sweeps)
       .def_readwrite("restitution_threshold", &SolverParams::restitution_threshold)
+      .def_readwrite("resting_factor", &SolverParams::resting_factor)
       .def_readwrite("sticking_speed", &SolverParams::sticking_speed)
       .def_readwrite("linear_slop", &SolverParams::linear_slop)
       .def_readwrite("position_correction", &SolverParams::position_correction)

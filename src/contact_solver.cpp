@@ -1792,7 +1792,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
       const ContactRow& r = rows[i];
       if (!(r.normal_mass > 0.0)) continue;
       double u = relative(r, v, 0, r.n);
-      if (u < -settings.threshold - kSlowest && u + r.allowance < 0.0)
+      if (u < -settings.threshold[r.contact] - kSlowest && u + r.allowance < 0.0)
         members.push_back(static_cast<int32_t>(i));
     }
     if (members.empty()) break;

@@ -61,7 +61,10 @@ struct SolverParams {
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double shock_ratio = 4.0;             // ... only under a body this many times heavier
   double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack
-  double restitution_threshold = 0.5;   // m/s: slower approaches do not bounce
+  double restitution_threshold = 0.5;   // m/s: least resting speed: slower approaches do
+                                        // not bounce
+  double resting_factor = 1.5;          // ... nor those slower than this times the approach
+                                        // the step's external change brought the contact
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
   double linear_slop = 0.0001;          // m: penetration left alone by the position pass
   double position_correction = 0.4;     // fraction of the penetration beyond the slop removed
@@ -346,7 +349,7 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
                 std::vector<Manifold>& blocks, std::vector<uint8_t>& holding, double ratio);
 
 // Impacts as successive stages, before the resting contacts are solved. A stage takes
-// every row that approaches faster than `threshold` (and faster than its speculative
+// every row that approaches faster than its contact's `threshold` (and faster than its speculative
 // allowance: it touches within the step) at the current velocities, and resolves them
 // simultaneously, as touching from the reference time on (no allowance): an exact
 // inelastic compression with friction (sequential impulses to convergence, manifolds as
@@ -374,7 +377,8 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
 // (ContactRow::manifold, rows of a manifold consecutive) form one block. `scratch`,
 // `blocks`, `members` and `work` are scratch space.
 struct ImpactSettings {
-  double threshold = 0.5;    // m/s: slower approaches do not bounce
+  const double* threshold = nullptr;  // m/s per contact (ContactRow::contact): slower
+                                      // approaches do not bounce
   int stages = 64;           // most stages per step
   int sweeps = 100;          // most sequential-impulse sweeps per stage compression
   double converged = 1e-10;  // relative impulse change that ends a stage's compression

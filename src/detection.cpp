@@ -234,10 +234,17 @@ void Detector::prepare(const StepPoses& poses) {
       body.fixed = true;
     }
     body.linear = body.angular = Vec3::Zero();
+    body.external_linear = body.external_angular = Vec3::Zero();
     if (!frozen && poses.linear != nullptr && finite(poses.linear + 3 * owner, 3) &&
         finite(poses.angular + 3 * owner, 3)) {
       body.linear = Eigen::Map<const Vec3>(poses.linear + 3 * owner);
       body.angular = Eigen::Map<const Vec3>(poses.angular + 3 * owner);
+      if (poses.linear0 != nullptr && finite(poses.linear0 + 3 * owner, 3) &&
+          finite(poses.angular0 + 3 * owner, 3)) {
+        body.external_linear = body.linear - Eigen::Map<const Vec3>(poses.linear0 + 3 * owner);
+        body.external_angular =
+            body.angular - Eigen::Map<const Vec3>(poses.angular0 + 3 * owner);
+      }
     }
     body.turn = angle_between(body.q0, body.q1);
     body.moved = (body.p1 - body.p0).norm() +
@@ -700,6 +707,23 @@ double Detector::sphere_gap(int a, int b) const {
 }
 
 // m, bound on how far any point of B moves relative to A over the step
+// Whether a point of B may approach A faster than its resting speed, the solver's rule
+// (StepSolver::reference_frame): faster than restitution_threshold and than
+// resting_factor times the approach the step's external change alone brought it along
+// its normal. `speed` bounds any point's approach (current twists); the external approach
+// is bounded from below along `normal`, the current one (a bound only: a body carried past
+// the middle of a thin one has its current normal turned away from its approach, so the
+// approach itself is not taken along it). A pair that cannot is no impact.
+bool Detector::may_bounce(int a, int b, const Vec3& normal, double speed) const {
+  if (!(speed > settings_.restitution_threshold)) return false;
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  const double external = -(B.external_linear - A.external_linear).dot(normal.normalized()) -
+                          A.external_angular.norm() * radius_or_zero(a) -
+                          B.external_angular.norm() * radius_or_zero(b);
+  return speed > settings_.resting_factor * external;
+}
+
 double Detector::relative_motion(int a, int b) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
@@ -776,8 +800,11 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   }
   // a pair whose every point left the margin is no longer in contact (the rows of a
   // manifold share one normal); each row's points at the current poses, for its row too
+  // (and whether a point may approach faster than its resting speed along the normal)
   if (stored->count == 0) return true;
   const Vec3 normal = A.r1 * stored_.row(stored->first).normal_a;
+  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
+                       B.angular.norm() * radius_or_zero(b);
   lane.reused_a.clear();
   lane.reused_b.clear();
   double gap = kInf;
@@ -787,15 +814,13 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
     lane.reused_b.push_back(B.r1 * row.local_b + B.p1);
     gap = std::min(gap, (lane.reused_b.back() - lane.reused_a.back()).dot(normal));
   }
+  const bool fast = may_bounce(a, b, normal, speed);
   if (gap > margin) return true;
   // what the narrow phase would not call persistent goes to it: apart at the previous
   // state maybe (gap + relative motion beyond the margin), a hit that may bounce, a deep
   // overlap (deep_persistent)
-  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
-                       B.angular.norm() * radius_or_zero(b);
   const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
-  if (gap + relative > margin || -gap > deep ||
-      (gap < 0.0 && gap + relative > 0.0 && speed > settings_.restitution_threshold)) {
+  if (gap + relative > margin || -gap > deep || (gap < 0.0 && gap + relative > 0.0 && fast)) {
     return false;
   }
   lane.next.begin(key, stored->rel_p, stored->rel_q);
@@ -872,7 +897,7 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
   // overlapping now, possibly apart before, and closing fast enough to bounce: its
   // previous state decides between a persistent contact and an impact
   const bool may_have_hit = distance < 0.0 && distance + relative > 0.0 &&
-                            speed > settings_.restitution_threshold;
+                            may_bounce(a, b, normal, speed);
   if (near && distance + relative <= margin && !may_have_hit) {
     // within the margin at the previous state for sure: a persistent contact
     const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
@@ -907,7 +932,7 @@ void Detector::classify(Lane& lane, int a, int b, double distance_now, const Vec
     // step, never an impact within it
     const bool touched = before <= settings_.linear_slop;
     // apart before, overlapping now, fast: solved at its time of impact, not at the end
-    if (distance_now < 0.0 && !touched && speed > settings_.restitution_threshold &&
+    if (distance_now < 0.0 && !touched && may_bounce(a, b, normal_now, speed) &&
         time_of_impact(lane, a, b, ma, mb, 0.0, 1.0, ContactKind::impact, distance_now, true, out)) {
       return;
     }
@@ -1000,18 +1025,25 @@ bool Detector::time_of_impact(Lane& lane, int a, int b, const Motion& ma, const 
   const Mat3 ra = ma.rotation_at(s1), rb = mb.rotation_at(s1);
   const Vec3 pa = ma.position_at(s1), pb = mb.position_at(s1);
   if (only_if_fast) {
-    // approach speed at the contact (current twists): slower than the threshold, the pair
-    // rests and stays a persistent contact at the current state
+    // approach speed at each contact point (current twists): slower than its resting speed
+    // at every point (the floor or resting_factor times the approach the step's external
+    // change brought there, as the solver's), the pair rests and stays a persistent
+    // contact at the current state
     const Body& A = bodies_[a];
     const Body& B = bodies_[b];
-    double approach = kInf;
+    const Vec3 unit = used.normalized();
+    bool fast = false;
     for (const PointPair& p : lane.points) {
       const Vec3 point = 0.5 * (p.on_a + p.on_b);
       const Vec3 va = A.linear + A.angular.cross(point - pa);
       const Vec3 vb = B.linear + B.angular.cross(point - pb);
-      approach = std::min(approach, (vb - va).dot(used.normalized()));
+      const Vec3 ea = A.external_linear + A.external_angular.cross(point - pa);
+      const Vec3 eb = B.external_linear + B.external_angular.cross(point - pb);
+      const double resting = std::max(settings_.restitution_threshold,
+                                      settings_.resting_factor * std::max(-(eb - ea).dot(unit), 0.0));
+      fast = fast || (vb - va).dot(unit) < -resting;
     }
-    if (!(approach < -settings_.restitution_threshold)) return false;
+    if (!fast) return false;
   }
   emit(lane, a, b, used, s1, kind, cap, ra, pa, rb, pb, out);
   // after the impact a corner may turn faster than anything moved before it (a fall

@@ -158,6 +158,8 @@ class Detector {
     Quat q0, q1;        // unit, w >= 0
     Mat3 r1;            // body to world at s = 1
     Vec3 linear, angular;  // current twist (zero for frozen bodies)
+    Vec3 external_linear, external_angular;  // current less previous twist: the step's
+                                             // external change (zero for frozen bodies)
     double turn = 0.0;  // rad, rotation over the step
     double moved = 0.0; // m, bound on any point's travel over the step
     bool fixed = false; // static or frozen
@@ -169,6 +171,7 @@ class Detector {
   void find_pairs();
   double sphere_gap(int a, int b) const;
   double relative_motion(int a, int b) const;
+  bool may_bounce(int a, int b, const Vec3& normal, double speed) const;
   void limit_pairs();
   void limit_rows(ContactRows& out);
   void group_by_bodies(ContactRows& out);

@@ -30,7 +30,11 @@ struct DetectionSettings {
   bool ccd = true;                     // sweep pairs apart at both ends of the step
   double linear_slop = 0.0001;         // m: bounds the advancement's distance tolerance
                                        // (the solver's slop: config.SOLVER_PARAMS)
-  double restitution_threshold = 0.5;  // m/s: slower approaches rest, faster ones impact
+  double restitution_threshold = 0.5;   // m/s: least resting speed: slower approaches rest,
+                                        // faster ones may impact
+  double resting_factor = 1.5;         // ... and those slower than this times the approach
+                                       // the step's external change brought the pair
+                                       // (SolverParams::resting_factor)
   int max_pairs = 20000;               // budget: broad-phase pairs queried per step
   int max_contacts = 40000;            // budget: contact rows per step
   int max_contacts_per_pair = 8;       // rows kept per pair of bodies (the deepest; a pair
@@ -53,6 +57,8 @@ struct StepPoses {
   const double* q1 = nullptr;       // (N, 4) current orientation
   const double* linear = nullptr;   // (N, 3) m/s, current linear velocity
   const double* angular = nullptr;  // (N, 3) rad/s, current angular velocity
+  const double* linear0 = nullptr;  // (N, 3) m/s, previous linear velocity (null: as current)
+  const double* angular0 = nullptr; // (N, 3) rad/s, previous angular velocity (null: as current)
   const std::uint8_t* active = nullptr;  // (N,) or null: 0 = frozen, held at its current pose
 };
 

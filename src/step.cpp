@@ -83,7 +83,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     // prepare: rows of the contacts that can carry an impulse, combined materials
     prepare(ctx);
     // impacts: successive stages of the rows approaching faster than the threshold
-    ImpactSettings impacts{params.restitution_threshold, params.impact_stages,
+    ImpactSettings impacts{resting_speed_.data(), params.impact_stages,
                            params.impact_sweeps, params.impact_converged, params.shock_ratio};
     // a speculative row of a supported body closes on the held paths (reference_frame's
     // closing test) by drift_ less than its bodies' velocities say: the stages see that
@@ -180,7 +180,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   const BodyStatesView previous = ctx.previous, current = ctx.current;
   const BodyProperties bodies = ctx.bodies;
   const ContactsView c = ctx.contacts;
-  const double dt = ctx.dt, threshold = ctx.params.restitution_threshold;
+  const double dt = ctx.dt;
   const double slop = ctx.params.linear_slop, sticking = ctx.params.sticking_speed;
   const ContactsOut report = ctx.report;
   const int64_t n = bodies.count, m = c.count;
@@ -207,6 +207,8 @@ void StepSolver::reference_frame(StepContext& ctx) {
   rested_.assign(n, 0);
   supported_.assign(n, 0);
   motion_.resize(n);
+  approach_.resize(m);
+  resting_speed_.resize(m);
   for (int64_t k = 0; k < m; ++k) {   // each body in contact's motion, once
     for (const int64_t i : {c.a[k], c.b[k]}) {
       if (touched_[i]) continue;
@@ -222,6 +224,9 @@ void StepSolver::reference_frame(StepContext& ctx) {
   double *const moved_a = moved_a_.data(), *const gap = gap_.data();
   double *const allowance = allowance_.data(), *const before = before_.data();
   const double* const then = then_.data();
+  const double* const now = now_.data();
+  double *const approach = approach_.data(), *const resting = resting_speed_.data();
+  const double floor = ctx.params.restitution_threshold, factor = ctx.params.resting_factor;
   const std::array<Vec3, 2>* const motion = motion_.data();
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
@@ -254,6 +259,16 @@ void StepSolver::reference_frame(StepContext& ctx) {
     gap[k] = c.separation[k] - closed;
     allowance[k] = closed;           // (kept here for the loops below)
     before[k] = normal_speed(then, a, b, ra[k], rb[k], normal);
+    // the pre-solve approach at the current twists (a body with an impact: below), and the
+    // contact's resting speed: slower approaches are RESTING and do not bounce. It is the
+    // floor or factor times the approach the step's external change alone brought the
+    // pair (current less previous twists along the normal: g dt for a body on a floor,
+    // none for two bodies falling together), whichever is larger: a resting body gathers
+    // that approach in every step and must not bounce on it, while any approach of free
+    // bodies beyond the floor bounces (an elastic gas keeps its energy)
+    approach[k] = normal_speed(now, a, b, ra[k], rb[k], normal);
+    resting[k] = std::max(floor, factor * std::max(before[k] - approach[k], 0.0));
+    const double threshold = resting[k];
     // touching at the previous state (within the slop) and not approaching then: in
     // contact from the start of the step; its bodies rest on it unless they have an impact
     touching[k] = !detected && gap[k] <= slop && before[k] >= -sticking;
@@ -272,7 +287,6 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // weightless gas, struck within the step, was held on it one-sidedly: momentum made,
     // 1.2 % of an elastic gas's energy lost in a step at 100 Hz)
     if (!detected && gap[k] <= slop && std::abs(before[k]) <= threshold) {
-      const double* const now = now_.data();
       const Vec3 press_a = load3(now + 6 * a) - load3(then + 6 * a);
       const Vec3 press_b = load3(now + 6 * b) - load3(then + 6 * b);
       pressed[k] = dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0;
@@ -294,12 +308,29 @@ void StepSolver::reference_frame(StepContext& ctx) {
   path_.resize(6 * n);
   for (int64_t i = 0; i < 6 * n; ++i)
     path_[i] = supported_[i / 6] ? then_[i] : now_[i];
+  // the external change of a supported body is taken by what holds it: a body that lands
+  // on it gathers the external change relative to it as on the floor (a cube falling onto
+  // one resting on the floor: g dt per step, not the none of two falling together), and
+  // its contact rests below factor times that (else a column of cubes dropped apart at
+  // 30 Hz took their slow landings as impacts and sank 16 mm into itself)
+  // (none where no free movable body meets a supported one: a body on the floor, two
+  // supported bodies)
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    const bool free_a = bodies.movable[a] && !supported_[a];
+    const bool free_b = bodies.movable[b] && !supported_[b];
+    if ((!supported_[a] && !supported_[b]) || (!free_a && !free_b)) continue;
+    const double held = before_[k] - normal_speed(path_.data(), a, b, ra_[k], rb_[k],
+                                                  load3(c.normal + 3 * k));
+    resting_speed_[k] = std::max(resting_speed_[k], ctx.params.resting_factor * held);
+  }
   // held: a supported body does not move into what holds it (along the normal), a
   // movable support taken as held still, an immovable or free one as it moves
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const Vec3 normal = load3(c.normal + 3 * k);
-    if (!persistent(c.kind[k]) || gap_[k] > slop || std::abs(before_[k]) > threshold) continue;
+    if (!persistent(c.kind[k]) || gap_[k] > slop || std::abs(before_[k]) > resting_speed_[k])
+      continue;
     for (const int64_t i : {a, b}) {
       if (!supported_[i]) continue;
       const int64_t other = i == a ? b : a;
@@ -332,8 +363,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
                 dt * (load3(path_.data() + 6 * i) + cross(load3(path_.data() + 6 * i + 3), r)));
   };
   drift_.resize(m);
-  approach_.resize(m);
-  double *const drift = drift_.data(), *const approach = approach_.data();
+  double* const drift = drift_.data();
   double *const toi_of = toi_.data(), *const fraction = fraction_.data();
   uint8_t *const impact_of = impact_.data(), *const impacted = impacted_.data();
   // each body's earliest detected impact (-1: none)
@@ -365,8 +395,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
       drift[k] = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
       moved_a[k] -= dot(held_a, normal);
     }
-    const double v_in = normal_speed(now_.data(), a, b, ra[k], rb[k], normal);
-    approach[k] = v_in;   // (the pre-solve approach unless a body has an impact: below)
+    const double v_in = approach[k], threshold = resting[k];
     // a persistent contact that closes within the step faster than the threshold at the
     // time it closes (on the held paths: its separation at the end is drift_ more than
     // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
@@ -851,11 +880,10 @@ void StepSolver::to_travel(StepContext& ctx, int substeps) {
   // floor). (Leaving faster than the sticking speed instead: a pile woken by an input at
   // rest and driven on by an integrator shook at up to 1.3 m/s, against 0.06-0.38 before)
   const ContactsView& c = ctx.contacts;
-  const double leaving = ctx.params.restitution_threshold;
   ramped_.assign(n, 0);
   for (const ContactRow& r : rows_) ramped_[r.a] = ramped_[r.b] = 1;
   for (int64_t k = 0; k < c.count; ++k)
-    if (touching_[k] && before_[k] <= leaving) {
+    if (touching_[k] && before_[k] <= resting_speed_[k]) {
       ramped_[c.a[k]] |= 2;
       ramped_[c.b[k]] |= 2;
     }
@@ -1140,7 +1168,7 @@ bool StepSolver::land(StepContext& ctx, bool& struck) {
       r.allowance = 0.0;
       any = true;
       if (!struck_[r.contact] && gap_[r.contact] > p.linear_slop &&
-          normal_velocity(r, resting_.data()) < -p.restitution_threshold) {
+          normal_velocity(r, resting_.data()) < -resting_speed_[r.contact]) {
         struck_[r.contact] = 1;
         struck = true;
       }

@@ -55,7 +55,7 @@ from typing import Sequence
 import numpy as np
 
 from collres_ros.core import _native
-from collres_ros.core.config import SolverSettings
+from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.shapes import (bounding_radius, collision_numbers, piece_spec,
                                      triangle_corners)
 from collres_ros.core.types import (COMPOUND, SHAPE_KINDS, TRIANGLE_MESH, BodySpec,
@@ -72,6 +72,8 @@ REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and 
 DETECTION_FIELDS = ('speculative_margin', 'toi_tolerance', 'toi_max_iterations', 'ccd',
                     'linear_slop', 'restitution_threshold', 'max_pairs', 'max_contacts',
                     'max_contacts_per_pair')
+# ... and the SOLVER_TUNING entries it reads (the solver's too), by the same names.
+DETECTION_TUNING = ('resting_factor',)
 
 
 class Detection:
@@ -155,15 +157,19 @@ class Detection:
         mask = None if active is None else np.ascontiguousarray(active, dtype=np.uint8)
         return (as_rows(previous.position), as_rows(previous.orientation),
                 as_rows(current.position), as_rows(current.orientation),
-                as_rows(current.linear), as_rows(current.angular), mask)
+                as_rows(current.linear), as_rows(current.angular),
+                as_rows(previous.linear), as_rows(previous.angular), mask)
 
 
 def detection_settings(settings: SolverSettings) -> _native.DetectionSettings:
     """The compiled detector's settings from the solver settings: each of its fields by name
-    (SolverSettings has a field of every name)."""
+    (SolverSettings has a field of every name but DETECTION_TUNING's, SOLVER_TUNING's)."""
     native = _native.DetectionSettings()
     for name in DETECTION_FIELDS:
         setattr(native, name, getattr(settings, name))
+    for spec in SOLVER_TUNING:
+        if spec.name in DETECTION_TUNING:
+            setattr(native, spec.name, spec.default)
     return native
 
 

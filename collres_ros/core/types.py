@@ -28,8 +28,8 @@ from collres_ros.core.config import (ALL_COLLISION_BITS, DEFAULT_COLLISION_GROUP
 class ContactState(IntEnum):
     """What a contact did this step (values equal the Contact.msg constants)."""
 
-    IMPACT = 1    # approach speed above the restitution threshold: it bounced
-    RESTING = 2   # below the threshold, no tangential motion, no friction needed
+    IMPACT = 1    # approach faster than its resting speed: it bounced
+    RESTING = 2   # slower, no tangential motion, no friction needed
     SLIDING = 3   # friction at the cone limit (kinetic coefficient)
     STICKING = 4  # friction inside the static cone held the contact still
     SLEEPING = 5  # a contact of a sleeping island, held as it was when the island fell asleep

@@ -262,13 +262,19 @@ def test_every_detection_setting_reaches_the_compiled_detector_by_name():
     import dataclasses
 
     from collres_ros.core import _native
-    from collres_ros.core.detection import Detection, DETECTION_FIELDS
+    from collres_ros.core.config import SOLVER_TUNING
+    from collres_ros.core.detection import Detection, DETECTION_FIELDS, DETECTION_TUNING
     compiled = _native.DetectionSettings()
     names = sorted(n for n in dir(compiled) if not n.startswith('_'))
-    assert names == sorted(DETECTION_FIELDS)
+    assert names == sorted(DETECTION_FIELDS + DETECTION_TUNING)
     defaults = SolverSettings()
     for name in DETECTION_FIELDS:
         assert getattr(compiled, name) == getattr(defaults, name), name
+    tuning = {spec.name: spec.default for spec in SOLVER_TUNING}
+    for name in DETECTION_TUNING:
+        assert getattr(compiled, name) == tuning[name], name
+        assert getattr(Detection([BodySpec('a', 'sphere', (0.1,))], defaults)._native.settings,
+                       name) == tuning[name], name
     changed = dataclasses.replace(
         defaults, speculative_margin=0.031, toi_tolerance=3.2e-5, toi_max_iterations=33,
         ccd=False, linear_slop=3.4e-4, restitution_threshold=0.35, max_pairs=3600,

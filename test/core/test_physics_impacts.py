@@ -232,3 +232,31 @@ def test_mass_properties_used_are_the_shapes():
     inv_mass, inv_inertia = mass_properties(sphere('s', 0.1, 2.0))
     assert inv_mass == pytest.approx(0.5)
     assert np.allclose(np.diag(inv_inertia), 1.0 / (0.4 * 2.0 * 0.01))
+
+
+@pytest.mark.parametrize('gravity', [True, False])
+def test_an_approach_gathered_from_gravity_rests_and_the_same_one_weightless_bounces(gravity):
+    """A ball (e 1) meets a floor at 0.4 m/s in a step of 1/30 s, restitution_threshold
+    0.05 m/s. Under gravity the step's external change brought g dt = 0.33 m/s of that
+    approach (previous twist -0.07 m/s): below 1.5 g dt the contact is RESTING, and the
+    ball lands without a bounce. The same approach with no external change (a weightless
+    ball, previous twist -0.4 m/s) bounces at e (with a fixed resting speed of 0.05 m/s both
+    bounced: a resting body bounced on what gravity gave it in one step)."""
+    dt, v = 1.0 / 30.0, -0.4
+    floor = BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)
+    world = World([floor, sphere('ball', 0.1, 1.0, e=1.0)],
+                  SolverSettings(restitution_threshold=0.05, sleeping=False))
+    before = states([[0, 0, 0], [0, 0, 0.105]],
+                    [[0, 0, 0], [0, 0, v + 9.81 * dt if gravity else v]])
+    after = before.copy()
+    after.linear[1, 2] = v
+    after.position[1, 2] += v * dt
+    result = world.step(before, after, dt)
+    leaving = result.states.linear[1, 2]
+    print(f'gravity {gravity}: leaves at {leaving:.6f} m/s')
+    if gravity:
+        assert abs(leaving) < 1e-6
+        assert np.all(result.report.state[result.report.contacts.body_b == 1] !=
+                      ContactState.IMPACT)
+    else:
+        assert leaving == pytest.approx(-v, rel=1e-6)

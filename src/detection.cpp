@@ -706,7 +706,6 @@ double Detector::sphere_gap(int a, int b) const {
   return (bodies_[b].p1 - bodies_[a].p1).norm() - shapes_[a].radius - shapes_[b].radius;
 }
 
-// m, bound on how far any point of B moves relative to A over the step
 // Whether a point of B may approach A faster than its resting speed, the solver's rule
 // (StepSolver::reference_frame): faster than restitution_threshold and than
 // resting_factor times the approach the step's external change alone brought it along
@@ -724,6 +723,7 @@ bool Detector::may_bounce(int a, int b, const Vec3& normal, double speed) const 
   return speed > settings_.resting_factor * external;
 }
 
+// m, bound on how far any point of B moves relative to A over the step
 double Detector::relative_motion(int a, int b) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
@@ -800,11 +800,8 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   }
   // a pair whose every point left the margin is no longer in contact (the rows of a
   // manifold share one normal); each row's points at the current poses, for its row too
-  // (and whether a point may approach faster than its resting speed along the normal)
   if (stored->count == 0) return true;
   const Vec3 normal = A.r1 * stored_.row(stored->first).normal_a;
-  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
-                       B.angular.norm() * radius_or_zero(b);
   lane.reused_a.clear();
   lane.reused_b.clear();
   double gap = kInf;
@@ -814,13 +811,16 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
     lane.reused_b.push_back(B.r1 * row.local_b + B.p1);
     gap = std::min(gap, (lane.reused_b.back() - lane.reused_a.back()).dot(normal));
   }
-  const bool fast = may_bounce(a, b, normal, speed);
   if (gap > margin) return true;
   // what the narrow phase would not call persistent goes to it: apart at the previous
-  // state maybe (gap + relative motion beyond the margin), a hit that may bounce, a deep
-  // overlap (deep_persistent)
+  // state maybe (gap + relative motion beyond the margin), a hit that may bounce (a point
+  // approaching faster than its resting speed along the normal), a deep overlap
+  // (deep_persistent)
+  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
+                       B.angular.norm() * radius_or_zero(b);
   const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
-  if (gap + relative > margin || -gap > deep || (gap < 0.0 && gap + relative > 0.0 && fast)) {
+  if (gap + relative > margin || -gap > deep ||
+      (gap < 0.0 && gap + relative > 0.0 && may_bounce(a, b, normal, speed))) {
     return false;
   }
   lane.next.begin(key, stored->rel_p, stored->rel_q);

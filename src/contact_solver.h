@@ -61,8 +61,9 @@ struct SolverParams {
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double shock_ratio = 4.0;             // ... only under a body this many times heavier
   double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack
-  double restitution_threshold = 0.5;   // m/s: least resting speed: slower approaches do
-                                        // not bounce
+  double restitution_threshold = 0.5;   // m/s: least resting speed of a pair the step's
+                                        // external change acts on: slower approaches do
+                                        // not bounce (free bodies: none)
   double resting_factor = 1.5;          // ... nor those slower than this times the approach
                                         // the step's external change brought the contact
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick

@@ -228,6 +228,25 @@ void StepSolver::reference_frame(StepContext& ctx) {
   double *const approach = approach_.data(), *const resting = resting_speed_.data();
   const double floor = ctx.params.restitution_threshold, factor = ctx.params.resting_factor;
   const std::array<Vec3, 2>* const motion = motion_.data();
+  // per body: whether the step's external change acts on it (its twist changed between
+  // the previous and the current state: a load, as gravity), or is unknown: a body whose
+  // pose stayed while its twist moves it has no previous state of its own (a fresh start
+  // gives previous = current: a pile restarted after a gap, its twists the source's g dt
+  // into the supports, bounced on that approach)
+  loaded_.assign(n, 0);
+  for (int64_t i = 0; i < n; ++i) {
+    bool changed = false, moving = false, moved = false;
+    for (int d = 0; d < 6; ++d) {
+      changed = changed || now[6 * i + d] != then[6 * i + d];
+      moving = moving || now[6 * i + d] != 0.0;
+    }
+    for (int d = 0; d < 3; ++d)
+      moved = moved || previous.position[3 * i + d] != current.position[3 * i + d];
+    for (int d = 0; d < 4; ++d)
+      moved = moved || previous.orientation[4 * i + d] != current.orientation[4 * i + d];
+    loaded_[i] = changed || (moving && !moved);
+  }
+  const uint8_t* const loaded = loaded_.data();
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);   // IMPACT or TUNNELLED
@@ -260,14 +279,18 @@ void StepSolver::reference_frame(StepContext& ctx) {
     allowance[k] = closed;           // (kept here for the loops below)
     before[k] = normal_speed(then, a, b, ra[k], rb[k], normal);
     // the pre-solve approach at the current twists (a body with an impact: below), and the
-    // contact's resting speed: slower approaches are RESTING and do not bounce. It is the
-    // floor or factor times the approach the step's external change alone brought the
-    // pair (current less previous twists along the normal: g dt for a body on a floor,
-    // none for two bodies falling together), whichever is larger: a resting body gathers
-    // that approach in every step and must not bounce on it, while any approach of free
-    // bodies beyond the floor bounces (an elastic gas keeps its energy)
+    // contact's resting speed: slower approaches are RESTING and do not bounce. It is
+    // factor times the approach the step's external change alone brought the pair
+    // (current less previous twists along the normal: g dt for a body on a floor, none
+    // for two bodies falling together) and, where that change acts on one of the two (a
+    // load, as gravity), at least the floor: a resting body gathers that approach in every
+    // step and must not bounce on it, and a slower bounce under a load is pulled back at
+    // once. Free bodies (no external change: a weightless gas, a ball drifting into a wall
+    // in space) bounce at any approach: no load brings a slow bounce back, and resting it
+    // would take energy that nothing returns (an elastic gas keeps its energy)
     approach[k] = normal_speed(now, a, b, ra[k], rb[k], normal);
-    resting[k] = std::max(floor, factor * std::max(before[k] - approach[k], 0.0));
+    resting[k] = std::max(loaded[a] || loaded[b] ? floor : 0.0,
+                          factor * std::max(before[k] - approach[k], 0.0));
     const double threshold = resting[k];
     // touching at the previous state (within the slop) and not approaching then: in
     // contact from the start of the step; its bodies rest on it unless they have an impact

@@ -330,6 +330,10 @@ class StepSolver {
                                      // sticking speed before the step
   std::vector<double> ramp_;         // (N, 6) a ramped body's change spread over the
                                      // substeps (its stop taken at once, to_travel)
+  std::vector<uint8_t> loaded_;      // (N,) the step's external change acts on it (current
+                                     // and previous twists differ) or is unknown (its pose
+                                     // stayed, its twist moves it: a fresh start): the
+                                     // resting speed's floor applies to its contacts
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
                                      // until an impact: moves with its previous twist)
   std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)

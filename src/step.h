@@ -355,6 +355,8 @@ class StepSolver {
   std::vector<double> before_;       // m/s: normal speed at the previous twists (< 0
                                      // approaching; reference_frame)
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
+  std::vector<double> start_speed_;  // m/s: normal speed at the step's start, the mean of the
+                                     // previous and current twists' (< 0 approaching)
   std::vector<double> resting_speed_;   // m/s: per contact, slower approaches rest (do not
                                         // bounce): reference_frame
   std::vector<double> drift_;        // m: how much more the separation grows over the step

@@ -119,6 +119,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -229,6 +230,9 @@ class StepSolver {
 
  private:
   void reference_frame(StepContext& ctx);
+  // its per-contact parts, contacts [lo, hi) (in_parts)
+  void frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
+  void impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   double longest_substep(const StepContext& ctx) const;   // s: the substeps' bound
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
@@ -284,6 +288,12 @@ class StepSolver {
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
+  // part(lo, hi) over [0, count) of independent items (each part writes only its items'
+  // entries): in kParts parts on the two threads with threads 2 and at least
+  // parallel_wave items, else at once here
+  static constexpr int kParts = 8;
+  void in_parts(const StepContext& ctx, int64_t count,
+                const std::function<void(int64_t, int64_t)>& part);
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
   void push_out(StepContext& ctx);

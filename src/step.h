@@ -229,7 +229,7 @@ class StepSolver {
 
  private:
   void reference_frame(StepContext& ctx);
-  double longest_substep(const StepContext& ctx) const;   // s: the substeps' bound
+  double longest_substep(const StepContext& ctx, int32_t depth) const;   // s: the substeps' bound
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
                                                  // contacts cold

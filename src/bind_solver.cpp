@@ -207,6 +207,7 @@ void bind_solver(py::module_& m) {
       .def_readwrite("max_substep", &SolverParams::max_substep)
       .def_readwrite("max_substeps", &SolverParams::max_substeps)
       .def_readwrite("substep_sink", &SolverParams::substep_sink)
+      .def_readwrite("stack_sink", &SolverParams::stack_sink)
       .def_readwrite("later_impact", &SolverParams::later_impact)
       .def_readwrite("behind_cosine", &SolverParams::behind_cosine)
       .def_readwrite("aim_turn", &SolverParams::aim_turn)

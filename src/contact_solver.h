@@ -103,6 +103,8 @@ struct SolverParams {
   double substep_sink = 0.02;           // ... and so short that a substep's external change
                                         // sinks a body by at most this fraction of its
                                         // contact reach (a h^2 <= this * reach)
+  double stack_sink = 0.5;              // ... and a h^2 <= this * reach / D^2 (D: levels of
+                                        // the deepest stack; 0: off)
   CombineRule restitution_rule = CombineRule::kMax;
   CombineRule friction_rule = CombineRule::kGeometric;
 };

@@ -233,7 +233,7 @@ class StepSolver {
   // its per-contact parts, contacts [lo, hi) (in_parts)
   void frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   void impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
-  double longest_substep(const StepContext& ctx) const;   // s: the substeps' bound
+  double longest_substep(const StepContext& ctx, int32_t depth) const;   // s: the substeps' bound
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
                                                  // contacts cold

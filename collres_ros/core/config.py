@@ -371,6 +371,20 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      '(6.7 ms substeps: a h^2 is 5 % of the cubes\' 8.7 mm reach) and of 5 mm '
                      'at 60 and 100 Hz; at 0.02 (4.2-4.5 ms for 1 cm) they stand within 3 mm '
                      'at 30-1000 Hz; bodies of a reach above 2 cm keep max_substep'),
+    ParamSpec('stack_sink', 'double', 0.5,
+              'The resting solve\'s substeps are also at most sqrt(this * reach / a) / D long '
+              '(reach and a as substep_sink; D: the levels of the deepest stack, contact '
+              'distance from an immovable body), up to max_substeps: a stack D levels tall '
+              'tips over its lowest contacts with D times the weight at D times the lever; '
+              '0: off',
+              0.0, 100.0,
+              reason='with sleeping off, towers of 20 default cubes swayed from round-off '
+                     'and fell where the substep was longer than about 0.6 sqrt(reach / g) '
+                     '/ D (1.3 for this; 5 cm: 3.8 ms, 10 cm: 5.3 ms): 5 cm cubes at 30 and '
+                     '60 Hz, 10 cm at 30 Hz (1.97, 3.03, 5.45 m in 10 s); at 0.5 the towers '
+                     'of 5 to 20 cm stand within 0.9 mm at 30-240 Hz but the 5 cm ones at '
+                     '30 Hz, which need 10 substeps (max_substeps); a settled pile of 1000 '
+                     'keeps max_substep (5 substeps at 30 Hz, 3 at 60 Hz, as before)'),
     ParamSpec('aim_turn', 'double', 1e-3,
               'A contact of two spheres pressed one onto the other is aimed along their '
               'centres\' line in each substep (StepSolver::aim); its row\'s frame is turned '

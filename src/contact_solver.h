@@ -93,7 +93,7 @@ struct SolverParams {
   bool wide_rows = true;                // wide groups solved in lanes (SweepPlan)
   double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
                                         // long (StepSolver::soft_step) ...
-  int max_substeps = 8;                 // ... and at most this many per step
+  int max_substeps = 10;                // ... and at most this many per step
   double later_impact = 1e-3;           // fraction of the step: a detected impact this much
                                         // later than its body's earliest ...
   double behind_cosine = 0.9;           // ... and behind it (normals out of the body within

@@ -337,9 +337,14 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'each contact\'s reference frame is its own, so the second core can '
                      'take part of each; a core busy with another process costs nothing '
                      '(the caller runs every part the worker has not begun)'),
-    ParamSpec('max_substeps', 'integer', 8,
+    ParamSpec('max_substeps', 'integer', 10,
               'Most substeps of a step\'s resting solve (max_substep)', 1, 64,
-              reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 8 solves'),
+              reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 10 solves; '
+                     'the stack bound (stack_sink) asks 15 for towers of 20 cubes of 5 cm '
+                     'at 30 Hz with sleeping off: at 8 they fell (2.69 m in 10 s), at 9 '
+                     'drifted 9.6 mm, at 10 stand within 0.65 mm; a dropped mixed pile of '
+                     '1000 at 30 Hz takes 508 substeps over 3 s instead of 501 (5 steps '
+                     'above 8), and settled piles keep theirs at 30-240 Hz'),
     ParamSpec('later_impact', 'double', 1e-3,
               'A detected impact whose time of impact is later than the earliest of one of '
               'its bodies by more than this fraction of the step, behind it (behind_cosine), '
@@ -382,8 +387,8 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'and fell where the substep was longer than about 0.6 sqrt(reach / g) '
                      '/ D (1.3 for this; 5 cm: 3.8 ms, 10 cm: 5.3 ms): 5 cm cubes at 30 and '
                      '60 Hz, 10 cm at 30 Hz (1.97, 3.03, 5.45 m in 10 s); at 0.5 the towers '
-                     'of 5 to 20 cm stand within 0.9 mm at 30-240 Hz but the 5 cm ones at '
-                     '30 Hz, which need 10 substeps (max_substeps); a settled pile of 1000 '
+                     'of 5 to 20 cm stand within 0.9 mm at 30-240 Hz (the 5 cm ones at 30 Hz '
+                     'with 10 substeps, max_substeps); a settled pile of 1000 '
                      'keeps max_substep (5 substeps at 30 Hz, 3 at 60 Hz, as before)'),
     ParamSpec('aim_turn', 'double', 1e-3,
               'A contact of two spheres pressed one onto the other is aimed along their '

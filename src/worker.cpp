@@ -30,7 +30,10 @@ void wait_until(const std::function<bool()>& ready) {
 }
 }  // namespace
 
-Worker::Worker() : thread_([this] { loop(); }) {}
+Worker::Worker()
+    : stamp_(new std::atomic<uint32_t>[kMaxChunks]()),
+      gate_(new std::atomic<int32_t>[kMaxChunks]()),
+      thread_([this] { loop(); }) {}
 
 Worker::~Worker() {
   {
@@ -64,14 +67,26 @@ int Worker::help(uint32_t generation) {
     const int chunks = static_cast<int>((ticket >> 16) & 0xffffu);
     if (static_cast<uint32_t>(ticket >> 32) != generation || chunk >= chunks) return ran;
     if (!ticket_.compare_exchange_weak(ticket, ticket + 1, std::memory_order_acq_rel)) continue;
-    // the chunks it depends on: every chunk claimed before it, so they finish (each
-    // finished chunk counts once: done_ reaches the gate only when all before it are done)
-    const int gate = gate_ != nullptr ? gate_[chunk] : chunk;
-    wait_until([&] { return done_.load(std::memory_order_acquire) >= gate; });
-    (*task_)(chunk);
-    done_.fetch_add(1, std::memory_order_acq_rel);
-    ++ran;
+    ran += take(generation, chunk) ? 1 : 0;
   }
+}
+
+bool Worker::take(uint32_t generation, int chunk) {
+  const uint32_t open = generation << 1;
+  std::atomic<uint32_t>& stamp = stamp_[chunk];
+  // the chunks it depends on: every chunk claimed before it, so they finish (each
+  // finished chunk counts once: done_ reaches the gate only when all before it are done)
+  const int gate = gate_[chunk].load(std::memory_order_relaxed);
+  wait_until([&] {
+    return done_.load(std::memory_order_acquire) >= gate ||
+           stamp.load(std::memory_order_relaxed) != open;
+  });
+  uint32_t expected = open;
+  if (!stamp.compare_exchange_strong(expected, open | 1u, std::memory_order_acq_rel))
+    return false;   // started by another thread (or of a finished run)
+  (*task_)(chunk);
+  done_.fetch_add(1, std::memory_order_acq_rel);
+  return true;
 }
 
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
@@ -103,18 +118,24 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
     {
       std::lock_guard<std::mutex> lock(mutex_);
       task_ = &task;
-      gate_ = gate;
-      done_.store(0);
       generation = ++generation_;
+      for (int c = 0; c < chunks; ++c) {
+        stamp_[c].store(generation << 1, std::memory_order_relaxed);
+        gate_[c].store(gate != nullptr ? gate[c] : c, std::memory_order_relaxed);
+      }
+      done_.store(0);
       ticket_.store(static_cast<uint64_t>(generation) << 32 |
                         static_cast<uint64_t>(chunks) << 16,
                     std::memory_order_release);
     }
     wake_.notify_one();
     if (first != nullptr) (*first)();
-    help(generation);   // the chunks the worker has not taken
-    // (a chunk the worker claimed is finished before the next run is posted: it reads
-    // task_ and gate_ only while it holds one)
+    help(generation);   // the chunks left to claim, then those the worker has not started
+    for (int c = 0; c < chunks; ++c) {
+      if (stamp_[c].load(std::memory_order_acquire) == generation << 1) take(generation, c);
+    }
+    // (a chunk the worker started is finished before the next run is posted: it reads
+    // task_ only while it runs one)
     wait_until([&] { return done_.load(std::memory_order_acquire) == chunks; });
   } else {
     if (first != nullptr) (*first)();

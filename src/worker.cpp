@@ -16,7 +16,10 @@ namespace {
 // pauses (~40 ns each) a waiting thread spins before it sleeps (the worker) or yields its
 // core (the caller): short, so that a busy machine loses little to spinning
 constexpr int kSpins = 256;
-constexpr unsigned kExplore = 17;   // every this many runs of a kind, the mode not chosen
+// the most runs of a kind between two in the mode not chosen (Costs::every doubles up to
+// it while that mode keeps costing more: on a loaded machine a paired run can wait for a
+// descheduled worker)
+constexpr unsigned kExploreMost = Worker::kExplore << 6;
 constexpr double kWeight = 0.2;     // of a run's cost in the running mean
 
 void wait_until(const std::function<bool()>& ready) {
@@ -108,10 +111,11 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
                  int chunks, const int32_t* gate, int kind, double work) {
   chunks_run_ += static_cast<uint64_t>(chunks);
   Costs& costs = costs_[kind & 1];
-  // the mode that has cost less per unit of work, the other one every kExplore-th run (an
-  // unmeasured mode first)
+  // the mode that has cost less per unit of work, the other one every costs.every-th run
+  // (an unmeasured mode first)
   const bool better = costs.paired <= costs.alone;
-  const bool paired = ++costs.runs % kExplore == 0 ? !better : better;
+  const bool explore = ++costs.runs >= costs.every;
+  const bool paired = explore ? !better : better;
   const auto start = std::chrono::steady_clock::now();
   if (paired) {
     uint32_t generation;
@@ -144,6 +148,11 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
   const double cost =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
       std::max(work, 1.0);
+  if (explore) {
+    const double other = paired ? costs.alone : costs.paired;
+    costs.every = cost > other ? std::min(2 * costs.every, kExploreMost) : kExplore;
+    costs.runs = 0;
+  }
   double& mean = paired ? costs.paired : costs.alone;
   mean = mean == 0.0 ? cost : mean + kWeight * (cost - mean);
 }

@@ -15,8 +15,9 @@
 // is decided by what it has cost: the caller keeps, per kind of run, a running mean of
 // the wall time per unit of work with the worker and without it, runs in the cheaper
 // mode and, every 17th run, in the other one (so a core that becomes busy or free is
-// noticed): on a machine whose other core is busy, or with both threads on one core, the
-// caller ends up alone. The worker spins briefly for the next task (the solver posts one
+// noticed; every 34th, 68th, ... up to 1088th while the other one keeps costing more):
+// on a machine whose other core is busy, or with both threads on one core, the caller
+// ends up alone. The worker spins briefly for the next task (the solver posts one
 // per sweep, back to back), then sleeps on a condition variable. Results do not depend on
 // which thread runs a chunk, nor on the mode.
 #pragma once
@@ -34,6 +35,7 @@ namespace collres {
 class Worker {
  public:
   static constexpr int kMaxChunks = 0xffff;
+  static constexpr unsigned kExplore = 17;   // runs of a kind between two in the mode not chosen
 
   Worker();
   ~Worker();
@@ -76,7 +78,8 @@ class Worker {
   uint64_t chunks_run_ = 0;           // chunks posted (the caller's thread)
   struct Costs {                      // (the caller's) per kind of run
     double alone = 0.0, paired = 0.0;   // s per unit of work, running means (0: none yet)
-    unsigned runs = 0;
+    unsigned runs = 0;                  // since the last run in the mode not chosen
+    unsigned every = kExplore;          // runs between two in the mode not chosen (now)
   };
   Costs costs_[2];
   const std::function<void(int)>* task_ = nullptr;   // read only with a started chunk

@@ -645,11 +645,6 @@ void StepSolver::prepare(StepContext& ctx) {
         row.e_a = row.e_b = combine(bodies.restitution[a], bodies.restitution[b],
                                     p.restitution_rule);
       }
-      double mu_s = combine(bodies.static_friction[a], bodies.static_friction[b],
-                            p.friction_rule);
-      double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[a],
-                                           bodies.kinetic_friction[b], p.friction_rule));
-      prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu_s, mu_k);
     }
     const auto count = static_cast<int32_t>(rows_.size()) - first_row;
     if (count > 0) {
@@ -660,6 +655,18 @@ void StepSolver::prepare(StepContext& ctx) {
       block.count = count;
     }
   }
+  // each row's frame and friction coefficient (its own entry: on either thread)
+  in_parts(ctx, static_cast<int64_t>(rows_.size()), [&](int64_t lo, int64_t hi) {
+    for (int64_t i = lo; i < hi; ++i) {
+      ContactRow& row = rows_[static_cast<size_t>(i)];
+      const double mu_s = combine(bodies.static_friction[row.a], bodies.static_friction[row.b],
+                                  p.friction_rule);
+      const double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[row.a],
+                                                 bodies.kinetic_friction[row.b],
+                                                 p.friction_rule));
+      prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu_s, mu_k);
+    }
+  });
   // the rows aim turns: of two spheres, alone in their manifold, one pressed onto the
   // other from the start (pressed_), neither body impacted
   aimed_.clear();

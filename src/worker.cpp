@@ -16,7 +16,10 @@ namespace {
 // pauses (~40 ns each) a waiting thread spins before it sleeps (the worker) or yields its
 // core (the caller): short, so that a busy machine loses little to spinning
 constexpr int kSpins = 256;
-constexpr unsigned kExplore = 17;   // every this many runs of a kind, the mode not chosen
+// the most runs of a kind between two in the mode not chosen (Costs::every doubles up to
+// it while that mode keeps costing more: on a loaded machine a paired run can wait for a
+// descheduled worker)
+constexpr unsigned kExploreMost = Worker::kExplore << 6;
 constexpr double kWeight = 0.2;     // of a run's cost in the running mean
 
 void wait_until(const std::function<bool()>& ready) {
@@ -30,7 +33,10 @@ void wait_until(const std::function<bool()>& ready) {
 }
 }  // namespace
 
-Worker::Worker() : thread_([this] { loop(); }) {}
+Worker::Worker()
+    : stamp_(new std::atomic<uint32_t>[kMaxChunks]()),
+      gate_(new std::atomic<int32_t>[kMaxChunks]()),
+      thread_([this] { loop(); }) {}
 
 Worker::~Worker() {
   {
@@ -64,14 +70,26 @@ int Worker::help(uint32_t generation) {
     const int chunks = static_cast<int>((ticket >> 16) & 0xffffu);
     if (static_cast<uint32_t>(ticket >> 32) != generation || chunk >= chunks) return ran;
     if (!ticket_.compare_exchange_weak(ticket, ticket + 1, std::memory_order_acq_rel)) continue;
-    // the chunks it depends on: every chunk claimed before it, so they finish (each
-    // finished chunk counts once: done_ reaches the gate only when all before it are done)
-    const int gate = gate_ != nullptr ? gate_[chunk] : chunk;
-    wait_until([&] { return done_.load(std::memory_order_acquire) >= gate; });
-    (*task_)(chunk);
-    done_.fetch_add(1, std::memory_order_acq_rel);
-    ++ran;
+    ran += take(generation, chunk) ? 1 : 0;
   }
+}
+
+bool Worker::take(uint32_t generation, int chunk) {
+  const uint32_t open = generation << 1;
+  std::atomic<uint32_t>& stamp = stamp_[chunk];
+  // the chunks it depends on: every chunk claimed before it, so they finish (each
+  // finished chunk counts once: done_ reaches the gate only when all before it are done)
+  const int gate = gate_[chunk].load(std::memory_order_relaxed);
+  wait_until([&] {
+    return done_.load(std::memory_order_acquire) >= gate ||
+           stamp.load(std::memory_order_relaxed) != open;
+  });
+  uint32_t expected = open;
+  if (!stamp.compare_exchange_strong(expected, open | 1u, std::memory_order_acq_rel))
+    return false;   // started by another thread (or of a finished run)
+  (*task_)(chunk);
+  done_.fetch_add(1, std::memory_order_acq_rel);
+  return true;
 }
 
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
@@ -93,28 +111,35 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
                  int chunks, const int32_t* gate, int kind, double work) {
   chunks_run_ += static_cast<uint64_t>(chunks);
   Costs& costs = costs_[kind & 1];
-  // the mode that has cost less per unit of work, the other one every kExplore-th run (an
-  // unmeasured mode first)
+  // the mode that has cost less per unit of work, the other one every costs.every-th run
+  // (an unmeasured mode first)
   const bool better = costs.paired <= costs.alone;
-  const bool paired = ++costs.runs % kExplore == 0 ? !better : better;
+  const bool explore = ++costs.runs >= costs.every;
+  const bool paired = explore ? !better : better;
   const auto start = std::chrono::steady_clock::now();
   if (paired) {
     uint32_t generation;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       task_ = &task;
-      gate_ = gate;
-      done_.store(0);
       generation = ++generation_;
+      for (int c = 0; c < chunks; ++c) {
+        stamp_[c].store(generation << 1, std::memory_order_relaxed);
+        gate_[c].store(gate != nullptr ? gate[c] : c, std::memory_order_relaxed);
+      }
+      done_.store(0);
       ticket_.store(static_cast<uint64_t>(generation) << 32 |
                         static_cast<uint64_t>(chunks) << 16,
                     std::memory_order_release);
     }
     wake_.notify_one();
     if (first != nullptr) (*first)();
-    help(generation);   // the chunks the worker has not taken
-    // (a chunk the worker claimed is finished before the next run is posted: it reads
-    // task_ and gate_ only while it holds one)
+    help(generation);   // the chunks left to claim, then those the worker has not started
+    for (int c = 0; c < chunks; ++c) {
+      if (stamp_[c].load(std::memory_order_acquire) == generation << 1) take(generation, c);
+    }
+    // (a chunk the worker started is finished before the next run is posted: it reads
+    // task_ only while it runs one)
     wait_until([&] { return done_.load(std::memory_order_acquire) == chunks; });
   } else {
     if (first != nullptr) (*first)();
@@ -123,6 +148,11 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
   const double cost =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
       std::max(work, 1.0);
+  if (explore) {
+    const double other = paired ? costs.alone : costs.paired;
+    costs.every = cost > other ? std::min(2 * costs.every, kExploreMost) : kExplore;
+    costs.runs = 0;
+  }
   double& mean = paired ? costs.paired : costs.alone;
   mean = mean == 0.0 ? cost : mean + kWeight * (cost - mean);
 }

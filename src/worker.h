@@ -6,23 +6,27 @@
 // share no data with it). Two uses: run_pair, the second of two independent tasks in
 // chunks that run one after the other (gate[c] = c) while the caller runs the first; and
 // run_waves, the waves of a velocity sweep (the chunks of one wave share a gate: the
-// first chunk of the wave), the caller claiming chunks from the start. Either way the
-// caller takes every chunk the worker has not claimed, so it never waits for the worker
-// to start (its core busy with another process, or asleep), only, at most, for a chunk
-// the worker is running that the next one depends on. Whether to post to the worker at all is decided by
-// what it has cost: the caller keeps, per kind of run, a running mean of the wall time per
-// unit of work with the worker and without it, runs in the cheaper mode and, every 17th
-// run, in the other one (so a core that becomes busy or free is noticed): on a machine
-// whose other core is busy, or with both threads on one core, the caller ends up alone.
-// The worker spins briefly for the next task (the solver posts one per sweep, back to
-// back), then sleeps on a condition variable. Results do not depend on which thread runs
-// a chunk, nor on the mode.
+// first chunk of the wave), the caller claiming chunks from the start. A claimed chunk
+// is started by whichever thread stamps it first once its gate is open: the thread that
+// claimed it, or the caller, which takes every chunk the worker has not started (claimed
+// or not). So the caller never waits for the worker to be scheduled (its core busy with
+// another process, or asleep), only, at most, for the one chunk the worker is running
+// when the next one depends on it or the run ends. Whether to post to the worker at all
+// is decided by what it has cost: the caller keeps, per kind of run, a running mean of
+// the wall time per unit of work with the worker and without it, runs in the cheaper
+// mode and, every 17th run, in the other one (so a core that becomes busy or free is
+// noticed; every 34th, 68th, ... up to 1088th while the other one keeps costing more):
+// on a machine whose other core is busy, or with both threads on one core, the caller
+// ends up alone. The worker spins briefly for the next task (the solver posts one
+// per sweep, back to back), then sleeps on a condition variable. Results do not depend on
+// which thread runs a chunk, nor on the mode.
 #pragma once
 
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 
@@ -31,6 +35,7 @@ namespace collres {
 class Worker {
  public:
   static constexpr int kMaxChunks = 0xffff;
+  static constexpr unsigned kExplore = 17;   // runs of a kind between two in the mode not chosen
 
   Worker();
   ~Worker();
@@ -57,8 +62,12 @@ class Worker {
   // runs `first` here and the chunks of `task` here and on the worker (run_pair, run_waves)
   void run(const std::function<void()>* first, const std::function<void(int)>& task,
            int chunks, const int32_t* gate, int kind, double work);
-  // claims and runs chunks of run `generation` until none is left; returns how many
+  // claims and runs chunks of run `generation` until none is left to claim; returns how
+  // many it ran
   int help(uint32_t generation);
+  // runs chunk `chunk` of run `generation` once its gate is open, unless another thread
+  // has started it; whether it ran it
+  bool take(uint32_t generation, int chunk);
 
   // (run generation << 32) | (its chunks << 16) | next chunk to claim: one word, so that
   // a claim is checked against the count of its own run (a thread that read a count of
@@ -69,11 +78,16 @@ class Worker {
   uint64_t chunks_run_ = 0;           // chunks posted (the caller's thread)
   struct Costs {                      // (the caller's) per kind of run
     double alone = 0.0, paired = 0.0;   // s per unit of work, running means (0: none yet)
-    unsigned runs = 0;
+    unsigned runs = 0;                  // since the last run in the mode not chosen
+    unsigned every = kExplore;          // runs between two in the mode not chosen (now)
   };
   Costs costs_[2];
-  const std::function<void(int)>* task_ = nullptr;   // read only with a claimed chunk
-  const int32_t* gate_ = nullptr;     // (of task_) null: gate[c] = c
+  const std::function<void(int)>* task_ = nullptr;   // read only with a started chunk
+  // per chunk (kMaxChunks): (run generation << 1) | started, set open (0) for its run
+  // when the run is posted, and its gate, copied here: a thread whose claim is of a
+  // finished run reads no freed memory, and its start fails (another generation)
+  std::unique_ptr<std::atomic<uint32_t>[]> stamp_;
+  std::unique_ptr<std::atomic<int32_t>[]> gate_;
   uint32_t generation_ = 0;           // (under mutex_) the run posted last
   bool stop_ = false;                 // (under mutex_)
   std::mutex mutex_;

@@ -245,14 +245,162 @@ struct ActiveSets {
 };
 const ActiveSets kActiveSets;
 
+// A row whose friction is at its cone's limit, within rounding: it slides, its friction
+// mu times its normal impulse along its slip (solve_friction_block keeps it there).
+constexpr double kSlides = 1e-9;
+inline bool sliding(const ContactRow& r) {
+  return r.normal > 0.0 && norm2(r.tangent[0], r.tangent[1]) >= r.mu * r.normal * (1.0 - kSlides);
+}
+
+// The whole block of a manifold as one linear solve (solve_block: every block of an impact
+// stage, and in the resting sweeps a block some of whose rows slide). Unknowns: the normal
+// impulse of each row that carries one (no approach beyond its allowance) and the friction
+// of those that stick (no slip); a sliding row's friction is drag times its normal (N s per
+// N s, along t1 and t2), so its column holds its friction's effect too. The matrix's
+// diagonal is a fraction kRegular heavier on the total impulses: the least-norm answer of
+// a redundant block (four points of a face: 12 rows on 6 motions), so a mirror-symmetric
+// hit gets mirror-symmetric impulses. A sticking row pushed beyond its cone slides along
+// that friction, a sliding row whose friction would not oppose its slip sticks, and the
+// solve is done again (at most 2k + 1 times). Taken when it fits: normals >= 0, every
+// sticking row within its cone, the rows left out not approaching beyond their allowance.
+// Why: the normal block for the friction held, then the friction block for those normals,
+// each sweep, is an iteration whose mirror-antisymmetric part can grow: a sliding row's
+// friction follows its normal, the two points' friction turns the body, the turn moves
+// their normals apart (period two, x3.5 a sweep on a box sliding on two points 20 mm
+// apart), and sticking rows taking over the load of sliding ones converge by 2 % a sweep;
+// the answer depended on the sweep the solver stopped at. Returns the largest impulse
+// change (N s), or -1 when it does not fit (the caller solves the normal block alone).
+double solve_coupled(ContactRow* r, int k, Twists& v) {
+  bool slides[4];
+  double drag[4][2];   // N s of friction per N s of normal of a sliding row
+  for (int i = 0; i < k; ++i) {
+    slides[i] = sliding(r[i]);
+    drag[i][0] = slides[i] ? r[i].tangent[0] / r[i].normal : 0.0;
+    drag[i][1] = slides[i] ? r[i].tangent[1] / r[i].normal : 0.0;
+  }
+  // impulse along row j's direction b moves row i's velocity along its direction a by
+  auto effect = [&](int i, int a, int j, int b) {
+    return (r[j].ma + r[j].mb) * dot(direction(r[i], a), direction(r[j], b)) +
+           dot(r[i].ang_a[a], r[j].dw_a[b]) + dot(r[i].ang_b[a], r[j].dw_b[b]);
+  };
+  for (int tries = 0; tries <= 2 * k; ++tries) {
+    int row[12], dir[12], m = 0;   // unknown u: row[u]'s impulse along dir[u] (0 n, 1 t1, 2 t2)
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      row[m] = i, dir[m++] = 0;
+      if (slides[i]) continue;
+      row[m] = i, dir[m++] = 1;
+      row[m] = i, dir[m++] = 2;
+    }
+    if (m == 0) return -1.0;
+    double s[12][13];
+    for (int u = 0; u < m; ++u) {
+      const ContactRow& ru = r[row[u]];
+      double q = relative(ru, v, dir[u], direction(ru, dir[u])) +
+                 (dir[u] == 0 ? ru.allowance : 0.0);
+      for (int c = 0; c < m; ++c) {
+        const int j = row[c];
+        double e = effect(row[u], dir[u], j, dir[c]);
+        if (dir[c] == 0 && slides[j])
+          e += drag[j][0] * effect(row[u], dir[u], j, 1) + drag[j][1] * effect(row[u], dir[u], j, 2);
+        // (the impulse held along column c: a sliding row's friction is drag times its normal)
+        const double held = dir[c] == 0 ? r[j].normal : r[j].tangent[dir[c] - 1];
+        q -= (dir[c] == 0 && slides[j] ? effect(row[u], dir[u], j, 0) * held +
+              effect(row[u], dir[u], j, 1) * r[j].tangent[0] +
+              effect(row[u], dir[u], j, 2) * r[j].tangent[1] : e * held);
+        s[u][c] = c == u ? e * (1.0 + kRegular) : e;
+      }
+      s[u][m] = -q;
+    }
+    for (int c = 0; c < m; ++c) {   // Gauss-Jordan, partial pivoting
+      int pivot = c;
+      for (int i = c + 1; i < m; ++i)
+        if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+      if (!(std::fabs(s[pivot][c]) > 1e-9 * std::fabs(s[c][c]) + 1e-300)) return -1.0;
+      if (pivot != c)
+        for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
+      for (int i = 0; i < m; ++i) {
+        if (i == c) continue;
+        const double f = s[i][c] / s[c][c];
+        for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+      }
+    }
+    double n[4] = {}, t[4][2] = {};
+    for (int u = 0; u < m; ++u) {
+      const double x = s[u][m] / s[u][u];
+      if (dir[u] == 0) n[row[u]] = x;
+      else t[row[u]][dir[u] - 1] = x;
+    }
+    bool again = false;
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      if (!(n[i] >= 0.0)) return -1.0;
+      if (slides[i]) {
+        t[i][0] = drag[i][0] * n[i];
+        t[i][1] = drag[i][1] * n[i];
+        continue;
+      }
+      const double size = norm2(t[i][0], t[i][1]);
+      if (!(size <= r[i].mu * n[i])) {   // beyond its cone: it slides, along that friction
+        slides[i] = true;
+        drag[i][0] = r[i].mu * t[i][0] / size;
+        drag[i][1] = r[i].mu * t[i][1] / size;
+        again = true;
+      }
+    }
+    if (again) continue;
+    Twists after = v;
+    double change = 0.0;
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      const double d[3] = {n[i] - r[i].normal, t[i][0] - r[i].tangent[0],
+                           t[i][1] - r[i].tangent[1]};
+      for (int b = 0; b < 3; ++b) {
+        if (d[b] != 0.0) apply(r[i], after, b, direction(r[i], b), d[b]);
+        change = std::max(change, std::fabs(d[b]));
+      }
+    }
+    // a sliding row whose friction does not oppose its slip sticks; the rows left out do
+    // not approach beyond their allowance
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0) || !slides[i]) continue;
+      const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
+      if (drag[i][0] * x + drag[i][1] * y > 0.0) {
+        slides[i] = false;
+        again = true;
+      }
+    }
+    if (again) continue;
+    for (int i = 0; i < k; ++i)
+      if (!(r[i].normal > 0.0) && relative(r[i], after, 0, r[i].n) + r[i].allowance < 0.0)
+        return -1.0;
+    v = after;
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      r[i].normal = n[i];
+      r[i].tangent[0] = t[i][0];
+      r[i].tangent[1] = t[i][1];
+    }
+    return change;
+  }
+  return -1.0;
+}
+
 // The normal rows of one manifold (2..4 points of a pair) solved together, exactly: the
 // small LCP  w = A x + q >= 0, x >= 0, x.w = 0  (A the rows' Delassus matrix, x the new
 // accumulated impulses) by trying the active sets (the rows that carry impulse now first,
 // then largest first), as Box2D's block solver does for two points. Gauss-Seidel converges slowly on a nearly singular
 // manifold (close points, small lever arms) and leaves it spinning. Returns the largest
 // impulse change, or -1 when no active set fits (the caller falls back to rows).
-double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
+// `whole`: the whole block (solve_coupled) first, whether rows slide or not.
+double solve_block(ContactRow* r, const Manifold& block, Twists& v, bool whole) {
   const int k = block.count;
+  bool slides = false;
+  for (int i = 0; i < k; ++i) slides = slides || sliding(r[i]);
+  if (slides || whole) {
+    const double step = solve_coupled(r, k, v);
+    if (step >= 0.0) return step;
+  }
   const double (&a)[4][4] = block.delassus;
   double q[4], x[4];
   bool idle = true;
@@ -466,7 +614,7 @@ inline bool positive_zero(double x) { return x == 0.0 && !std::signbit(x); }
 
 // One sweep's update of one manifold (its rows; its spin row's load), twists at hand.
 double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
-                      std::vector<SpinRow>* spins, Progress& progress) {
+                      std::vector<SpinRow>* spins, Progress& progress, bool whole) {
   const size_t lo = static_cast<size_t>(manifold.first);
   const size_t hi = lo + static_cast<size_t>(manifold.count);
   const int k = manifold.count;
@@ -484,7 +632,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
     if (spins != nullptr && manifold.spin >= 0) (*spins)[manifold.spin].load = 0.0;
     return 0.0;
   }
-  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
+  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t, whole) : -1.0;
   if (step >= 0.0) {
     step = std::max(step, solve_friction_block(&rows[lo], k, t));
   } else {
@@ -505,12 +653,12 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
 COLLRES_CLONED_FLAT
 void solve_manifolds(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      size_t from, size_t to, const SolverBodies& bodies,
-                     std::vector<SpinRow>* spins, Progress& progress) {
+                     std::vector<SpinRow>* spins, Progress& progress, bool whole) {
   double* v = bodies.velocity;
   for (size_t m = from; m < to; ++m) {
     const Manifold& manifold = manifolds[m];
     Twists t(v, manifold.a, manifold.b);
-    solve_manifold(rows, manifold, t, spins, progress);
+    solve_manifold(rows, manifold, t, spins, progress, whole);
     t.store(v, manifold.a, manifold.b, bodies.inv_mass);
   }
 }
@@ -873,7 +1021,13 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       for (int j = 0; j < k; ++j) q[i] -= g.plain[i][j] * w[j].normal;
       idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
     }
-    Mask fits = g.invertible != 0.0;
+    // lanes whose rows slide: their whole block (solve_block), in their lane below
+    Mask slides = (Mask){0, 0, 0, 0};
+    for (int i = 0; i < k; ++i)
+      slides |= (w[i].normal > 0.0) &
+                (root(w[i].tangent[0] * w[i].tangent[0] + w[i].tangent[1] * w[i].tangent[1]) >=
+                 w[i].mu * w[i].normal * (1.0 - kSlides));
+    Mask fits = (g.invertible != 0.0) & ~slides;
     for (int i = 0; i < k; ++i) {
       x[i] = splat(0.0);
       for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
@@ -895,7 +1049,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     // two rows (an edge) whose all-active answer failed: solve_block's search tries sets
     // of one row or none (the rows carrying impulse first, then {1}, {0}, {}), each a
     // division; solved here in lanes, the same sets in the same order, the same arithmetic
-    const Mask two = search & (g.invertible != 0.0);
+    const Mask two = search & (g.invertible != 0.0) & ~slides;
     if (k == 2 && any(two)) {
       const Lanes zero = splat(0.0);
       Lanes candidate[3][2];   // x of the sets {0} (bit 1), {1} (bit 2), {} (0)
@@ -948,7 +1102,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     // solved in lanes, each lane's set in its leading rows and the rest an identity that
     // the elimination leaves alone (the same pivots and arithmetic as solve_block's
     // `fits`); a lane whose set does not fit searches on one by one
-    const Mask face = search & (g.invertible != 0.0);
+    const Mask face = search & (g.invertible != 0.0) & ~slides;
     if (k >= 3 && any(face)) {
       const Lanes zero = splat(0.0), one = splat(1.0);
       Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
@@ -1080,7 +1234,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         lane_to_rows(w, l, r, k);
         Twists lane = t.lane(l);
         Progress own;
-        step[l] = solve_manifold(rows, manifold, lane, nullptr, own);
+        step[l] = solve_manifold(rows, manifold, lane, nullptr, own, false);
         rows_to_lane(r, k, w, l);
         t.set_lane(l, lane);
       }
@@ -1432,7 +1586,7 @@ void repack(SweepPlan& plan, const uint8_t* changed) {
 
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins, SweepPlan* plan) {
+                     std::vector<SpinRow>* spins, SweepPlan* plan, bool whole) {
   const size_t count = manifolds.size(), spin_count = spins != nullptr ? spins->size() : 0;
   const bool wide = plan != nullptr && plan->wide;
   if (wide) {
@@ -1461,7 +1615,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
                     g.count >= 3 ? &plan->faces[entry] : nullptr, progress);
       } else {
         solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
-                        bodies, spins, progress);
+                        bodies, spins, progress, whole);
       }
     }
   };
@@ -1470,7 +1624,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     ++done;
     Progress part[2];
     if (plan == nullptr) {
-      solve_manifolds(rows, manifolds, 0, count, bodies, spins, part[0]);
+      solve_manifolds(rows, manifolds, 0, count, bodies, spins, part[0], whole);
     } else {
       for (size_t l = 0; l < plan->waves.size(); ++l) {
         const SweepWave& span = plan->waves[l];
@@ -1625,7 +1779,7 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
           r.allowance += std::max(towards, 0.0);
         }
         Twists t(v, m.a, m.b);
-        solve_manifold(scratch, m, t, nullptr, progress);
+        solve_manifold(scratch, m, t, nullptr, progress, false);
         t.store(v, m.a, m.b);
         for (int i = 0; i < m.count; ++i)
           scratch[static_cast<size_t>(m.first + i)].allowance = allowance[i];
@@ -1845,7 +1999,8 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
     // any body (below): a projection, which never gains
     double taken = 0.0;
     for (int attempt = 0; attempt < 3; ++attempt) {
-      solve_velocities(scratch, blocks, bodies, settings.sweeps, settings.converged);
+      solve_velocities(scratch, blocks, bodies, settings.sweeps, settings.converged, nullptr,
+                       nullptr, true);
       taken = 0.0;
       for (size_t j = 0; j < k; ++j) {
         const ContactRow& c = scratch[j];

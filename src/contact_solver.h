@@ -319,11 +319,15 @@ void repack(SweepPlan& plan, const uint8_t* changed);
 // params.converged times the largest normal impulse. `spins` (rolling resistance and
 // torsional friction, may be null; a manifold's Manifold::spin names its own) are solved
 // after the rows in each sweep, in order. Without `plan`, the manifolds in their order on
-// one thread; with it, wave by wave (above): the same bits. Immovable bodies' velocities
+// one thread; with it, wave by wave (above): the same bits. A manifold some of whose rows
+// slide (friction at the cone's limit) is solved as one block with its friction (normal
+// impulses, sticking friction, sliding friction mu times its normal); with `whole`
+// (the impact stages) every manifold of 2 to 4 rows is. Immovable bodies' velocities
 // are read, never written. Returns the sweeps done.
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins = nullptr, SweepPlan* plan = nullptr);
+                     std::vector<SpinRow>* spins = nullptr, SweepPlan* plan = nullptr,
+                     bool whole = false);
 
 // Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the

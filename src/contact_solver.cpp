@@ -10,7 +10,7 @@ namespace {
 constexpr double kTiny = 1e-12;
 constexpr double kRegular = 1e-8;   // relative weight added to a block's diagonal
 constexpr double kSlowest = 1e-9;   // m/s: a slower approach is no impact (rounding)
-constexpr size_t kChunks = 8;       // chunks of a sweep's second half (Worker::run_pair)
+constexpr size_t kChunks = 8;       // chunks of a large wave (Worker::run_waves)
 
 inline Vec3 lin(const double* v, int32_t i) { return load3(v + 6 * i); }
 inline Vec3 ang(const double* v, int32_t i) { return load3(v + 6 * i + 3); }
@@ -1545,28 +1545,73 @@ void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
   }
 }
 
-// The spin rows of a sweep, wave by wave: a group's in lanes where all four have one, the
-// others one by one (a wave's spin rows share no movable body: the bits of their order).
-void solve_spin_waves(SweepPlan& plan, std::vector<SpinRow>& spins,
-                      const std::vector<Manifold>& manifolds, const SolverBodies& bodies,
-                      Progress& progress) {
+// The spin rows of wave l's part [lo, hi) of a sweep: a group's in lanes where all four
+// have one, the others one by one, then the wave's manifolds one by one (a wave's spin
+// rows share no movable body: the bits of their order).
+void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
+                    const std::vector<Manifold>& manifolds, const SolverBodies& bodies,
+                    size_t l, size_t lo, size_t hi, Progress& progress) {
   double* v = bodies.velocity;
   auto one = [&](size_t m) {
     const int32_t spin = manifolds[m].spin;
     if (spin >= 0)
       progress.change = std::max(progress.change, solve_spin(spins[spin], v, bodies.inv_mass));
   };
-  for (size_t l = 0; l < plan.waves.size(); ++l) {
-    for (size_t group = plan.wave_groups[l]; group < plan.wave_groups[l + 1]; ++group) {
-      const int32_t entry = plan.slot[group];
+  const size_t groups = plan.wave_groups[l + 1] - plan.wave_groups[l];
+  for (size_t item = lo; item < hi; ++item) {
+    if (item < groups) {
+      const int32_t entry = plan.slot[plan.wave_groups[l] + item];
       const WideGroup& g = plan.groups[entry];
       if (plan.spin_groups[entry].spin[0] >= 0) {
         solve_wide_spin(plan.spin_groups[entry], g, v, progress);
       } else {
         for (int lane = 0; lane < g.lanes; ++lane) one(g.manifold + static_cast<size_t>(lane));
       }
+    } else {
+      one(plan.waves[l].lone + item - groups);
     }
-    for (size_t m = plan.waves[l].lone; m < plan.waves[l].end; ++m) one(m);
+  }
+}
+
+// A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_waves;
+// one thread runs them in turn): the waves in turn
+// (their spin rows after all of them, `spins`), a wave of at least plan.parallel manifolds
+// in up to kChunks chunks that share its gate (the first chunk of the wave), each run of
+// smaller waves in one chunk, gated by all before it, of at least plan.parallel manifolds
+// unless a larger wave follows.
+void plan_chunks(SweepPlan& plan, bool wide, bool spins) {
+  plan.chunks.clear();
+  plan.gates.clear();
+  const size_t waves = plan.waves.size();
+  for (int pass = 0; pass < (spins ? 2 : 1); ++pass) {
+    size_t small = 0;   // manifolds of the open chunk of small waves
+    for (size_t l = 0; l < waves; ++l) {
+      const SweepWave& span = plan.waves[l];
+      const size_t groups = wide ? plan.wave_groups[l + 1] - plan.wave_groups[l] : 0;
+      const auto items =
+          static_cast<uint32_t>(groups + (span.end - (wide ? span.lone : span.first)));
+      const size_t size = span.end - span.first;
+      const auto wave = static_cast<uint32_t>(l);
+      if (size < plan.parallel) {
+        if (small > 0) {
+          plan.chunks.back().wave_end = wave + 1;
+        } else {
+          plan.gates.push_back(static_cast<int32_t>(plan.chunks.size()));
+          plan.chunks.push_back({wave, wave + 1, 0, SweepChunk::kWhole, pass == 1});
+        }
+        small += size;
+        if (small >= plan.parallel) small = 0;
+        continue;
+      }
+      small = 0;
+      const auto gate = static_cast<int32_t>(plan.chunks.size());
+      const auto parts = static_cast<uint32_t>(std::min<size_t>(kChunks, items));
+      for (uint32_t i = 0; i < parts; ++i) {
+        plan.gates.push_back(gate);
+        plan.chunks.push_back({wave, wave + 1, items * i / parts, items * (i + 1) / parts,
+                               pass == 1});
+      }
+    }
   }
 }
 
@@ -1619,39 +1664,45 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
       }
     }
   };
+  const bool spin_waves = spins != nullptr && wide;
+  if (plan != nullptr) plan_chunks(*plan, wide, spin_waves);
+  const size_t chunks = plan != nullptr ? plan->chunks.size() : 0;
+  // (per chunk: a chunk's part runs on either thread)
+  std::vector<Progress> part(std::max<size_t>(chunks, 1));
+  // chunk c of the sweep: its waves, whole, or its part of its one wave
+  const std::function<void(int)> chunk = [&](int c) {
+    const SweepChunk& k = plan->chunks[static_cast<size_t>(c)];
+    Progress& progress = part[static_cast<size_t>(c)];
+    for (size_t l = k.wave; l < k.wave_end; ++l) {
+      const SweepWave& span = plan->waves[l];
+      const size_t items = (wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0) +
+                           (span.end - (wide ? span.lone : span.first));
+      const size_t lo = k.lo, hi = std::min<size_t>(k.hi, items);
+      if (k.spin) {
+        spin_wave_part(*plan, *spins, manifolds, bodies, l, lo, hi, progress);
+      } else {
+        wave_part(l, lo, hi, progress);
+      }
+    }
+  };
   int done = 0;
   while (done < iterations) {
     ++done;
-    Progress part[2];
+    std::fill(part.begin(), part.end(), Progress());
     if (plan == nullptr) {
       solve_manifolds(rows, manifolds, 0, count, bodies, spins, part[0], whole);
+    } else if (plan->worker != nullptr) {
+      plan->worker->run_waves(chunk, static_cast<int>(chunks), plan->gates.data(), 0,
+                              static_cast<double>(count));
     } else {
-      for (size_t l = 0; l < plan->waves.size(); ++l) {
-        const SweepWave& span = plan->waves[l];
-        const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
-        const size_t items = groups + (span.end - (wide ? span.lone : span.first));
-        const size_t size = span.end - span.first;
-        if (plan->worker == nullptr || size < plan->parallel) {
-          wave_part(l, 0, items, part[0]);
-          continue;
-        }
-        // the first half here, the second in ordered chunks on the worker or here
-        const size_t half = items / 2, chunks = std::min<size_t>(kChunks, items - half);
-        const std::function<void(int)> chunk = [&](int i) {
-          wave_part(l, half + (items - half) * i / chunks,
-                     half + (items - half) * (i + 1) / chunks, part[1]);
-        };
-        plan->worker->run_pair([&] { wave_part(l, 0, half, part[0]); }, chunk,
-                               static_cast<int>(chunks), 0, static_cast<double>(size));
-      }
+      for (size_t c = 0; c < chunks; ++c) chunk(static_cast<int>(c));
     }
-    if (spins != nullptr && wide) {
-      solve_spin_waves(*plan, *spins, manifolds, bodies, part[0]);
-    } else if (spins != nullptr) {
-      solve_spins(*spins, 0, spin_count, bodies, part[0]);
+    if (spins != nullptr && !spin_waves) solve_spins(*spins, 0, spin_count, bodies, part[0]);
+    double change = 0.0, largest = 0.0;
+    for (const Progress& p : part) {
+      change = std::max(change, p.change);
+      largest = std::max(largest, p.largest);
     }
-    const double change = std::max(part[0].change, part[1].change);
-    const double largest = std::max(part[0].largest, part[1].largest);
     if (change <= converged * largest) break;
   }
   if (wide) unpack_groups(*plan, rows, manifolds, spins);

@@ -61,8 +61,9 @@ struct SolverParams {
   int shock_sweeps = 2;                 // shock-propagation sweeps per level
   double shock_ratio = 4.0;             // ... only under a body this many times heavier
   double depth_sweeps = 1.5;            // least velocity sweeps per level of the deepest stack
-  double restitution_threshold = 0.5;   // m/s: least resting speed: slower approaches do
-                                        // not bounce
+  double restitution_threshold = 0.5;   // m/s: least resting speed of a pair the step's
+                                        // external change acts on: slower approaches do
+                                        // not bounce (free bodies: none)
   double resting_factor = 1.5;          // ... nor those slower than this times the approach
                                         // the step's external change brought the contact
   double sticking_speed = 0.01;         // m/s: slower tangential motion may stick
@@ -276,13 +277,24 @@ struct WideSpin {
 struct SweepWave {
   size_t first = 0, wide_end = 0, lone = 0, end = 0;
 };
+// A part of a sweep that one thread runs (Worker::run_waves): waves [wave, wave_end), of
+// each its items (wide groups, then manifolds one by one) [lo, hi) (kWhole: to its end);
+// `spin`: their spin rows (after every wave's rows).
+struct SweepChunk {
+  static constexpr uint32_t kWhole = ~uint32_t{0};
+  uint32_t wave = 0, wave_end = 0, lo = 0, hi = kWhole;
+  bool spin = false;
+};
 struct SweepPlan {
   std::vector<SweepWave> waves;         // in sweep order
   bool wide = true;                     // wide groups solved in lanes (else one by one:
                                         // the same bits, SOLVER_TUNING wide_rows)
-  size_t parallel = 0;                  // a wave of at least this many manifolds is
-                                        // shared with `worker`
+  size_t parallel = 0;                  // a wave of at least this many manifolds is split
+                                        // between the threads (smaller ones are run whole,
+                                        // in chunks of at least this many)
   Worker* worker = nullptr;             // null: one thread
+  std::vector<SweepChunk> chunks;       // a sweep's chunks, in order ...
+  std::vector<int32_t> gates;           // ... and each one's gate (Worker::run_waves)
   // scratch of solve_velocities: the wide groups of the waves and their rows (a pool: slot)
   std::vector<WideGroup> groups;
   std::vector<WideRow> wide_rows;

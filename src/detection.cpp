@@ -706,15 +706,29 @@ double Detector::sphere_gap(int a, int b) const {
   return (bodies_[b].p1 - bodies_[a].p1).norm() - shapes_[a].radius - shapes_[b].radius;
 }
 
+// m/s: the floor of A and B's resting speed, the solver's (StepSolver::reference_frame):
+// restitution_threshold where the step's external change acts on one of the two (its
+// twist changed between the previous and the current state: a load, as gravity) or is
+// unknown (its pose stayed while its twist moves it: a fresh start), else 0
+double Detector::resting_floor(int a, int b) const {
+  const auto loaded = [](const Body& body) {
+    const bool moving = body.linear != Vec3::Zero() || body.angular != Vec3::Zero();
+    const bool moved = body.p0 != body.p1 || !(body.q0.coeffs() == body.q1.coeffs());
+    return body.external_linear != Vec3::Zero() || body.external_angular != Vec3::Zero() ||
+           (moving && !moved);
+  };
+  return loaded(bodies_[a]) || loaded(bodies_[b]) ? settings_.restitution_threshold : 0.0;
+}
+
 // Whether a point of B may approach A faster than its resting speed, the solver's rule
-// (StepSolver::reference_frame): faster than restitution_threshold and than
+// (StepSolver::reference_frame): faster than its floor (resting_floor) and than
 // resting_factor times the approach the step's external change alone brought it along
 // its normal. `speed` bounds any point's approach (current twists); the external approach
 // is bounded from below along `normal`, the current one (a bound only: a body carried past
 // the middle of a thin one has its current normal turned away from its approach, so the
 // approach itself is not taken along it). A pair that cannot is no impact.
 bool Detector::may_bounce(int a, int b, const Vec3& normal, double speed) const {
-  if (!(speed > settings_.restitution_threshold)) return false;
+  if (!(speed > resting_floor(a, b))) return false;
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   const double external = -(B.external_linear - A.external_linear).dot(normal.normalized()) -
@@ -1026,12 +1040,13 @@ bool Detector::time_of_impact(Lane& lane, int a, int b, const Motion& ma, const 
   const Vec3 pa = ma.position_at(s1), pb = mb.position_at(s1);
   if (only_if_fast) {
     // approach speed at each contact point (current twists): slower than its resting speed
-    // at every point (the floor or resting_factor times the approach the step's external
-    // change brought there, as the solver's), the pair rests and stays a persistent
-    // contact at the current state
+    // at every point (the floor, resting_floor, or resting_factor times the approach the
+    // step's external change brought there, as the solver's), the pair rests and stays a
+    // persistent contact at the current state
     const Body& A = bodies_[a];
     const Body& B = bodies_[b];
     const Vec3 unit = used.normalized();
+    const double floor = resting_floor(a, b);
     bool fast = false;
     for (const PointPair& p : lane.points) {
       const Vec3 point = 0.5 * (p.on_a + p.on_b);
@@ -1039,7 +1054,7 @@ bool Detector::time_of_impact(Lane& lane, int a, int b, const Motion& ma, const 
       const Vec3 vb = B.linear + B.angular.cross(point - pb);
       const Vec3 ea = A.external_linear + A.external_angular.cross(point - pa);
       const Vec3 eb = B.external_linear + B.external_angular.cross(point - pb);
-      const double resting = std::max(settings_.restitution_threshold,
+      const double resting = std::max(floor,
                                       settings_.resting_factor * std::max(-(eb - ea).dot(unit), 0.0));
       fast = fast || (vb - va).dot(unit) < -resting;
     }

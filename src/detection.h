@@ -171,6 +171,7 @@ class Detector {
   void find_pairs();
   double sphere_gap(int a, int b) const;
   double relative_motion(int a, int b) const;
+  double resting_floor(int a, int b) const;
   bool may_bounce(int a, int b, const Vec3& normal, double speed) const;
   void limit_pairs();
   void limit_rows(ContactRows& out);

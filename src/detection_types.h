@@ -30,8 +30,9 @@ struct DetectionSettings {
   bool ccd = true;                     // sweep pairs apart at both ends of the step
   double linear_slop = 0.0001;         // m: bounds the advancement's distance tolerance
                                        // (the solver's slop: config.SOLVER_PARAMS)
-  double restitution_threshold = 0.5;   // m/s: least resting speed: slower approaches rest,
-                                        // faster ones may impact
+  double restitution_threshold = 0.5;   // m/s: least resting speed of a pair the step's
+                                        // external change acts on: slower approaches rest,
+                                        // faster ones may impact (free bodies: none)
   double resting_factor = 1.5;         // ... and those slower than this times the approach
                                        // the step's external change brought the pair
                                        // (SolverParams::resting_factor)

@@ -181,8 +181,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   const BodyProperties bodies = ctx.bodies;
   const ContactsView c = ctx.contacts;
   const double dt = ctx.dt;
-  const double slop = ctx.params.linear_slop, sticking = ctx.params.sticking_speed;
-  const ContactsOut report = ctx.report;
+  const double slop = ctx.params.linear_slop;
   const int64_t n = bodies.count, m = c.count;
   now_.resize(6 * n);
   then_.resize(6 * n);
@@ -208,6 +207,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   supported_.assign(n, 0);
   motion_.resize(n);
   approach_.resize(m);
+  start_speed_.resize(m);
   resting_speed_.resize(m);
   for (int64_t k = 0; k < m; ++k) {   // each body in contact's motion, once
     for (const int64_t i : {c.a[k], c.b[k]}) {
@@ -219,59 +219,32 @@ void StepSolver::reference_frame(StepContext& ctx) {
   uint8_t *const touching = touching_.data(), *const rested = rested_.data();
   uint8_t *const near = near_.data(), *const supported = supported_.data();
   pressed_.assign(m, 0);
-  uint8_t* const pressed = pressed_.data();
-  Vec3 *const ra = ra_.data(), *const rb = rb_.data(), *const travel = travelled_.data();
-  double *const moved_a = moved_a_.data(), *const gap = gap_.data();
-  double *const allowance = allowance_.data(), *const before = before_.data();
-  const double* const then = then_.data();
-  const double* const now = now_.data();
-  double *const approach = approach_.data(), *const resting = resting_speed_.data();
-  const double floor = ctx.params.restitution_threshold, factor = ctx.params.resting_factor;
-  const std::array<Vec3, 2>* const motion = motion_.data();
+  const uint8_t* const pressed = pressed_.data();
+  const double *const gap = gap_.data(), *const before = before_.data();
+  const double* const resting = resting_speed_.data();
+  // per body: whether the step's external change acts on it (its twist changed between
+  // the previous and the current state: a load, as gravity), or is unknown: a body whose
+  // pose stayed while its twist moves it has no previous state of its own (a fresh start
+  // gives previous = current: a pile restarted after a gap, its twists the source's g dt
+  // into the supports, bounced on that approach)
+  loaded_.assign(n, 0);
+  for (int64_t i = 0; i < n; ++i) {
+    bool changed = false, moving = false, moved = false;
+    for (int d = 0; d < 6; ++d) {
+      changed = changed || now_[6 * i + d] != then_[6 * i + d];
+      moving = moving || now_[6 * i + d] != 0.0;
+    }
+    for (int d = 0; d < 3; ++d)
+      moved = moved || previous.position[3 * i + d] != current.position[3 * i + d];
+    for (int d = 0; d < 4; ++d)
+      moved = moved || previous.orientation[4 * i + d] != current.orientation[4 * i + d];
+    loaded_[i] = changed || (moving && !moved);
+  }
+  // per contact (frame_contacts), shared by the two threads; the bodies' flags after
+  in_parts(ctx, m, [&](int64_t lo, int64_t hi) { frame_contacts(ctx, lo, hi); });
+  // the bodies' flags, from their contacts: resting on one from the start, near, supported
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
-    const bool detected = !persistent(c.kind[k]);   // IMPACT or TUNNELLED
-    // contact points are at the time of impact (IMPACT/TUNNELLED) or the current state
-    double at = detected ? c.toi[k] : 1.0;
-    Vec3 point = load3(c.point + 3 * k), normal = load3(c.normal + 3 * k);
-    Vec3 xa = load3(previous.position + 3 * a), xb = load3(previous.position + 3 * b);
-    // against an immovable body the levers reach the movable body's own surface point
-    // (detection's point is midway between the two surfaces; a persistent contact's
-    // current poses overlap by -separation, at 30 Hz g dt^2 = 11 mm for a body resting on
-    // a floor: from the midpoint a ball's lever was that half short, so its friction and
-    // spin rows saw it turn 5 % too slowly). Two movable bodies keep one point for both
-    // (midway: equal and opposite impulses at one point keep the angular momentum). The
-    // normal rows see no change (r x n is the same along n)
-    if (!detected) {
-      const bool fixed_a = bodies.inv_mass[a] == 0.0, fixed_b = bodies.inv_mass[b] == 0.0;
-      if (fixed_a != fixed_b)
-        point += (fixed_a ? 0.5 : -0.5) * c.separation[k] * normal;
-    }
-    ra[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
-    rb[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
-    // how far the two points closed over the step (m, from the poses: a step of several
-    // periods that its source integrated is no straight line at the twist); a persistent
-    // contact's gap at the previous state is its separation less that
-    travel[2 * k] = travelled(motion[a], ra[k]);
-    travel[2 * k + 1] = travelled(motion[b], rb[k]);
-    moved_a[k] = dot(travel[2 * k], normal);
-    const double closed = dot(travel[2 * k + 1], normal) - moved_a[k];
-    gap[k] = c.separation[k] - closed;
-    allowance[k] = closed;           // (kept here for the loops below)
-    before[k] = normal_speed(then, a, b, ra[k], rb[k], normal);
-    // the pre-solve approach at the current twists (a body with an impact: below), and the
-    // contact's resting speed: slower approaches are RESTING and do not bounce. It is the
-    // floor or factor times the approach the step's external change alone brought the
-    // pair (current less previous twists along the normal: g dt for a body on a floor,
-    // none for two bodies falling together), whichever is larger: a resting body gathers
-    // that approach in every step and must not bounce on it, while any approach of free
-    // bodies beyond the floor bounces (an elastic gas keeps its energy)
-    approach[k] = normal_speed(now, a, b, ra[k], rb[k], normal);
-    resting[k] = std::max(floor, factor * std::max(before[k] - approach[k], 0.0));
-    const double threshold = resting[k];
-    // touching at the previous state (within the slop) and not approaching then: in
-    // contact from the start of the step; its bodies rest on it unless they have an impact
-    touching[k] = !detected && gap[k] <= slop && before[k] >= -sticking;
     if (touching[k]) rested[a] = rested[b] = 1;
     // The gap then is measured along the current normal, a lower bound of the true one:
     // two balls that pass each other fast turn their normal over the step and read as
@@ -281,17 +254,9 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // support (held by it, below): taken as each other's support, a ball that a third
     // hit within the step was held on the other as on a floor, one-sidedly (30 Hz elastic
     // gas: 1.4 N s of momentum made, 12 % of the three's energy lost in a step)
-    if (!detected && gap[k] <= slop && before[k] <= threshold) near[a] = near[b] = 1;
-    // (and only where the step's external change presses one of the two into the other:
-    // without one, nothing holds a body there, and a ball that drifted into another in a
-    // weightless gas, struck within the step, was held on it one-sidedly: momentum made,
-    // 1.2 % of an elastic gas's energy lost in a step at 100 Hz)
-    if (!detected && gap[k] <= slop && std::abs(before[k]) <= threshold) {
-      const Vec3 press_a = load3(now + 6 * a) - load3(then + 6 * a);
-      const Vec3 press_b = load3(now + 6 * b) - load3(then + 6 * b);
-      pressed[k] = dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0;
-      if (pressed[k]) supported[a] = supported[b] = 1;
-    }
+    if (persistent(c.kind[k]) && gap[k] <= slop && before[k] <= resting[k])
+      near[a] = near[b] = 1;
+    if (pressed[k]) supported[a] = supported[b] = 1;
   }
   for (int64_t i = 0; i < n; ++i) {
     rested_[i] = rested_[i] && bodies.movable[i] != 0;
@@ -329,7 +294,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const Vec3 normal = load3(c.normal + 3 * k);
-    if (!persistent(c.kind[k]) || gap_[k] > slop || std::abs(before_[k]) > resting_speed_[k])
+    if (!persistent(c.kind[k]) || gap_[k] > slop || std::abs(start_speed_[k]) > resting_speed_[k])
       continue;
     for (const int64_t i : {a, b}) {
       if (!supported_[i]) continue;
@@ -355,15 +320,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
     }
   }
   growth_ = load > 0.0 && last_load > 0.0 ? load / last_load : dt / std::max(last_dt_, 1e-300);
-  // per contact: its drift_ (its supported bodies on their held paths), then whether it
-  // is an impact and when
-  auto held = [&](int64_t i, const Vec3& r, const Vec3& moved) {
-    if (!supported_[i]) return Vec3(Vec3::Zero());
-    return Vec3(moved -
-                dt * (load3(path_.data() + 6 * i) + cross(load3(path_.data() + 6 * i + 3), r)));
-  };
   drift_.resize(m);
-  double* const drift = drift_.data();
   double *const toi_of = toi_.data(), *const fraction = fraction_.data();
   uint8_t *const impact_of = impact_.data(), *const impacted = impacted_.data();
   // each body's earliest detected impact (-1: none)
@@ -373,87 +330,14 @@ void StepSolver::reference_frame(StepContext& ctx) {
     for (const int64_t i : {c.a[k], c.b[k]})
       if (earliest_[i] < 0 || c.toi[k] < c.toi[earliest_[i]]) earliest_[i] = k;
   }
-  // whether detected impact k of body i comes later in the step than i's earliest one and
-  // lies behind it: the normals out of i within acos(behind_cosine). Body i reaches k's
-  // other body only through the earlier one's (a striker that passes through a cradle's
-  // first ball within the step meets the second too, behind it: struck at once, a third
-  // of the impulse went to the second ball); the earlier impact turns it first
-  auto behind = [&](int64_t k, int64_t i) {
-    const int64_t e = earliest_[i];
-    if (e < 0 || e == k || c.toi[k] <= c.toi[e] + ctx.params.later_impact) return false;
-    const Vec3 out_k = (c.a[k] == i ? 1.0 : -1.0) * load3(c.normal + 3 * k);
-    const Vec3 out_e = (c.a[e] == i ? 1.0 : -1.0) * load3(c.normal + 3 * e);
-    return dot(out_k, out_e) >= ctx.params.behind_cosine;
-  };
+  // per contact (impact_contacts), shared by the two threads; the bodies' impacts after
+  in_parts(ctx, m, [&](int64_t lo, int64_t hi) { impact_contacts(ctx, lo, hi); });
   for (int64_t k = 0; k < m; ++k) {
+    if (!impact_of[k]) continue;
     const int64_t a = c.a[k], b = c.b[k];
-    const bool detected = !persistent(c.kind[k]);
-    const Vec3 normal = load3(c.normal + 3 * k);
-    drift[k] = 0.0;
-    if (supported[a] || supported[b]) {
-      const Vec3 held_a = held(a, ra[k], travel[2 * k]);
-      drift[k] = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
-      moved_a[k] -= dot(held_a, normal);
-    }
-    const double v_in = approach[k], threshold = resting[k];
-    // a persistent contact that closes within the step faster than the threshold at the
-    // time it closes (on the held paths: its separation at the end is drift_ more than
-    // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
-    // v_in + (f - 1/2) (v_in - before) off the held paths: a ball landing at 0.51 m/s late
-    // in a 120 Hz step whose mid-step approach was 0.50 m/s did not bounce)
-    const double end = c.separation[k] + drift[k];
-    const double meets = gap[k] / std::max(gap[k] - end, 1e-300);
-    const double v_then = supported[a] || supported[b]
-                              ? v_in : v_in + (meets - 0.5) * (v_in - before[k]);
-    bool closing = !detected && !touching[k] && gap[k] > 0.0 && end < 0.0 &&
-                   v_then < -threshold;
-    bool impact = detected || closing;
-    double toi = detected ? c.toi[k] : 0.0;
-    if (closing) toi = meets;
-    // a detected impact of a supported body: the time its rows reach their separation at
-    // detection's time of impact f on the held paths, f closed / (closed + drift) (its
-    // points close by closed over the step on the integrated paths); none within the step
-    // there: a persistent contact from the start, its gap then the one at the time of
-    // impact less what closed before it
-    if (detected && drift[k] != 0.0) {
-      const double closed = allowance[k], held = closed + drift[k];
-      const double at = closed < 0.0 && held < 0.0 ? toi * closed / held : 2.0;
-      if (at > 1.0) {
-        gap[k] = std::max(c.separation[k], 0.0) - toi * closed;
-        impact = false;
-        toi = 0.0;
-      } else {
-        toi = at;
-      }
-    }
-    // an impact behind an earlier one of one of its bodies is speculative from the start:
-    // the impact stages take it only if it still closes after the earlier impact
-    if (detected && impact && (behind(k, a) || behind(k, b))) {
-      impact = false;
-      toi = 0.0;
-    }
-    // a body resting on something from the start meets no impact that only the step's
-    // external change brings (at the start its pair approached slower than the
-    // threshold): after dropped inputs its source integrated it through its supports
-    // into what lies below them; the contact is speculative from the start instead
-    if (impact && (rested[a] || rested[b]) && before[k] >= -threshold) {
-      // a detected impact's rows touch (its corners: their separation) at the time of
-      // impact, and closed by toi of the step's closing before
-      if (detected)
-        gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drift[k]);
-      impact = closing = false;
-      toi = 0.0;
-    }
-    impact_of[k] = impact;
-    toi_of[k] = toi;
-    report.toi[k] = std::clamp(toi, 0.0, 1.0);
-    report.kind[k] = closing ? static_cast<int8_t>(ContactKind::impact)
-                             : impact ? c.kind[k] : static_cast<int8_t>(ContactKind::persistent);
-    if (impact) {
-      impacted[a] = impacted[b] = 1;
-      fraction[a] = std::min(fraction[a], toi);
-      fraction[b] = std::min(fraction[b], toi);
-    }
+    impacted[a] = impacted[b] = 1;
+    fraction[a] = std::min(fraction[a], toi_of[k]);
+    fraction[b] = std::min(fraction[b], toi_of[k]);
   }
   for (int64_t i = 0; i < n; ++i) {
     bool movable = bodies.movable[i] != 0;
@@ -519,6 +403,196 @@ void StepSolver::reference_frame(StepContext& ctx) {
     restitution_ = std::max({restitution_, bodies.restitution[a], bodies.restitution[b]});
   }
   for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
+}
+
+// The per-contact part of reference_frame for contacts [lo, hi): their levers (ra_, rb_),
+// travel, gaps, approach before, now and at the step's start, resting speed, touching_ and
+// pressed_; each writes only its own entries (on either thread: StepSolver::in_parts).
+COLLRES_CLONED
+void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) {
+  // (the views by value, the arrays' data in locals: a store of a flag, a byte, may alias
+  // anything in memory)
+  const BodyStatesView previous = ctx.previous, current = ctx.current;
+  const BodyProperties bodies = ctx.bodies;
+  const ContactsView c = ctx.contacts;
+  const double slop = ctx.params.linear_slop, sticking = ctx.params.sticking_speed;
+  const double floor = ctx.params.restitution_threshold, factor = ctx.params.resting_factor;
+  uint8_t *const touching = touching_.data(), *const pressed = pressed_.data();
+  Vec3 *const ra = ra_.data(), *const rb = rb_.data(), *const travel = travelled_.data();
+  double *const moved_a = moved_a_.data(), *const gap = gap_.data();
+  double *const allowance = allowance_.data(), *const before = before_.data();
+  const double* const then = then_.data();
+  const double* const now = now_.data();
+  double *const approach = approach_.data(), *const resting = resting_speed_.data();
+  double* const start = start_speed_.data();
+  const uint8_t* const loaded = loaded_.data();
+  const std::array<Vec3, 2>* const motion = motion_.data();
+  for (int64_t k = lo; k < hi; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    const bool detected = !persistent(c.kind[k]);   // IMPACT or TUNNELLED
+    // contact points are at the time of impact (IMPACT/TUNNELLED) or the current state
+    double at = detected ? c.toi[k] : 1.0;
+    Vec3 point = load3(c.point + 3 * k), normal = load3(c.normal + 3 * k);
+    Vec3 xa = load3(previous.position + 3 * a), xb = load3(previous.position + 3 * b);
+    // against an immovable body the levers reach the movable body's own surface point
+    // (detection's point is midway between the two surfaces; a persistent contact's
+    // current poses overlap by -separation, at 30 Hz g dt^2 = 11 mm for a body resting on
+    // a floor: from the midpoint a ball's lever was that half short, so its friction and
+    // spin rows saw it turn 5 % too slowly). Two movable bodies keep one point for both
+    // (midway: equal and opposite impulses at one point keep the angular momentum). The
+    // normal rows see no change (r x n is the same along n)
+    if (!detected) {
+      const bool fixed_a = bodies.inv_mass[a] == 0.0, fixed_b = bodies.inv_mass[b] == 0.0;
+      if (fixed_a != fixed_b)
+        point += (fixed_a ? 0.5 : -0.5) * c.separation[k] * normal;
+    }
+    ra[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
+    rb[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
+    // how far the two points closed over the step (m, from the poses: a step of several
+    // periods that its source integrated is no straight line at the twist); a persistent
+    // contact's gap at the previous state is its separation less that
+    travel[2 * k] = travelled(motion[a], ra[k]);
+    travel[2 * k + 1] = travelled(motion[b], rb[k]);
+    moved_a[k] = dot(travel[2 * k], normal);
+    const double closed = dot(travel[2 * k + 1], normal) - moved_a[k];
+    gap[k] = c.separation[k] - closed;
+    allowance[k] = closed;           // (kept here for the loops below)
+    before[k] = normal_speed(then, a, b, ra[k], rb[k], normal);
+    // the pre-solve approach at the current twists (a body with an impact: below), and the
+    // contact's resting speed: slower approaches are RESTING and do not bounce. It is
+    // factor times the approach the step's external change alone brought the pair
+    // (current less previous twists along the normal: g dt for a body on a floor, none
+    // for two bodies falling together) and, where that change acts on one of the two (a
+    // load, as gravity), at least the floor: a resting body gathers that approach in every
+    // step and must not bounce on it, and a slower bounce under a load is pulled back at
+    // once. Free bodies (no external change: a weightless gas, a ball drifting into a wall
+    // in space) bounce at any approach: no load brings a slow bounce back, and resting it
+    // would take energy that nothing returns (an elastic gas keeps its energy)
+    approach[k] = normal_speed(now, a, b, ra[k], rb[k], normal);
+    resting[k] = std::max(loaded[a] || loaded[b] ? floor : 0.0,
+                          factor * std::max(before[k] - approach[k], 0.0));
+    const double threshold = resting[k];
+    // touching at the previous state (within the slop) and not approaching then: in
+    // contact from the start of the step; its bodies rest on it unless they have an impact
+    touching[k] = !detected && gap[k] <= slop && before[k] >= -sticking;
+    // (and only where the step's external change presses one of the two into the other:
+    // without one, nothing holds a body there, and a ball that drifted into another in a
+    // weightless gas, struck within the step, was held on it one-sidedly: momentum made,
+    // 1.2 % of an elastic gas's energy lost in a step at 100 Hz). Its speed is the one at
+    // the step's start, the mean of the previous and current twists (each is the velocity
+    // at the middle of its step): a ball falling into the slop of its floor at 0.487 m/s
+    // at the previous step's middle, 0.507 m/s by its end, was held there as resting on
+    // it (below the 0.5 m/s threshold) and did not bounce at 0.508 m/s (240 Hz)
+    start[k] = 0.5 * (before[k] + approach[k]);
+    if (!detected && gap[k] <= slop && std::abs(start[k]) <= threshold) {
+      const Vec3 press_a = load3(now + 6 * a) - load3(then + 6 * a);
+      const Vec3 press_b = load3(now + 6 * b) - load3(then + 6 * b);
+      pressed[k] = dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0;
+    }
+  }
+}
+
+// The per-contact part of reference_frame for contacts [lo, hi) after the bodies' flags:
+// drift_, whether each is an impact and when (impact_, toi_, the report's toi and kind);
+// each writes only its own entries (on either thread: StepSolver::in_parts).
+COLLRES_CLONED
+void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi) {
+  const ContactsView c = ctx.contacts;
+  const ContactsOut report = ctx.report;
+  const double dt = ctx.dt;
+  const uint8_t *const supported = supported_.data(), *const rested = rested_.data();
+  const uint8_t* const touching = touching_.data();
+  uint8_t* const impact_of = impact_.data();
+  const Vec3 *const ra = ra_.data(), *const rb = rb_.data(), *const travel = travelled_.data();
+  double *const moved_a = moved_a_.data(), *const gap = gap_.data(), *const drift = drift_.data();
+  const double *const allowance = allowance_.data(), *const before = before_.data();
+  const double *const approach = approach_.data(), *const resting = resting_speed_.data();
+  double* const toi_of = toi_.data();
+  const double* const path = path_.data();
+  const int64_t* const earliest = earliest_.data();
+  // a body's motion on its held path (supported_) less the one it made: none for others
+  auto held = [&](int64_t i, const Vec3& r, const Vec3& moved) {
+    if (!supported[i]) return Vec3(Vec3::Zero());
+    return Vec3(moved - dt * (load3(path + 6 * i) + cross(load3(path + 6 * i + 3), r)));
+  };
+  // whether detected impact k of body i comes later in the step than i's earliest one and
+  // lies behind it: the normals out of i within acos(behind_cosine). Body i reaches k's
+  // other body only through the earlier one's (a striker that passes through a cradle's
+  // first ball within the step meets the second too, behind it: struck at once, a third
+  // of the impulse went to the second ball); the earlier impact turns it first
+  auto behind = [&](int64_t k, int64_t i) {
+    const int64_t e = earliest[i];
+    if (e < 0 || e == k || c.toi[k] <= c.toi[e] + ctx.params.later_impact) return false;
+    const Vec3 out_k = (c.a[k] == i ? 1.0 : -1.0) * load3(c.normal + 3 * k);
+    const Vec3 out_e = (c.a[e] == i ? 1.0 : -1.0) * load3(c.normal + 3 * e);
+    return dot(out_k, out_e) >= ctx.params.behind_cosine;
+  };
+  for (int64_t k = lo; k < hi; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    const bool detected = !persistent(c.kind[k]);
+    const Vec3 normal = load3(c.normal + 3 * k);
+    drift[k] = 0.0;
+    if (supported[a] || supported[b]) {
+      const Vec3 held_a = held(a, ra[k], travel[2 * k]);
+      drift[k] = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
+      moved_a[k] -= dot(held_a, normal);
+    }
+    const double v_in = approach[k], threshold = resting[k];
+    // a persistent contact that closes within the step faster than the threshold at the
+    // time it closes (on the held paths: its separation at the end is drift_ more than
+    // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
+    // v_in + (f - 1/2) (v_in - before) off the held paths: a ball landing at 0.51 m/s late
+    // in a 120 Hz step whose mid-step approach was 0.50 m/s did not bounce)
+    const double end = c.separation[k] + drift[k];
+    const double meets = gap[k] / std::max(gap[k] - end, 1e-300);
+    const double v_then = supported[a] || supported[b]
+                              ? v_in : v_in + (meets - 0.5) * (v_in - before[k]);
+    bool closing = !detected && !touching[k] && gap[k] > 0.0 && end < 0.0 &&
+                   v_then < -threshold;
+    bool impact = detected || closing;
+    double toi = detected ? c.toi[k] : 0.0;
+    if (closing) toi = meets;
+    // a detected impact of a supported body: the time its rows reach their separation at
+    // detection's time of impact f on the held paths, f closed / (closed + drift) (its
+    // points close by closed over the step on the integrated paths); none within the step
+    // there: a persistent contact from the start, its gap then the one at the time of
+    // impact less what closed before it
+    if (detected && drift[k] != 0.0) {
+      const double closed = allowance[k], held = closed + drift[k];
+      const double at = closed < 0.0 && held < 0.0 ? toi * closed / held : 2.0;
+      if (at > 1.0) {
+        gap[k] = std::max(c.separation[k], 0.0) - toi * closed;
+        impact = false;
+        toi = 0.0;
+      } else {
+        toi = at;
+      }
+    }
+    // an impact behind an earlier one of one of its bodies is speculative from the start:
+    // the impact stages take it only if it still closes after the earlier impact
+    if (detected && impact && (behind(k, a) || behind(k, b))) {
+      impact = false;
+      toi = 0.0;
+    }
+    // a body resting on something from the start meets no impact that only the step's
+    // external change brings (at the start its pair approached slower than the
+    // threshold): after dropped inputs its source integrated it through its supports
+    // into what lies below them; the contact is speculative from the start instead
+    if (impact && (rested[a] || rested[b]) && before[k] >= -threshold) {
+      // a detected impact's rows touch (its corners: their separation) at the time of
+      // impact, and closed by toi of the step's closing before
+      if (detected)
+        gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drift[k]);
+      impact = closing = false;
+      toi = 0.0;
+    }
+    impact_of[k] = impact;
+    toi_of[k] = toi;
+    report.toi[k] = std::clamp(toi, 0.0, 1.0);
+    report.kind[k] = closing  ? static_cast<int8_t>(ContactKind::impact)
+                     : impact ? c.kind[k]
+                              : static_cast<int8_t>(ContactKind::persistent);
+  }
 }
 
 COLLRES_CLONED_FLAT
@@ -782,6 +856,19 @@ void StepSolver::plan_sweeps(StepContext& ctx) {
 Worker* StepSolver::worker() {
   if (!worker_) worker_ = std::make_unique<Worker>();
   return worker_.get();
+}
+
+void StepSolver::in_parts(const StepContext& ctx, int64_t count,
+                          const std::function<void(int64_t, int64_t)>& part) {
+  if (ctx.params.threads < 2 || count < std::max<int64_t>(ctx.params.parallel_wave, 1)) {
+    part(0, count);
+    return;
+  }
+  static constexpr int32_t kFree[kParts] = {};   // no part waits for another
+  const std::function<void(int)> chunk = [&](int i) {
+    part(count * i / kParts, count * (i + 1) / kParts);
+  };
+  worker()->run_waves(chunk, kParts, kFree, 1, static_cast<double>(count));
 }
 
 double StepSolver::warm(StepContext& ctx, int substeps) {

@@ -119,6 +119,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -229,6 +230,9 @@ class StepSolver {
 
  private:
   void reference_frame(StepContext& ctx);
+  // its per-contact parts, contacts [lo, hi) (in_parts)
+  void frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
+  void impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   double longest_substep(const StepContext& ctx) const;   // s: the substeps' bound
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
@@ -284,6 +288,12 @@ class StepSolver {
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
+  // part(lo, hi) over [0, count) of independent items (each part writes only its items'
+  // entries): in kParts parts on the two threads with threads 2 and at least
+  // parallel_wave items, else at once here
+  static constexpr int kParts = 8;
+  void in_parts(const StepContext& ctx, int64_t count,
+                const std::function<void(int64_t, int64_t)>& part);
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
   void push_out(StepContext& ctx);
@@ -330,6 +340,10 @@ class StepSolver {
                                      // sticking speed before the step
   std::vector<double> ramp_;         // (N, 6) a ramped body's change spread over the
                                      // substeps (its stop taken at once, to_travel)
+  std::vector<uint8_t> loaded_;      // (N,) the step's external change acts on it (current
+                                     // and previous twists differ) or is unknown (its pose
+                                     // stayed, its twist moves it: a fresh start): the
+                                     // resting speed's floor applies to its contacts
   std::vector<uint8_t> supported_;   // (N,) touching something from the start (held by it
                                      // until an impact: moves with its previous twist)
   std::vector<double> path_;         // (N, 6) twist on the held paths (supported: previous)
@@ -351,6 +365,8 @@ class StepSolver {
   std::vector<double> before_;       // m/s: normal speed at the previous twists (< 0
                                      // approaching; reference_frame)
   std::vector<double> gap_, remaining_, allowance_, toi_, approach_;
+  std::vector<double> start_speed_;  // m/s: normal speed at the step's start, the mean of the
+                                     // previous and current twists' (< 0 approaching)
   std::vector<double> resting_speed_;   // m/s: per contact, slower approaches rest (do not
                                         // bounce): reference_frame
   std::vector<double> drift_;        // m: how much more the separation grows over the step

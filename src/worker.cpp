@@ -64,9 +64,12 @@ int Worker::help(uint32_t generation) {
     const int chunks = static_cast<int>((ticket >> 16) & 0xffffu);
     if (static_cast<uint32_t>(ticket >> 32) != generation || chunk >= chunks) return ran;
     if (!ticket_.compare_exchange_weak(ticket, ticket + 1, std::memory_order_acq_rel)) continue;
-    wait_until([&] { return done_.load(std::memory_order_acquire) == chunk; });
+    // the chunks it depends on: every chunk claimed before it, so they finish (each
+    // finished chunk counts once: done_ reaches the gate only when all before it are done)
+    const int gate = gate_ != nullptr ? gate_[chunk] : chunk;
+    wait_until([&] { return done_.load(std::memory_order_acquire) >= gate; });
     (*task_)(chunk);
-    done_.store(chunk + 1, std::memory_order_release);
+    done_.fetch_add(1, std::memory_order_acq_rel);
     ++ran;
   }
 }
@@ -74,6 +77,20 @@ int Worker::help(uint32_t generation) {
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                       int chunks, int kind, double work) {
   if (chunks < 0 || chunks > kMaxChunks) throw std::invalid_argument("Worker: chunks out of range");
+  run(&first, second, chunks, nullptr, kind, work);
+}
+
+void Worker::run_waves(const std::function<void(int)>& task, int chunks, const int32_t* gate,
+                       int kind, double work) {
+  if (chunks <= 1 || chunks > kMaxChunks) {   // (one chunk: nothing to share)
+    for (int c = 0; c < chunks; ++c) task(c);
+    return;
+  }
+  run(nullptr, task, chunks, gate, kind, work);
+}
+
+void Worker::run(const std::function<void()>* first, const std::function<void(int)>& task,
+                 int chunks, const int32_t* gate, int kind, double work) {
   chunks_run_ += static_cast<uint64_t>(chunks);
   Costs& costs = costs_[kind & 1];
   // the mode that has cost less per unit of work, the other one every kExplore-th run (an
@@ -85,7 +102,8 @@ void Worker::run_pair(const std::function<void()>& first, const std::function<vo
     uint32_t generation;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      task_ = &second;
+      task_ = &task;
+      gate_ = gate;
       done_.store(0);
       generation = ++generation_;
       ticket_.store(static_cast<uint64_t>(generation) << 32 |
@@ -93,14 +111,14 @@ void Worker::run_pair(const std::function<void()>& first, const std::function<vo
                     std::memory_order_release);
     }
     wake_.notify_one();
-    first();
+    if (first != nullptr) (*first)();
     help(generation);   // the chunks the worker has not taken
     // (a chunk the worker claimed is finished before the next run is posted: it reads
-    // task_ only while it holds one)
+    // task_ and gate_ only while it holds one)
     wait_until([&] { return done_.load(std::memory_order_acquire) == chunks; });
   } else {
-    first();
-    for (int c = 0; c < chunks; ++c) second(c);
+    if (first != nullptr) (*first)();
+    for (int c = 0; c < chunks; ++c) task(c);
   }
   const double cost =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /

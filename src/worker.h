@@ -1,12 +1,15 @@
-// A second thread for the solver: one persistent worker that helps with the second of two
-// independent tasks while the caller runs the first.
+// A second thread for detection and the solver: one persistent worker that runs, with the
+// caller, the `chunks` of a task, each chunk once, claimed in order from the front.
 //
-// The second task comes in `chunks` that must run one after the other, in order (they may
-// share data); the first shares nothing with any of them. The worker takes chunks from the
-// front while the caller runs the first task; once done with it, the caller takes the
-// chunks still left, each after the one before it has finished. So the caller never waits
-// for the worker to start (its core busy with another process, or asleep), only, at most,
-// for the chunk the worker is running. Whether to post to the worker at all is decided by
+// Chunk c starts only once chunks 0 .. gate[c] - 1 have finished (gate[c] <= c, not
+// decreasing: the chunks before gate[c] are the ones c depends on; chunks from gate[c] on
+// share no data with it). Two uses: run_pair, the second of two independent tasks in
+// chunks that run one after the other (gate[c] = c) while the caller runs the first; and
+// run_waves, the waves of a velocity sweep (the chunks of one wave share a gate: the
+// first chunk of the wave), the caller claiming chunks from the start. Either way the
+// caller takes every chunk the worker has not claimed, so it never waits for the worker
+// to start (its core busy with another process, or asleep), only, at most, for a chunk
+// the worker is running that the next one depends on. Whether to post to the worker at all is decided by
 // what it has cost: the caller keeps, per kind of run, a running mean of the wall time per
 // unit of work with the worker and without it, runs in the cheaper mode and, every 17th
 // run, in the other one (so a core that becomes busy or free is noticed): on a machine
@@ -39,6 +42,11 @@ class Worker {
   // whose costs are compared, `work` its size (any unit, the same for the kind).
   void run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                 int chunks, int kind, double work);
+  // Runs task(0), ..., task(chunks - 1), here and on the worker, chunk c once chunks
+  // 0 .. gate[c] - 1 have finished (gate[c] <= c, not decreasing); returns when all are
+  // done. One chunk, or more than kMaxChunks, all run here, in order.
+  void run_waves(const std::function<void(int)>& task, int chunks, const int32_t* gate,
+                 int kind, double work);
 
   // chunks of the second tasks run so far: by the worker, and by either thread
   uint64_t helped() const { return helped_.load(std::memory_order_relaxed); }
@@ -46,6 +54,9 @@ class Worker {
 
  private:
   void loop();
+  // runs `first` here and the chunks of `task` here and on the worker (run_pair, run_waves)
+  void run(const std::function<void()>* first, const std::function<void(int)>& task,
+           int chunks, const int32_t* gate, int kind, double work);
   // claims and runs chunks of run `generation` until none is left; returns how many
   int help(uint32_t generation);
 
@@ -62,6 +73,7 @@ class Worker {
   };
   Costs costs_[2];
   const std::function<void(int)>* task_ = nullptr;   // read only with a claimed chunk
+  const int32_t* gate_ = nullptr;     // (of task_) null: gate[c] = c
   uint32_t generation_ = 0;           // (under mutex_) the run posted last
   bool stop_ = false;                 // (under mutex_)
   std::mutex mutex_;

@@ -53,15 +53,22 @@ SOLVER_PARAMS: tuple[ParamSpec, ...] = (
                      '(bench_laws column, 20 layouts) overlap up to 2.7 mm at 30 Hz and '
                      '19.5 mm at 60 Hz, against 1.9 and 1.1 mm'),
     ParamSpec('restitution_threshold', 'double', 0.5,
-              'Approach speed below which a contact is RESTING and does not bounce; so is '
-              'one slower than 1.5 times the approach the step\'s external change alone '
-              'brought it (g dt on a floor: above 0.5 m/s below 30 Hz)',
+              'Approach speed below which a contact is RESTING and does not bounce, where the '
+              'step\'s external change acts on one of its two bodies (a load, as gravity; '
+              'between free bodies every approach bounces); so is one slower than 1.5 times '
+              'the approach that change alone brought it (g dt on a floor: above 0.5 m/s '
+              'below 30 Hz)',
               0.0, 100.0, unit='m/s',
               reason='below a visible bounce (Box2D: 1 m/s); a resting body is kept from '
-                     'bouncing on its g dt by the rule\'s second part at any value. 0.05 '
-                     'keeps an elastic gas\'s energy (0.5: 97.7-98.4 % left after 5 s at '
-                     '30-240 Hz) but lets a column of cubes dropped apart at 30 Hz, two '
-                     'landing in one step, overlap 3.0 mm (0.5: 1.5 mm)'),
+                     'bouncing on its g dt by the rule\'s second part at any value. Applied '
+                     'to free bodies too, it made an elastic gas inelastic below it (97.7-98.4 '
+                     '% of the energy left after 5 s at 30-240 Hz; 100.00 % with it on loaded '
+                     'pairs only) and stopped a ball drifting into a wall in space; 0.05 '
+                     'everywhere kept the gas but let a column of cubes dropped apart '
+                     '(bench_laws column, 20 layouts) overlap up to 6.2 mm at 30 Hz and 3.6 '
+                     'mm at 240 Hz (0.5: 1.9 and 0.7 mm); on pairs pressed together along '
+                     'their normal only, cubes side by side in a pile rattled between their '
+                     'neighbours (100 cubes at 120 Hz, seed 1: 0.087 m/s after 2 s)'),
     ParamSpec('sticking_speed', 'double', 0.01,
               'Tangential speed below which static friction may hold a contact (STICKING)',
               0.0, 100.0, unit='m/s', reason='1 cm/s: slower is perceived as at rest'),
@@ -322,13 +329,14 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               reason='a stage is solved to convergence (impact_converged) so that its '
                      'restitution is the simultaneous answer; few contacts take part'),
     ParamSpec('threads', 'integer', 2,
-              'Threads of detection and of the velocity sweeps: with 2, the pairs of a step '
-              '(64 or more) are shared by two threads, and so is each large wave of '
-              'manifolds (parallel_wave); the answer is the same bits with 1 or 2', 1, 2,
-              reason='pairs are independent and a wave\'s manifolds share no movable body, '
-                     'so the second core can take half of each; a core busy with another '
-                     'process costs nothing (its half is run by the caller when the worker '
-                     'has not begun it)'),
+              'Threads of detection and of the solve: with 2, the pairs of a step (64 or '
+              'more) are shared by two threads, and so is each velocity sweep, wave by wave '
+              '(parallel_wave), and the per-contact passes of the reference frame; the '
+              'answer is the same bits with 1 or 2', 1, 2,
+              reason='pairs are independent, a wave\'s manifolds share no movable body and '
+                     'each contact\'s reference frame is its own, so the second core can '
+                     'take part of each; a core busy with another process costs nothing '
+                     '(the caller runs every part the worker has not begun)'),
     ParamSpec('max_substeps', 'integer', 8,
               'Most substeps of a step\'s resting solve (max_substep)', 1, 64,
               reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 8 solves'),
@@ -376,10 +384,15 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'of a settled mixed pile of 1000 bodies)'),
     ParamSpec('parallel_wave', 'integer', 64,
               'A wave (manifolds that share no movable body, solved one after the other '
-              'in the sweep\'s order) of at least this many manifolds is shared by the two '
-              'threads; smaller waves are solved by the caller alone', 1, 10**9,
-              reason='below a few dozen manifolds a wave is too short for a second thread '
-                     'to pay for its hand-over'),
+              'in the sweep\'s order) of at least this many manifolds is split between the '
+              'two threads; smaller waves are run whole, a run of them in one part of at '
+              'least this many manifolds that either thread takes; a per-contact pass of at '
+              'least this many contacts is split too', 1, 10**9,
+              reason='below a few dozen manifolds a part is too short for a second thread '
+                     'to pay for its hand-over; a sweep is one hand-over, its parts claimed '
+                     'in order (settled piles of 1000 bodies at 30 Hz, callgrind: the parts '
+                     'are 60 % of the compiled core\'s instructions in a step of cubes and '
+                     '62 % of a mixed one, against 39 and 18 % with the large waves alone)'),
     ParamSpec('wide_rows', 'bool', True,
               'Solve each wave\'s manifolds four at a time (wide rows: structure of arrays, '
               'SIMD); off, one by one: the same bits', None, None,
@@ -389,17 +402,16 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               'A contact is RESTING (does not bounce) while its approach is below this many '
               'times the approach the step\'s external change alone brought it (its bodies\' '
               'current less previous twists along its normal), or below '
-              'restitution_threshold', 1.0, 1e3,
+              'restitution_threshold where that change acts on one of its bodies', 1.0, 1e3,
               reason='a body resting on a floor (or on a body its supports hold) gathers '
                      'exactly that approach, g dt, in every step, and must not bounce on it; '
                      'free bodies gather none from each other, so an elastic gas in a closed '
-                     'box bounces at every approach above the floor (restitution_threshold '
-                     '0.05 m/s: 100.00 % of its energy kept over 5 s at 30-240 Hz, against '
-                     '97.7-98.4 % at 0.5 m/s). With the floor at 0.05 m/s a ball dropped from '
-                     '0.3 m (e 0.8) rests 3.8, 4.4, 4.7 and 7.5 steps before the bounce law '
-                     'with this resting speed at 30, 60, 120 and 240 Hz (at 2: 1.2 to 8.8); '
-                     'at 1.5 g dt is below the default 0.5 m/s from 30 Hz up (the default '
-                     'answers as before), above it at 20 Hz and slower'),
+                     'box bounces at every approach (100.00 % of its energy kept over 5 s at '
+                     '30-240 Hz with default settings). With restitution_threshold 0.05 m/s a '
+                     'ball dropped from 0.3 m (e 0.8) rests 3.8, 4.4, 4.7 and 7.5 steps before '
+                     'the bounce law with this resting speed at 30, 60, 120 and 240 Hz (at 2: '
+                     '1.2 to 8.8); at 1.5 g dt is below the default 0.5 m/s from 30 Hz up (the '
+                     'default answers as before), above it at 20 Hz and slower'),
     ParamSpec('impact_converged', 'double', 1e-10,
               'A stage\'s compression ends when a sweep changes no impulse by more than '
               'this times the largest', 0.0, 1.0,

@@ -11,7 +11,8 @@ at most four points with stable feature ids, and the classification of each pair
   and apart before without a hit: a speculative contact); rows at the current state
   (toi 0, separation > 0 for a speculative gap, < 0 for a penetration);
 * IMPACT: apart before and overlapping now (also from within the margin when the pair
-  closes faster than ``restitution_threshold``): time of impact by bisection on the
+  closes faster than its resting speed, the solver's: ``restitution_threshold`` where the
+  step's external change acts on one of the two): time of impact by bisection on the
   interpolated motion (lerp position, slerp orientation) to ``toi_tolerance``; point and
   normal at the time of impact, separation min(separation there, signed distance now);
 * TUNNELLED: apart at both ends but conservative advancement (coal distances) finds a

@@ -8,9 +8,11 @@ answer satisfies every contact: a contact left out at the start that the other c
 impulses turn into a real one within the same substep still stops the body.
 
 The law, with hand-made contacts and no gravity (e = 0, no friction), three balls on a
-line: a 1 kg ball at rest; 1 mm from it a second 1 kg ball moving away from it at
-0.1 m/s; touching that one from the other side a 100 kg ball approaching at 0.3 m/s (slower
-than the restitution threshold: the resting solve's work, not an impact's). The heavy ball
+line, each spun up about the line by an external torque in the step (a load, so the
+restitution threshold applies; a spin about the line moves no contact point): a 1 kg ball
+at rest; 1 mm from it a second 1 kg ball moving away from it at 0.1 m/s; touching that one
+from the other side a 100 kg ball approaching at 0.3 m/s (slower than the restitution
+threshold: the resting solve's work, not an impact's). The heavy ball
 pushes the middle one back into the first within the step's first substep: all three end
 moving together at the velocity momentum gives them, (m v) summed over the total mass, and
 the middle ball never goes into the first deeper than the slop. Sweeping only the contacts
@@ -57,6 +59,7 @@ def test_a_contact_left_out_that_the_push_closes_still_stops_the_body(rate):
     previous = states([[0, 0, 0], [2 * RADIUS + GAP, 0, 0], [4 * RADIUS + GAP, 0, 0]],
                       [[s, 0, 0] for s in SPEED])
     current = previous.copy()
+    current.angular[:, 0] += 1.0                       # rad/s: the torque's spin, a load
     current.position += current.linear * dt
     settings = SolverSettings(restitution_threshold=1.0)   # 0.4 m/s: a resting approach
     world = World(bodies, settings, FixedContacts(contacts(current.position[:, 0]), settings))

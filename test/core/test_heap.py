@@ -32,10 +32,11 @@ RADIUS, COUNT, EVERY, HZ = 0.05, 100, 0.1, 120.0
 REST, REST_BY = 0.05, 8.0    # m/s (Box2D's sleep speed), s after the last release
 
 
-def pour(rolling: float, seed: int) -> tuple[BodyStates, float | None]:
-    """The states when the heap of COUNT spheres first rests (the fastest sphere's median speed
-    over the second before under REST) and that time in s after the last release; the states
-    REST_BY s after the last release and None if it does not rest by then."""
+def pour(rolling: float, seed: int, rate: float = HZ) -> tuple[BodyStates, float | None]:
+    """The states when the heap of COUNT spheres poured at ``rate`` (Hz) first rests (the
+    fastest sphere's median speed over the second before under REST) and that time in s
+    after the last release; the states REST_BY s after the last release and None if it does
+    not rest by then."""
     bodies = [BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)]
     bodies += [BodySpec(f's{i}', 'sphere', (RADIUS,), mass=0.5, restitution=0.1,
                         static_friction=0.8, kinetic_friction=0.8,
@@ -46,10 +47,10 @@ def pour(rolling: float, seed: int) -> tuple[BodyStates, float | None]:
     state.orientation[:, 3] = 1.0
     world = World(bodies, SolverSettings(sleeping=False))
     rng = np.random.default_rng(seed)
-    dt, released = 1.0 / HZ, 0
-    last = int(round(COUNT * EVERY * HZ))          # the step after the last release
+    dt, released = 1.0 / rate, 0
+    last = int(round(COUNT * EVERY * rate))          # the step after the last release
     fastest = []
-    for k in range(last + int(round(REST_BY * HZ))):
+    for k in range(last + int(round(REST_BY * rate))):
         if released < COUNT and k * dt >= released * EVERY - 1e-9:
             state.position[1 + released] = [*rng.uniform(-0.01, 0.01, 2), 0.5]
             released += 1
@@ -58,18 +59,24 @@ def pour(rolling: float, seed: int) -> tuple[BodyStates, float | None]:
         state = world.step(state, euler_step(state, falling, GRAVITY, dt), dt).states
         if k >= last:
             fastest.append(np.linalg.norm(state.linear[1:], axis=1).max())
-            if len(fastest) >= HZ and np.median(fastest[-int(HZ):]) < REST:
-                return state, len(fastest) / HZ
+            if len(fastest) >= rate and np.median(fastest[-int(rate):]) < REST:
+                return state, len(fastest) / rate
     return state, None
+
+
+def angle_of_repose(state: BodyStates) -> tuple[float, float, float]:
+    """(angle in deg, height in m, radius in m) of a heap of spheres: its top over the radius
+    within which 90 % of the spheres lie."""
+    spheres = state.position[1:]
+    height = spheres[:, 2].max() + RADIUS
+    radius = np.percentile(np.hypot(spheres[:, 0], spheres[:, 1]), 90) + RADIUS
+    return float(np.degrees(np.arctan2(height, radius))), float(height), float(radius)
 
 
 @pytest.mark.parametrize('seed', [1, 2, 3])
 def test_a_pour_of_spheres_with_rolling_resistance_forms_a_heap_steeper_than_15_deg(seed):
     state, rested = pour(rolling=0.3, seed=seed)
-    spheres = state.position[1:]
-    height = spheres[:, 2].max() + RADIUS
-    radius = np.percentile(np.hypot(spheres[:, 0], spheres[:, 1]), 90) + RADIUS
-    angle = np.degrees(np.arctan2(height, radius))
+    angle, height, radius = angle_of_repose(state)
     print(f'heap: {height:.3f} m high, 90 % of the spheres within {radius:.3f} m: '
           f'{angle:.1f} deg; at rest {rested} s after the last release')
     assert angle > 15.0

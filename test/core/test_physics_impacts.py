@@ -54,13 +54,18 @@ def assert_impact(result) -> None:
 
 
 def head_on(mass_a: float, mass_b: float, e: float, va: float, vb: float,
-            rule: str = 'max', ea: float | None = None, start: float = 0.25):
-    """Two spheres on the x axis, r = 0.1 m, at -start and +start, closing in a 0.1 s step."""
+            rule: str = 'max', ea: float | None = None, start: float = 0.25,
+            fall: bool = False):
+    """Two spheres on the x axis, r = 0.1 m, at -start and +start, closing in a 0.1 s step
+    (``fall``: both falling under gravity along -z over the step, across their line: a
+    load that changes no approach)."""
     world = World([sphere('a', 0.1, mass_a, e if ea is None else ea), sphere('b', 0.1, mass_b, e)],
                   SolverSettings(restitution_rule=rule))
     dt = 0.1
     before = states([[-start, 0, 0], [start, 0, 0]], [[va, 0, 0], [vb, 0, 0]])
     after = before.copy()
+    if fall:
+        after.linear[:, 2] -= 9.81 * dt
     after.position += after.linear * dt
     return world, before, world.step(before, after, dt)
 
@@ -166,13 +171,14 @@ def test_per_object_rule_is_the_textbook_model_and_breaks_momentum():
 
 
 def test_slow_approach_rests_without_bounce():
-    """Below restitution_threshold the contact is RESTING: no bounce (the resting rule).
+    """Below restitution_threshold a contact that a load acts on is RESTING: no bounce (the
+    resting rule; the two balls fall together across their line).
 
     The pair is 1 cm apart at the previous state (a speculative contact): it
     may close that gap during the step, then stops with zero relative speed in that
     same step (no approach is left for the next step to bounce on), and stays.
     """
-    world, before, result = head_on(1.0, 1.0, 1.0, 0.2, -0.2, start=0.105)
+    world, before, result = head_on(1.0, 1.0, 1.0, 0.2, -0.2, start=0.105, fall=True)
     first = result.states
     gap = first.position[1, 0] - first.position[0, 0] - 0.2
     print(f'after step 1: gap {gap}, relative velocity {first.linear[1, 0] - first.linear[0, 0]}')

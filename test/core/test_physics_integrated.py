@@ -198,6 +198,21 @@ def test_bouncing_ball_comes_to_rest_when_the_bounce_law_says():
     assert np.all(np.abs(height[int(rest * rate):]) < 1e-5)
 
 
+@pytest.mark.parametrize('rate', [120.0, 240.0])
+def test_a_landing_within_the_slop_bounces_by_the_bounce_law_at_the_default_threshold(rate):
+    """The ball dropped from 0.3 m (e 0.8, default threshold 0.5 m/s) lands for the eighth
+    time at 0.508 m/s (e^7 of its first landing), above the threshold: it bounces once more
+    and rests as the bounce law says. At 240 Hz that step starts with the ball 0.08 mm above
+    the floor, within the slop, at 0.487 m/s at the previous step's middle (0.507 m/s at its
+    end). (Judged by that mid-step speed, below the threshold, the ball was taken as resting
+    on the floor from the start and held there: it rested one bounce, 0.086 s, early.)"""
+    threshold = SolverSettings().restitution_threshold
+    rest, _ = rest_time(rate, threshold)
+    law = bounces_to_rest(0.8, 0.3, resting_speed(threshold, rate))
+    print(f'{rate:.0f} Hz: rests at {rest:.4f} s, law {law:.4f} s')
+    assert abs(rest - law) <= 8 / rate
+
+
 @pytest.mark.parametrize('rate', [30.0, 60.0, 120.0, 240.0])
 @pytest.mark.parametrize('times_g_dt', [0.05, 1.1])
 def test_any_threshold_lets_a_ball_rest_by_the_bounce_law_at_its_resting_speed(rate,

@@ -124,7 +124,9 @@ def test_settings_and_materials_take_effect_next_step():
     world.settings = SolverSettings(restitution_threshold=5.0)
     world.set_material(0, restitution=1.0)
     world.set_material(1, restitution=1.0)
-    result = world.step(before, after, 0.02)     # 2 m/s approach is below the threshold
+    loaded = after.copy()    # falling together across their line: a load, the threshold's
+    loaded.linear[:, 2] -= 9.81 * 0.02
+    result = world.step(before, loaded, 0.02)     # 2 m/s approach is below the threshold
     assert result.report.state[0] == ContactState.RESTING
     assert result.states.linear[0, 0] == pytest.approx(0.0, abs=1e-12)
 

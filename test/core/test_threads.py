@@ -5,11 +5,13 @@ one more than the highest wave of the manifolds before it that share a movable b
 manifolds of a wave share no movable body and the waves in turn are the sweep in the solve's
 order, bit for bit. A wave is solved four manifolds at a time in wide rows
 (``SOLVER_TUNING`` ``wide_rows``; the two or three left of a row count in a group padded
-with idle lanes) and, when it has at least ``parallel_wave`` manifolds, shared by two
-threads (``threads``). Detection shares a step's pairs between the two threads too
-(``src/detection.h``: the first half here, the second on the worker, each into its own lane,
-joined in pair order). The laws: the waves hold (no movable body twice in a wave, each after
-one that moved its bodies, wide groups of one row count, every manifold of up to four rows
+with idle lanes); with two threads (``threads``) a whole sweep is handed to them at once,
+in parts claimed in order (a wave of at least ``parallel_wave`` manifolds split, a run of
+smaller waves in one part), and so are the per-contact passes of the reference frame.
+Detection shares a step's pairs between the two threads too (``src/detection.h``: the
+first half here, the second on the worker, each into its own lane, joined in pair order).
+The laws: the waves hold (no movable body twice in a wave, each after one that moved its
+bodies, wide groups of one row count, every manifold of up to four rows
 in one but the one left of a row count); whatever the thread count and with wide rows on or
 off, every step's corrected states and impulses are the same bytes, and so is every array
 detection gives. Here a pile of cubes and spheres falls into a bin and settles (impacts,
@@ -97,6 +99,28 @@ def test_two_threads_and_one_by_one_give_the_bytes_of_one_thread_in_lanes():
     assert shared_steps > STEPS // 2
     assert np.isfinite(states[0].position).all()
     assert states[0].position[5:, 2].max() < 0.6          # it fell and piled up
+
+
+def test_two_threads_share_every_sweep_not_only_large_waves():
+    # the default parallel_wave (64): no wave of this pile reaches it, yet the sweeps are
+    # posted to the two threads (their runs of small waves in parts), more parts than the
+    # reference frame's per-contact passes alone (8 each, two a step), the same bytes
+    bodies, start = pile()
+    one, two = (World(bodies, SolverSettings(sleeping=False)) for _ in range(2))
+    one._params.threads, two._params.threads = 1, 2
+    states = [start.copy(), start.copy()]
+    largest = 0
+    for _ in range(STEPS):
+        answers = []
+        for k, w in enumerate((one, two)):
+            result = w.step(states[k], euler_step(states[k], w.dynamic, GRAVITY, DT), DT)
+            states[k] = result.states
+            answers.append(answer(result))
+        assert answers[0] == answers[1]
+        largest = max([largest] + [end - first for first, _, _, end in two._solver.waves])
+    assert 0 < largest < two._params.parallel_wave
+    assert two._solver.helped[1] > 2 * 8 * STEPS
+    assert one._solver.helped[1] == 0
 
 
 def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bodies():

@@ -252,8 +252,8 @@ inline bool sliding(const ContactRow& r) {
   return r.normal > 0.0 && norm2(r.tangent[0], r.tangent[1]) >= r.mu * r.normal * (1.0 - kSlides);
 }
 
-// The whole block of a manifold as one linear solve (solve_block: every block of an impact
-// stage, and in the resting sweeps a block some of whose rows slide). Unknowns: the normal
+// The whole block of a manifold as one linear solve (solve_block: a coupled block, every
+// block of an impact stage and a manifold of a body with an impact this step). Unknowns: the normal
 // impulse of each row that carries one (no approach beyond its allowance) and the friction
 // of those that stick (no slip); a sliding row's friction is drag times its normal (N s per
 // N s, along t1 and t2), so its column holds its friction's effect too. The matrix's
@@ -392,12 +392,10 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
 // then largest first), as Box2D's block solver does for two points. Gauss-Seidel converges slowly on a nearly singular
 // manifold (close points, small lever arms) and leaves it spinning. Returns the largest
 // impulse change, or -1 when no active set fits (the caller falls back to rows).
-// `whole`: the whole block (solve_coupled) first, whether rows slide or not.
-double solve_block(ContactRow* r, const Manifold& block, Twists& v, bool whole) {
+// A `coupled` block: the whole block with its friction (solve_coupled) first.
+double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
   const int k = block.count;
-  bool slides = false;
-  for (int i = 0; i < k; ++i) slides = slides || sliding(r[i]);
-  if (slides || whole) {
+  if (block.coupled) {
     const double step = solve_coupled(r, k, v);
     if (step >= 0.0) return step;
   }
@@ -614,7 +612,7 @@ inline bool positive_zero(double x) { return x == 0.0 && !std::signbit(x); }
 
 // One sweep's update of one manifold (its rows; its spin row's load), twists at hand.
 double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
-                      std::vector<SpinRow>* spins, Progress& progress, bool whole) {
+                      std::vector<SpinRow>* spins, Progress& progress) {
   const size_t lo = static_cast<size_t>(manifold.first);
   const size_t hi = lo + static_cast<size_t>(manifold.count);
   const int k = manifold.count;
@@ -632,7 +630,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
     if (spins != nullptr && manifold.spin >= 0) (*spins)[manifold.spin].load = 0.0;
     return 0.0;
   }
-  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t, whole) : -1.0;
+  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
   if (step >= 0.0) {
     step = std::max(step, solve_friction_block(&rows[lo], k, t));
   } else {
@@ -653,12 +651,12 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
 COLLRES_CLONED_FLAT
 void solve_manifolds(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      size_t from, size_t to, const SolverBodies& bodies,
-                     std::vector<SpinRow>* spins, Progress& progress, bool whole) {
+                     std::vector<SpinRow>* spins, Progress& progress) {
   double* v = bodies.velocity;
   for (size_t m = from; m < to; ++m) {
     const Manifold& manifold = manifolds[m];
     Twists t(v, manifold.a, manifold.b);
-    solve_manifold(rows, manifold, t, spins, progress, whole);
+    solve_manifold(rows, manifold, t, spins, progress);
     t.store(v, manifold.a, manifold.b, bodies.inv_mass);
   }
 }
@@ -1021,13 +1019,9 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       for (int j = 0; j < k; ++j) q[i] -= g.plain[i][j] * w[j].normal;
       idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
     }
-    // lanes whose rows slide: their whole block (solve_block), in their lane below
-    Mask slides = (Mask){0, 0, 0, 0};
-    for (int i = 0; i < k; ++i)
-      slides |= (w[i].normal > 0.0) &
-                (root(w[i].tangent[0] * w[i].tangent[0] + w[i].tangent[1] * w[i].tangent[1]) >=
-                 w[i].mu * w[i].normal * (1.0 - kSlides));
-    Mask fits = (g.invertible != 0.0) & ~slides;
+    // coupled lanes: their whole block (solve_block), in their lane below
+    const Mask coupled = g.coupled != 0.0;
+    Mask fits = (g.invertible != 0.0) & ~coupled;
     for (int i = 0; i < k; ++i) {
       x[i] = splat(0.0);
       for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
@@ -1049,7 +1043,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     // two rows (an edge) whose all-active answer failed: solve_block's search tries sets
     // of one row or none (the rows carrying impulse first, then {1}, {0}, {}), each a
     // division; solved here in lanes, the same sets in the same order, the same arithmetic
-    const Mask two = search & (g.invertible != 0.0) & ~slides;
+    const Mask two = search & (g.invertible != 0.0) & ~coupled;
     if (k == 2 && any(two)) {
       const Lanes zero = splat(0.0);
       Lanes candidate[3][2];   // x of the sets {0} (bit 1), {1} (bit 2), {} (0)
@@ -1102,7 +1096,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     // solved in lanes, each lane's set in its leading rows and the rest an identity that
     // the elimination leaves alone (the same pivots and arithmetic as solve_block's
     // `fits`); a lane whose set does not fit searches on one by one
-    const Mask face = search & (g.invertible != 0.0) & ~slides;
+    const Mask face = search & (g.invertible != 0.0) & ~coupled;
     if (k >= 3 && any(face)) {
       const Lanes zero = splat(0.0), one = splat(1.0);
       Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
@@ -1234,7 +1228,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         lane_to_rows(w, l, r, k);
         Twists lane = t.lane(l);
         Progress own;
-        step[l] = solve_manifold(rows, manifold, lane, nullptr, own, false);
+        step[l] = solve_manifold(rows, manifold, lane, nullptr, own);
         rows_to_lane(r, k, w, l);
         t.set_lane(l, lane);
       }
@@ -1371,7 +1365,7 @@ void pad_lane(WideGroup& g, WideRow* w, int l) {
   g.offset_b[l] = g.offset_b[0];
   g.write_a[l] = g.write_b[l] = false;
   g.ma[l] = g.mb[l] = 0.0;
-  g.invertible[l] = 0.0;
+  g.invertible[l] = g.coupled[l] = 0.0;
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j) g.plain[i][j][l] = g.inverse[i][j][l] = g.delassus[i][j][l] = 0.0;
   for (int i = 0; i < g.count; ++i) {
@@ -1441,6 +1435,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
       g.ma[l] = r[0].ma;
       g.mb[l] = r[0].mb;
       g.invertible[l] = m.invertible ? 1.0 : 0.0;
+      g.coupled[l] = m.coupled ? 1.0 : 0.0;
       for (int i = 0; i < g.count; ++i)
         for (int j = 0; j < g.count; ++j) {
           g.plain[i][j][l] = m.plain[i][j];
@@ -1631,7 +1626,7 @@ void repack(SweepPlan& plan, const uint8_t* changed) {
 
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
-                     std::vector<SpinRow>* spins, SweepPlan* plan, bool whole) {
+                     std::vector<SpinRow>* spins, SweepPlan* plan) {
   const size_t count = manifolds.size(), spin_count = spins != nullptr ? spins->size() : 0;
   const bool wide = plan != nullptr && plan->wide;
   if (wide) {
@@ -1660,7 +1655,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
                     g.count >= 3 ? &plan->faces[entry] : nullptr, progress);
       } else {
         solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
-                        bodies, spins, progress, whole);
+                        bodies, spins, progress);
       }
     }
   };
@@ -1690,7 +1685,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     ++done;
     std::fill(part.begin(), part.end(), Progress());
     if (plan == nullptr) {
-      solve_manifolds(rows, manifolds, 0, count, bodies, spins, part[0], whole);
+      solve_manifolds(rows, manifolds, 0, count, bodies, spins, part[0]);
     } else if (plan->worker != nullptr) {
       plan->worker->run_waves(chunk, static_cast<int>(chunks), plan->gates.data(), 0,
                               static_cast<double>(count));
@@ -1830,7 +1825,7 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
           r.allowance += std::max(towards, 0.0);
         }
         Twists t(v, m.a, m.b);
-        solve_manifold(scratch, m, t, nullptr, progress, false);
+        solve_manifold(scratch, m, t, nullptr, progress);
         t.store(v, m.a, m.b);
         for (int i = 0; i < m.count; ++i)
           scratch[static_cast<size_t>(m.first + i)].allowance = allowance[i];
@@ -2039,6 +2034,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
         blocks.back().a = c.a;
         blocks.back().b = c.b;
         blocks.back().first = static_cast<int32_t>(j);
+        blocks.back().coupled = true;
       }
       ++blocks.back().count;
       scratch.push_back(c);
@@ -2050,8 +2046,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
     // any body (below): a projection, which never gains
     double taken = 0.0;
     for (int attempt = 0; attempt < 3; ++attempt) {
-      solve_velocities(scratch, blocks, bodies, settings.sweeps, settings.converged, nullptr,
-                       nullptr, true);
+      solve_velocities(scratch, blocks, bodies, settings.sweeps, settings.converged);
       taken = 0.0;
       for (size_t j = 0; j < k; ++j) {
         const ContactRow& c = scratch[j];

@@ -650,6 +650,9 @@ void StepSolver::prepare(StepContext& ctx) {
       block.b = rows_[first_row].b;
       block.first = first_row;
       block.count = count;
+      // a body's impact this step: its blocks with their friction as one (mirror hits keep
+      // mirror impulses); a settled pile keeps the cheaper split solve
+      block.coupled = impacted_[block.a] || impacted_[block.b];
     }
   }
   // the rows aim turns: of two spheres, alone in their manifold, one pressed onto the

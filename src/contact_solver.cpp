@@ -1019,9 +1019,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       for (int j = 0; j < k; ++j) q[i] -= g.plain[i][j] * w[j].normal;
       idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
     }
-    // coupled lanes: their whole block (solve_block), in their lane below
-    const Mask coupled = g.coupled != 0.0;
-    Mask fits = (g.invertible != 0.0) & ~coupled;
+    Mask fits = g.invertible != 0.0;
     for (int i = 0; i < k; ++i) {
       x[i] = splat(0.0);
       for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
@@ -1043,7 +1041,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     // two rows (an edge) whose all-active answer failed: solve_block's search tries sets
     // of one row or none (the rows carrying impulse first, then {1}, {0}, {}), each a
     // division; solved here in lanes, the same sets in the same order, the same arithmetic
-    const Mask two = search & (g.invertible != 0.0) & ~coupled;
+    const Mask two = search & (g.invertible != 0.0);
     if (k == 2 && any(two)) {
       const Lanes zero = splat(0.0);
       Lanes candidate[3][2];   // x of the sets {0} (bit 1), {1} (bit 2), {} (0)
@@ -1096,7 +1094,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     // solved in lanes, each lane's set in its leading rows and the rest an identity that
     // the elimination leaves alone (the same pivots and arithmetic as solve_block's
     // `fits`); a lane whose set does not fit searches on one by one
-    const Mask face = search & (g.invertible != 0.0) & ~coupled;
+    const Mask face = search & (g.invertible != 0.0);
     if (k >= 3 && any(face)) {
       const Lanes zero = splat(0.0), one = splat(1.0);
       Lanes e[4][5], diagonal[4];   // the set's rows, rhs last; each column's reference
@@ -1365,7 +1363,7 @@ void pad_lane(WideGroup& g, WideRow* w, int l) {
   g.offset_b[l] = g.offset_b[0];
   g.write_a[l] = g.write_b[l] = false;
   g.ma[l] = g.mb[l] = 0.0;
-  g.invertible[l] = g.coupled[l] = 0.0;
+  g.invertible[l] = 0.0;
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j) g.plain[i][j][l] = g.inverse[i][j][l] = g.delassus[i][j][l] = 0.0;
   for (int i = 0; i < g.count; ++i) {
@@ -1434,8 +1432,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];
       g.ma[l] = r[0].ma;
       g.mb[l] = r[0].mb;
-      g.invertible[l] = m.invertible ? 1.0 : 0.0;
-      g.coupled[l] = m.coupled ? 1.0 : 0.0;
+      g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
       for (int i = 0; i < g.count; ++i)
         for (int j = 0; j < g.count; ++j) {
           g.plain[i][j][l] = m.plain[i][j];

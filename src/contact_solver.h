@@ -242,8 +242,8 @@ struct WideGroup {
   Lanes ma, mb;                  // 1/kg
   Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
   Lanes delassus[4][4];          // Manifold::delassus (the active-set search in lanes)
-  Lanes invertible;              // 1 where Manifold::invertible, else 0
-  Lanes coupled;                 // 1 where Manifold::coupled (solved in its lane), else 0
+  Lanes invertible;              // 1 where Manifold::invertible and not ::coupled, else 0
+                                 // (a lane without it is solved by solve_manifold)
 };
 
 // A face group's (3 or 4 rows) elimination of its lanes' carrying sets (solve_group, when

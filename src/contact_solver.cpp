@@ -245,14 +245,160 @@ struct ActiveSets {
 };
 const ActiveSets kActiveSets;
 
+// A row whose friction is at its cone's limit, within rounding: it slides, its friction
+// mu times its normal impulse along its slip (solve_friction_block keeps it there).
+constexpr double kSlides = 1e-9;
+inline bool sliding(const ContactRow& r) {
+  return r.normal > 0.0 && norm2(r.tangent[0], r.tangent[1]) >= r.mu * r.normal * (1.0 - kSlides);
+}
+
+// The whole block of a manifold as one linear solve (solve_block: a coupled block, every
+// block of an impact stage and a manifold of a body with an impact this step). Unknowns: the normal
+// impulse of each row that carries one (no approach beyond its allowance) and the friction
+// of those that stick (no slip); a sliding row's friction is drag times its normal (N s per
+// N s, along t1 and t2), so its column holds its friction's effect too. The matrix's
+// diagonal is a fraction kRegular heavier on the total impulses: the least-norm answer of
+// a redundant block (four points of a face: 12 rows on 6 motions), so a mirror-symmetric
+// hit gets mirror-symmetric impulses. A sticking row pushed beyond its cone slides along
+// that friction, a sliding row whose friction would not oppose its slip sticks, and the
+// solve is done again (at most 2k + 1 times). Taken when it fits: normals >= 0, every
+// sticking row within its cone, the rows left out not approaching beyond their allowance.
+// Why: the normal block for the friction held, then the friction block for those normals,
+// each sweep, is an iteration whose mirror-antisymmetric part can grow: a sliding row's
+// friction follows its normal, the two points' friction turns the body, the turn moves
+// their normals apart (period two, x3.5 a sweep on a box sliding on two points 20 mm
+// apart), and sticking rows taking over the load of sliding ones converge by 2 % a sweep;
+// the answer depended on the sweep the solver stopped at. Returns the largest impulse
+// change (N s), or -1 when it does not fit (the caller solves the normal block alone).
+double solve_coupled(ContactRow* r, int k, Twists& v) {
+  bool slides[4];
+  double drag[4][2];   // N s of friction per N s of normal of a sliding row
+  for (int i = 0; i < k; ++i) {
+    slides[i] = sliding(r[i]);
+    drag[i][0] = slides[i] ? r[i].tangent[0] / r[i].normal : 0.0;
+    drag[i][1] = slides[i] ? r[i].tangent[1] / r[i].normal : 0.0;
+  }
+  // impulse along row j's direction b moves row i's velocity along its direction a by
+  auto effect = [&](int i, int a, int j, int b) {
+    return (r[j].ma + r[j].mb) * dot(direction(r[i], a), direction(r[j], b)) +
+           dot(r[i].ang_a[a], r[j].dw_a[b]) + dot(r[i].ang_b[a], r[j].dw_b[b]);
+  };
+  for (int tries = 0; tries <= 2 * k; ++tries) {
+    int row[12], dir[12], m = 0;   // unknown u: row[u]'s impulse along dir[u] (0 n, 1 t1, 2 t2)
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      row[m] = i, dir[m++] = 0;
+      if (slides[i]) continue;
+      row[m] = i, dir[m++] = 1;
+      row[m] = i, dir[m++] = 2;
+    }
+    if (m == 0) return -1.0;
+    double s[12][13];
+    for (int u = 0; u < m; ++u) {
+      const ContactRow& ru = r[row[u]];
+      double q = relative(ru, v, dir[u], direction(ru, dir[u])) +
+                 (dir[u] == 0 ? ru.allowance : 0.0);
+      for (int c = 0; c < m; ++c) {
+        const int j = row[c];
+        double e = effect(row[u], dir[u], j, dir[c]);
+        if (dir[c] == 0 && slides[j])
+          e += drag[j][0] * effect(row[u], dir[u], j, 1) + drag[j][1] * effect(row[u], dir[u], j, 2);
+        // (the impulse held along column c: a sliding row's friction is drag times its normal)
+        const double held = dir[c] == 0 ? r[j].normal : r[j].tangent[dir[c] - 1];
+        q -= (dir[c] == 0 && slides[j] ? effect(row[u], dir[u], j, 0) * held +
+              effect(row[u], dir[u], j, 1) * r[j].tangent[0] +
+              effect(row[u], dir[u], j, 2) * r[j].tangent[1] : e * held);
+        s[u][c] = c == u ? e * (1.0 + kRegular) : e;
+      }
+      s[u][m] = -q;
+    }
+    for (int c = 0; c < m; ++c) {   // Gauss-Jordan, partial pivoting
+      int pivot = c;
+      for (int i = c + 1; i < m; ++i)
+        if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+      if (!(std::fabs(s[pivot][c]) > 1e-9 * std::fabs(s[c][c]) + 1e-300)) return -1.0;
+      if (pivot != c)
+        for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
+      for (int i = 0; i < m; ++i) {
+        if (i == c) continue;
+        const double f = s[i][c] / s[c][c];
+        for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+      }
+    }
+    double n[4] = {}, t[4][2] = {};
+    for (int u = 0; u < m; ++u) {
+      const double x = s[u][m] / s[u][u];
+      if (dir[u] == 0) n[row[u]] = x;
+      else t[row[u]][dir[u] - 1] = x;
+    }
+    bool again = false;
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      if (!(n[i] >= 0.0)) return -1.0;
+      if (slides[i]) {
+        t[i][0] = drag[i][0] * n[i];
+        t[i][1] = drag[i][1] * n[i];
+        continue;
+      }
+      const double size = norm2(t[i][0], t[i][1]);
+      if (!(size <= r[i].mu * n[i])) {   // beyond its cone: it slides, along that friction
+        slides[i] = true;
+        drag[i][0] = r[i].mu * t[i][0] / size;
+        drag[i][1] = r[i].mu * t[i][1] / size;
+        again = true;
+      }
+    }
+    if (again) continue;
+    Twists after = v;
+    double change = 0.0;
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      const double d[3] = {n[i] - r[i].normal, t[i][0] - r[i].tangent[0],
+                           t[i][1] - r[i].tangent[1]};
+      for (int b = 0; b < 3; ++b) {
+        if (d[b] != 0.0) apply(r[i], after, b, direction(r[i], b), d[b]);
+        change = std::max(change, std::fabs(d[b]));
+      }
+    }
+    // a sliding row whose friction does not oppose its slip sticks; the rows left out do
+    // not approach beyond their allowance
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0) || !slides[i]) continue;
+      const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
+      if (drag[i][0] * x + drag[i][1] * y > 0.0) {
+        slides[i] = false;
+        again = true;
+      }
+    }
+    if (again) continue;
+    for (int i = 0; i < k; ++i)
+      if (!(r[i].normal > 0.0) && relative(r[i], after, 0, r[i].n) + r[i].allowance < 0.0)
+        return -1.0;
+    v = after;
+    for (int i = 0; i < k; ++i) {
+      if (!(r[i].normal > 0.0)) continue;
+      r[i].normal = n[i];
+      r[i].tangent[0] = t[i][0];
+      r[i].tangent[1] = t[i][1];
+    }
+    return change;
+  }
+  return -1.0;
+}
+
 // The normal rows of one manifold (2..4 points of a pair) solved together, exactly: the
 // small LCP  w = A x + q >= 0, x >= 0, x.w = 0  (A the rows' Delassus matrix, x the new
 // accumulated impulses) by trying the active sets (the rows that carry impulse now first,
 // then largest first), as Box2D's block solver does for two points. Gauss-Seidel converges slowly on a nearly singular
 // manifold (close points, small lever arms) and leaves it spinning. Returns the largest
 // impulse change, or -1 when no active set fits (the caller falls back to rows).
+// A `coupled` block: the whole block with its friction (solve_coupled) first.
 double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
   const int k = block.count;
+  if (block.coupled) {
+    const double step = solve_coupled(r, k, v);
+    if (step >= 0.0) return step;
+  }
   const double (&a)[4][4] = block.delassus;
   double q[4], x[4];
   bool idle = true;
@@ -1286,7 +1432,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];
       g.ma[l] = r[0].ma;
       g.mb[l] = r[0].mb;
-      g.invertible[l] = m.invertible ? 1.0 : 0.0;
+      g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
       for (int i = 0; i < g.count; ++i)
         for (int j = 0; j < g.count; ++j) {
           g.plain[i][j][l] = m.plain[i][j];
@@ -1885,6 +2031,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
         blocks.back().a = c.a;
         blocks.back().b = c.b;
         blocks.back().first = static_cast<int32_t>(j);
+        blocks.back().coupled = true;
       }
       ++blocks.back().count;
       scratch.push_back(c);

@@ -152,6 +152,10 @@ struct Manifold {
   int32_t first = 0, count = 0;  // its rows
   int32_t spin = -1;             // index of its SpinRow in the solve's spins, -1: none
   bool invertible = false;       // `inverse` holds delassus^-1
+  bool coupled = false;          // its normal rows and friction solved as one block each
+                                 // sweep (every block of an impact stage; a manifold one
+                                 // of whose bodies had an impact this step), else the
+                                 // normal block, then the friction block
   // 2 to 4 rows (prepare_block, once per step): the normal rows' Delassus matrix
   // J_i M^-1 J_j^T (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block
   // solve's regularisation), and the inverse of the latter (the all-active answer); the
@@ -240,7 +244,8 @@ struct WideGroup {
   Lanes ma, mb;                  // 1/kg
   Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
   Lanes delassus[4][4];          // Manifold::delassus (the active-set search in lanes)
-  Lanes invertible;              // 1 where Manifold::invertible, else 0
+  Lanes invertible;              // 1 where Manifold::invertible and not ::coupled, else 0
+                                 // (a lane without it is solved by solve_manifold)
 };
 
 // A face group's (3 or 4 rows) elimination of its lanes' carrying sets (solve_group, when
@@ -333,8 +338,10 @@ void repack(SweepPlan& plan, const uint8_t* changed);
 // params.converged times the largest normal impulse. `spins` (rolling resistance and
 // torsional friction, may be null; a manifold's Manifold::spin names its own) are solved
 // after the rows in each sweep, in order. Without `plan`, the manifolds in their order on
-// one thread; with it, wave by wave (above): the same bits. Immovable bodies' velocities
-// are read, never written. Returns the sweeps done.
+// one thread; with it, wave by wave (above): the same bits. A coupled manifold
+// (Manifold::coupled) of 2 to 4 rows is solved as one block with its friction (normal
+// impulses, sticking friction, sliding friction mu times its normal). Immovable bodies'
+// velocities are read, never written. Returns the sweeps done.
 int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                      SolverBodies& bodies, int iterations, double converged,
                      std::vector<SpinRow>* spins = nullptr, SweepPlan* plan = nullptr);

@@ -653,6 +653,9 @@ void StepSolver::prepare(StepContext& ctx) {
       block.b = rows_[first_row].b;
       block.first = first_row;
       block.count = count;
+      // a body's impact this step: its blocks with their friction as one (mirror hits keep
+      // mirror impulses); a settled pile keeps the cheaper split solve
+      block.coupled = impacted_[block.a] || impacted_[block.b];
     }
   }
   // each row's frame and friction coefficient (its own entry: on either thread)

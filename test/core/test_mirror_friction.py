@@ -10,6 +10,7 @@ images (within 1e-6 of the largest normal impulse).
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.types import BodySpec, BodyStates, ContactKind
@@ -101,3 +102,30 @@ def test_mirror_symmetric_hits_on_a_fixed_wall_give_mirror_symmetric_impulses():
                 asymmetric.append((case, error))
         assert not asymmetric, \
             f'{2 * pairs} points: {len(asymmetric)} of {count} asymmetric: {asymmetric[:5]}'
+
+
+@pytest.mark.parametrize('seed', [16, 17, 20, 22, pytest.param(24, marks=pytest.mark.xfail(
+    strict=True, reason='a resting four-point block on a fixed wall that slides (no impact: '
+    'the split solve) draws one asymmetric hit, case 81 of the four-point wall hits'))])
+def test_mirror_symmetric_hits_give_mirror_symmetric_impulses_whatever_the_seed(seed):
+    """Random mirror hits of every class from one seed: on another box and on a fixed wall,
+    through two points (200) and four (150). A manifold's normal block (for the friction
+    held) and its friction block (for those normals), taken in turn each sweep, leave a
+    mirror-antisymmetric part that grows: a sliding point's friction follows its normal, the
+    two points' friction turns the box and the turn moves their normals apart (period two,
+    the two normal impulses swapping 0.7 <-> 2.3 N s each sweep), or sticking points take
+    over the load of sliding ones by 2 % a sweep; the answer was the sweep the solver
+    stopped at, and each of these seeds drew asymmetric hits (up to 0.7 of the largest
+    normal impulse). An impact stage's blocks, and in the resting sweeps the blocks of a
+    body with an impact this step, are now solved with their friction as one linear block
+    (solve_coupled); a settled block (no impact) keeps the split solve, and a touching
+    four-point block sliding on a fixed wall can still leave it asymmetric."""
+    asymmetric = []
+    for fixed in (False, True):
+        for pairs, count in ((1, 200), (2, 150)):
+            rng = np.random.default_rng(seed)
+            for case in range(count):
+                error = asymmetry(*mirror_hit(rng, fixed=fixed, pairs=pairs))
+                if error > 1e-6:
+                    asymmetric.append(('fixed' if fixed else 'dynamic', 2 * pairs, case, error))
+    assert not asymmetric, f'{len(asymmetric)} asymmetric: {asymmetric[:5]}'

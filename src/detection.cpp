@@ -246,6 +246,10 @@ void Detector::prepare(const StepPoses& poses) {
             body.angular - Eigen::Map<const Vec3>(poses.angular0 + 3 * owner);
       }
     }
+    body.loaded = external_change_acts(
+        body.external_linear != Vec3::Zero() || body.external_angular != Vec3::Zero(),
+        body.linear != Vec3::Zero() || body.angular != Vec3::Zero(),
+        body.p0 != body.p1 || !(body.q0.coeffs() == body.q1.coeffs()));
     body.turn = angle_between(body.q0, body.q1);
     body.moved = (body.p1 - body.p0).norm() +
                  (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
@@ -707,17 +711,10 @@ double Detector::sphere_gap(int a, int b) const {
 }
 
 // m/s: the floor of A and B's resting speed, the solver's (StepSolver::reference_frame):
-// restitution_threshold where the step's external change acts on one of the two (its
-// twist changed between the previous and the current state: a load, as gravity) or is
-// unknown (its pose stayed while its twist moves it: a fresh start), else 0
+// restitution_threshold where the step's external change acts on one of the two
+// (external_change_acts), else 0
 double Detector::resting_floor(int a, int b) const {
-  const auto loaded = [](const Body& body) {
-    const bool moving = body.linear != Vec3::Zero() || body.angular != Vec3::Zero();
-    const bool moved = body.p0 != body.p1 || !(body.q0.coeffs() == body.q1.coeffs());
-    return body.external_linear != Vec3::Zero() || body.external_angular != Vec3::Zero() ||
-           (moving && !moved);
-  };
-  return loaded(bodies_[a]) || loaded(bodies_[b]) ? settings_.restitution_threshold : 0.0;
+  return bodies_[a].loaded || bodies_[b].loaded ? settings_.restitution_threshold : 0.0;
 }
 
 // Whether a point of B may approach A faster than its resting speed, the solver's rule

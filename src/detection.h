@@ -160,6 +160,7 @@ class Detector {
     Vec3 linear, angular;  // current twist (zero for frozen bodies)
     Vec3 external_linear, external_angular;  // current less previous twist: the step's
                                              // external change (zero for frozen bodies)
+    bool loaded = false;  // the step's external change acts on it (external_change_acts)
     double turn = 0.0;  // rad, rotation over the step
     double moved = 0.0; // m, bound on any point's travel over the step
     bool fixed = false; // static or frozen

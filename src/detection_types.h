@@ -42,6 +42,15 @@ struct DetectionSettings {
                                        // of compound bodies has a manifold per piece pair)
 };
 
+// Whether the step's external change acts on a body, the rule of the resting floor
+// (restitution_threshold applies to a pair only where it does; free bodies rest at no
+// approach of their own): its twist changed between the previous and the current state
+// (a load, as gravity), or it is unknown: a body whose pose stayed while its twist moves
+// it has no previous state of its own (a fresh start gives previous = current).
+inline bool external_change_acts(bool twist_changed, bool moving, bool pose_moved) {
+  return twist_changed || (moving && !pose_moved);
+}
+
 // What the budget of the last step dropped (zero when the step was within it).
 struct StepBudget {
   std::size_t pairs_dropped = 0;  // broad-phase pairs never queried

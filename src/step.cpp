@@ -230,11 +230,9 @@ void StepSolver::reference_frame(StepContext& ctx) {
   const uint8_t* const pressed = pressed_.data();
   const double *const gap = gap_.data(), *const before = before_.data();
   const double* const resting = resting_speed_.data();
-  // per body: whether the step's external change acts on it (its twist changed between
-  // the previous and the current state: a load, as gravity), or is unknown: a body whose
-  // pose stayed while its twist moves it has no previous state of its own (a fresh start
-  // gives previous = current: a pile restarted after a gap, its twists the source's g dt
-  // into the supports, bounced on that approach)
+  // per body: whether the step's external change acts on it (external_change_acts: a
+  // pile restarted after a gap, its twists the source's g dt into the supports, bounced
+  // on that approach before unknown changes counted)
   loaded_.assign(n, 0);
   for (int64_t i = 0; i < n; ++i) {
     bool changed = false, moving = false, moved = false;
@@ -246,7 +244,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
       moved = moved || previous.position[3 * i + d] != current.position[3 * i + d];
     for (int d = 0; d < 4; ++d)
       moved = moved || previous.orientation[4 * i + d] != current.orientation[4 * i + d];
-    loaded_[i] = changed || (moving && !moved);
+    loaded_[i] = external_change_acts(changed, moving, moved);
   }
   // per contact (frame_contacts), shared by the two threads; the bodies' flags after
   in_parts(ctx, m, [&](int64_t lo, int64_t hi) { frame_contacts(ctx, lo, hi); });

@@ -310,7 +310,7 @@ struct SweepPlan {
   std::vector<WideRow> wide_rows;
   std::vector<size_t> wave_groups;      // groups of wave w: slot[wave_groups[w], [w + 1])
   std::vector<WideSpin> spin_groups;    // per entry: its manifolds' spin rows, in lanes
-                                        // (spin -1 in a lane: none, one by one)
+                                        // (spin -1 in a lane: none; WideSpin::wide)
   std::vector<WideFace> faces;          // per entry: its kept elimination (3 or 4 rows)
   bool packed = false;                  // groups and spin_groups hold the prepared rows'
                                         // constant fields (the first solve_velocities of

@@ -33,10 +33,17 @@ inline double* float_rows(const pybind11::array& array, pybind11::ssize_t count,
     return static_cast<double*>(const_cast<void*>(array.data()));
   scratch.resize(static_cast<size_t>(count * width));
   const char* base = static_cast<const char*>(array.data());
-  for (py::ssize_t i = 0; i < count; ++i)
-    for (py::ssize_t j = 0; j < width; ++j)
-      std::memcpy(&scratch[static_cast<size_t>(i * width + j)],
-                  base + i * array.strides(0) + j * array.strides(1), sizeof(double));
+  const py::ssize_t row = array.strides(0), column = array.strides(1);
+  double* const to = scratch.data();
+  for (py::ssize_t i = 0; i < count; ++i) {
+    const char* from = base + i * row;
+    if (column == sizeof(double)) {   // (a row's numbers side by side: one copy)
+      std::memcpy(to + i * width, from, static_cast<size_t>(width) * sizeof(double));
+    } else {
+      for (py::ssize_t j = 0; j < width; ++j)
+        std::memcpy(to + i * width + j, from + j * column, sizeof(double));
+    }
+  }
   return scratch.data();
 }
 
@@ -46,10 +53,16 @@ inline void scatter_rows(const pybind11::array& array, const double* data) {
   char* base = static_cast<char*>(const_cast<void*>(array.data()));
   if (data == reinterpret_cast<const double*>(base)) return;
   const auto count = array.shape(0), width = array.shape(1);
-  for (pybind11::ssize_t i = 0; i < count; ++i)
-    for (pybind11::ssize_t j = 0; j < width; ++j)
-      std::memcpy(base + i * array.strides(0) + j * array.strides(1), &data[i * width + j],
-                  sizeof(double));
+  const auto row = array.strides(0), column = array.strides(1);
+  for (pybind11::ssize_t i = 0; i < count; ++i) {
+    char* const to = base + i * row;
+    if (column == sizeof(double)) {   // (a row's numbers side by side: one copy)
+      std::memcpy(to, data + i * width, static_cast<size_t>(width) * sizeof(double));
+    } else {
+      for (pybind11::ssize_t j = 0; j < width; ++j)
+        std::memcpy(to + j * column, data + i * width + j, sizeof(double));
+    }
+  }
 }
 
 // The solver half: combine rules, the contact cache and the solver step (bind_solver.cpp).

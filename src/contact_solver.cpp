@@ -1484,16 +1484,19 @@ void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
                 const std::vector<SpinRow>* spins) {
   if (plan.spin_groups.size() < plan.pool_groups) plan.spin_groups.resize(plan.pool_groups);
+  const SpinRow none;   // (a lane without one: all zero)
   for (const int32_t entry : plan.fresh) {   // (the entries kept keep theirs)
     const WideGroup& g = plan.groups[entry];
     WideSpin& w = plan.spin_groups[entry];
-    bool all = spins != nullptr && g.lanes == kLanes;   // (padded: one by one)
-    for (int l = 0; l < kLanes && all; ++l) all = manifolds[g.manifold + static_cast<size_t>(l)].spin >= 0;
-    for (int l = 0; l < kLanes; ++l)
-      w.spin[l] = all ? manifolds[g.manifold + static_cast<size_t>(l)].spin : -1;
-    if (!all) continue;
+    w.wide = false;
     for (int l = 0; l < kLanes; ++l) {
-      const SpinRow& r = (*spins)[w.spin[l]];
+      w.spin[l] = spins != nullptr && l < g.lanes
+                      ? manifolds[g.manifold + static_cast<size_t>(l)].spin : -1;
+      w.wide = w.wide || w.spin[l] >= 0;
+    }
+    if (!w.wide) continue;
+    for (int l = 0; l < kLanes; ++l) {
+      const SpinRow& r = w.spin[l] >= 0 ? (*spins)[w.spin[l]] : none;
       for (int e = 0; e < 3; ++e) {
         w.n[e][l] = r.n[e];
         for (int c = 0; c < 3; ++c) {
@@ -1510,11 +1513,12 @@ void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
 
 // (refresh_groups' spin rows: the substeps start them cold, hold_energy may zero a limit)
 void refresh_spins(SweepPlan& plan, const std::vector<SpinRow>& spins) {
+  const SpinRow none;   // (a lane without one: all zero)
   for (const int32_t entry : plan.slot) {
     WideSpin& w = plan.spin_groups[entry];
-    if (w.spin[0] < 0) continue;
+    if (!w.wide) continue;
     for (int l = 0; l < kLanes; ++l) {
-      const SpinRow& r = spins[w.spin[l]];
+      const SpinRow& r = w.spin[l] >= 0 ? spins[w.spin[l]] : none;
       for (int e = 0; e < 3; ++e) w.torque[e][l] = r.torque[e];
       w.roll[l] = r.roll;
       w.twist[l] = r.twist;
@@ -1537,9 +1541,9 @@ void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
   }
 }
 
-// The spin rows of wave l's part [lo, hi) of a sweep: a group's in lanes where all four
-// have one, the others one by one, then the wave's manifolds one by one (a wave's spin
-// rows share no movable body: the bits of their order).
+// The spin rows of wave l's part [lo, hi) of a sweep: a group's in lanes (WideSpin), then
+// the wave's manifolds one by one (a wave's spin rows share no movable body: the bits of
+// their order).
 void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
                     const std::vector<Manifold>& manifolds, const SolverBodies& bodies,
                     size_t l, size_t lo, size_t hi, Progress& progress) {
@@ -1554,11 +1558,7 @@ void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
     if (item < groups) {
       const int32_t entry = plan.slot[plan.wave_groups[l] + item];
       const WideGroup& g = plan.groups[entry];
-      if (plan.spin_groups[entry].spin[0] >= 0) {
-        solve_wide_spin(plan.spin_groups[entry], g, v, progress);
-      } else {
-        for (int lane = 0; lane < g.lanes; ++lane) one(g.manifold + static_cast<size_t>(lane));
-      }
+      if (plan.spin_groups[entry].wide) solve_wide_spin(plan.spin_groups[entry], g, v, progress);
     } else {
       one(plan.waves[l].lone + item - groups);
     }
@@ -1646,7 +1646,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
       if (item < groups) {
         const int32_t entry = plan->slot[plan->wave_groups[l] + item];
         WideGroup& g = plan->groups[entry];
-        WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[entry].spin[0] >= 0
+        WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[entry].wide
                                    ? &plan->spin_groups[entry] : nullptr;
         solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, spin_lanes,
                     g.count >= 3 ? &plan->faces[entry] : nullptr, progress);

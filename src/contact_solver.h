@@ -264,11 +264,14 @@ struct WideFace {
 };
 
 // The spin rows (SpinRow) of a wide group's four manifolds in lanes: the fields
-// solve_spin reads and writes, same units and signs; `spin` the SpinRows they stand for
-// (all four, or the group's spin rows are solved one by one). `load` is kept here, not in
-// the SpinRows (the group's row update writes it, its spin update reads it).
+// solve_spin reads and writes, same units and signs; `spin` the SpinRows they stand for,
+// -1 in a lane without one (a padding lane, a manifold without a spin row: its fields all
+// zero, so that its update changes nothing and writes no twist). `wide`: at least one lane
+// has one (else the group has no spin rows). `load` is kept here, not in the SpinRows (the
+// group's row update writes it, its spin update reads it).
 struct WideSpin {
   int32_t spin[kLanes] = {-1, -1, -1, -1};
+  bool wide = false;
   Lanes n[3], inv_a[3][3], inv_b[3][3], inv_ab[3][3];
   Lanes k_n, lever, roll, twist, torque[3];
   Lanes load;
@@ -307,7 +310,7 @@ struct SweepPlan {
   std::vector<WideRow> wide_rows;
   std::vector<size_t> wave_groups;      // groups of wave w: slot[wave_groups[w], [w + 1])
   std::vector<WideSpin> spin_groups;    // per entry: its manifolds' spin rows, in lanes
-                                        // (spin -1 in a lane: none, one by one)
+                                        // (spin -1 in a lane: none; WideSpin::wide)
   std::vector<WideFace> faces;          // per entry: its kept elimination (3 or 4 rows)
   bool packed = false;                  // groups and spin_groups hold the prepared rows'
                                         // constant fields (the first solve_velocities of

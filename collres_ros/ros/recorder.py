@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from collres_ros.ros.bag import BagError, BagWriter, message_class
 
@@ -51,7 +51,10 @@ class Recorder:
                 continue  # only subscribers so far: the publisher's QoS decides ours
             reliable = all(info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
                            for info in publishers)
-            qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE if reliable
+            # keep all: a sample is acknowledged once it is in our queue, however far the
+            # callbacks lag; what the publishers' history dropped before then is lost
+            qos = QoSProfile(history=HistoryPolicy.KEEP_ALL,
+                             reliability=ReliabilityPolicy.RELIABLE if reliable
                              else ReliabilityPolicy.BEST_EFFORT)
             # the bag's offered_qos_profiles: what the publishers offer (ros2 bag record's rule)
             self.writer.add_topic(topic, types[0], [info.qos_profile for info in publishers])

@@ -3,10 +3,13 @@
 A reader process stopped (SIGSTOP: descheduled, as on a loaded machine) while the sim's
 input and the node's answer are published many steps, more than DDS's transport queues
 hold (about 500 messages), fewer than the publishers keep; resumed, it records every step.
+Publishers that keep fewer (depth 10) lose steps to it, and the recorder counts every one:
+recorded + lost = published.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -20,9 +23,10 @@ pytest.importorskip('rclpy')
 from ros_harness import Peer  # noqa: E402
 
 STEPS = 600   # per topic: 1200 messages, beyond the transport's queues
-# The recorder of collres_demo in a process of its own, until it has every step (or 30 s).
+# The recorder of collres_demo in a process of its own, until it has recorded or counted as
+# lost every step (or 30 s); it prints the messages it counted as lost, by topic.
 CHILD = '''
-import sys, time
+import json, sys, time
 import rclpy
 from collres_ros.ros.recorder import Recorder
 topics, steps = sys.argv[2].split(','), int(sys.argv[3])
@@ -30,14 +34,20 @@ rclpy.init()
 node = rclpy.create_node('stalled_recorder')
 recorder = Recorder(node, sys.argv[1])
 deadline = time.monotonic() + 30.0
-while time.monotonic() < deadline and any(recorder.counts.get(t, 0) < steps for t in topics):
+while time.monotonic() < deadline and any(
+        recorder.counts.get(t, 0) + recorder.losses.lost[t] < steps for t in topics):
     rclpy.spin_once(node, timeout_sec=0.05)
 recorder.close()
 rclpy.shutdown()
+print(json.dumps(dict(recorder.losses.lost)))
 '''
 
 
-def test_a_stalled_recorder_receives_every_step(tmp_path: Path, ros_domain: int) -> None:
+@pytest.mark.parametrize('depth', [None, 10])
+def test_a_stalled_recorder_receives_every_step_or_counts_it_lost(
+        tmp_path: Path, ros_domain: int, depth: int | None) -> None:
+    """``depth`` None: the profiles collres_sim and collres_node offer; else keep last
+    ``depth``."""
     from geometry_msgs.msg import PoseStamped
 
     from collres_ros.msg import BodyStateArray
@@ -49,11 +59,13 @@ def test_a_stalled_recorder_receives_every_step(tmp_path: Path, ros_domain: int)
     peer = Peer(ros_domain)
     child = None
     try:
-        publishers = {topic: peer.node.create_publisher(kind, topic, qos.offered(topic, 10))
-                      for topic, kind in topics.items()}
+        publishers = {topic: peer.node.create_publisher(
+            kind, topic, qos.offered(topic, 10) if depth is None else qos.state_qos(depth))
+            for topic, kind in topics.items()}
         bag = tmp_path / 'bag'
         child = subprocess.Popen([sys.executable, '-c', CHILD, str(bag), ','.join(topics),
-                                  str(STEPS)], stdin=subprocess.DEVNULL)
+                                  str(STEPS)], stdin=subprocess.DEVNULL,
+                                 stdout=subprocess.PIPE, text=True)
         assert peer.wait(lambda: all(p.get_subscription_count() > 0
                                      for p in publishers.values()), 30.0)
 
@@ -70,12 +82,18 @@ def test_a_stalled_recorder_receives_every_step(tmp_path: Path, ros_domain: int)
                 publish(step)
         finally:
             os.kill(child.pid, signal.SIGCONT)
-        assert child.wait(timeout=90) == 0
+        out, _ = child.communicate(timeout=90)
+        assert child.returncode == 0
+        lost = json.loads(out.strip().splitlines()[-1])
         with BagReader(bag) as reader:
             counts = {topic: reader.topic_count(topic) for topic in topics}
-        print(counts, 'of', STEPS, 'steps; the publishers keep',
+        print(counts, 'recorded and', lost, 'lost of', STEPS, 'steps; the publishers keep',
               {topic: p.qos_profile.depth for topic, p in publishers.items()})
-        assert counts == {topic: STEPS for topic in topics}
+        if depth is None:
+            assert counts == {topic: STEPS for topic in topics} and not any(lost.values())
+        else:   # what the shallow history dropped is lost to the bag, and counted
+            assert all(counts[t] < STEPS and counts[t] + lost.get(t, 0) == STEPS
+                       for t in topics)
     finally:
         if child is not None and child.poll() is None:
             os.kill(child.pid, signal.SIGCONT)

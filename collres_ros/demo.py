@@ -51,6 +51,8 @@ class DemoResult:
     domain_id: int
     expected_steps: int
     logs: dict[str, Path] = field(default_factory=dict)
+    # messages the recorder never got (the publishers' history dropped them first), by topic
+    recorder_lost: dict[str, int] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -199,7 +201,8 @@ def run_demo(out_dir: Path, params: Path | None = None, duration: float | None =
                      driven=sim_scene.drive is not None or bool(sim_scene.kinematic.any()))
     picture = plot(report, out_dir / 'demo.png')
     return DemoResult(report, bag, picture, node_exit, sim_exit, time.monotonic() - start,
-                      domain_id, expected_steps, logs)
+                      domain_id, expected_steps, logs,
+                      {t: n for t, n in sorted(recorder.losses.lost.items()) if n})
 
 
 def summary_lines(result: DemoResult) -> list[str]:
@@ -210,9 +213,12 @@ def summary_lines(result: DemoResult) -> list[str]:
     lines += [f'dropped steps: {result.report.dropped}'
               + ('' if result.report.dropped == 0 else '  <-- must be zero'),
               f'processes: collres_node exit {result.node_exit}, '
-              f'collres_sim exit {result.sim_exit}',
-              f'bag:  {result.bag.resolve()}',
-              f'plot: {result.plot.resolve()}']
+              f'collres_sim exit {result.sim_exit}']
+    if result.recorder_lost:
+        lines.append(f'recorder lost {sum(result.recorder_lost.values())} messages before '
+                     'taking them: ' + ', '.join(f'{t} {n}'
+                                                 for t, n in result.recorder_lost.items()))
+    lines += [f'bag:  {result.bag.resolve()}', f'plot: {result.plot.resolve()}']
     return lines
 
 

@@ -75,19 +75,21 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
     from rclpy.event_handler import PublisherEventCallbacks
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
 
     from collres_ros.msg import BodyStateArray
     from collres_ros.ros import codec, messages
+    from collres_ros.ros import qos as qos_profiles
     from geometry_msgs.msg import PoseStamped, TwistStamped
 
     code = 0
     try:
         with cli.ros_init(args=['collres_sim'] + ros_args):
             node = Node('collres_sim')
-            qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-            clock = node.create_publisher(Clock, names.CLOCK, 10)
+            # every publisher keeps the steps a reliable reader (a recorder) has not yet
+            # acknowledged, up to STEPS_DEPTH: a reader that falls behind loses none
+            qos = qos_profiles.state_qos(qos_profiles.STEPS_DEPTH)
+            clock = node.create_publisher(Clock, names.CLOCK, qos)
             pose_pubs, twist_pubs = {}, {}
             per_body = sim.per_body or args.per_body
             publisher = None if per_body else node.create_publisher(BodyStateArray,
@@ -115,8 +117,9 @@ def run_live(sim: SimScene, args: argparse.Namespace, ros_args: list[str]) -> in
                     return
                 answers[decoded.stamp_ns] = decoded
 
-            corrected = node.create_subscription(BodyStateArray, names.CORRECTED_STATES, answer,
-                                                 qos, raw=True)
+            corrected = node.create_subscription(
+                BodyStateArray, names.CORRECTED_STATES, answer,
+                qos_profiles.state_qos(sim.scene.node.queue_depth), raw=True)
             # last: the node learns of our readers in the order they were created, so its
             # report received here says it has matched the answers' reader too
             matches: dict[str, int] = {}   # node full name -> its body_states publishers

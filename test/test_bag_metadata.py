@@ -82,8 +82,13 @@ def test_offline_bag_carries_qos_params_and_version(tmp_path: Path) -> None:
     assert set(found) == {'/body_states', '/body_states/corrected', '/contacts',
                           '/contact_markers', '/body_markers', '/diagnostics'}
     queue_depth = params.load_scene(SCENES / 'box_stack.yaml').node.queue_depth
+    # the publishers of steps keep the last 1000 (a recorder that falls behind loses none),
+    # markers the node's queue_depth, /diagnostics the last 10
+    depths = {'/body_states': 1000, '/body_states/corrected': 1000, '/contacts': 1000,
+              '/contact_markers': queue_depth, '/body_markers': queue_depth,
+              '/diagnostics': 10}
     for name, meta in found.items():
-        check_profiles(meta, queue_depth if name != '/body_states' else 10)
+        check_profiles(meta, depths[name])
     custom = info['custom_data']
     assert custom['collres_ros.version'] == __version__
     recorded = tmp_path / 'recorded.yaml'
@@ -109,7 +114,7 @@ def test_replay_takes_the_params_from_the_bag(tmp_path: Path, capsys) -> None:
          for m in read_messages(tmp_path / 'without') if m.topic != '/diagnostics']
     assert a and a == b
     # the replay's own output is self-describing too: it replays again without --params
-    check_profiles(topics(tmp_path / 'without')['/contacts'], 10)
+    check_profiles(topics(tmp_path / 'without')['/contacts'], 1000)
     assert metadata(tmp_path / 'without')['custom_data']['collres_ros.version'] == __version__
     assert replay_main([str(tmp_path / 'without'), str(tmp_path / 'again'), '--quiet',
                         '--topics', 'contacts']) == 1   # no inputs in a replay's output

@@ -664,7 +664,9 @@ NODE_PARAMS: tuple[ParamSpec, ...] = (
               'Publish bodies/<name>/{pose,twist}/corrected for steps from per-body inputs',
               reason='per-body users expect per-body answers; batched users read the array'),
     ParamSpec('queue_depth', 'integer', 10,
-              'Depth of the reliable QoS of state topics (keep last)', 1, 1000,
+              'Depth of the reliable QoS (keep last) of the node\'s subscriptions and of its '
+              'markers (its other publishers keep the last 1000 steps for readers that fall '
+              'behind)', 1, 1000,
               reason='a few steps of buffering; old states are worthless to a control loop'),
     ParamSpec('max_message_bodies', 'integer', 10000,
               'Most bodies a body_states message may hold; a longer one is refused whole '

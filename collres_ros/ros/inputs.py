@@ -268,10 +268,13 @@ class PerBodyInputs:
         self.ready = self.server.ready   # the graph's first pass is done (``server.start``)
 
     def _profile(self, topic: str, entity: str) -> Any:
-        """The QoS profile of ``topic`` for ``entity``: the state topics', overridden."""
+        """The QoS profile of ``topic`` for ``entity`` ('publisher' or 'subscription'): the
+        node's, overridden."""
         resolved = self.node.resolve_topic_name(topic)
-        return qos.overridden(self.owner, resolved, entity, self.owner.state_qos()) \
-            if qos.is_overridden(self.owner, resolved, entity) else self.owner.state_qos()
+        profile = self.owner.publisher_qos(topic) if entity == 'publisher' \
+            else self.owner.state_qos()
+        return qos.overridden(self.owner, resolved, entity, profile) \
+            if qos.is_overridden(self.owner, resolved, entity) else profile
 
     @property
     def failure(self) -> Optional[BaseException]:

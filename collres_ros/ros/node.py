@@ -50,9 +50,12 @@ input waits when a step is answered), that step's markers are skipped and counte
 (``outputs_skipped_behind``); its answer, contacts, wrenches and ``/tf`` are always
 published: every input is answered, no contact event is lost, the node catches up sooner.
 
-QoS: states, contacts and markers are reliable, volatile, keep-last with
-depth ``queue_depth`` (10): a control loop wants every step delivered in
-order but never a backlog of old states. ``/diagnostics`` is reliable,
+QoS (``ros/qos.py``): reliable and volatile. The subscriptions keep the last
+``queue_depth`` (10): a control loop wants every step delivered in order but never a
+backlog of old states. The answers, contacts, wrenches and ``/tf`` keep the last 1000
+(a reliable reader that falls behind, a recorder on a loaded machine, loses no step; a
+volatile writer holds only what is not yet acknowledged); markers the last ``queue_depth``
+(a viewer wants the newest). ``/diagnostics`` is reliable,
 depth 10 (diagnostic_updater uses 1; ten let a slow aggregator miss no
 report). Every publisher and subscription takes
 rclpy's QoS overrides from the parameters (``qos_overrides./<topic>.
@@ -514,18 +517,22 @@ class CollresNode(Node):
         if publisher is None:
             if topic.startswith(names.BODIES):   # per body (contact_wrench): as PerBodyInputs
                 profile = qos.overridden(self, self.resolve_topic_name(topic), 'publisher',
-                                         self.state_qos())
+                                         self.publisher_qos(topic))
                 publisher = self.create_publisher(kind, topic, profile, event_callbacks=(
                     PublisherEventCallbacks(use_default_callbacks=False)))
             else:
-                publisher = self.create_publisher(kind, topic, self.state_qos(),
+                publisher = self.create_publisher(kind, topic, self.publisher_qos(topic),
                                                   qos_overriding_options=qos.OVERRIDES)
             self._publishers_by_topic[topic] = publisher
         return publisher
 
     def state_qos(self) -> Any:
-        """A new profile of the state topics (rclpy writes an entity's overrides into it)."""
+        """A new profile of the subscriptions (rclpy writes an entity's overrides into it)."""
         return qos.state_qos(self.scene.node.queue_depth)
+
+    def publisher_qos(self, topic: str) -> Any:
+        """A new profile of the publisher of ``topic`` (``qos.offered``)."""
+        return qos.offered(topic, self.scene.node.queue_depth)
 
     def _warn(self, reason: str, text: str) -> None:
         """At most one warning per reason per LOG_PERIOD, with the count of the others."""

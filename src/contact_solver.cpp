@@ -253,7 +253,8 @@ inline bool sliding(const ContactRow& r) {
 }
 
 // The whole block of a manifold as one linear solve (solve_block: a coupled block, every
-// block of an impact stage and a manifold of a body with an impact this step). Unknowns: the normal
+// block of an impact stage, a manifold of a body with an impact this step and one with a
+// point that slips as the step begins). Unknowns: the normal
 // impulse of each row that carries one (no approach beyond its allowance) and the friction
 // of those that stick (no slip); a sliding row's friction is drag times its normal (N s per
 // N s, along t1 and t2), so its column holds its friction's effect too. The matrix's

@@ -154,8 +154,10 @@ struct Manifold {
   bool invertible = false;       // `inverse` holds delassus^-1
   bool coupled = false;          // its normal rows and friction solved as one block each
                                  // sweep (every block of an impact stage; a manifold one
-                                 // of whose bodies had an impact this step), else the
-                                 // normal block, then the friction block
+                                 // of whose bodies had an impact this step, or one of
+                                 // whose points slipped faster than the sticking speed
+                                 // as the step began), else the normal block, then the
+                                 // friction block
   // 2 to 4 rows (prepare_block, once per step): the normal rows' Delassus matrix
   // J_i M^-1 J_j^T (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block
   // solve's regularisation), and the inverse of the latter (the all-active answer); the

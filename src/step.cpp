@@ -668,6 +668,14 @@ void StepSolver::prepare(StepContext& ctx) {
       prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu_s, mu_k);
     }
   });
+  // a manifold with a point that slips (faster than the sticking speed, prepare_row): its
+  // blocks with their friction as one too. Split, a box sliding on four points of a wall
+  // (or of another box) was solved by an iteration whose mirror-antisymmetric part grew
+  // (8 of 42,700 random mirror hits, up to 0.62 of the largest normal impulse); a settled
+  // pile has none such (its cost per step unchanged within 1.5 %)
+  for (Manifold& block : manifolds_)
+    for (int32_t i = block.first; i < block.first + block.count && !block.coupled; ++i)
+      block.coupled = !rows_[i].sticking;
   // the rows aim turns: of two spheres, alone in their manifold, one pressed onto the
   // other from the start (pressed_), neither body impacted
   aimed_.clear();

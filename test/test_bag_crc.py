@@ -72,6 +72,26 @@ def test_every_flipped_bit_is_refused(recorded: Path, tmp_path: Path) -> None:
     assert sum('damaged bag' in text or 'cannot open' in text for text in refused) == 60
 
 
+def test_a_damaged_length_of_the_data_end_record_is_refused(recorded: Path,
+                                                            tmp_path: Path) -> None:
+    """The DataEnd record's length lies outside every CRC: a flipped bit there (found by
+    the random flips above) made it a longer record holding the same CRC, and the bag was
+    read as sound. The records must tile the file up to the summary."""
+    copy = tmp_path / 'copy'
+    shutil.copytree(recorded, copy)
+    path = mcap_file(copy)
+    data = bytearray(path.read_bytes())
+    footer = len(data) - 8 - 29
+    summary_start = struct.unpack_from('<Q', data, footer + 9)[0]
+    data_end = summary_start - 13          # opcode, length (8), data_section_crc (4)
+    assert data[data_end] == 0x0F and struct.unpack_from('<Q', data, data_end + 1)[0] == 4
+    data[data_end + 2] ^= 0x04             # length 4 -> 1028
+    path.write_bytes(bytes(data))
+    with pytest.raises(BagError, match='damaged bag'):
+        with BagReader(copy) as reader:
+            list(reader.raw())
+
+
 def test_replay_of_a_damaged_bag_is_one_error_line(recorded: Path, tmp_path: Path,
                                                    capsys: pytest.CaptureFixture) -> None:
     copy = tmp_path / 'copy'

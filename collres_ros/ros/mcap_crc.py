@@ -84,6 +84,7 @@ def _walk(file: BinaryIO, write: bool) -> None:
                 file.write(content)
             elif stored and stored != running:
                 raise CrcError('data section CRC differs: the messages were damaged')
+            data_end = position + 9 + length
             break
         content = bytearray(file.read(length))
         if opcode == CHUNK:
@@ -106,10 +107,16 @@ def _walk(file: BinaryIO, write: bool) -> None:
     if footer[0] != FOOTER or file.read(8) != MAGIC:
         raise CrcError('no footer')
     summary_start = struct.unpack_from('<Q', footer, 9)[0]
-    if not summary_start:
-        return
     if summary_start > total - 8 - FOOTER_SIZE:
         raise CrcError('footer points past the end of the file')
+    # the records tile the file: the summary (or, without one, the footer) starts where the
+    # DataEnd record ends, so no byte between them lies outside every CRC (a damaged
+    # DataEnd length would otherwise be read as a longer record holding the same CRC)
+    if data_end != (summary_start or total - 8 - FOOTER_SIZE):
+        raise CrcError(f'the data section ends at byte {data_end}, not where the '
+                       'summary begins')
+    if not summary_start:
+        return
     file.seek(summary_start)
     summary = file.read(total - 8 - FOOTER_SIZE - summary_start)
     value = crc32(bytes(footer[:FOOTER_SIZE - 4]), crc32(summary))

@@ -112,11 +112,16 @@ def test_colcon_builds_the_package_against_the_ros_environment(tmp_path: Path) -
     prefix = sys.prefix
     env = dict(os.environ, AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix,
                PATH=f'{os.path.dirname(sys.executable)}:{os.environ["PATH"]}')
+    # colcon's make arguments are -jN -lN (N cores): past a load of N, make runs one job at
+    # a time, and on a loaded 2-core machine the serial build took more than 600 s (the
+    # compiled core alone about 6 min at load 6). A -j of our own in MAKEFLAGS replaces
+    # both; the deadline only catches a hung build.
+    env['MAKEFLAGS'] = f'-j{len(os.sched_getaffinity(0))}'
     colcon = os.path.join(os.path.dirname(sys.executable), 'colcon')
     result = subprocess.run(
         [colcon, 'build', '--base-paths', 'src', '--cmake-args',
          f'-DPython3_EXECUTABLE={sys.executable}', '-DBUILD_TESTING=OFF'],
-        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1500)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     install = tmp_path / 'install' / 'collres_ros'
     site = next(install.glob('lib/python3*/site-packages'))

@@ -742,6 +742,21 @@ double Detector::relative_motion(int a, int b) const {
          B.turn * radius_or_zero(b);
 }
 
+// m, bound on how much the pair's distance changes over the step: with a half-space, how far
+// any point of the other body moves along the half-space's normal relative to it (a motion
+// along its surface, a box falling by a wall, changes no distance to it); else
+// relative_motion
+double Detector::approach_bound(int a, int b) const {
+  const bool plane_a = shapes_[a].kind == ShapeKind::plane;
+  if (!plane_a && shapes_[b].kind != ShapeKind::plane) return relative_motion(a, b);
+  const int plane = plane_a ? a : b, other = plane_a ? b : a;
+  const Body& P = bodies_[plane];
+  const Body& O = bodies_[other];
+  const Vec3 normal = P.r1 * shapes_[plane].plane_normal;
+  return std::abs(((O.p1 - O.p0) - (P.p1 - P.p0)).dot(normal)) + P.turn * radius_or_zero(plane) +
+         O.turn * radius_or_zero(other);
+}
+
 // Only pairs that need a coal query count: bounding spheres farther apart than the margin
 // and than the relative motion cannot touch (narrow_phase skips them unqueried).
 void Detector::limit_pairs() {
@@ -801,7 +816,7 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   // both share (a pile that its source integrated one long period under gravity) moves no
   // point of one relative to the other
   const double margin = settings_.speculative_margin;
-  const double relative = relative_motion(a, b);
+  const double relative = approach_bound(a, b);
   if (relative > margin) return false;
   const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
   const Quat rel_q = A.q1.conjugate() * B.q1;
@@ -907,9 +922,10 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
                        B.angular.norm() * radius_or_zero(b);
   // overlapping now, possibly apart before, and closing fast enough to bounce: its
   // previous state decides between a persistent contact and an impact
-  const bool may_have_hit = distance < 0.0 && distance + relative > 0.0 &&
+  const double approach = approach_bound(a, b);
+  const bool may_have_hit = distance < 0.0 && distance + approach > 0.0 &&
                             may_bounce(a, b, normal, speed);
-  if (near && distance + relative <= margin && !may_have_hit) {
+  if (near && distance + approach <= margin && !may_have_hit) {
     // within the margin at the previous state for sure: a persistent contact
     const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
     if (-distance > deep && deep_persistent(lane, a, b, deep, margin + relative, out)) return;

@@ -14,9 +14,9 @@
 // 3. Stored manifolds (manifold.h): a pair of flat-faced bodies that was in contact last
 //    step and whose relative pose has barely changed keeps its contact points, stored in
 //    the two body frames; only their gaps are recomputed (no coal query), as long as the
-//    narrow phase would call the pair persistent (step 4: its least gap plus the pair's
-//    relative motion over the step within the margin, no hit fast enough to bounce, no
-//    deep overlap). Motion the two bodies share does not count: a pile that its source
+//    narrow phase would call the pair persistent (step 4: its least gap plus how much the
+//    step may have changed it within the margin, no hit fast enough to bounce, no deep
+//    overlap; with a half-space only the motion along its normal changes the gap). Motion the two bodies share does not count: a pile that its source
 //    integrated one 30 Hz period under gravity keeps its points. A curved body's points
 //    are never reused: on a rolling surface they would turn with the body. A pair the
 //    narrow phase measured apart (beyond the margin) keeps that distance with its relative
@@ -172,6 +172,7 @@ class Detector {
   void find_pairs();
   double sphere_gap(int a, int b) const;
   double relative_motion(int a, int b) const;
+  double approach_bound(int a, int b) const;
   double resting_floor(int a, int b) const;
   bool may_bounce(int a, int b, const Vec3& normal, double speed) const;
   void limit_pairs();

@@ -209,6 +209,35 @@ def test_motion_a_pair_shares_keeps_its_stored_points() -> None:
                                first.point[boxes] + shift + share * nudge, rtol=0, atol=1e-9)
 
 
+def test_a_box_falling_along_a_wall_keeps_its_stored_points() -> None:
+    """A box 10 mm from a wall that its source integrated one 30 Hz period under gravity
+    moved g dt^2 (11 mm) along the wall: its distance to the wall did not change (only the
+    motion along the wall's normal changes the gap to a half-space), so the pair, in
+    contact (within the margin) at both ends and barely turned relative to its stored
+    manifold, keeps its stored points: they move with each body, the wall's stays where
+    it was and the midpoints move by half the nudge, where a fresh query finds the box's
+    corners projected on the wall, moved by the whole nudge."""
+    specs = [BodySpec('wall', 'plane', (1.0, 0.0, 0.0, 0.0), static=True),
+             BodySpec('box', 'box', (0.2, 0.2, 0.2))]
+    resting = states([[0, 0, 0], [0.11, 0, 1.0]])
+    world = Detection(specs, SETTINGS)
+    first = world.detect(resting, resting)
+    assert first.count == 4 and set(first.kind) == {ContactKind.PERSISTENT}
+    fall = np.array([0.0, 0.0, -9.81 / 30.0 ** 2])
+    nudge = np.array([0.0, 0.3 * REUSE_TRANSLATION, 0.0])   # below the reuse limit
+    above = resting.copy()
+    above.position[1] -= fall
+    nudged = resting.copy()
+    nudged.position[1] += nudge
+    moved = world.detect(above, nudged)
+    fresh = Detection(specs, SETTINGS).detect(above, nudged)
+    assert set(moved.kind) == set(fresh.kind) == {ContactKind.PERSISTENT}
+    np.testing.assert_array_equal(moved.feature, first.feature)
+    np.testing.assert_allclose(moved.separation, fresh.separation, atol=1e-12)
+    np.testing.assert_allclose(moved.point, first.point + 0.5 * nudge, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fresh.point, first.point + nudge, rtol=0, atol=1e-12)
+
+
 def test_frozen_bodies_are_held_at_their_current_pose() -> None:
     world = Detection([BodySpec('a', 'sphere', (0.1,)), BodySpec('b', 'sphere', (0.1,))],
                       SETTINGS)

@@ -18,6 +18,10 @@ raw bytes.
 from __future__ import annotations
 
 import importlib
+import os
+import signal
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -41,6 +45,44 @@ CONTACTS_TYPE = f'{PACKAGE}/msg/ContactArray'
 
 class BagError(Exception):
     """A bag cannot be opened, read or written; the message is one line for users."""
+
+
+# Ctrl-C and SIGTERM (``cli.terminate_as_interrupt``) raise KeyboardInterrupt between two
+# bytecodes, also inside the bag library's write of a chunk (a chunk half written, then
+# the bag closed after it: "chunk ... cannot be read" when sealed). While a record is
+# written their Python handlers only note them; they run once it is whole.
+_INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextmanager
+def _whole_records() -> Iterator[None]:
+    """Ctrl-C and SIGTERM handled after the block (Python runs signal handlers on the
+    main thread only: on another thread nothing can interrupt the block)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[tuple[int, Any]] = []
+
+    def hold(signum: int, frame: Any) -> None:
+        came.append((signum, frame))
+
+    previous = {}
+    for number in _INTERRUPTS:
+        handler = signal.getsignal(number)
+        if handler is not None:        # None: not set from Python, left alone
+            previous[number] = signal.signal(number, hold)
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        if came:
+            number, frame = came[0]
+            handler = previous[number]
+            if callable(handler):
+                handler(number, frame)
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), number)
 
 
 @lru_cache(maxsize=1)
@@ -167,11 +209,12 @@ class BagWriter:
         """Finish the bag: index, metadata.yaml and (mcap) every CRC (``mcap_crc.seal``)."""
         if self._open:
             self._open = False
-            self._writer.close()
-            if self.storage == 'mcap':
-                from collres_ros.ros.mcap_crc import seal
-                for part in sorted(self.path.glob('*.mcap')):
-                    seal(part)
+            with _whole_records():
+                self._writer.close()
+                if self.storage == 'mcap':
+                    from collres_ros.ros.mcap_crc import seal
+                    for part in sorted(self.path.glob('*.mcap')):
+                        seal(part)
 
     def discard(self) -> None:
         """Remove the bag being written (a bag that failed to write is not left behind)."""
@@ -219,7 +262,8 @@ class BagWriter:
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes) -> None:
         """Write CDR bytes (as rclpy publishes them) at ``log_time`` (ns)."""
         self.add_topic(topic, msgtype)
-        self._writer.write(self._connections[topic], int(log_time), data)
+        with _whole_records():
+            self._writer.write(self._connections[topic], int(log_time), data)
         self.count += 1
 
 

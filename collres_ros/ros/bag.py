@@ -18,10 +18,8 @@ raw bytes.
 from __future__ import annotations
 
 import importlib
-import os
 import signal
 import threading
-from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -49,40 +47,60 @@ class BagError(Exception):
 
 # Ctrl-C and SIGTERM (``cli.terminate_as_interrupt``) raise KeyboardInterrupt between two
 # bytecodes, also inside the bag library's write of a chunk (a chunk half written, then
-# the bag closed after it: "chunk ... cannot be read" when sealed). While a record is
-# written their Python handlers only note them; they run once it is whole.
+# the bag closed after it: "chunk ... cannot be read" when sealed). Their Python handlers
+# are wrapped when a bag is opened (transparent outside a write) so that while a record
+# is written they are only noted, and run once it is whole.
 _INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 
 
-@contextmanager
-def _whole_records() -> Iterator[None]:
-    """Ctrl-C and SIGTERM handled after the block (Python runs signal handlers on the
-    main thread only: on another thread nothing can interrupt the block)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
+class _Deferred:
+    """A signal's Python handler that waits while a record is written (``_whole_records``)."""
+
+    depth = 0                          # open _whole_records blocks (main thread)
+    came: list[tuple[Callable[..., Any], int, Any]] = []   # signals noted in them
+
+    def __init__(self, handler: Callable[..., Any]) -> None:
+        self.handler = handler
+
+    def __call__(self, signum: int, frame: Any) -> None:
+        if _Deferred.depth:
+            _Deferred.came.append((self.handler, signum, frame))
+        else:
+            self.handler(signum, frame)
+
+
+def _defer_interrupts() -> None:
+    """Wrap the Python handlers of Ctrl-C and SIGTERM in ``_Deferred`` (main thread only:
+    Python runs signal handlers there, so nothing interrupts a write on another thread)."""
+    if threading.get_ident() != _WholeRecords.main:
         return
-    came: list[tuple[int, Any]] = []
-
-    def hold(signum: int, frame: Any) -> None:
-        came.append((signum, frame))
-
-    previous = {}
     for number in _INTERRUPTS:
         handler = signal.getsignal(number)
-        if handler is not None:        # None: not set from Python, left alone
-            previous[number] = signal.signal(number, hold)
-    try:
-        yield
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-        if came:
-            number, frame = came[0]
-            handler = previous[number]
-            if callable(handler):
-                handler(number, frame)
-            elif handler == signal.SIG_DFL:
-                os.kill(os.getpid(), number)
+        if callable(handler) and not isinstance(handler, _Deferred):
+            signal.signal(number, _Deferred(handler))
+
+
+class _WholeRecords:
+    """Ctrl-C and SIGTERM (as wrapped when the bag opened) handled after the block, on the
+    main thread (on another one nothing interrupts it)."""
+
+    main = threading.main_thread().ident
+
+    def __enter__(self) -> None:
+        if threading.get_ident() == self.main:
+            _Deferred.depth += 1
+
+    def __exit__(self, *exc: object) -> None:
+        if threading.get_ident() != self.main:
+            return
+        _Deferred.depth -= 1
+        if not _Deferred.depth and _Deferred.came:
+            handler, number, frame = _Deferred.came[0]
+            _Deferred.came.clear()
+            handler(number, frame)
+
+
+_whole_records = _WholeRecords()
 
 
 @lru_cache(maxsize=1)
@@ -201,6 +219,7 @@ class BagWriter:
 
     def open(self) -> 'BagWriter':
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        _defer_interrupts()
         self._writer.open()
         self._open = True
         return self
@@ -209,7 +228,7 @@ class BagWriter:
         """Finish the bag: index, metadata.yaml and (mcap) every CRC (``mcap_crc.seal``)."""
         if self._open:
             self._open = False
-            with _whole_records():
+            with _whole_records:
                 self._writer.close()
                 if self.storage == 'mcap':
                     from collres_ros.ros.mcap_crc import seal
@@ -262,7 +281,7 @@ class BagWriter:
     def write_raw(self, topic: str, msgtype: str, log_time: int, data: bytes) -> None:
         """Write CDR bytes (as rclpy publishes them) at ``log_time`` (ns)."""
         self.add_topic(topic, msgtype)
-        with _whole_records():
+        with _whole_records:
             self._writer.write(self._connections[topic], int(log_time), data)
         self.count += 1
 

@@ -77,8 +77,6 @@ void bind_detection(py::module_& m) {
       throw py::error_already_set();
     }
   }
-  m.attr("REUSE_TRANSLATION") = collres::kReuseTranslation;
-  m.attr("REUSE_ROTATION") = collres::kReuseRotation;
   m.attr("HULL_FLATNESS") = collres::kHullFlatness;
   m.def("extreme_vertices",
         [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
@@ -116,6 +114,7 @@ void bind_detection(py::module_& m) {
       .def_readwrite("restitution_threshold",
                      &collres::DetectionSettings::restitution_threshold)
       .def_readwrite("resting_factor", &collres::DetectionSettings::resting_factor)
+      .def_readwrite("reuse_shift", &collres::DetectionSettings::reuse_shift)
       .def_readwrite("max_pairs", &collres::DetectionSettings::max_pairs)
       .def_readwrite("max_contacts", &collres::DetectionSettings::max_contacts)
       .def_readwrite("max_contacts_per_pair",

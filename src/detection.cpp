@@ -820,7 +820,9 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   if (relative > margin) return false;
   const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
   const Quat rel_q = A.q1.conjugate() * B.q1;
-  if ((rel_p - stored->rel_p).norm() > kReuseTranslation ||
+  const double shift = settings_.reuse_shift * std::min(shapes_[a].thickness,
+                                                        shapes_[b].thickness);
+  if ((rel_p - stored->rel_p).norm() > shift ||
       std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
     return false;
   }

@@ -64,17 +64,14 @@ from collres_ros.core.types import (COMPOUND, SHAPE_KINDS, TRIANGLE_MESH, BodySp
 
 IDENTITY = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)   # a piece frame on the body frame
 
-REUSE_TRANSLATION = _native.REUSE_TRANSLATION   # m: a stored manifold is reused while its
-REUSE_ROTATION = _native.REUSE_ROTATION         # pair moved less than this and turned less
-#                                                 than this (rad) relative to each other
-
-
 # What detection reads, named as in SolverSettings and in the compiled DetectionSettings.
 DETECTION_FIELDS = ('speculative_margin', 'toi_tolerance', 'toi_max_iterations', 'ccd',
                     'linear_slop', 'restitution_threshold', 'max_pairs', 'max_contacts',
                     'max_contacts_per_pair')
-# ... and the SOLVER_TUNING entries it reads (the solver's too), by the same names.
-DETECTION_TUNING = ('resting_factor',)
+# ... and the SOLVER_TUNING entries it reads, by the same names: the solver reads them
+# too, all but DETECTION_ONLY's (the compiled solver has no field of their name).
+DETECTION_TUNING = ('resting_factor', 'reuse_shift')
+DETECTION_ONLY = ('reuse_shift',)
 
 
 class Detection:

@@ -56,7 +56,7 @@ import numpy as np
 
 from collres_ros.core import _native
 from collres_ros.core.config import SOLVER_TUNING, SolverSettings
-from collres_ros.core.detection import Detection
+from collres_ros.core.detection import DETECTION_ONLY, Detection
 from collres_ros.core.rotation import slerp
 from collres_ros.core.shapes import mass_properties
 from collres_ros.core.sleep import Sleep
@@ -343,7 +343,8 @@ def solver_params(settings: SolverSettings) -> _native.SolverParams:
                  'linear_slop', 'position_correction', 'max_correction', 'max_substep'):
         setattr(params, name, getattr(settings, name))
     for spec in SOLVER_TUNING:
-        setattr(params, spec.name, spec.default)
+        if spec.name not in DETECTION_ONLY:
+            setattr(params, spec.name, spec.default)
     params.restitution_rule = _native.CombineRule.__members__[settings.restitution_rule]
     params.friction_rule = _native.CombineRule.__members__[settings.friction_rule]
     return params

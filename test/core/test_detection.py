@@ -11,14 +11,16 @@ import numpy as np
 import pytest
 
 from collres_ros.core import rotation
-from collres_ros.core.detection import REUSE_TRANSLATION, Detection
-from collres_ros.core.config import SolverSettings
+from collres_ros.core.detection import Detection
+from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.shapes import make_geometry
 from collres_ros.core.types import BodySpec, BodyStates, ContactKind
 from contacts import at_rest
 
 SETTINGS = SolverSettings()
 states = at_rest
+REUSE_SHIFT = next(spec.default for spec in SOLVER_TUNING if spec.name == 'reuse_shift')
+REUSE_LIMIT = REUSE_SHIFT * 0.1   # m: how far a pair of 0.2 m boxes may shift, reused
 
 
 def brute_pairs(lo: np.ndarray, hi: np.ndarray) -> set[tuple[int, int]]:
@@ -171,7 +173,7 @@ def test_stored_manifolds_match_a_fresh_query_and_keep_their_features() -> None:
     first = world.detect(resting, resting)
     assert first.count == 16 and set(first.kind) == {ContactKind.PERSISTENT}
     nudged = resting.copy()
-    nudged.position[2:] += [0.3 * REUSE_TRANSLATION, 0, -0.0002]   # below the reuse limit
+    nudged.position[2:] += [0.3 * REUSE_LIMIT, 0, -0.0002]   # below the reuse limit
     stored = world.detect(resting, nudged)
     fresh = Detection(specs, SETTINGS).detect(resting, nudged)
     np.testing.assert_array_equal(stored.body_a, fresh.body_a)
@@ -179,10 +181,40 @@ def test_stored_manifolds_match_a_fresh_query_and_keep_their_features() -> None:
     np.testing.assert_array_equal(stored.feature, first.feature)
     np.testing.assert_allclose(stored.separation, fresh.separation, atol=1e-9)
     np.testing.assert_allclose(stored.normal, fresh.normal, atol=1e-9)
-    np.testing.assert_allclose(stored.point, fresh.point, atol=REUSE_TRANSLATION)
+    np.testing.assert_allclose(stored.point, fresh.point, atol=REUSE_LIMIT)
     lifted = nudged.copy()
     lifted.position[4] += [0, 0, 2 * SETTINGS.speculative_margin]   # top box leaves
     assert world.detect(nudged, lifted).count == 12
+
+
+def test_stored_points_of_a_small_box_stay_within_the_reuse_limit_of_a_fresh_query() -> None:
+    """A stored manifold is reused while its pair shifted less than reuse_shift times the
+    thinner body's smallest half extent, so a reused point lies within that of the point a
+    fresh query finds, whatever the body's size: a 1 cm cube (limit 0.1 mm) on a floor,
+    moved 0.15 mm and then 0.15 mm more along it (a fixed 1 mm limit kept the first points
+    through both moves: 0.15 mm from a fresh query's)."""
+    size = 0.01
+    specs = [BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True),
+             BodySpec('box', 'box', (size,) * 3)]
+    limit = REUSE_SHIFT * 0.5 * size
+    resting = states([[0, 0, 0], [0, 0, 0.5 * size - 1e-5]])
+    world = Detection(specs, SETTINGS)
+    world.detect(resting, resting)
+    previous = resting
+    for step in (1, 2):
+        moved = resting.copy()
+        moved.position[1, 0] += step * 1.5 * limit
+        stored = world.detect(previous, moved)
+        fresh = Detection(specs, SETTINGS).detect(previous, moved)
+        # (the fresh query also gives the top corners, within the margin: by feature)
+        same = [list(fresh.feature).index(f) for f in stored.feature]
+        assert stored.count >= 4 and set(stored.kind) == {ContactKind.PERSISTENT}
+        np.testing.assert_allclose(stored.separation, fresh.separation[same], atol=1e-12)
+        error = np.linalg.norm(stored.point - fresh.point[same], axis=1).max()
+        print(f'move {step}: stored points {1e3 * error:.3f} mm from a fresh query\'s '
+              f'(limit {1e3 * limit:.3f} mm)')
+        assert error <= limit
+        previous = moved
 
 
 def test_motion_a_pair_shares_keeps_its_stored_points() -> None:
@@ -195,7 +227,7 @@ def test_motion_a_pair_shares_keeps_its_stored_points() -> None:
     world = Detection(specs, SETTINGS)
     first = world.detect(resting, resting)
     shift = np.array([0.0, 0.0, -9.81 / 30.0 ** 2])
-    nudge = np.array([0.3 * REUSE_TRANSLATION, 0.0, 0.0])   # all boxes but the lowest
+    nudge = np.array([0.3 * REUSE_LIMIT, 0.0, 0.0])   # all boxes but the lowest
     fallen = resting.copy()
     fallen.position[1:] += shift
     fallen.position[2:] += nudge
@@ -224,7 +256,7 @@ def test_a_box_falling_along_a_wall_keeps_its_stored_points() -> None:
     first = world.detect(resting, resting)
     assert first.count == 4 and set(first.kind) == {ContactKind.PERSISTENT}
     fall = np.array([0.0, 0.0, -9.81 / 30.0 ** 2])
-    nudge = np.array([0.0, 0.3 * REUSE_TRANSLATION, 0.0])   # below the reuse limit
+    nudge = np.array([0.0, 0.3 * REUSE_LIMIT, 0.0])   # below the reuse limit
     above = resting.copy()
     above.position[1] -= fall
     nudged = resting.copy()

@@ -191,8 +191,13 @@ def test_every_solver_tuning_reaches_the_compiled_solver_by_name():
     by name, and the compiled defaults agree with it (no second truth)."""
     from collres_ros.core import _native
     from collres_ros.core.config import SOLVER_TUNING
+    from collres_ros.core.detection import DETECTION_ONLY, DETECTION_TUNING
     from collres_ros.core.world import solver_params
     compiled, handed = _native.SolverParams(), solver_params(SolverSettings())
+    assert set(DETECTION_ONLY) <= set(DETECTION_TUNING)   # those reach the detector
     for spec in SOLVER_TUNING:
+        if spec.name in DETECTION_ONLY:
+            assert not hasattr(compiled, spec.name), spec.name
+            continue
         assert getattr(compiled, spec.name) == spec.default, spec.name
         assert getattr(handed, spec.name) == spec.default, spec.name

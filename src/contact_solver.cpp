@@ -603,9 +603,11 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
 
 namespace {
 
-// What a part of a sweep did: the largest impulse change, the largest normal impulse (N s).
+// What a part of a sweep did: the largest impulse change, the largest normal impulse (N s);
+// the wide groups' kept per lane (lanes_*, folded in by solve_velocities)
 struct Progress {
   double change = 0.0, largest = 0.0;
+  Lanes lanes_change = {0.0, 0.0, 0.0, 0.0}, lanes_largest = {0.0, 0.0, 0.0, 0.0};
 };
 
 // +0 (not -0: a row holding -0 would be rewritten +0 by its update)
@@ -883,24 +885,30 @@ template <int k>
 WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, Mask live) {
   const Lanes zero = splat(0.0);
   Lanes change = zero;
-  for (int i = 0; i < k; ++i) {   // into the cones
+  Lanes size[4], limit[4];
+  Mask over[4], outside = (Mask){0, 0, 0, 0};
+  for (int i = 0; i < k; ++i) {   // into the cones (one test for all rows: mostly none)
     WideRow& r = w[i];
-    const Lanes size = root(r.tangent[0] * r.tangent[0] + r.tangent[1] * r.tangent[1]);
-    const Lanes limit = r.mu * r.normal;
-    const Mask over = live & (size > limit);
-    if (!any(over)) continue;
-    const Lanes scale = limit / size;
-    const Lanes d_x = pick(over, r.tangent[0] * scale - r.tangent[0], zero);
-    const Lanes d_y = pick(over, r.tangent[1] * scale - r.tangent[1], zero);
-    r.tangent[0] = pick(over, r.tangent[0] + d_x, r.tangent[0]);
-    r.tangent[1] = pick(over, r.tangent[1] + d_y, r.tangent[1]);
+    size[i] = root(r.tangent[0] * r.tangent[0] + r.tangent[1] * r.tangent[1]);
+    limit[i] = r.mu * r.normal;
+    over[i] = live & (size[i] > limit[i]);
+    outside |= over[i];
+  }
+  const int outside_rows = any(outside) ? k : 0;
+  for (int i = 0; i < outside_rows; ++i) {
+    WideRow& r = w[i];
+    if (!any(over[i])) continue;
+    const Lanes scale = limit[i] / size[i];
+    const Lanes d_x = pick(over[i], r.tangent[0] * scale - r.tangent[0], zero);
+    const Lanes d_y = pick(over[i], r.tangent[1] * scale - r.tangent[1], zero);
+    r.tangent[0] = pick(over[i], r.tangent[0] + d_x, r.tangent[0]);
+    r.tangent[1] = pick(over[i], r.tangent[1] + d_y, r.tangent[1]);
     apply(r, g, t, 1, r.t1, d_x);
     apply(r, g, t, 2, r.t2, d_y);
     change = maximum(change, maximum(magnitude(d_x), magnitude(d_y)));
   }
   Lanes d[4][2];
   Lanes along = zero;
-  WideTwists moved = t;
   for (int i = 0; i < k; ++i) {
     WideRow& r = w[i];
     const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
@@ -910,11 +918,16 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
     d[i][0] = pick(on, tx - r.tangent[0], zero);
     d[i][1] = pick(on, ty - r.tangent[1], zero);
     along = pick(on, along + (d[i][0] * x + d[i][1] * y), along);
-    apply_all(r, g, moved, 1, r.t1, d[i][0]);   // (moved: read as its change, delta)
-    apply_all(r, g, moved, 2, r.t2, d[i][1]);
   }
   const Mask go = live & (along < 0.0);
   if (!any(go)) return change;
+  // the twists the k targets together would give, in the rows' order (read as the change
+  // from t, delta); after the targets, which read t alone: fewer values live at once
+  WideTwists moved = t;
+  for (int i = 0; i < k; ++i) {
+    apply_all(w[i], g, moved, 1, w[i].t1, d[i][0]);
+    apply_all(w[i], g, moved, 2, w[i].t2, d[i][1]);
+  }
   WideTwists delta = moved;
   delta.va = WideVec{moved.va.x - t.va.x, moved.va.y - t.va.y, moved.va.z - t.va.z};
   delta.wa = WideVec{moved.wa.x - t.wa.x, moved.wa.y - t.wa.y, moved.wa.z - t.wa.z};
@@ -1245,10 +1258,8 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     largest = maximum(largest, w[i].normal);
     load += w[i].normal;
   }
-  for (int l = 0; l < kLanes; ++l) {
-    progress.change = std::max(progress.change, step[l]);
-    progress.largest = std::max(progress.largest, largest[l]);
-  }
+  progress.lanes_change = maximum(progress.lanes_change, step);
+  progress.lanes_largest = maximum(progress.lanes_largest, largest);
   if (spin_lanes != nullptr) {
     spin_lanes->load = load;
     return;
@@ -1695,6 +1706,10 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     for (const Progress& p : part) {
       change = std::max(change, p.change);
       largest = std::max(largest, p.largest);
+      for (int l = 0; l < kLanes; ++l) {
+        change = std::max(change, p.lanes_change[l]);
+        largest = std::max(largest, p.lanes_largest[l]);
+      }
     }
     if (change <= converged * largest) break;
   }

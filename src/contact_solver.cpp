@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 
 namespace collres {
@@ -1390,6 +1391,57 @@ void pad_lane(WideGroup& g, WideRow* w, int l) {
   }
 }
 
+// The numbers of a ContactRow from n to dw_b (n, t1, t2, ang_a, ang_b, dw_a, dw_b: 45, in
+// that order) are those of a WideRow's first 45 Lanes, in the same order.
+constexpr size_t kHot = 45;
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "a Vec3 is its three numbers");
+static_assert(offsetof(ContactRow, ma) - offsetof(ContactRow, n) == kHot * sizeof(double),
+              "ContactRow's directions, levers and their images follow each other");
+static_assert(offsetof(WideRow, normal_mass) == kHot * sizeof(Lanes),
+              "WideRow's directions, levers and their images come first, in the same order");
+
+// pack_groups' fields of a group of four manifolds (no padding lane) that are read row by
+// row: its matrices and its rows' constant fields, four numbers of each lane at a time
+// (one load per lane, a 4x4 transpose, four stores), the same values.
+COLLRES_CLONED
+void pack_full(WideGroup& g, WideRow* w, const std::vector<ContactRow>& rows,
+               const std::vector<Manifold>& manifolds) {
+  const Manifold* m[kLanes];
+  for (int l = 0; l < kLanes; ++l) m[l] = &manifolds[g.manifold + static_cast<size_t>(l)];
+  // a matrix's row i, four numbers (columns past g.count too: never read)
+  auto matrix = [&](double const (Manifold::*of)[4][4], Lanes (*to)[4]) {
+    for (int i = 0; i < g.count; ++i) {
+      const Lanes row[kLanes] = {load4((m[0]->*of)[i]), load4((m[1]->*of)[i]),
+                                 load4((m[2]->*of)[i]), load4((m[3]->*of)[i])};
+      transpose(row, to[i]);
+    }
+  };
+  matrix(&Manifold::plain, g.plain);
+  matrix(&Manifold::inverse, g.inverse);
+  matrix(&Manifold::delassus, g.delassus);
+  for (int i = 0; i < g.count; ++i) {
+    const ContactRow* c[kLanes];
+    const char* from[kLanes];
+    for (int l = 0; l < kLanes; ++l) {
+      c[l] = &rows[static_cast<size_t>(m[l]->first + i)];
+      from[l] = reinterpret_cast<const char*>(c[l]) + offsetof(ContactRow, n);
+    }
+    Lanes* const to = w[i].n;
+    for (size_t q = 0; q + 4 <= kHot; q += 4) {
+      const Lanes row[kLanes] = {load4(reinterpret_cast<const double*>(from[0]) + q),
+                                 load4(reinterpret_cast<const double*>(from[1]) + q),
+                                 load4(reinterpret_cast<const double*>(from[2]) + q),
+                                 load4(reinterpret_cast<const double*>(from[3]) + q)};
+      transpose(row, to + q);
+    }
+    for (int l = 0; l < kLanes; ++l) {
+      w[i].dw_b[2][2][l] = c[l]->dw_b[2][2];
+      for (int e = 0; e < 3; ++e) w[i].kt[e][l] = c[l]->kt[e];
+      w[i].normal_mass[l] = c[l]->normal_mass;
+    }
+  }
+}
+
 void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                  const std::vector<Manifold>& manifolds, const double* inv_mass) {
   if (plan.packed_epoch != plan.rows_epoch) {   // rows anew: an empty pool
@@ -1435,6 +1487,8 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
   for (const int32_t entry : plan.fresh) {
     WideGroup& g = plan.groups[entry];
     for (int l = 0; l < kLanes; ++l) plan.faces[entry].set[l] = -1;   // (nothing kept)
+    const bool full = g.lanes == kLanes;
+    if (full) pack_full(g, &plan.wide_rows[g.row], rows, manifolds);
     for (int l = 0; l < g.lanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
@@ -1445,6 +1499,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
       g.ma[l] = r[0].ma;
       g.mb[l] = r[0].mb;
       g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
+      if (full) continue;   // (the rest: pack_full)
       for (int i = 0; i < g.count; ++i)
         for (int j = 0; j < g.count; ++j) {
           g.plain[i][j][l] = m.plain[i][j];

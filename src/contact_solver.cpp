@@ -1357,8 +1357,8 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
     double* const at_b = v + g.offset_b[l] + 2;
     if (g.write_a[l]) std::memcpy(at_a, &row_a[l], sizeof(Lanes));
     if (g.write_b[l]) std::memcpy(at_b, &row_b[l], sizeof(Lanes));
-    progress.change = std::max(progress.change, size[l]);
   }
+  progress.lanes_change = maximum(progress.lanes_change, size);   // (0 where not moved)
 }
 
 #undef WIDE

@@ -622,7 +622,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
   const int k = manifold.count;
   // every row idle: no impulse held (+0) and none approaching beyond its allowance, so its
   // update would change nothing (solve_block's idle answer, solve_normal's max(0 - m q, 0)
-  // = +0, solve_friction's empty cone): done, as solve_group's idle groups (a speculative
+  // = +0, solve_friction's empty cone): done, as solve_groups' idle groups (a speculative
   // manifold that did not activate)
   bool idle = true;
   for (size_t i = lo; i < hi && idle; ++i) {
@@ -677,7 +677,7 @@ void solve_spins(std::vector<SpinRow>& spins, size_t from, size_t to, const Solv
 // the same arithmetic in the same order (a manifold's bits do not depend on its lane)
 
 typedef int64_t Mask __attribute__((vector_size(32), aligned(32)));
-// (the helpers below are inlined into each clone of solve_group: a vector argument passed
+// (the helpers below are inlined into each clone of solve_groups: a vector argument passed
 // between code of different targets would not agree on registers)
 #define WIDE inline __attribute__((always_inline))
 
@@ -987,7 +987,7 @@ void rows_to_lane(const ContactRow* r, int count, WideRow* w, int l) {
 // (its padding lanes idle: nothing taken, nothing searched, nothing stored). A block whose
 // all-active answer does not fit (the active-set search, or rows one by one) is handed to
 // solve_manifold in its lane. (k a constant: each row count's
-// loops unrolled, their values in registers; solve_group picks one.)
+// loops unrolled, their values in registers; solve_groups picks one.)
 template <int k>
 WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
                          const std::vector<Manifold>& manifolds, double* v,
@@ -1271,31 +1271,39 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   }
 }
 
+// The wide groups [lo, hi) of wave l, in order (one call for a part of a wave: the groups'
+// updates inlined, no call each).
 COLLRES_CLONED
-void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
-                 const std::vector<Manifold>& manifolds, double* v,
-                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
-                 Progress& progress) {
-  switch (g.count) {   // 1 to 4 (WideGroup)
-    case 1:
-      solve_group_of<1>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
-    case 2:
-      solve_group_of<2>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
-    case 3:
-      solve_group_of<3>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
-    default:
-      solve_group_of<4>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
+void solve_groups(SweepPlan& plan, size_t l, size_t lo, size_t hi,
+                  std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
+                  double* v, std::vector<SpinRow>* spins, Progress& progress) {
+  for (size_t item = lo; item < hi; ++item) {
+    const int32_t entry = plan.slot[plan.wave_groups[l] + item];
+    WideGroup& g = plan.groups[entry];
+    WideRow* const w = &plan.wide_rows[g.row];
+    WideSpin* const spin_lanes = spins != nullptr && plan.spin_groups[entry].wide
+                                     ? &plan.spin_groups[entry] : nullptr;
+    WideFace* const kept = g.count >= 3 ? &plan.faces[entry] : nullptr;
+    switch (g.count) {   // 1 to 4 (WideGroup)
+      case 1:
+        solve_group_of<1>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+      case 2:
+        solve_group_of<2>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+      case 3:
+        solve_group_of<3>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+      default:
+        solve_group_of<4>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+    }
   }
 }
 
 // solve_spin() on the spin rows of a wide group (all four lanes, WideSpin::load their
 // SpinRow::load); returns the change over the lever per lane
-COLLRES_CLONED
-void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progress) {
+WIDE void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progress) {
   const Lanes normal = s.load;
   const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |
                     (s.torque[2] != 0.0);
@@ -1359,6 +1367,18 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
     if (g.write_b[l]) std::memcpy(at_b, &row_b[l], sizeof(Lanes));
   }
   progress.lanes_change = maximum(progress.lanes_change, size);   // (0 where not moved)
+}
+
+// The spin rows of the wide groups [lo, hi) of wave l, in order (one call for a part of a
+// wave).
+COLLRES_CLONED
+void solve_wide_spins(SweepPlan& plan, size_t l, size_t lo, size_t hi, double* v,
+                      Progress& progress) {
+  for (size_t item = lo; item < hi; ++item) {
+    const int32_t entry = plan.slot[plan.wave_groups[l] + item];
+    if (plan.spin_groups[entry].wide)
+      solve_wide_spin(plan.spin_groups[entry], plan.groups[entry], v, progress);
+  }
 }
 
 #undef WIDE
@@ -1621,15 +1641,9 @@ void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
       progress.change = std::max(progress.change, solve_spin(spins[spin], v, bodies.inv_mass));
   };
   const size_t groups = plan.wave_groups[l + 1] - plan.wave_groups[l];
-  for (size_t item = lo; item < hi; ++item) {
-    if (item < groups) {
-      const int32_t entry = plan.slot[plan.wave_groups[l] + item];
-      const WideGroup& g = plan.groups[entry];
-      if (plan.spin_groups[entry].wide) solve_wide_spin(plan.spin_groups[entry], g, v, progress);
-    } else {
-      one(plan.waves[l].lone + item - groups);
-    }
-  }
+  if (lo < std::min(hi, groups)) solve_wide_spins(plan, l, lo, std::min(hi, groups), v, progress);
+  for (size_t item = std::max(lo, groups); item < hi; ++item)
+    one(plan.waves[l].lone + item - groups);
 }
 
 // A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_waves;
@@ -1709,19 +1723,11 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     const SweepWave& span = plan->waves[l];
     const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
     const size_t first = wide ? span.lone : span.first;
-    for (size_t item = lo; item < hi; ++item) {
-      if (item < groups) {
-        const int32_t entry = plan->slot[plan->wave_groups[l] + item];
-        WideGroup& g = plan->groups[entry];
-        WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[entry].wide
-                                   ? &plan->spin_groups[entry] : nullptr;
-        solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, spin_lanes,
-                    g.count >= 3 ? &plan->faces[entry] : nullptr, progress);
-      } else {
-        solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
-                        bodies, spins, progress);
-      }
-    }
+    if (lo < std::min(hi, groups))
+      solve_groups(*plan, l, lo, std::min(hi, groups), rows, manifolds, v, spins, progress);
+    if (std::max(lo, groups) < hi)
+      solve_manifolds(rows, manifolds, first + std::max(lo, groups) - groups,
+                      first + hi - groups, bodies, spins, progress);
   };
   const bool spin_waves = spins != nullptr && wide;
   if (plan != nullptr) plan_chunks(*plan, wide, spin_waves);

@@ -1419,6 +1419,29 @@ static_assert(offsetof(ContactRow, ma) - offsetof(ContactRow, n) == kHot * sizeo
               "ContactRow's directions, levers and their images follow each other");
 static_assert(offsetof(WideRow, normal_mass) == kHot * sizeof(Lanes),
               "WideRow's directions, levers and their images come first, in the same order");
+// ... and so are the numbers from normal_mass on: normal_mass, kt (3), allowance, mu,
+// normal, tangent (2)
+template <typename Row, size_t kSize>
+constexpr bool follows() {
+  return offsetof(Row, kt) == offsetof(Row, normal_mass) + kSize &&
+         offsetof(Row, allowance) == offsetof(Row, normal_mass) + 4 * kSize &&
+         offsetof(Row, mu) == offsetof(Row, normal_mass) + 5 * kSize &&
+         offsetof(Row, normal) == offsetof(Row, normal_mass) + 6 * kSize &&
+         offsetof(Row, tangent) == offsetof(Row, normal_mass) + 7 * kSize;
+}
+static_assert(follows<ContactRow, sizeof(double)>() && follows<WideRow, sizeof(Lanes)>(),
+              "ContactRow's and WideRow's numbers from normal_mass on follow each other alike");
+// Four numbers of each of four rows from field `at` on (a byte offset), transposed into
+// four Lanes from `to` on: the same values.
+inline __attribute__((always_inline)) void transpose_rows(const ContactRow* const* c, size_t at,
+                                                         Lanes* to) {
+  const Lanes row[kLanes] = {
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[0]) + at)),
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[1]) + at)),
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[2]) + at)),
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[3]) + at))};
+  transpose(row, to);
+}
 
 // pack_groups' fields of a group of four manifolds (no padding lane) that are read row by
 // row: its matrices and its rows' constant fields, four numbers of each lane at a time
@@ -1441,24 +1464,11 @@ void pack_full(WideGroup& g, WideRow* w, const std::vector<ContactRow>& rows,
   matrix(&Manifold::delassus, g.delassus);
   for (int i = 0; i < g.count; ++i) {
     const ContactRow* c[kLanes];
-    const char* from[kLanes];
-    for (int l = 0; l < kLanes; ++l) {
-      c[l] = &rows[static_cast<size_t>(m[l]->first + i)];
-      from[l] = reinterpret_cast<const char*>(c[l]) + offsetof(ContactRow, n);
-    }
-    Lanes* const to = w[i].n;
-    for (size_t q = 0; q + 4 <= kHot; q += 4) {
-      const Lanes row[kLanes] = {load4(reinterpret_cast<const double*>(from[0]) + q),
-                                 load4(reinterpret_cast<const double*>(from[1]) + q),
-                                 load4(reinterpret_cast<const double*>(from[2]) + q),
-                                 load4(reinterpret_cast<const double*>(from[3]) + q)};
-      transpose(row, to + q);
-    }
-    for (int l = 0; l < kLanes; ++l) {
-      w[i].dw_b[2][2][l] = c[l]->dw_b[2][2];
-      for (int e = 0; e < 3; ++e) w[i].kt[e][l] = c[l]->kt[e];
-      w[i].normal_mass[l] = c[l]->normal_mass;
-    }
+    for (int l = 0; l < kLanes; ++l) c[l] = &rows[static_cast<size_t>(m[l]->first + i)];
+    for (size_t q = 0; q + 4 <= kHot; q += 4)
+      transpose_rows(c, offsetof(ContactRow, n) + q * sizeof(double), w[i].n + q);
+    for (int l = 0; l < kLanes; ++l) w[i].dw_b[2][2][l] = c[l]->dw_b[2][2];
+    transpose_rows(c, offsetof(ContactRow, normal_mass), &w[i].normal_mass);   // and kt
   }
 }
 
@@ -1550,10 +1560,24 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 
 // The wide rows' fields that change between calls of solve_velocities in a step (the
 // substeps' allowances, impulses, a friction coefficient hold_energy set to 0).
+COLLRES_CLONED
 void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                     const std::vector<Manifold>& manifolds) {
   for (const int32_t entry : plan.slot) {
     const WideGroup& g = plan.groups[entry];
+    if (g.lanes == kLanes) {   // allowance, mu, normal, tangent[0] four at a time
+      WideRow* w = &plan.wide_rows[g.row];
+      for (int i = 0; i < g.count; ++i) {
+        const ContactRow* c[kLanes];
+        for (int l = 0; l < kLanes; ++l) {
+          const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+          c[l] = &rows[static_cast<size_t>(m.first + i)];
+        }
+        transpose_rows(c, offsetof(ContactRow, allowance), &w[i].allowance);
+        for (int l = 0; l < kLanes; ++l) w[i].tangent[1][l] = c[l]->tangent[1];
+      }
+      continue;
+    }
     for (int l = 0; l < g.lanes; ++l) {   // (a padding lane stays zero)
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 
 namespace collres {
@@ -603,9 +604,11 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
 
 namespace {
 
-// What a part of a sweep did: the largest impulse change, the largest normal impulse (N s).
+// What a part of a sweep did: the largest impulse change, the largest normal impulse (N s);
+// the wide groups' kept per lane (lanes_*, folded in by solve_velocities)
 struct Progress {
   double change = 0.0, largest = 0.0;
+  Lanes lanes_change = {0.0, 0.0, 0.0, 0.0}, lanes_largest = {0.0, 0.0, 0.0, 0.0};
 };
 
 // +0 (not -0: a row holding -0 would be rewritten +0 by its update)
@@ -619,7 +622,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
   const int k = manifold.count;
   // every row idle: no impulse held (+0) and none approaching beyond its allowance, so its
   // update would change nothing (solve_block's idle answer, solve_normal's max(0 - m q, 0)
-  // = +0, solve_friction's empty cone): done, as solve_group's idle groups (a speculative
+  // = +0, solve_friction's empty cone): done, as solve_groups' idle groups (a speculative
   // manifold that did not activate)
   bool idle = true;
   for (size_t i = lo; i < hi && idle; ++i) {
@@ -674,7 +677,7 @@ void solve_spins(std::vector<SpinRow>& spins, size_t from, size_t to, const Solv
 // the same arithmetic in the same order (a manifold's bits do not depend on its lane)
 
 typedef int64_t Mask __attribute__((vector_size(32), aligned(32)));
-// (the helpers below are inlined into each clone of solve_group: a vector argument passed
+// (the helpers below are inlined into each clone of solve_groups: a vector argument passed
 // between code of different targets would not agree on registers)
 #define WIDE inline __attribute__((always_inline))
 
@@ -883,24 +886,30 @@ template <int k>
 WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, Mask live) {
   const Lanes zero = splat(0.0);
   Lanes change = zero;
-  for (int i = 0; i < k; ++i) {   // into the cones
+  Lanes size[4], limit[4];
+  Mask over[4], outside = (Mask){0, 0, 0, 0};
+  for (int i = 0; i < k; ++i) {   // into the cones (one test for all rows: mostly none)
     WideRow& r = w[i];
-    const Lanes size = root(r.tangent[0] * r.tangent[0] + r.tangent[1] * r.tangent[1]);
-    const Lanes limit = r.mu * r.normal;
-    const Mask over = live & (size > limit);
-    if (!any(over)) continue;
-    const Lanes scale = limit / size;
-    const Lanes d_x = pick(over, r.tangent[0] * scale - r.tangent[0], zero);
-    const Lanes d_y = pick(over, r.tangent[1] * scale - r.tangent[1], zero);
-    r.tangent[0] = pick(over, r.tangent[0] + d_x, r.tangent[0]);
-    r.tangent[1] = pick(over, r.tangent[1] + d_y, r.tangent[1]);
+    size[i] = root(r.tangent[0] * r.tangent[0] + r.tangent[1] * r.tangent[1]);
+    limit[i] = r.mu * r.normal;
+    over[i] = live & (size[i] > limit[i]);
+    outside |= over[i];
+  }
+  const int outside_rows = any(outside) ? k : 0;
+  for (int i = 0; i < outside_rows; ++i) {
+    WideRow& r = w[i];
+    if (!any(over[i])) continue;
+    const Lanes scale = limit[i] / size[i];
+    const Lanes d_x = pick(over[i], r.tangent[0] * scale - r.tangent[0], zero);
+    const Lanes d_y = pick(over[i], r.tangent[1] * scale - r.tangent[1], zero);
+    r.tangent[0] = pick(over[i], r.tangent[0] + d_x, r.tangent[0]);
+    r.tangent[1] = pick(over[i], r.tangent[1] + d_y, r.tangent[1]);
     apply(r, g, t, 1, r.t1, d_x);
     apply(r, g, t, 2, r.t2, d_y);
     change = maximum(change, maximum(magnitude(d_x), magnitude(d_y)));
   }
   Lanes d[4][2];
   Lanes along = zero;
-  WideTwists moved = t;
   for (int i = 0; i < k; ++i) {
     WideRow& r = w[i];
     const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
@@ -910,11 +919,16 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
     d[i][0] = pick(on, tx - r.tangent[0], zero);
     d[i][1] = pick(on, ty - r.tangent[1], zero);
     along = pick(on, along + (d[i][0] * x + d[i][1] * y), along);
-    apply_all(r, g, moved, 1, r.t1, d[i][0]);   // (moved: read as its change, delta)
-    apply_all(r, g, moved, 2, r.t2, d[i][1]);
   }
   const Mask go = live & (along < 0.0);
   if (!any(go)) return change;
+  // the twists the k targets together would give, in the rows' order (read as the change
+  // from t, delta); after the targets, which read t alone: fewer values live at once
+  WideTwists moved = t;
+  for (int i = 0; i < k; ++i) {
+    apply_all(w[i], g, moved, 1, w[i].t1, d[i][0]);
+    apply_all(w[i], g, moved, 2, w[i].t2, d[i][1]);
+  }
   WideTwists delta = moved;
   delta.va = WideVec{moved.va.x - t.va.x, moved.va.y - t.va.y, moved.va.z - t.va.z};
   delta.wa = WideVec{moved.wa.x - t.wa.x, moved.wa.y - t.wa.y, moved.wa.z - t.wa.z};
@@ -973,7 +987,7 @@ void rows_to_lane(const ContactRow* r, int count, WideRow* w, int l) {
 // (its padding lanes idle: nothing taken, nothing searched, nothing stored). A block whose
 // all-active answer does not fit (the active-set search, or rows one by one) is handed to
 // solve_manifold in its lane. (k a constant: each row count's
-// loops unrolled, their values in registers; solve_group picks one.)
+// loops unrolled, their values in registers; solve_groups picks one.)
 template <int k>
 WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
                          const std::vector<Manifold>& manifolds, double* v,
@@ -1245,10 +1259,8 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
     largest = maximum(largest, w[i].normal);
     load += w[i].normal;
   }
-  for (int l = 0; l < kLanes; ++l) {
-    progress.change = std::max(progress.change, step[l]);
-    progress.largest = std::max(progress.largest, largest[l]);
-  }
+  progress.lanes_change = maximum(progress.lanes_change, step);
+  progress.lanes_largest = maximum(progress.lanes_largest, largest);
   if (spin_lanes != nullptr) {
     spin_lanes->load = load;
     return;
@@ -1259,31 +1271,39 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   }
 }
 
+// The wide groups [lo, hi) of wave l, in order (one call for a part of a wave: the groups'
+// updates inlined, no call each).
 COLLRES_CLONED
-void solve_group(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows,
-                 const std::vector<Manifold>& manifolds, double* v,
-                 std::vector<SpinRow>* spins, WideSpin* spin_lanes, WideFace* kept,
-                 Progress& progress) {
-  switch (g.count) {   // 1 to 4 (WideGroup)
-    case 1:
-      solve_group_of<1>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
-    case 2:
-      solve_group_of<2>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
-    case 3:
-      solve_group_of<3>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
-    default:
-      solve_group_of<4>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
-      break;
+void solve_groups(SweepPlan& plan, size_t l, size_t lo, size_t hi,
+                  std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
+                  double* v, std::vector<SpinRow>* spins, Progress& progress) {
+  for (size_t item = lo; item < hi; ++item) {
+    const int32_t entry = plan.slot[plan.wave_groups[l] + item];
+    WideGroup& g = plan.groups[entry];
+    WideRow* const w = &plan.wide_rows[g.row];
+    WideSpin* const spin_lanes = spins != nullptr && plan.spin_groups[entry].wide
+                                     ? &plan.spin_groups[entry] : nullptr;
+    WideFace* const kept = g.count >= 3 ? &plan.faces[entry] : nullptr;
+    switch (g.count) {   // 1 to 4 (WideGroup)
+      case 1:
+        solve_group_of<1>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+      case 2:
+        solve_group_of<2>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+      case 3:
+        solve_group_of<3>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+      default:
+        solve_group_of<4>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
+        break;
+    }
   }
 }
 
 // solve_spin() on the spin rows of a wide group (all four lanes, WideSpin::load their
 // SpinRow::load); returns the change over the lever per lane
-COLLRES_CLONED
-void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progress) {
+WIDE void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progress) {
   const Lanes normal = s.load;
   const Mask held = (normal != 0.0) | (s.torque[0] != 0.0) | (s.torque[1] != 0.0) |
                     (s.torque[2] != 0.0);
@@ -1345,7 +1365,19 @@ void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& progr
     double* const at_b = v + g.offset_b[l] + 2;
     if (g.write_a[l]) std::memcpy(at_a, &row_a[l], sizeof(Lanes));
     if (g.write_b[l]) std::memcpy(at_b, &row_b[l], sizeof(Lanes));
-    progress.change = std::max(progress.change, size[l]);
+  }
+  progress.lanes_change = maximum(progress.lanes_change, size);   // (0 where not moved)
+}
+
+// The spin rows of the wide groups [lo, hi) of wave l, in order (one call for a part of a
+// wave).
+COLLRES_CLONED
+void solve_wide_spins(SweepPlan& plan, size_t l, size_t lo, size_t hi, double* v,
+                      Progress& progress) {
+  for (size_t item = lo; item < hi; ++item) {
+    const int32_t entry = plan.slot[plan.wave_groups[l] + item];
+    if (plan.spin_groups[entry].wide)
+      solve_wide_spin(plan.spin_groups[entry], plan.groups[entry], v, progress);
   }
 }
 
@@ -1376,6 +1408,67 @@ void pad_lane(WideGroup& g, WideRow* w, int l) {
     }
     r.normal_mass[l] = r.allowance[l] = r.mu[l] = 0.0;
     r.normal[l] = r.tangent[0][l] = r.tangent[1][l] = 0.0;
+  }
+}
+
+// The numbers of a ContactRow from n to dw_b (n, t1, t2, ang_a, ang_b, dw_a, dw_b: 45, in
+// that order) are those of a WideRow's first 45 Lanes, in the same order.
+constexpr size_t kHot = 45;
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "a Vec3 is its three numbers");
+static_assert(offsetof(ContactRow, ma) - offsetof(ContactRow, n) == kHot * sizeof(double),
+              "ContactRow's directions, levers and their images follow each other");
+static_assert(offsetof(WideRow, normal_mass) == kHot * sizeof(Lanes),
+              "WideRow's directions, levers and their images come first, in the same order");
+// ... and so are the numbers from normal_mass on: normal_mass, kt (3), allowance, mu,
+// normal, tangent (2)
+template <typename Row, size_t kSize>
+constexpr bool follows() {
+  return offsetof(Row, kt) == offsetof(Row, normal_mass) + kSize &&
+         offsetof(Row, allowance) == offsetof(Row, normal_mass) + 4 * kSize &&
+         offsetof(Row, mu) == offsetof(Row, normal_mass) + 5 * kSize &&
+         offsetof(Row, normal) == offsetof(Row, normal_mass) + 6 * kSize &&
+         offsetof(Row, tangent) == offsetof(Row, normal_mass) + 7 * kSize;
+}
+static_assert(follows<ContactRow, sizeof(double)>() && follows<WideRow, sizeof(Lanes)>(),
+              "ContactRow's and WideRow's numbers from normal_mass on follow each other alike");
+// Four numbers of each of four rows from field `at` on (a byte offset), transposed into
+// four Lanes from `to` on: the same values.
+inline __attribute__((always_inline)) void transpose_rows(const ContactRow* const* c, size_t at,
+                                                         Lanes* to) {
+  const Lanes row[kLanes] = {
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[0]) + at)),
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[1]) + at)),
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[2]) + at)),
+      load4(reinterpret_cast<const double*>(reinterpret_cast<const char*>(c[3]) + at))};
+  transpose(row, to);
+}
+
+// pack_groups' fields of a group of four manifolds (no padding lane) that are read row by
+// row: its matrices and its rows' constant fields, four numbers of each lane at a time
+// (one load per lane, a 4x4 transpose, four stores), the same values.
+COLLRES_CLONED
+void pack_full(WideGroup& g, WideRow* w, const std::vector<ContactRow>& rows,
+               const std::vector<Manifold>& manifolds) {
+  const Manifold* m[kLanes];
+  for (int l = 0; l < kLanes; ++l) m[l] = &manifolds[g.manifold + static_cast<size_t>(l)];
+  // a matrix's row i, four numbers (columns past g.count too: never read)
+  auto matrix = [&](double const (Manifold::*of)[4][4], Lanes (*to)[4]) {
+    for (int i = 0; i < g.count; ++i) {
+      const Lanes row[kLanes] = {load4((m[0]->*of)[i]), load4((m[1]->*of)[i]),
+                                 load4((m[2]->*of)[i]), load4((m[3]->*of)[i])};
+      transpose(row, to[i]);
+    }
+  };
+  matrix(&Manifold::plain, g.plain);
+  matrix(&Manifold::inverse, g.inverse);
+  matrix(&Manifold::delassus, g.delassus);
+  for (int i = 0; i < g.count; ++i) {
+    const ContactRow* c[kLanes];
+    for (int l = 0; l < kLanes; ++l) c[l] = &rows[static_cast<size_t>(m[l]->first + i)];
+    for (size_t q = 0; q + 4 <= kHot; q += 4)
+      transpose_rows(c, offsetof(ContactRow, n) + q * sizeof(double), w[i].n + q);
+    for (int l = 0; l < kLanes; ++l) w[i].dw_b[2][2][l] = c[l]->dw_b[2][2];
+    transpose_rows(c, offsetof(ContactRow, normal_mass), &w[i].normal_mass);   // and kt
   }
 }
 
@@ -1424,6 +1517,8 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
   for (const int32_t entry : plan.fresh) {
     WideGroup& g = plan.groups[entry];
     for (int l = 0; l < kLanes; ++l) plan.faces[entry].set[l] = -1;   // (nothing kept)
+    const bool full = g.lanes == kLanes;
+    if (full) pack_full(g, &plan.wide_rows[g.row], rows, manifolds);
     for (int l = 0; l < g.lanes; ++l) {
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
@@ -1434,6 +1529,7 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
       g.ma[l] = r[0].ma;
       g.mb[l] = r[0].mb;
       g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
+      if (full) continue;   // (the rest: pack_full)
       for (int i = 0; i < g.count; ++i)
         for (int j = 0; j < g.count; ++j) {
           g.plain[i][j][l] = m.plain[i][j];
@@ -1464,10 +1560,24 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 
 // The wide rows' fields that change between calls of solve_velocities in a step (the
 // substeps' allowances, impulses, a friction coefficient hold_energy set to 0).
+COLLRES_CLONED
 void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
                     const std::vector<Manifold>& manifolds) {
   for (const int32_t entry : plan.slot) {
     const WideGroup& g = plan.groups[entry];
+    if (g.lanes == kLanes) {   // allowance, mu, normal, tangent[0] four at a time
+      WideRow* w = &plan.wide_rows[g.row];
+      for (int i = 0; i < g.count; ++i) {
+        const ContactRow* c[kLanes];
+        for (int l = 0; l < kLanes; ++l) {
+          const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+          c[l] = &rows[static_cast<size_t>(m.first + i)];
+        }
+        transpose_rows(c, offsetof(ContactRow, allowance), &w[i].allowance);
+        for (int l = 0; l < kLanes; ++l) w[i].tangent[1][l] = c[l]->tangent[1];
+      }
+      continue;
+    }
     for (int l = 0; l < g.lanes; ++l) {   // (a padding lane stays zero)
       const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
       const ContactRow* r = &rows[static_cast<size_t>(m.first)];
@@ -1555,15 +1665,9 @@ void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
       progress.change = std::max(progress.change, solve_spin(spins[spin], v, bodies.inv_mass));
   };
   const size_t groups = plan.wave_groups[l + 1] - plan.wave_groups[l];
-  for (size_t item = lo; item < hi; ++item) {
-    if (item < groups) {
-      const int32_t entry = plan.slot[plan.wave_groups[l] + item];
-      const WideGroup& g = plan.groups[entry];
-      if (plan.spin_groups[entry].wide) solve_wide_spin(plan.spin_groups[entry], g, v, progress);
-    } else {
-      one(plan.waves[l].lone + item - groups);
-    }
-  }
+  if (lo < std::min(hi, groups)) solve_wide_spins(plan, l, lo, std::min(hi, groups), v, progress);
+  for (size_t item = std::max(lo, groups); item < hi; ++item)
+    one(plan.waves[l].lone + item - groups);
 }
 
 // A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_waves;
@@ -1643,19 +1747,11 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     const SweepWave& span = plan->waves[l];
     const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
     const size_t first = wide ? span.lone : span.first;
-    for (size_t item = lo; item < hi; ++item) {
-      if (item < groups) {
-        const int32_t entry = plan->slot[plan->wave_groups[l] + item];
-        WideGroup& g = plan->groups[entry];
-        WideSpin* spin_lanes = spins != nullptr && plan->spin_groups[entry].wide
-                                   ? &plan->spin_groups[entry] : nullptr;
-        solve_group(g, &plan->wide_rows[g.row], rows, manifolds, v, spins, spin_lanes,
-                    g.count >= 3 ? &plan->faces[entry] : nullptr, progress);
-      } else {
-        solve_manifolds(rows, manifolds, first + item - groups, first + item - groups + 1,
-                        bodies, spins, progress);
-      }
-    }
+    if (lo < std::min(hi, groups))
+      solve_groups(*plan, l, lo, std::min(hi, groups), rows, manifolds, v, spins, progress);
+    if (std::max(lo, groups) < hi)
+      solve_manifolds(rows, manifolds, first + std::max(lo, groups) - groups,
+                      first + hi - groups, bodies, spins, progress);
   };
   const bool spin_waves = spins != nullptr && wide;
   if (plan != nullptr) plan_chunks(*plan, wide, spin_waves);
@@ -1695,6 +1791,10 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     for (const Progress& p : part) {
       change = std::max(change, p.change);
       largest = std::max(largest, p.largest);
+      for (int l = 0; l < kLanes; ++l) {
+        change = std::max(change, p.lanes_change[l]);
+        largest = std::max(largest, p.lanes_largest[l]);
+      }
     }
     if (change <= converged * largest) break;
   }

@@ -250,7 +250,7 @@ struct WideGroup {
                                  // (a lane without it is solved by solve_manifold)
 };
 
-// A face group's (3 or 4 rows) elimination of its lanes' carrying sets (solve_group, when
+// A face group's (3 or 4 rows) elimination of its lanes' carrying sets (solve_groups, when
 // the all-active answer does not fit), kept from one sweep to the next: its pivots,
 // multipliers and eliminated diagonal depend only on each lane's set and the group's
 // Delassus matrices (the same for the whole plan), so while every lane that needs it asks

@@ -286,7 +286,7 @@ class World:
         """(N,) inverse masses (1/kg) and (N, 3, 3) body-frame inverse inertias
         (1/(kg m^2)), zero for a body that does not move this step (``movable`` False):
         the last step's while the same bodies move (a pile: every step; their product
-        over 9 N numbers was a fifth of the step's Python work at N = 1000)."""
+        over 10 N numbers cost 0.14 M instructions a step at N = 1000)."""
         if self._masked is None or not np.array_equal(self._masked[0], movable):
             self._masked = (movable, self.inv_mass * movable,
                             self.inv_inertia_body * movable[:, None, None])

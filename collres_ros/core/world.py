@@ -397,7 +397,8 @@ def _finite(contacts: ContactSet) -> ContactSet:
     set with a bad number is checked row by row; the normals are divided by their
     lengths column by column (the same divisions)."""
     n = np.asarray(contacts.normal, np.float64).reshape(-1, 3)
-    norm = np.sqrt((n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1]) + n[:, 2] * n[:, 2])
+    square = n * n   # (one product over the whole array: the same products as by column)
+    norm = np.sqrt((square[:, 0] + square[:, 1]) + square[:, 2])
     if (np.isfinite(contacts.point).all() and np.isfinite(norm).all() and (norm > 0.5).all()
             and np.isfinite(contacts.separation).all() and np.isfinite(contacts.toi).all()):
         normal = np.empty_like(n)   # (column by column: no broadcast of norm)

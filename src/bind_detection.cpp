@@ -32,7 +32,7 @@ py::array owned(std::vector<T>&& data, std::vector<py::ssize_t> shape) {
 // gathered into `scratch` (float_rows, bindings.h), and the (N,) uint8 active mask.
 struct Poses {
   collres::StepPoses poses;
-  std::vector<double> scratch[8];
+  RowScratch scratch[8];
 };
 
 void poses_of(const collres::Detector& detector, const py::array& p0, const py::array& q0,

@@ -19,7 +19,7 @@ void bind_input_check(py::module_& m) {
       "usual_inputs",
       [](const py::array& values, const py::array& limits, double tolerance) -> py::object {
         const auto count = values.ndim() == 2 ? values.shape(0) : -1;
-        std::vector<double> scratch, limit_scratch;
+        RowScratch scratch, limit_scratch;
         const double* in = float_rows(values, count, kInputWidth, "values", scratch);
         const double* limit = float_rows(limits, 1, kInputWidth, "limits", limit_scratch);
         py::array_t<double> out({count, static_cast<py::ssize_t>(kInputWidth)});

@@ -37,7 +37,7 @@ T* array_data(const py::array& array, const char* name, std::vector<py::ssize_t>
 // C-contiguous, or strided views gathered into `scratch` (float_rows).
 struct StatesIn {
   SleepStates view;
-  std::vector<double> scratch[4];
+  RowScratch scratch[4];
 };
 
 void sleep_states(const py::tuple& t, py::ssize_t n, const char* name, StatesIn& in) {
@@ -86,7 +86,7 @@ void bind_islands(py::module_& m) {
                         const py::array& a, const py::array& b,
                         const py::array& normal_impulse, double dt) {
              const py::ssize_t n = islands.count();
-             std::vector<double> scratch[2];
+             RowScratch scratch[2];
              double* lin = float_rows(out_linear, n, 3, "out_linear", scratch[0], true);
              double* ang = float_rows(out_angular, n, 3, "out_angular", scratch[1], true);
              const auto* mov = array_data<std::uint8_t>(movable, "movable", {n});

@@ -45,7 +45,7 @@ T* checked(const py::array& array, const char* name, std::vector<py::ssize_t> sh
 struct States {
   py::array arrays[4];
   double* data[4] = {nullptr, nullptr, nullptr, nullptr};
-  std::vector<double> scratch[4];
+  RowScratch scratch[4];
 };
 
 void states_of(const py::tuple& t, py::ssize_t n, const char* name, States& s, bool out) {

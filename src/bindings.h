@@ -11,8 +11,13 @@
 #include <pybind11/pybind11.h>
 
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
+
+// Room for one gathered copy (float_rows): left uninitialised, as the gather writes every
+// number (a zero-filled vector cost a pass over it each call).
+using RowScratch = std::unique_ptr<double[]>;
 
 // The numbers of `array`, a float64 (count, width) array, row by row: its own data when it is
 // C-contiguous, else (a strided view, e.g. columns 0-2 of the resolver's (N, 13) state rows)
@@ -20,7 +25,7 @@
 // ValueError names `name` when its dtype, shape or (`out`) writability does not fit.
 inline double* float_rows(const pybind11::array& array, pybind11::ssize_t count,
                           pybind11::ssize_t width, const char* name,
-                          std::vector<double>& scratch, bool out = false) {
+                          RowScratch& scratch, bool out = false) {
   namespace py = pybind11;
   if (!array.dtype().is(py::dtype::of<double>()))
     throw py::type_error(std::string(name) + ": wrong dtype " +
@@ -31,20 +36,17 @@ inline double* float_rows(const pybind11::array& array, pybind11::ssize_t count,
   if (out && !array.writeable()) throw py::value_error(std::string(name) + ": read-only");
   if (array.flags() & py::array::c_style)
     return static_cast<double*>(const_cast<void*>(array.data()));
-  scratch.resize(static_cast<size_t>(count * width));
+  scratch.reset(new double[static_cast<size_t>(count * width)]);
   const char* base = static_cast<const char*>(array.data());
   const py::ssize_t row = array.strides(0), column = array.strides(1);
-  double* const to = scratch.data();
+  double* const to = scratch.get();
+  // number by number (a few to a row: a library copy per row cost more than its numbers)
   for (py::ssize_t i = 0; i < count; ++i) {
     const char* from = base + i * row;
-    if (column == sizeof(double)) {   // (a row's numbers side by side: one copy)
-      std::memcpy(to + i * width, from, static_cast<size_t>(width) * sizeof(double));
-    } else {
-      for (py::ssize_t j = 0; j < width; ++j)
-        std::memcpy(to + i * width + j, from + j * column, sizeof(double));
-    }
+    for (py::ssize_t j = 0; j < width; ++j)
+      std::memcpy(to + i * width + j, from + j * column, sizeof(double));
   }
-  return scratch.data();
+  return to;
 }
 
 // Writes `data` (a float_rows copy of `array`) back into `array`; nothing when `data` is
@@ -54,14 +56,10 @@ inline void scatter_rows(const pybind11::array& array, const double* data) {
   if (data == reinterpret_cast<const double*>(base)) return;
   const auto count = array.shape(0), width = array.shape(1);
   const auto row = array.strides(0), column = array.strides(1);
-  for (pybind11::ssize_t i = 0; i < count; ++i) {
+  for (pybind11::ssize_t i = 0; i < count; ++i) {   // number by number, as float_rows
     char* const to = base + i * row;
-    if (column == sizeof(double)) {   // (a row's numbers side by side: one copy)
-      std::memcpy(to, data + i * width, static_cast<size_t>(width) * sizeof(double));
-    } else {
-      for (pybind11::ssize_t j = 0; j < width; ++j)
-        std::memcpy(to + j * column, data + i * width + j, sizeof(double));
-    }
+    for (pybind11::ssize_t j = 0; j < width; ++j)
+      std::memcpy(to + j * column, data + i * width + j, sizeof(double));
   }
 }
 

@@ -104,6 +104,8 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
   }
 }
 
+// Inlined into the loops that add rows; the kind's byte is stored last (a byte's store may
+// alias any column's end, which the stores before it then need not load again).
 void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
                       double gap, double fraction, ContactKind contact, std::int64_t id) {
   body_a.push_back(a.body);
@@ -114,8 +116,8 @@ void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, co
   for (int k = 0; k < 3; ++k) normal.push_back(n[k]);
   separation.push_back(gap);
   toi.push_back(fraction);
-  kind.push_back(static_cast<std::int8_t>(contact));
   feature.push_back(id);
+  kind.push_back(static_cast<std::int8_t>(contact));
 }
 
 void ContactRows::append(const ContactRows& other) {

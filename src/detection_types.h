@@ -95,8 +95,9 @@ struct ContactRows {
   void reserve(std::size_t rows);
   // One row between the pieces a and b: point `at` (m, world), unit normal `n` A -> B,
   // separation `gap` (m), time of impact `fraction` (of the step), feature `id`.
-  void add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n, double gap,
-           double fraction, ContactKind contact, std::int64_t id);
+  // (Inline, defined in detection.cpp, where all rows are added.)
+  inline void add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
+                  double gap, double fraction, ContactKind contact, std::int64_t id);
   // Close the manifold of pair (a, b) whose rows start at `first` (the rows added since);
   // a manifold without rows is no manifold.
   void close_manifold(std::int64_t a, std::int64_t b, std::size_t first);

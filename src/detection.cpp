@@ -52,6 +52,19 @@ void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t fir
   }
 }
 
+void ContactRows::drop_from(std::size_t first) {
+  body_a.resize(first);
+  body_b.resize(first);
+  point.resize(3 * first);
+  normal.resize(3 * first);
+  separation.resize(first);
+  toi.resize(first);
+  kind.resize(first);
+  feature.resize(first);
+  piece_a.resize(first);
+  piece_b.resize(first);
+}
+
 void ContactRows::keep(const std::vector<std::size_t>& rows) {
   // each manifold's kept rows, counted before the columns are compacted
   std::size_t to = 0, next = 0;
@@ -829,19 +842,25 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
     return false;
   }
   // a pair whose every point left the margin is no longer in contact (the rows of a
-  // manifold share one normal); each row's points at the current poses, for its row too
+  // manifold share one normal); each row's points at the current poses give its row, added
+  // at once and dropped again when the pair is not reused
   if (stored->count == 0) return true;
-  const Vec3 normal = A.r1 * stored_.row(stored->first).normal_a;
-  lane.reused_a.clear();
-  lane.reused_b.clear();
+  const StoredRow* const rows = &stored_.row(stored->first);
+  const Vec3 normal = A.r1 * rows[0].normal_a;
+  const std::size_t first = out.size();
   double gap = kInf;
   for (int k = 0; k < stored->count; ++k) {
-    const StoredRow& row = stored_.row(stored->first + k);
-    lane.reused_a.push_back(A.r1 * row.local_a + A.p1);
-    lane.reused_b.push_back(B.r1 * row.local_b + B.p1);
-    gap = std::min(gap, (lane.reused_b.back() - lane.reused_a.back()).dot(normal));
+    const Vec3 on_a = A.r1 * rows[k].local_a + A.p1;
+    const Vec3 on_b = B.r1 * rows[k].local_b + B.p1;
+    const double separation = (on_b - on_a).dot(normal);
+    gap = std::min(gap, separation);
+    out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, separation, 0.0,
+            ContactKind::persistent, rows[k].feature);
   }
-  if (gap > margin) return true;
+  if (gap > margin) {
+    out.drop_from(first);
+    return true;
+  }
   // what the narrow phase would not call persistent goes to it: apart at the previous
   // state maybe (gap + relative motion beyond the margin), a hit that may bounce (a point
   // approaching faster than its resting speed along the normal), a deep overlap
@@ -851,18 +870,11 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
   if (gap + relative > margin || -gap > deep ||
       (gap < 0.0 && gap + relative > 0.0 && may_bounce(a, b, normal, speed))) {
+    out.drop_from(first);
     return false;
   }
   lane.next.begin(key, stored->rel_p, stored->rel_q);
-  const std::size_t first = out.size();
-  for (int k = 0; k < stored->count; ++k) {
-    const StoredRow& row = stored_.row(stored->first + k);
-    const Vec3& on_a = lane.reused_a[k];
-    const Vec3& on_b = lane.reused_b[k];
-    out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, (on_b - on_a).dot(normal),
-            0.0, ContactKind::persistent, row.feature);
-    lane.next.add_row(row);
-  }
+  lane.next.add_rows(rows, stored->count);
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
   return true;
 }

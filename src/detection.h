@@ -206,7 +206,6 @@ class Detector {
     std::vector<Vec3> corners;                    // speculate: candidate corners
     std::vector<std::pair<double, int>> heights;  // speculate: (height, corner) kept
     std::vector<std::int64_t> row_codes;
-    std::vector<Vec3> reused_a, reused_b;         // reuse: the stored points, current poses
     ManifoldStore next;
     std::size_t cursor = 0;     // its place in stored_
     ContactRows rows;           // the second lane's rows (the first writes the step's)

@@ -101,6 +101,8 @@ struct ContactRows {
   // Close the manifold of pair (a, b) whose rows start at `first` (the rows added since);
   // a manifold without rows is no manifold.
   void close_manifold(std::int64_t a, std::int64_t b, std::size_t first);
+  // Drop the rows from `first` on (added since the last manifold was closed; first <= size).
+  void drop_from(std::size_t first);
   // Keep only these rows (indices in increasing order), in their order; a manifold keeps
   // its kept rows (none: it goes).
   void keep(const std::vector<std::size_t>& rows);

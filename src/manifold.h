@@ -225,6 +225,11 @@ class ManifoldStore {
     rows_.push_back(row);
     ++pairs_.back().count;
   }
+  // `count` rows at once (a reused manifold's, from another store)
+  void add_rows(const StoredRow* rows, int count) {
+    rows_.insert(rows_.end(), rows, rows + count);
+    pairs_.back().count += count;
+  }
   // `other`'s manifolds after these (its keys all greater).
   void append(const ManifoldStore& other) {
     const int shift = static_cast<int>(rows_.size());

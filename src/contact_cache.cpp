@@ -45,6 +45,7 @@ void ContactCache::store(int64_t m, const int64_t* a, const int64_t* b, const in
   }
   entries_.clear();
   stored_at_.assign(m, -1);
+  stored_by_.clear();
   for (int64_t k = 0; k < m; ++k) {
     int64_t i = order_[k];
     if (k + 1 < m) {            // keep the last of each run of equal keys
@@ -52,6 +53,7 @@ void ContactCache::store(int64_t m, const int64_t* a, const int64_t* b, const in
       if (a[i] == a[j] && b[i] == b[j] && feature[i] == feature[j]) continue;
     }
     stored_at_[i] = static_cast<int64_t>(entries_.size());
+    stored_by_.push_back(i);
     CachedImpulse e;
     e.a = a[i]; e.b = b[i]; e.feature = feature[i];
     e.normal = normal[i];
@@ -75,19 +77,37 @@ void ContactCache::lookup(int64_t m, const int64_t* a, const int64_t* b, const i
   // after the last query's, so one pass over the entries finds them all
   const bool in_order = pairs_in_order(m, a, b);
   auto pair_start = begin;
-  for (int64_t i = 0; i < m; ++i) {      // exact matches first: where it was, else search
-    if (i < hints && stored_at_[i] >= 0) {
-      const CachedImpulse& e = entries_[stored_at_[i]];
+  auto pair_below = [&](const CachedImpulse& e, int64_t i) {
+    return std::tie(e.a, e.b) < std::tie(a[i], b[i]);
+  };
+  // a query's hint: the stored contact as far on in the last store's order as the last
+  // match's (detection lists the same contacts in the same order each step, shifted by
+  // those that came and went before them)
+  int64_t shift = 0;
+  for (int64_t i = 0; i < m; ++i) {      // exact matches first: the hint, else a search
+    const int64_t hint = i + shift;
+    if (hint >= 0 && hint < hints && stored_at_[hint] >= 0) {
+      const CachedImpulse& e = entries_[stored_at_[hint]];
       if (e.a == a[i] && e.b == b[i] && e.feature == feature[i]) {
-        order_[i] = stored_at_[i];
+        order_[i] = stored_at_[hint];
         taken_[order_[i]] = 1;
         continue;
       }
     }
     auto it = end;                       // the first entry not below the query's key
     if (in_order) {
-      while (pair_start != end && std::tie(pair_start->a, pair_start->b) < std::tie(a[i], b[i]))
-        ++pair_start;
+      // the first entry of the query's pair: galloping on from the last search's (the
+      // pairs between, mostly matched by their hints, passed in logarithmic time)
+      for (std::ptrdiff_t step = 1; pair_start != end && pair_below(*pair_start, i); step *= 2) {
+        const auto probe = end - pair_start > step ? pair_start + step : end;
+        if (probe != end && pair_below(*probe, i)) {
+          pair_start = probe + 1;
+        } else {
+          pair_start = std::partition_point(pair_start + 1, probe, [&](const CachedImpulse& e) {
+            return pair_below(e, i);
+          });
+        }
+      }
       for (it = pair_start; it != end && key_less(*it, a[i], b[i], feature[i]); ++it) {}
     } else {
       it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
@@ -97,6 +117,7 @@ void ContactCache::lookup(int64_t m, const int64_t* a, const int64_t* b, const i
     if (it != end && it->a == a[i] && it->b == b[i] && it->feature == feature[i]) {
       order_[i] = it - begin;
       taken_[order_[i]] = 1;
+      shift = stored_by_[order_[i]] - i;
     }
   }
   if (point != nullptr) {                // then the nearest free point of the same pair
@@ -140,6 +161,7 @@ void ContactCache::forget(int64_t k, const int64_t* bodies) {
   };
   entries_.erase(std::remove_if(entries_.begin(), entries_.end(), involved), entries_.end());
   stored_at_.clear();
+  stored_by_.assign(entries_.size(), -1);
 }
 
 }  // namespace collres

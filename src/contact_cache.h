@@ -35,6 +35,7 @@ class ContactCache {
   void clear() {
     entries_.clear();
     stored_at_.clear();
+    stored_by_.clear();
   }
   int64_t size() const { return static_cast<int64_t>(entries_.size()); }
 
@@ -43,6 +44,8 @@ class ContactCache {
   std::vector<int64_t> stored_at_;       // entry of each contact of the last store, caller
                                          // order (-1: a duplicate): detection tends to list
                                          // the same contacts in the same order each step
+  std::vector<int64_t> stored_by_;       // the contact of the last store each entry holds
+                                         // (-1: unknown, after forget)
   std::vector<CachedImpulse> scratch_;
   std::vector<int64_t> order_;
   std::vector<uint8_t> taken_;

@@ -623,13 +623,16 @@ double Detector::buried_depth(int k, const Vec3& point) const {
 void Detector::drop_buried_faces(ContactRows& out) {
   constexpr double kOpposed = -0.5;   // cosine: two rows' normals push against each other
   const std::size_t count = out.size();
-  // the moving bodies with rows on two static bodies or more: only theirs are looked at
+  // the moving bodies with rows on two static bodies or more: only theirs are looked at,
+  // among the rows of a moving and a static shape (sided_)
   static_of_.assign(static_cast<std::size_t>(bodies_count_), -1);
   several_.assign(static_cast<std::size_t>(bodies_count_), 0);
+  sided_.clear();
   bool any = false;
   for (std::size_t r = 0; r < count; ++r) {
     const bool sa = shapes_[shape_of(out.body_a[r], out.piece_a[r])].is_static;
     if (sa == shapes_[shape_of(out.body_b[r], out.piece_b[r])].is_static) continue;
+    sided_.push_back(r);
     const auto moving = static_cast<std::size_t>(sa ? out.body_b[r] : out.body_a[r]);
     const std::int64_t fixed = sa ? out.body_a[r] : out.body_b[r];
     if (static_of_[moving] < 0) {
@@ -641,10 +644,9 @@ void Detector::drop_buried_faces(ContactRows& out) {
   }
   if (!any) return;
   buried_sides_.clear();
-  for (std::size_t r = 0; r < count; ++r) {
+  for (const std::size_t r : sided_) {
     const int a = shape_of(out.body_a[r], out.piece_a[r]);
     const int b = shape_of(out.body_b[r], out.piece_b[r]);
-    if (shapes_[a].is_static == shapes_[b].is_static) continue;
     // the moving body, the static shape, the witness point on it, the normal out of it
     const bool a_static = shapes_[a].is_static;
     const std::int64_t moving = a_static ? out.body_b[r] : out.body_a[r];

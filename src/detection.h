@@ -270,6 +270,8 @@ class Detector {
   std::vector<char> buried_;       // drop_buried_faces: per row, dropped
   std::vector<std::int64_t> static_of_;  // drop_buried_faces: per body, a static body it
   std::vector<char> several_;            // touches; whether it touches another too
+  std::vector<std::size_t> sided_;       // drop_buried_faces: the rows of a moving and a
+                                         // static shape
   struct StaticSide {   // drop_buried_faces: a row between a moving body and a static shape
     std::int64_t moving;
     int shape;

@@ -88,8 +88,9 @@ struct SolverParams {
   double match_radius = 0.02;           // m: a contact whose feature id changed warm starts
                                         // from its pair's nearest stored point this close
   int threads = 2;                      // threads of the velocity sweeps (1 or 2)
-  int parallel_wave = 64;               // a wave of at least this many manifolds is shared
-                                        // by the two threads (SweepPlan)
+  int parallel_wave = 16;               // a wave of at least twice this many manifolds is
+                                        // shared by the two threads, in parts of at least
+                                        // this many (SweepPlan)
   bool wide_rows = true;                // wide groups solved in lanes (SweepPlan)
   double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
                                         // long (StepSolver::soft_step) ...
@@ -301,9 +302,10 @@ struct SweepPlan {
   std::vector<SweepWave> waves;         // in sweep order
   bool wide = true;                     // wide groups solved in lanes (else one by one:
                                         // the same bits, SOLVER_TUNING wide_rows)
-  size_t parallel = 0;                  // a wave of at least this many manifolds is split
-                                        // between the threads (smaller ones are run whole,
-                                        // in chunks of at least this many)
+  size_t parallel = 0;                  // a wave of at least twice this many manifolds is
+                                        // split between the threads in parts of at least
+                                        // this many (smaller ones are run whole, each run
+                                        // of them in one chunk)
   Worker* worker = nullptr;             // null: one thread
   std::vector<SweepChunk> chunks;       // a sweep's chunks, in order ...
   std::vector<int32_t> gates;           // ... and each one's gate (Worker::run_waves)

@@ -884,7 +884,8 @@ Worker* StepSolver::worker() {
 
 void StepSolver::in_parts(const StepContext& ctx, int64_t count,
                           const std::function<void(int64_t, int64_t)>& part) {
-  if (ctx.params.threads < 2 || count < std::max<int64_t>(ctx.params.parallel_wave, 1)) {
+  const int64_t least = std::max<int64_t>(ctx.params.parallel_wave, 1);   // per part
+  if (ctx.params.threads < 2 || count < kParts * least) {
     part(0, count);
     return;
   }

@@ -289,7 +289,7 @@ class StepSolver {
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
   // part(lo, hi) over [0, count) of independent items (each part writes only its items'
-  // entries): in kParts parts on the two threads with threads 2 and at least
+  // entries): in kParts parts on the two threads with threads 2 and parts of at least
   // parallel_wave items, else at once here
   static constexpr int kParts = 8;
   void in_parts(const StepContext& ctx, int64_t count,

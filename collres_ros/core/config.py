@@ -355,13 +355,17 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'restitution is the simultaneous answer; few contacts take part'),
     ParamSpec('threads', 'integer', 2,
               'Threads of detection and of the solve: with 2, the pairs of a step (64 or '
-              'more) are shared by two threads, and so is each velocity sweep, wave by wave '
-              '(parallel_wave), and the per-contact passes of the reference frame; the '
-              'answer is the same bits with 1 or 2', 1, 2,
+              'more) are shared by two threads, and so is each velocity sweep with a wave to '
+              'split (parallel_wave), and the per-contact passes of the reference frame; '
+              'the answer is the same bits with 1 or 2', 1, 2,
               reason='pairs are independent, a wave\'s manifolds share no movable body and '
                      'each contact\'s reference frame is its own, so the second core can '
-                     'take part of each; a core busy with another process costs nothing '
-                     '(the caller runs every part the worker has not begun)'),
+                     'take part of each; the cost model leaves the worker alone where it does '
+                     'not pay: settled piles of 1000 cubes 1.06-1.16 times faster on two '
+                     'threads over 30 steps, 0.98-1.00 over 100, mixed ones 0.91-1.05, piles '
+                     'of 100 0.98-1.00, with a busy loop beside them 0.96-1.02 (the caller runs '
+                     'every part the worker has not begun; timings on a machine other '
+                     'processes kept busy vary by about 5 %)'),
     ParamSpec('max_substeps', 'integer', 10,
               'Most substeps of a step\'s resting solve (max_substep)', 1, 64,
               reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 10 solves; '
@@ -427,17 +431,19 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      '1e-3 rad; a settled pile\'s rows then keep their frames and their packed '
                      'lanes (turning every aimed row in every substep cost 5 % of a 30 Hz step '
                      'of a settled mixed pile of 1000 bodies)'),
-    ParamSpec('parallel_wave', 'integer', 64,
+    ParamSpec('parallel_wave', 'integer', 16,
               'A wave (manifolds that share no movable body, solved one after the other '
-              'in the sweep\'s order) of at least this many manifolds is split between the '
-              'two threads; smaller waves are run whole, a run of them in one part of at '
-              'least this many manifolds that either thread takes; a per-contact pass of at '
-              'least this many contacts is split too', 1, 10**9,
-              reason='below a few dozen manifolds a part is too short for a second thread '
-                     'to pay for its hand-over; a sweep is one hand-over, its parts claimed '
-                     'in order (settled piles of 1000 bodies at 30 Hz, callgrind: the parts '
-                     'are 60 % of the compiled core\'s instructions in a step of cubes and '
-                     '62 % of a mixed one, against 39 and 18 % with the large waves alone)'),
+              'in the sweep\'s order) of at least twice this many manifolds is split between '
+              'the two threads in parts of at least this many (up to 8, of like weight); '
+              'smaller waves are run whole, a run of them in one part; a sweep with no wave '
+              'to split stays on one thread; a per-contact pass is split in 8 parts of at '
+              'least this many contacts', 1, 10**9,
+              reason='a hand-over between the cores costs about 0.25 us (a cache line '
+                     'there and back 0.47 us) against 64 ns a manifold; settled piles of 1000 '
+                     'cubes, forcing both threads on every sweep, the step on one thread over '
+                     'two (3 x 30 steps): 1.01, 1.07, 1.09, 1.12, 1.10 at 64, 32, 24, 16, 12 '
+                     '(120 Hz), 1.01 to 1.17 at 30 Hz; mixed piles 0.96-1.04 whatever the '
+                     'value (waves of 40-55 manifolds)'),
     ParamSpec('wide_rows', 'bool', True,
               'Solve each wave\'s manifolds four at a time (wide rows: structure of arrays, '
               'SIMD); off, one by one: the same bits', None, None,

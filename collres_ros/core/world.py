@@ -49,6 +49,7 @@ contact states) is one call into the compiled core (``_native.StepSolver``,
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Protocol, Sequence
 
@@ -96,6 +97,9 @@ class World:
         self.dynamic = np.array([not s.static for s in self.specs]) & (self.inv_mass > 0.0)
         # the last step's movable bodies and their masses for the solver (_masses)
         self._masked: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        # the last step's answer: (its states, the (N, 13) rows they are column views of)
+        self._answer: tuple[BodyStates, np.ndarray] = (BodyStates.zeros(0), np.zeros((0, 13)))
+        self._all = np.ones(0, bool)   # every body active (_everyone)
         # a sphere's radius (m), 0 for any other shape: the solver aims a contact of two
         # spheres along the line of their centres on its own path (StepSolver::aim)
         self.radius = np.array([s.size[0] if s.shape == 'sphere' else 0.0
@@ -177,8 +181,8 @@ class World:
         than ``settings.max_dt`` or one whose dt differs from the last by more than
         ``SOLVER_TUNING`` ``warm_start_ratio``.
         """
-        previous, current = _rows(previous), _rows(current)
-        active = np.ones(len(current), bool) if active is None else np.asarray(active, bool)
+        previous, current = self._rows(previous), self._rows(current)
+        active = self._everyone(len(current)) if active is None else np.asarray(active, bool)
         asleep = None
         if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
             current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
@@ -194,8 +198,30 @@ class World:
         rejected: list[Rejection] = []
         values, report = self._resolve(previous, current, active, dt, warm, rejected)
         answer = _states(values)
+        self._answer = (answer, values)
         report, sleeping, unchanged = self._settle(answer, report, active, dt, asleep)
         return StepResult(answer, report, rejected, sleeping, unchanged, values)
+
+    def _rows(self, states: BodyStates | np.ndarray) -> np.ndarray:
+        """(N, 13) float64 rows (position, orientation, linear, angular): ``states`` itself
+        when it is such an array, the last step's answer's rows when ``states`` are its
+        column views (as they were answered: a step fed its last answer builds no rows),
+        else one new array of its four."""
+        if isinstance(states, np.ndarray):
+            return states if states.dtype == np.float64 else np.asarray(states, np.float64)
+        answer, values = self._answer
+        if (states.position is answer.position and states.orientation is answer.orientation
+                and states.linear is answer.linear and states.angular is answer.angular):
+            return values
+        return np.concatenate([np.asarray(a, np.float64).reshape(-1, k) for a, k in zip(
+            _arrays(states), (3, 4, 3, 3))], axis=1)
+
+    def _everyone(self, count: int) -> np.ndarray:
+        """(count,) bool, all True, read only: one array while the count holds."""
+        if len(self._all) != count:
+            self._all = np.ones(count, bool)
+            self._all.flags.writeable = False
+        return self._all
 
     def _resolve(self, previous_rows: np.ndarray, current_rows: np.ndarray,
                  active: np.ndarray, dt: float, warm: bool, rejected: list[Rejection]
@@ -373,17 +399,6 @@ def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return states.position, states.orientation, states.linear, states.angular
 
 
-def _rows(states: BodyStates | np.ndarray) -> np.ndarray:
-    """(N, 13) float64 rows (position, orientation, linear, angular): ``states`` itself when
-    it is such an array, else one new array of its four."""
-    if isinstance(states, np.ndarray) and states.dtype == np.float64:
-        return states
-    if isinstance(states, np.ndarray):
-        return np.asarray(states, np.float64)
-    return np.concatenate([np.asarray(a, np.float64).reshape(-1, k) for a, k in zip(
-        _arrays(states), (3, 4, 3, 3))], axis=1)
-
-
 def _states(values: np.ndarray) -> BodyStates:
     """BodyStates whose four arrays are the column views of (N, 13) ``values``."""
     return BodyStates(values[:, 0:3], values[:, 3:7], values[:, 7:10], values[:, 10:13])
@@ -393,18 +408,17 @@ def _finite(contacts: ContactSet) -> ContactSet:
     """Only the contacts whose numbers are all finite and whose normal is not zero.
 
     The normal's length is sqrt((x^2 + y^2) + z^2) column by column: the bits of
-    np.linalg.norm(axis=1) at a tenth of its cost; whole arrays are checked, and only a
-    set with a bad number is checked row by row; the normals are divided by their
-    lengths column by column (the same divisions)."""
+    np.linalg.norm(axis=1) at a tenth of its cost; the usual set is checked by one sum of
+    its numbers (finite only when every one is: an overflow or a bad number is checked
+    again row by row) and its shortest normal, and its normals are divided by their lengths
+    (the same divisions as row by row)."""
     n = np.asarray(contacts.normal, np.float64).reshape(-1, 3)
     square = n * n   # (one product over the whole array: the same products as by column)
     norm = np.sqrt((square[:, 0] + square[:, 1]) + square[:, 2])
-    if (np.isfinite(contacts.point).all() and np.isfinite(norm).all() and (norm > 0.5).all()
-            and np.isfinite(contacts.separation).all() and np.isfinite(contacts.toi).all()):
-        normal = np.empty_like(n)   # (column by column: no broadcast of norm)
-        for k in range(3):
-            np.divide(n[:, k], norm, out=normal[:, k])
-        return ContactSet(contacts.body_a, contacts.body_b, contacts.point, normal,
+    if norm.size == 0 or (norm.min() > 0.5 and math.isfinite(
+            np.asarray(contacts.point).sum() + np.asarray(contacts.separation).sum()
+            + np.asarray(contacts.toi).sum() + norm.sum())):
+        return ContactSet(contacts.body_a, contacts.body_b, contacts.point, n / norm[:, None],
                           contacts.separation, contacts.toi, contacts.kind, contacts.feature,
                           contacts.manifolds, contacts.piece_a, contacts.piece_b)
     ok = (np.isfinite(contacts.point).all(1) & np.isfinite(norm) & (norm > 0.5)

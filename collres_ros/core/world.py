@@ -234,7 +234,8 @@ class World:
         previous, current = _states(previous_rows), _states(current_rows)
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
-        if not (self.dynamic & active).any():
+        movable = self.dynamic & active
+        if not movable.any():
             self._cache.clear()
             return current_rows.copy(), NO_CONTACTS
         contacts = _finite(self._collision.detect(previous, current, active,
@@ -251,7 +252,7 @@ class World:
         values = current_rows.copy()   # the answer, solved in place
         states = _states(values)
         report, sweeps, rows, substeps = self._solve(previous, current, states, contacts,
-                                                     active, dt, warm)
+                                                     active, movable, dt, warm)
         self._hold_back(previous, states, active, report)
         # report: the final guard against non-finite output
         rejected += self._guard(values, current_rows)
@@ -272,16 +273,15 @@ class World:
         return self.sleep.after(states, self.dynamic & active, report, dt, asleep)
 
     def _solve(self, previous: BodyStates, current: BodyStates, out: BodyStates,
-               contacts: ContactSet, active: np.ndarray, dt: float, warm: bool
-               ) -> tuple[ContactReport, int, int, int]:
+               contacts: ContactSet, active: np.ndarray, movable: np.ndarray, dt: float,
+               warm: bool) -> tuple[ContactReport, int, int, int]:
         """The compiled solver step on whole arrays (no copy when dtypes and layout fit; the
         states' column views of (N, 13) rows are gathered by the binding): corrects ``out``
-        (a copy of ``current``) in place.
+        (a copy of ``current``) in place; ``movable``: the active dynamic bodies.
 
         Returns the report, velocity sweeps done, solver rows and the resting solve's
         substeps.
         """
-        movable = self.dynamic & active
         inv_mass, inv_inertia_body = self._masses(movable)
         m = contacts.count
         report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
@@ -313,7 +313,8 @@ class World:
         (1/(kg m^2)), zero for a body that does not move this step (``movable`` False):
         the last step's while the same bodies move (a pile: every step; their product
         over 10 N numbers cost 0.14 M instructions a step at N = 1000)."""
-        if self._masked is None or not np.array_equal(self._masked[0], movable):
+        last = self._masked
+        if last is None or last[0].shape != movable.shape or not (last[0] == movable).all():
             self._masked = (movable, self.inv_mass * movable,
                             self.inv_inertia_body * movable[:, None, None])
         return self._masked[1], self._masked[2]
@@ -357,8 +358,8 @@ class World:
     def _guard(self, values: np.ndarray, current: np.ndarray) -> list[Rejection]:
         """Bodies with a non-finite result ((N, 13) rows ``values``) keep their current input
         state; report them."""
-        if np.isfinite(values).all():   # the usual step
-            return []
+        if math.isfinite(np.add.reduce(values, None)):   # the usual step (one sum is finite
+            return []                                    # only when all its numbers are)
         rejected = []
         for i in np.flatnonzero(~np.isfinite(values).all(1)):
             values[i] = current[i]

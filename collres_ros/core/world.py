@@ -411,15 +411,18 @@ def _finite(contacts: ContactSet) -> ContactSet:
     The normal's length is sqrt((x^2 + y^2) + z^2) column by column: the bits of
     np.linalg.norm(axis=1) at a tenth of its cost; the usual set is checked by one sum of
     its numbers (finite only when every one is: an overflow or a bad number is checked
-    again row by row) and its shortest normal, and its normals are divided by their lengths
-    (the same divisions as row by row)."""
+    again row by row) and its shortest normal; the normals are divided by their lengths
+    column by column (the same divisions)."""
     n = np.asarray(contacts.normal, np.float64).reshape(-1, 3)
     square = n * n   # (one product over the whole array: the same products as by column)
     norm = np.sqrt((square[:, 0] + square[:, 1]) + square[:, 2])
     if norm.size == 0 or (norm.min() > 0.5 and math.isfinite(
             np.asarray(contacts.point).sum() + np.asarray(contacts.separation).sum()
             + np.asarray(contacts.toi).sum() + norm.sum())):
-        return ContactSet(contacts.body_a, contacts.body_b, contacts.point, n / norm[:, None],
+        normal = np.empty_like(n)   # (column by column: no broadcast of norm)
+        for k in range(3):
+            np.divide(n[:, k], norm, out=normal[:, k])
+        return ContactSet(contacts.body_a, contacts.body_b, contacts.point, normal,
                           contacts.separation, contacts.toi, contacts.kind, contacts.feature,
                           contacts.manifolds, contacts.piece_a, contacts.piece_b)
     ok = (np.isfinite(contacts.point).all(1) & np.isfinite(norm) & (norm > 0.5)

@@ -196,8 +196,7 @@ class World:
         self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0, 'substeps': 1}
         self.budget = (0, 0)
         rejected: list[Rejection] = []
-        values, report = self._resolve(previous, current, active, dt, warm, rejected)
-        answer = _states(values)
+        values, answer, report = self._resolve(previous, current, active, dt, warm, rejected)
         self._answer = (answer, values)
         report, sleeping, unchanged = self._settle(answer, report, active, dt, asleep)
         return StepResult(answer, report, rejected, sleeping, unchanged, values)
@@ -225,11 +224,11 @@ class World:
 
     def _resolve(self, previous_rows: np.ndarray, current_rows: np.ndarray,
                  active: np.ndarray, dt: float, warm: bool, rejected: list[Rejection]
-                 ) -> tuple[np.ndarray, ContactReport]:
+                 ) -> tuple[np.ndarray, BodyStates, ContactReport]:
         """Detection and solve of the step previous -> current ((N, 13) rows): the
-        answer's (N, 13) rows and its report; non-finite results refused are added to
-        ``rejected``, times, sweeps and rows to ``timing``, the budget's drops to
-        ``budget`` (the largest)."""
+        answer's (N, 13) rows, its states (their column views) and its report; non-finite
+        results refused are added to ``rejected``, times, sweeps and rows to ``timing``, the
+        budget's drops to ``budget`` (the largest)."""
         started = time.perf_counter()
         previous, current = _states(previous_rows), _states(current_rows)
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
@@ -237,7 +236,7 @@ class World:
         movable = self.dynamic & active
         if not movable.any():
             self._cache.clear()
-            return current_rows.copy(), NO_CONTACTS
+            return _unchanged(current_rows)
         contacts = _finite(self._collision.detect(previous, current, active,
                                                   self._params.threads))
         budget = self._collision.budget
@@ -246,7 +245,7 @@ class World:
         self.timing['detect'] += detected - started
         if contacts.count == 0:
             self._cache.clear()
-            return current_rows.copy(), NO_CONTACTS
+            return _unchanged(current_rows)
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
         values = current_rows.copy()   # the answer, solved in place
@@ -260,7 +259,7 @@ class World:
         self.timing['iterations'] += sweeps
         self.timing['rows'] += rows
         self.timing['substeps'] = substeps
-        return values, report
+        return values, states, report
 
     def _settle(self, states: BodyStates, report: ContactReport, active: np.ndarray,
                 dt: float, asleep: np.ndarray | None
@@ -330,9 +329,9 @@ class World:
         if hold_back is None:
             return
         fraction = hold_back(previous, states, active)
-        held = np.flatnonzero(fraction < 1.0)
-        if held.size == 0:
+        if fraction.min() >= 1.0:   # the usual step: none held back
             return
+        held = np.flatnonzero(fraction < 1.0)
         f = fraction[held, None]
         states.position[held] = previous.position[held] + f * (
             states.position[held] - previous.position[held])
@@ -398,6 +397,13 @@ def combine(a: np.ndarray, b: np.ndarray, rule: str) -> np.ndarray:
 def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(position, orientation, linear, angular), as they are (views of (N, 13) rows)."""
     return states.position, states.orientation, states.linear, states.angular
+
+
+def _unchanged(current: np.ndarray) -> tuple[np.ndarray, BodyStates, ContactReport]:
+    """The answer of a step without contacts: a copy of the (N, 13) rows ``current``, its
+    states and no contacts."""
+    values = current.copy()
+    return values, _states(values), NO_CONTACTS
 
 
 def _states(values: np.ndarray) -> BodyStates:

@@ -151,12 +151,10 @@ class Detection:
     def _arrays(previous: BodyStates, current: BodyStates,
                 active: np.ndarray | None) -> tuple:
         # float64 as they are: strided views (of (N, 13) rows) are gathered by the binding
-        as_rows = (lambda a: np.asarray(a, dtype=np.float64))
         mask = None if active is None else np.ascontiguousarray(active, dtype=np.uint8)
-        return (as_rows(previous.position), as_rows(previous.orientation),
-                as_rows(current.position), as_rows(current.orientation),
-                as_rows(current.linear), as_rows(current.angular),
-                as_rows(previous.linear), as_rows(previous.angular), mask)
+        return (*(np.asarray(a, np.float64) for a in (
+            previous.position, previous.orientation, current.position, current.orientation,
+            current.linear, current.angular, previous.linear, previous.angular)), mask)
 
 
 def detection_settings(settings: SolverSettings) -> _native.DetectionSettings:

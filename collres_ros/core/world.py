@@ -49,6 +49,7 @@ contact states) is one call into the compiled core (``_native.StepSolver``,
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Protocol, Sequence
 
@@ -96,6 +97,9 @@ class World:
         self.dynamic = np.array([not s.static for s in self.specs]) & (self.inv_mass > 0.0)
         # the last step's movable bodies and their masses for the solver (_masses)
         self._masked: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        # the last step's answer: (its states, the (N, 13) rows they are column views of)
+        self._answer: tuple[BodyStates, np.ndarray] = (BodyStates.zeros(0), np.zeros((0, 13)))
+        self._all = np.ones(0, bool)   # every body active (_everyone)
         # a sphere's radius (m), 0 for any other shape: the solver aims a contact of two
         # spheres along the line of their centres on its own path (StepSolver::aim)
         self.radius = np.array([s.size[0] if s.shape == 'sphere' else 0.0
@@ -177,8 +181,8 @@ class World:
         than ``settings.max_dt`` or one whose dt differs from the last by more than
         ``SOLVER_TUNING`` ``warm_start_ratio``.
         """
-        previous, current = _rows(previous), _rows(current)
-        active = np.ones(len(current), bool) if active is None else np.asarray(active, bool)
+        previous, current = self._rows(previous), self._rows(current)
+        active = self._everyone(len(current)) if active is None else np.asarray(active, bool)
         asleep = None
         if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
             current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
@@ -192,25 +196,47 @@ class World:
         self.timing = {'detect': 0.0, 'solve': 0.0, 'iterations': 0, 'rows': 0, 'substeps': 1}
         self.budget = (0, 0)
         rejected: list[Rejection] = []
-        values, report = self._resolve(previous, current, active, dt, warm, rejected)
-        answer = _states(values)
+        values, answer, report = self._resolve(previous, current, active, dt, warm, rejected)
+        self._answer = (answer, values)
         report, sleeping, unchanged = self._settle(answer, report, active, dt, asleep)
         return StepResult(answer, report, rejected, sleeping, unchanged, values)
 
+    def _rows(self, states: BodyStates | np.ndarray) -> np.ndarray:
+        """(N, 13) float64 rows (position, orientation, linear, angular): ``states`` itself
+        when it is such an array, the last step's answer's rows when ``states`` are its
+        column views (as they were answered: a step fed its last answer builds no rows),
+        else one new array of its four."""
+        if isinstance(states, np.ndarray):
+            return states if states.dtype == np.float64 else np.asarray(states, np.float64)
+        answer, values = self._answer
+        if (states.position is answer.position and states.orientation is answer.orientation
+                and states.linear is answer.linear and states.angular is answer.angular):
+            return values
+        return np.concatenate([np.asarray(a, np.float64).reshape(-1, k) for a, k in zip(
+            _arrays(states), (3, 4, 3, 3))], axis=1)
+
+    def _everyone(self, count: int) -> np.ndarray:
+        """(count,) bool, all True, read only: one array while the count holds."""
+        if len(self._all) != count:
+            self._all = np.ones(count, bool)
+            self._all.flags.writeable = False
+        return self._all
+
     def _resolve(self, previous_rows: np.ndarray, current_rows: np.ndarray,
                  active: np.ndarray, dt: float, warm: bool, rejected: list[Rejection]
-                 ) -> tuple[np.ndarray, ContactReport]:
+                 ) -> tuple[np.ndarray, BodyStates, ContactReport]:
         """Detection and solve of the step previous -> current ((N, 13) rows): the
-        answer's (N, 13) rows and its report; non-finite results refused are added to
-        ``rejected``, times, sweeps and rows to ``timing``, the budget's drops to
-        ``budget`` (the largest)."""
+        answer's (N, 13) rows, its states (their column views) and its report; non-finite
+        results refused are added to ``rejected``, times, sweeps and rows to ``timing``, the
+        budget's drops to ``budget`` (the largest)."""
         started = time.perf_counter()
         previous, current = _states(previous_rows), _states(current_rows)
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
-        if not (self.dynamic & active).any():
+        movable = self.dynamic & active
+        if not movable.any():
             self._cache.clear()
-            return current_rows.copy(), NO_CONTACTS
+            return _unchanged(current_rows)
         contacts = _finite(self._collision.detect(previous, current, active,
                                                   self._params.threads))
         budget = self._collision.budget
@@ -219,13 +245,13 @@ class World:
         self.timing['detect'] += detected - started
         if contacts.count == 0:
             self._cache.clear()
-            return current_rows.copy(), NO_CONTACTS
+            return _unchanged(current_rows)
         # reference frame, prepare, warm start, iterate, restitution, store impulses,
         # advance poses, split-impulse push-out, contact states: one compiled call
         values = current_rows.copy()   # the answer, solved in place
         states = _states(values)
         report, sweeps, rows, substeps = self._solve(previous, current, states, contacts,
-                                                     active, dt, warm)
+                                                     active, movable, dt, warm)
         self._hold_back(previous, states, active, report)
         # report: the final guard against non-finite output
         rejected += self._guard(values, current_rows)
@@ -233,7 +259,7 @@ class World:
         self.timing['iterations'] += sweeps
         self.timing['rows'] += rows
         self.timing['substeps'] = substeps
-        return values, report
+        return values, states, report
 
     def _settle(self, states: BodyStates, report: ContactReport, active: np.ndarray,
                 dt: float, asleep: np.ndarray | None
@@ -246,16 +272,15 @@ class World:
         return self.sleep.after(states, self.dynamic & active, report, dt, asleep)
 
     def _solve(self, previous: BodyStates, current: BodyStates, out: BodyStates,
-               contacts: ContactSet, active: np.ndarray, dt: float, warm: bool
-               ) -> tuple[ContactReport, int, int, int]:
+               contacts: ContactSet, active: np.ndarray, movable: np.ndarray, dt: float,
+               warm: bool) -> tuple[ContactReport, int, int, int]:
         """The compiled solver step on whole arrays (no copy when dtypes and layout fit; the
         states' column views of (N, 13) rows are gathered by the binding): corrects ``out``
-        (a copy of ``current``) in place.
+        (a copy of ``current``) in place; ``movable``: the active dynamic bodies.
 
         Returns the report, velocity sweeps done, solver rows and the resting solve's
         substeps.
         """
-        movable = self.dynamic & active
         inv_mass, inv_inertia_body = self._masses(movable)
         m = contacts.count
         report = ContactReport(ContactSet(contacts.body_a, contacts.body_b, contacts.point,
@@ -287,7 +312,8 @@ class World:
         (1/(kg m^2)), zero for a body that does not move this step (``movable`` False):
         the last step's while the same bodies move (a pile: every step; their product
         over 10 N numbers cost 0.14 M instructions a step at N = 1000)."""
-        if self._masked is None or not np.array_equal(self._masked[0], movable):
+        last = self._masked
+        if last is None or last[0].shape != movable.shape or not (last[0] == movable).all():
             self._masked = (movable, self.inv_mass * movable,
                             self.inv_inertia_body * movable[:, None, None])
         return self._masked[1], self._masked[2]
@@ -303,9 +329,9 @@ class World:
         if hold_back is None:
             return
         fraction = hold_back(previous, states, active)
-        held = np.flatnonzero(fraction < 1.0)
-        if held.size == 0:
+        if fraction.min() >= 1.0:   # the usual step: none held back
             return
+        held = np.flatnonzero(fraction < 1.0)
         f = fraction[held, None]
         states.position[held] = previous.position[held] + f * (
             states.position[held] - previous.position[held])
@@ -331,8 +357,8 @@ class World:
     def _guard(self, values: np.ndarray, current: np.ndarray) -> list[Rejection]:
         """Bodies with a non-finite result ((N, 13) rows ``values``) keep their current input
         state; report them."""
-        if np.isfinite(values).all():   # the usual step
-            return []
+        if math.isfinite(np.add.reduce(values, None)):   # the usual step (one sum is finite
+            return []                                    # only when all its numbers are)
         rejected = []
         for i in np.flatnonzero(~np.isfinite(values).all(1)):
             values[i] = current[i]
@@ -373,15 +399,11 @@ def _arrays(states: BodyStates) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return states.position, states.orientation, states.linear, states.angular
 
 
-def _rows(states: BodyStates | np.ndarray) -> np.ndarray:
-    """(N, 13) float64 rows (position, orientation, linear, angular): ``states`` itself when
-    it is such an array, else one new array of its four."""
-    if isinstance(states, np.ndarray) and states.dtype == np.float64:
-        return states
-    if isinstance(states, np.ndarray):
-        return np.asarray(states, np.float64)
-    return np.concatenate([np.asarray(a, np.float64).reshape(-1, k) for a, k in zip(
-        _arrays(states), (3, 4, 3, 3))], axis=1)
+def _unchanged(current: np.ndarray) -> tuple[np.ndarray, BodyStates, ContactReport]:
+    """The answer of a step without contacts: a copy of the (N, 13) rows ``current``, its
+    states and no contacts."""
+    values = current.copy()
+    return values, _states(values), NO_CONTACTS
 
 
 def _states(values: np.ndarray) -> BodyStates:
@@ -393,14 +415,16 @@ def _finite(contacts: ContactSet) -> ContactSet:
     """Only the contacts whose numbers are all finite and whose normal is not zero.
 
     The normal's length is sqrt((x^2 + y^2) + z^2) column by column: the bits of
-    np.linalg.norm(axis=1) at a tenth of its cost; whole arrays are checked, and only a
-    set with a bad number is checked row by row; the normals are divided by their
-    lengths column by column (the same divisions)."""
+    np.linalg.norm(axis=1) at a tenth of its cost; the usual set is checked by one sum of
+    its numbers (finite only when every one is: an overflow or a bad number is checked
+    again row by row) and its shortest normal; the normals are divided by their lengths
+    column by column (the same divisions)."""
     n = np.asarray(contacts.normal, np.float64).reshape(-1, 3)
     square = n * n   # (one product over the whole array: the same products as by column)
     norm = np.sqrt((square[:, 0] + square[:, 1]) + square[:, 2])
-    if (np.isfinite(contacts.point).all() and np.isfinite(norm).all() and (norm > 0.5).all()
-            and np.isfinite(contacts.separation).all() and np.isfinite(contacts.toi).all()):
+    if norm.size == 0 or (norm.min() > 0.5 and math.isfinite(
+            np.asarray(contacts.point).sum() + np.asarray(contacts.separation).sum()
+            + np.asarray(contacts.toi).sum() + norm.sum())):
         normal = np.empty_like(n)   # (column by column: no broadcast of norm)
         for k in range(3):
             np.divide(n[:, k], norm, out=normal[:, k])

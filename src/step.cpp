@@ -720,8 +720,8 @@ void StepSolver::prepare(StepContext& ctx) {
   ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
-  // not 0 (in manifold order)
-  spins_.clear();
+  // not 0 (in manifold order), written over the last step's as the rows are
+  size_t spun = 0;
   for (Manifold& manifold : manifolds_) {
     const ContactRow& r = rows_[manifold.first];
     const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
@@ -733,8 +733,9 @@ void StepSolver::prepare(StepContext& ctx) {
     if (r.ma > 0.0) lever = length(r.ra);
     if (r.mb > 0.0) lever = lever > 0.0 ? std::min(lever, length(r.rb)) : length(r.rb);
     if ((roll > 0.0 || twist > 0.0) && lever > 0.0) {
-      manifold.spin = static_cast<int32_t>(spins_.size());
-      SpinRow& s = spins_.emplace_back();
+      manifold.spin = static_cast<int32_t>(spun);
+      if (spun == spins_.size()) spins_.emplace_back();
+      SpinRow& s = spins_[spun++];
       s.a = r.a;
       s.b = r.b;
       s.n = r.n;
@@ -745,8 +746,11 @@ void StepSolver::prepare(StepContext& ctx) {
       s.lever = lever;
       s.roll = roll * lever;
       s.twist = twist * lever;
+      s.torque = Vec3::Zero();
+      s.load = 0.0;
     }
   }
+  spins_.resize(spun);
 }
 
 bool StepSolver::idle(const Manifold& manifold) const {

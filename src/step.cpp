@@ -612,22 +612,28 @@ void StepSolver::prepare(StepContext& ctx) {
   // cannot turn it around ((1 + e) per hit); one that the answer does turn around gets a
   // row (escaped, forced_)
   const double bound = p.row_bound * (1.0 + restitution_) * fastest_;
-  rows_.clear();
   manifolds_.clear();
   row_of_.assign(m, -1);
   rowless_.clear();
-  // rows in the order of detection's manifolds, one constraint per manifold with rows
+  // rows in the order of detection's manifolds, one constraint per manifold with rows,
+  // written over the last step's rows (rows_ is cut to the `used` ones after): each field
+  // is set here or by prepare_row, none twice (a new row's constructor zeros every field)
+  size_t used = 0;
   for (int64_t span = 0; span < c.manifold_count; ++span) {
     const int64_t* manifold = c.manifolds + kManifoldFields * span;
-    const auto first_row = static_cast<int32_t>(rows_.size());
+    const auto first_row = static_cast<int32_t>(used);
     for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
       if (gap_[k] > 0.0 && !forced_[k] && approach_[k] + allowance_[k] > bound) {
         rowless_.push_back(static_cast<int32_t>(k));
         continue;
       }
       const int64_t a = c.a[k], b = c.b[k];
-      row_of_[k] = static_cast<int32_t>(rows_.size());
-      ContactRow& row = rows_.emplace_back();
+      row_of_[k] = static_cast<int32_t>(used);
+      if (used == rows_.size()) rows_.emplace_back();
+      ContactRow& row = rows_[used++];
+      row.normal = row.tangent[0] = row.tangent[1] = 0.0;   // no impulse yet
+      row.impact = row.impact_tangent[0] = row.impact_tangent[1] = 0.0;
+      row.landing = row.push = row.pseudo = 0.0;
       row.a = static_cast<int32_t>(a);
       row.b = static_cast<int32_t>(b);
       row.contact = static_cast<int32_t>(k);
@@ -644,7 +650,7 @@ void StepSolver::prepare(StepContext& ctx) {
                                     p.restitution_rule);
       }
     }
-    const auto count = static_cast<int32_t>(rows_.size()) - first_row;
+    const auto count = static_cast<int32_t>(used) - first_row;
     if (count > 0) {
       Manifold& block = manifolds_.emplace_back();
       block.a = rows_[first_row].a;   // (detection's manifold[0], [1])
@@ -656,6 +662,7 @@ void StepSolver::prepare(StepContext& ctx) {
       block.coupled = impacted_[block.a] || impacted_[block.b];
     }
   }
+  rows_.resize(used);
   // each row's frame and friction coefficient (its own entry: on either thread)
   in_parts(ctx, static_cast<int64_t>(rows_.size()), [&](int64_t lo, int64_t hi) {
     for (int64_t i = lo; i < hi; ++i) {
@@ -713,8 +720,8 @@ void StepSolver::prepare(StepContext& ctx) {
   ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
   plan_sweeps(ctx);
   // one SpinRow per manifold whose combined rolling resistance or torsional friction is
-  // not 0 (in manifold order)
-  spins_.clear();
+  // not 0 (in manifold order), written over the last step's as the rows are
+  size_t spun = 0;
   for (Manifold& manifold : manifolds_) {
     const ContactRow& r = rows_[manifold.first];
     const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
@@ -726,8 +733,9 @@ void StepSolver::prepare(StepContext& ctx) {
     if (r.ma > 0.0) lever = length(r.ra);
     if (r.mb > 0.0) lever = lever > 0.0 ? std::min(lever, length(r.rb)) : length(r.rb);
     if ((roll > 0.0 || twist > 0.0) && lever > 0.0) {
-      manifold.spin = static_cast<int32_t>(spins_.size());
-      SpinRow& s = spins_.emplace_back();
+      manifold.spin = static_cast<int32_t>(spun);
+      if (spun == spins_.size()) spins_.emplace_back();
+      SpinRow& s = spins_[spun++];
       s.a = r.a;
       s.b = r.b;
       s.n = r.n;
@@ -738,8 +746,11 @@ void StepSolver::prepare(StepContext& ctx) {
       s.lever = lever;
       s.roll = roll * lever;
       s.twist = twist * lever;
+      s.torque = Vec3::Zero();
+      s.load = 0.0;
     }
   }
+  spins_.resize(spun);
 }
 
 bool StepSolver::idle(const Manifold& manifold) const {

@@ -46,11 +46,12 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     order[start[bucket[index]]++] = chosen[index];   // (start: ends now)
   // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
   // 1..4's remainders of two or three (padded groups), then the remainders of one and the
-  // longer manifolds (one by one: a group of one lane costs more than its one manifold)
-  out.resize(count);
-  Manifold* to = out.data();
+  // longer manifolds (one by one: a group of one lane costs more than its one manifold);
+  // each copied in once (not over a new entry's zeros)
+  out.clear();
+  out.reserve(count);
   auto place = [&](size_t from, size_t end) {
-    for (size_t k = from; k < end; ++k) *to++ = manifolds[static_cast<size_t>(order[k])];
+    for (size_t k = from; k < end; ++k) out.push_back(manifolds[static_cast<size_t>(order[k])]);
   };
   plan.waves.clear();
   plan.packed = false;
@@ -62,23 +63,23 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
       first[k + 1] = start[static_cast<size_t>(l) * kBuckets + 2 * static_cast<size_t>(k) + 1];
     from = first[kKinds];
     SweepWave part;
-    part.first = static_cast<size_t>(to - out.data());
+    part.first = out.size();
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
       place(first[k], first[k] + (n - n % kLanes));
     }
-    part.wide_end = static_cast<size_t>(to - out.data());
+    part.wide_end = out.size();
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
       if (n % kLanes >= 2) place(first[k] + (n - n % kLanes), first[k + 1]);
     }
-    part.lone = static_cast<size_t>(to - out.data());
+    part.lone = out.size();
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
       if (n % kLanes == 1) place(first[k + 1] - 1, first[k + 1]);
     }
     place(first[4], first[5]);
-    part.end = static_cast<size_t>(to - out.data());
+    part.end = out.size();
     plan.waves.push_back(part);
   }
 }

@@ -214,9 +214,9 @@ void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
 
 // Lanes of a wide row: four doubles, one per manifold of a wide group, solved together
-// (GCC / Clang vector extensions: two SSE2 or NEON registers, one AVX2 register where the
-// kernel's AVX2 clone runs; no -march flag). Aligned to 32 bytes whatever the target, so
-// the clones agree on the layout.
+// (GCC / Clang vector extensions: two SSE2 or NEON registers, one ymm register where the
+// kernel's AVX2 or AVX-512 clone runs, of 16 or 32; no -march flag). Aligned to 32 bytes
+// whatever the target, so the clones agree on the layout.
 constexpr int kLanes = 4;
 typedef double Lanes __attribute__((vector_size(32), aligned(32)));
 

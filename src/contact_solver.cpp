@@ -316,9 +316,17 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
     for (int b = 0; b < 3; ++b)
       scale = std::max(scale, std::fabs(relative(r[i], free, b, direction(r[i], b))));
   // impulse along row j's direction b moves row i's velocity along its direction a by
+  // (each computed once, when first needed: the solves after the first reuse them)
+  double effects[12][12];
+  bool known[12][12] = {};
   auto effect = [&](int i, int a, int j, int b) {
-    return (r[j].ma + r[j].mb) * dot(direction(r[i], a), direction(r[j], b)) +
-           dot(r[i].ang_a[a], r[j].dw_a[b]) + dot(r[i].ang_b[a], r[j].dw_b[b]);
+    const int p = 3 * i + a, q = 3 * j + b;
+    if (!known[p][q]) {
+      effects[p][q] = (r[j].ma + r[j].mb) * dot(direction(r[i], a), direction(r[j], b)) +
+                      dot(r[i].ang_a[a], r[j].dw_a[b]) + dot(r[i].ang_b[a], r[j].dw_b[b]);
+      known[p][q] = true;
+    }
+    return effects[p][q];
   };
   for (int tries = 0; tries <= kCoupledTries; ++tries) {
     // unknown u: row[u]'s impulse along dir[u] (0 n, 1 t1, 2 t2); a sliding row with a

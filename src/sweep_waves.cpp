@@ -67,19 +67,19 @@ void sides(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& c
     return std::min(a, b);
   };
   s.queue.assign(static_cast<size_t>(ranked) + 1, 0);   // rows per key
+  s.side.resize(chosen.size());                          // (each one's key, for now)
   int64_t rows = 0;
-  for (const int32_t m : chosen) {
-    const Manifold& k = manifolds[static_cast<size_t>(m)];
-    s.queue[static_cast<size_t>(key(k))] += k.count;
+  for (size_t index = 0; index < chosen.size(); ++index) {
+    const Manifold& k = manifolds[static_cast<size_t>(chosen[index])];
+    s.side[index] = key(k);
+    s.queue[static_cast<size_t>(s.side[index])] += k.count;
     rows += k.count;
   }
   int32_t cut = 0;
   for (int64_t before = 0;
        cut < ranked && 2 * (before + s.queue[static_cast<size_t>(cut)]) <= rows; ++cut)
     before += s.queue[static_cast<size_t>(cut)];
-  s.side.resize(chosen.size());
-  for (size_t index = 0; index < chosen.size(); ++index)
-    s.side[index] = key(manifolds[static_cast<size_t>(chosen[index])]) >= cut ? 1 : 0;
+  for (int32_t& side : s.side) side = side >= cut ? 1 : 0;
 }
 
 }  // namespace
@@ -167,9 +167,18 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   // longer manifolds (one by one: a group of one lane costs more than its one manifold);
   // each copied in once (not over a new entry's zeros)
   out.reserve(count);
+  // (with two sides, last[body]: the last part, index in plan.waves, that moved it)
+  if (split) s.last.assign(static_cast<size_t>(body_count), -1);
   auto place = [&](size_t from, size_t end) {
-    for (size_t k = from; k < end; ++k)
-      out.push_back(manifolds[static_cast<size_t>(s.order[k])]);
+    for (size_t k = from; k < end; ++k) {
+      const Manifold& m = manifolds[static_cast<size_t>(s.order[k])];
+      out.push_back(m);
+      if (split) {
+        const auto at = static_cast<int32_t>(plan.waves.size());
+        if (inv_mass[m.a] > 0.0) s.last[m.a] = at;
+        if (inv_mass[m.b] > 0.0) s.last[m.b] = at;
+      }
+    }
   };
   s.index.assign(parts, -1);   // each part's place in plan.waves (-1: empty)
   size_t from = 0;
@@ -206,25 +215,23 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   }
   // the spin rows' pass (after every part's rows, part by part): a part's spin rows wait
   // for the other side's last part, of either pass, that moved one of their bodies (numbered
-  // as part i of the rows' pass: i; of the spin rows': size + i)
+  // as part i of the rows' pass: i; of the spin rows': size + i; last[body] starts from the
+  // rows' pass)
   if (!split) return;
   const auto size = static_cast<int32_t>(plan.waves.size());
-  s.last.assign(static_cast<size_t>(body_count), -1);
-  for (int pass = 0; pass < 2; ++pass) {
-    for (int32_t i = 0; i < size; ++i) {
-      SweepWave& part = plan.waves[static_cast<size_t>(i)];
-      int32_t after = -1;
-      for (size_t k = part.first; k < part.end; ++k) {
-        for (const int32_t body : {out[k].a, out[k].b}) {
-          if (!(inv_mass[body] > 0.0)) continue;
-          const int32_t last = s.last[body];
-          if (pass == 1 && last >= 0 && plan.waves[static_cast<size_t>(last % size)].side != part.side)
-            after = std::max(after, last);
-          s.last[body] = pass * size + i;
-        }
+  for (int32_t i = 0; i < size; ++i) {
+    SweepWave& part = plan.waves[static_cast<size_t>(i)];
+    int32_t after = -1;
+    for (size_t k = part.first; k < part.end; ++k) {
+      for (const int32_t body : {out[k].a, out[k].b}) {
+        if (!(inv_mass[body] > 0.0)) continue;
+        const int32_t last = s.last[body];
+        if (plan.waves[static_cast<size_t>(last % size)].side != part.side)
+          after = std::max(after, last);
+        s.last[body] = size + i;
       }
-      if (pass == 1) part.spin_after = after;
     }
+    part.spin_after = after;
   }
 }
 

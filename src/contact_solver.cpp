@@ -11,7 +11,6 @@ namespace {
 constexpr double kTiny = 1e-12;
 constexpr double kRegular = 1e-8;   // relative weight added to a block's diagonal
 constexpr double kSlowest = 1e-9;   // m/s: a slower approach is no impact (rounding)
-constexpr size_t kChunks = 8;       // chunks of a large wave (Worker::run_waves)
 
 inline Vec3 lin(const double* v, int32_t i) { return load3(v + 6 * i); }
 inline Vec3 ang(const double* v, int32_t i) { return load3(v + 6 * i + 3); }
@@ -1738,71 +1737,41 @@ void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
   }
 }
 
-// The spin rows of wave l's part [lo, hi) of a sweep: a group's in lanes (WideSpin), then
-// the wave's manifolds one by one (a wave's spin rows share no movable body: the bits of
-// their order).
+// The spin rows of part l of a sweep (SweepWave): its groups' in lanes (WideSpin), then
+// its manifolds' one by one (a wave's spin rows share no movable body: the bits of their
+// order).
 void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
                     const std::vector<Manifold>& manifolds, const SolverBodies& bodies,
-                    size_t l, size_t lo, size_t hi, Progress& progress) {
+                    size_t l, Progress& progress) {
   double* v = bodies.velocity;
-  auto one = [&](size_t m) {
+  const size_t groups = plan.wave_groups[l + 1] - plan.wave_groups[l];
+  if (groups > 0) solve_wide_spins(plan, l, 0, groups, v, progress);
+  for (size_t m = plan.waves[l].lone; m < plan.waves[l].end; ++m) {
     const int32_t spin = manifolds[m].spin;
     if (spin >= 0)
       progress.change = std::max(progress.change, solve_spin(spins[spin], v, bodies.inv_mass));
-  };
-  const size_t groups = plan.wave_groups[l + 1] - plan.wave_groups[l];
-  if (lo < std::min(hi, groups)) solve_wide_spins(plan, l, lo, std::min(hi, groups), v, progress);
-  for (size_t item = std::max(lo, groups); item < hi; ++item)
-    one(plan.waves[l].lone + item - groups);
+  }
 }
 
-// A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_waves;
-// one thread runs them in turn): the waves in turn, a wave of at least 2 plan.parallel
-// manifolds in parts of at least plan.parallel manifolds (up to kChunks) that share its
-// gate (the first chunk of the wave), cut where they weigh alike (a wide group as its
-// kLanes manifolds, a manifold one by one as one), each run of smaller waves in one chunk,
-// gated by all before it (nothing to share: one claim for them all); then their spin rows
-// (`spins`), all the waves' in one chunk (a wave's spin rows are too short to share: split
-// like their manifolds, they cost a settled mixed pile of 1000 at 30 Hz 0.13-0.20 ms a
-// sweep on two threads, against 0.12-0.13 whole).
-void plan_chunks(SweepPlan& plan, bool wide, bool spins) {
+// A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_sides;
+// one thread runs them in turn): each part of a wave (one side of it) in one chunk of its
+// side's queue, waiting for the other side's chunks up to the part whose bodies it moves
+// (SweepWave::after); then, with `spins`, the parts' spin rows the same way (spin_after).
+void plan_chunks(SweepPlan& plan, bool spins) {
   plan.chunks.clear();
-  plan.gates.clear();
-  const size_t waves = plan.waves.size();
-  const size_t parallel = std::max<size_t>(plan.parallel, 1);
+  plan.sides.clear();
+  plan.needs.clear();
+  const size_t size = plan.waves.size();
+  plan.places.resize(2 * size);
+  int32_t queued[2] = {0, 0};   // chunks per side so far
   for (int pass = 0; pass < (spins ? 2 : 1); ++pass) {
-    bool small = false;   // the last chunk is a run of small waves
-    for (size_t l = 0; l < waves; ++l) {
-      const SweepWave& span = plan.waves[l];
-      const size_t groups = wide ? plan.wave_groups[l + 1] - plan.wave_groups[l] : 0;
-      const size_t lone = span.end - (wide ? span.lone : span.first);
-      const auto wave = static_cast<uint32_t>(l);
-      const size_t parts = pass == 1 ? 1 : std::min(kChunks, (span.end - span.first) / parallel);
-      if (parts < 2) {
-        if (small) {
-          plan.chunks.back().wave_end = wave + 1;
-        } else {
-          plan.gates.push_back(static_cast<int32_t>(plan.chunks.size()));
-          plan.chunks.push_back({wave, wave + 1, 0, SweepChunk::kWhole, pass == 1});
-        }
-        small = true;
-        continue;
-      }
-      small = false;
-      const auto gate = static_cast<int32_t>(plan.chunks.size());
-      // the item (wide groups, then manifolds one by one) a weight of w from the wave's
-      // start falls in
-      const size_t weight = groups * kLanes + lone;
-      auto item = [&](size_t w) {
-        return static_cast<uint32_t>(w <= groups * kLanes ? w / kLanes
-                                                          : w - groups * (kLanes - 1));
-      };
-      for (size_t i = 0; i < parts; ++i) {
-        const uint32_t lo = item(weight * i / parts), hi = item(weight * (i + 1) / parts);
-        if (lo == hi) continue;
-        plan.gates.push_back(gate);
-        plan.chunks.push_back({wave, wave + 1, lo, hi, pass == 1});
-      }
+    for (size_t i = 0; i < size; ++i) {
+      const SweepWave& part = plan.waves[i];
+      const int32_t after = pass == 0 ? part.after : part.spin_after;
+      plan.needs.push_back(after < 0 ? 0 : plan.places[static_cast<size_t>(after)] + 1);
+      plan.places[pass * size + i] = queued[part.side]++;
+      plan.sides.push_back(static_cast<uint8_t>(part.side));
+      plan.chunks.push_back({static_cast<uint32_t>(i), pass == 1});
     }
   }
 }
@@ -1836,37 +1805,28 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     if (spins != nullptr) refresh_spins(*plan, *spins);
   }
   double* v = bodies.velocity;
-  // wave l's part [lo, hi) of its work: its wide groups (full, then padded), then its
+  // part l of a sweep (SweepWave): its wide groups (full, then padded), then its
   // manifolds one by one
-  auto wave_part = [&](size_t l, size_t lo, size_t hi, Progress& progress) {
+  auto wave_part = [&](size_t l, Progress& progress) {
     const SweepWave& span = plan->waves[l];
     const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
-    const size_t first = wide ? span.lone : span.first;
-    if (lo < std::min(hi, groups))
-      solve_groups(*plan, l, lo, std::min(hi, groups), rows, manifolds, v, spins, progress);
-    if (std::max(lo, groups) < hi)
-      solve_manifolds(rows, manifolds, first + std::max(lo, groups) - groups,
-                      first + hi - groups, bodies, spins, progress);
+    if (groups > 0) solve_groups(*plan, l, 0, groups, rows, manifolds, v, spins, progress);
+    solve_manifolds(rows, manifolds, wide ? span.lone : span.first, span.end, bodies, spins,
+                    progress);
   };
   const bool spin_waves = spins != nullptr && wide;
-  if (plan != nullptr) plan_chunks(*plan, wide, spin_waves);
+  if (plan != nullptr) plan_chunks(*plan, spin_waves);
   const size_t chunks = plan != nullptr ? plan->chunks.size() : 0;
   // (per chunk: a chunk's part runs on either thread)
   std::vector<Progress> part(std::max<size_t>(chunks, 1));
-  // chunk c of the sweep: its waves, whole, or its part of its one wave
+  // chunk c of the sweep: its part's rows or spin rows
   const std::function<void(int)> chunk = [&](int c) {
     const SweepChunk& k = plan->chunks[static_cast<size_t>(c)];
     Progress& progress = part[static_cast<size_t>(c)];
-    for (size_t l = k.wave; l < k.wave_end; ++l) {
-      const SweepWave& span = plan->waves[l];
-      const size_t items = (wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0) +
-                           (span.end - (wide ? span.lone : span.first));
-      const size_t lo = k.lo, hi = std::min<size_t>(k.hi, items);
-      if (k.spin) {
-        spin_wave_part(*plan, *spins, manifolds, bodies, l, lo, hi, progress);
-      } else {
-        wave_part(l, lo, hi, progress);
-      }
+    if (k.spin) {
+      spin_wave_part(*plan, *spins, manifolds, bodies, k.wave, progress);
+    } else {
+      wave_part(k.wave, progress);
     }
   };
   int done = 0;
@@ -1876,8 +1836,8 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     if (plan == nullptr) {
       solve_manifolds(rows, manifolds, 0, count, bodies, spins, part[0]);
     } else if (plan->worker != nullptr) {
-      plan->worker->run_waves(chunk, static_cast<int>(chunks), plan->gates.data(), 0,
-                              static_cast<double>(count));
+      plan->worker->run_sides(chunk, static_cast<int>(chunks), plan->sides.data(),
+                              plan->needs.data(), 0, static_cast<double>(count));
     } else {
       for (size_t c = 0; c < chunks; ++c) chunk(static_cast<int>(c));
     }

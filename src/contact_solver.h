@@ -283,32 +283,36 @@ struct WideSpin {
 // How the velocity sweeps visit the manifolds (sweep_waves.h builds it): wave by wave,
 // no two manifolds of a wave sharing a movable body, so that a wave's manifolds may be
 // solved in any order, in lanes and on two threads, with the bits of the sweep in the
-// solve's order. Wave w is manifolds [first, wide_end) in wide groups of kLanes (one row
-// count each), [wide_end, lone) the rest of each row count 1 to 4 left two or three in
-// wide groups padded with idle lanes, and [lone, end) one by one (a row count's one left,
-// then the manifolds of more rows).
+// solve's order; each wave in two parts, its sides (sweep_waves.h), each a SweepWave.
+// Part w is manifolds [first, wide_end) in wide groups of kLanes (one row count each),
+// [wide_end, lone) the rest of each row count 1 to 4 left two or three in wide groups
+// padded with idle lanes, and [lone, end) one by one (a row count's one left, then the
+// manifolds of more rows). `after`: the last part of the other side (index in the plan's
+// waves) that moved one of its bodies, -1: none; `spin_after`: the same for its spin rows,
+// which come after every part's rows (part i's rows: i, its spin rows: the plan's parts
+// plus i).
 struct SweepWave {
   size_t first = 0, wide_end = 0, lone = 0, end = 0;
+  int32_t side = 0, after = -1, spin_after = -1;
 };
-// A part of a sweep that one thread runs (Worker::run_waves): waves [wave, wave_end), of
-// each its items (wide groups, then manifolds one by one) [lo, hi) (kWhole: to its end);
-// `spin`: their spin rows (after every wave's rows).
+// A part of a sweep that one thread runs (Worker::run_sides): part `wave`'s rows, or with
+// `spin` its spin rows.
 struct SweepChunk {
-  static constexpr uint32_t kWhole = ~uint32_t{0};
-  uint32_t wave = 0, wave_end = 0, lo = 0, hi = kWhole;
+  uint32_t wave = 0;
   bool spin = false;
 };
 struct SweepPlan {
   std::vector<SweepWave> waves;         // in sweep order
   bool wide = true;                     // wide groups solved in lanes (else one by one:
                                         // the same bits, SOLVER_TUNING wide_rows)
-  size_t parallel = 0;                  // a wave of at least twice this many manifolds is
-                                        // split between the threads in parts of at least
-                                        // this many (smaller ones are run whole, each run
-                                        // of them in one chunk)
-  Worker* worker = nullptr;             // null: one thread
-  std::vector<SweepChunk> chunks;       // a sweep's chunks, in order ...
-  std::vector<int32_t> gates;           // ... and each one's gate (Worker::run_waves)
+  size_t parallel = 0;                  // waves that average at least twice this many
+                                        // manifolds are cut in two sides (sweep_waves.h)
+  Worker* worker = nullptr;             // null: one thread (one side)
+  std::vector<SweepChunk> chunks;       // a sweep's chunks, in order, ...
+  std::vector<uint8_t> sides;           // ... each one's side (its thread's queue) ...
+  std::vector<int32_t> needs;           // ... and the other side's chunks it waits for
+                                        // (Worker::run_sides)
+  std::vector<int32_t> places;          // scratch: a part's place in its side's chunks
   // scratch of solve_velocities: the wide groups of the waves and their rows (a pool: slot)
   std::vector<WideGroup> groups;
   std::vector<WideRow> wide_rows;

@@ -881,11 +881,11 @@ int StepSolver::sweep(StepContext& ctx, int iterations) {
 
 void StepSolver::plan_sweeps(StepContext& ctx) {
   const SolverParams& p = ctx.params;
-  wave_manifolds(manifolds_, chosen_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_,
-                 swept_, wave_, bucket_, start_of_, order_);
   plan_.wide = p.wide_rows;
   plan_.parallel = static_cast<size_t>(std::max(p.parallel_wave, 1));
   plan_.worker = p.threads >= 2 ? worker() : nullptr;
+  wave_manifolds(manifolds_, chosen_, rows_, ctx.bodies.inv_mass, ctx.bodies.count, plan_,
+                 swept_, waving_);
 }
 
 Worker* StepSolver::worker() {
@@ -900,11 +900,14 @@ void StepSolver::in_parts(const StepContext& ctx, int64_t count,
     part(0, count);
     return;
   }
-  static constexpr int32_t kFree[kParts] = {};   // no part waits for another
+  // the first half of the parts the caller's, the second the worker's; no part waits for
+  // another
+  static constexpr uint8_t kSide[kParts] = {0, 0, 0, 0, 1, 1, 1, 1};
+  static constexpr int32_t kFree[kParts] = {};
   const std::function<void(int)> chunk = [&](int i) {
     part(count * i / kParts, count * (i + 1) / kParts);
   };
-  worker()->run_waves(chunk, kParts, kFree, 1, static_cast<double>(count));
+  worker()->run_sides(chunk, kParts, kSide, kFree, 1, static_cast<double>(count));
 }
 
 double StepSolver::warm(StepContext& ctx, int substeps) {

@@ -126,6 +126,7 @@
 #include "contact_cache.h"
 #include "contact_solver.h"
 #include "detection_types.h"
+#include "sweep_waves.h"
 
 namespace collres {
 
@@ -424,9 +425,7 @@ class StepSolver {
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
-  std::vector<int32_t> wave_;        // (N,) plan_sweeps: the last wave of each body
-  std::vector<size_t> bucket_, start_of_;   // plan_sweeps: scratch
-  std::vector<int32_t> order_;       // plan_sweeps: scratch
+  WaveScratch waving_;               // plan_sweeps: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };
 

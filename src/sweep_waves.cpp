@@ -3,66 +3,196 @@
 #include <algorithm>
 
 namespace collres {
+namespace {
+
+// The movable bodies' ranks (s.rank), breadth first through the manifolds that join two
+// of them, each group of bodies so joined from a body its search from its first body
+// reached last.
+void rank_bodies(const std::vector<Manifold>& manifolds, const double* inv_mass,
+                 int64_t body_count, WaveScratch& s) {
+  const size_t n = static_cast<size_t>(body_count);
+  auto movable = [&](int32_t body) { return inv_mass[body] > 0.0; };
+  s.begin.assign(n + 1, 0);
+  for (const Manifold& k : manifolds) {
+    if (movable(k.a) && movable(k.b)) {
+      ++s.begin[static_cast<size_t>(k.a) + 1];
+      ++s.begin[static_cast<size_t>(k.b) + 1];
+    }
+  }
+  for (size_t i = 0; i < n; ++i) s.begin[i + 1] += s.begin[i];
+  s.adjacent.resize(static_cast<size_t>(s.begin[n]));
+  s.last.assign(s.begin.begin(), s.begin.end() - 1);   // (each body's next neighbour slot)
+  for (const Manifold& k : manifolds) {
+    if (movable(k.a) && movable(k.b)) {
+      s.adjacent[static_cast<size_t>(s.last[k.a]++)] = k.b;
+      s.adjacent[static_cast<size_t>(s.last[k.b]++)] = k.a;
+    }
+  }
+  s.rank.assign(n, -1);
+  s.queue.resize(n);
+  int32_t ranked = 0;
+  // breadth first from `from` through the unranked bodies: with `keep`, ranking them;
+  // else only to find the last one reached (their ranks are left -1); returns it
+  auto search = [&](int32_t from, bool keep) {
+    size_t head = 0, tail = 0;
+    s.queue[tail++] = from;
+    s.rank[from] = keep ? ranked++ : -2;
+    while (head < tail) {
+      const int32_t body = s.queue[head++];
+      for (int32_t e = s.begin[body]; e < s.begin[body + 1]; ++e) {
+        const int32_t next = s.adjacent[static_cast<size_t>(e)];
+        if (s.rank[next] != -1) continue;
+        s.rank[next] = keep ? ranked++ : -2;
+        s.queue[tail++] = next;
+      }
+    }
+    if (!keep)
+      for (size_t i = 0; i < tail; ++i) s.rank[s.queue[i]] = -1;
+    return s.queue[tail - 1];
+  };
+  for (const Manifold& k : manifolds)
+    for (const int32_t body : {k.a, k.b})
+      if (movable(body) && s.rank[body] < 0) search(search(body, false), true);
+  s.ranked = ranked;
+}
+
+// Each chosen manifold's side (0 or 1) into s.side: 1 where its lower-ranked movable body
+// is ranked at or after the cut that leaves about half the rows before it.
+void sides(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
+           const double* inv_mass, WaveScratch& s) {
+  const int32_t ranked = s.ranked;
+  auto key = [&](const Manifold& k) {   // (a body not ranked: after all of them)
+    const int32_t a = inv_mass[k.a] > 0.0 && s.rank[k.a] >= 0 ? s.rank[k.a] : ranked;
+    const int32_t b = inv_mass[k.b] > 0.0 && s.rank[k.b] >= 0 ? s.rank[k.b] : ranked;
+    return std::min(a, b);
+  };
+  s.queue.assign(static_cast<size_t>(ranked) + 1, 0);   // rows per key
+  s.side.resize(chosen.size());                          // (each one's key, for now)
+  int64_t rows = 0;
+  for (size_t index = 0; index < chosen.size(); ++index) {
+    const Manifold& k = manifolds[static_cast<size_t>(chosen[index])];
+    s.side[index] = key(k);
+    s.queue[static_cast<size_t>(s.side[index])] += k.count;
+    rows += k.count;
+  }
+  int32_t cut = 0;
+  for (int64_t before = 0;
+       cut < ranked && 2 * (before + s.queue[static_cast<size_t>(cut)]) <= rows; ++cut)
+    before += s.queue[static_cast<size_t>(cut)];
+  for (int32_t& side : s.side) side = side >= cut ? 1 : 0;
+}
+
+}  // namespace
 
 void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
                     const std::vector<ContactRow>& rows, const double* inv_mass,
                     int64_t body_count, SweepPlan& plan, std::vector<Manifold>& out,
-                    std::vector<int32_t>& wave, std::vector<size_t>& bucket,
-                    std::vector<size_t>& start, std::vector<int32_t>& order) {
+                    WaveScratch& s) {
   const size_t count = chosen.size();
-  // stable counting sort by (wave, row count, speculative): bucket wave * 10 + 2 (count -
-  // 1) + speculative (counts 1 to 4; the last two buckets of a wave for longer manifolds).
-  // A speculative manifold (every row with a gap to close: allowance > 0) is the kind that
-  // carries no impulse (at 30 Hz about 60 % of a settled pile's rows): after the others
-  // of its row count, so that most wide groups are all of one kind and a group whose four
-  // lanes all stay idle costs only its approach test (solve_velocities)
+  plan.waves.clear();
+  plan.packed = false;
+  out.clear();
+  if (count == 0) return;
+  // each manifold's wave (bucket[index], for now); last[body]: the last wave that moved it
+  s.last.assign(static_cast<size_t>(body_count), -1);
+  s.bucket.resize(count);
+  int32_t waves = 0;
+  for (size_t index = 0; index < count; ++index) {
+    const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
+    const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
+    const int32_t own = std::max(move_a ? s.last[m.a] : -1, move_b ? s.last[m.b] : -1) + 1;
+    if (move_a) s.last[m.a] = own;
+    if (move_b) s.last[m.b] = own;
+    waves = std::max(waves, own + 1);
+    s.bucket[index] = static_cast<size_t>(own);
+  }
+  // two sides for two threads where the waves average at least twice plan.parallel
+  // manifolds (else side 0 only: a smaller part costs more to hand over than it holds)
+  const bool split = plan.worker != nullptr &&
+                     count >= 2 * std::max<size_t>(plan.parallel, 1) * static_cast<size_t>(waves);
+  if (split) {
+    if (s.epoch != plan.rows_epoch || s.rank.size() != static_cast<size_t>(body_count)) {
+      rank_bodies(manifolds, inv_mass, body_count, s);
+      s.epoch = plan.rows_epoch;
+    }
+    sides(manifolds, chosen, inv_mass, s);
+  } else {
+    s.side.assign(count, 0);
+  }
+  // stable counting sort by (wave, side, row count, speculative): bucket (2 wave + side) *
+  // 10 + 2 (count - 1) + speculative (counts 1 to 4; the last two buckets of a part for
+  // longer manifolds). A speculative manifold (every row with a gap to close: allowance >
+  // 0) is the kind that carries no impulse (at 30 Hz about 60 % of a settled pile's rows):
+  // after the others of its row count, so that most wide groups are all of one kind and a
+  // group whose four lanes all stay idle costs only its approach test (solve_velocities)
   constexpr int kKinds = 5, kBuckets = 2 * kKinds;
   auto speculative = [&](const Manifold& m) {
     for (int32_t i = m.first; i < m.first + m.count; ++i)
       if (!(rows[i].allowance > 0.0)) return false;
     return true;
   };
-  // each manifold's bucket (bucket[index]), from its wave; wave[body]: the last wave that
-  // moved it
-  wave.assign(static_cast<size_t>(body_count), -1);
-  bucket.resize(count);
-  int32_t waves = 0;
+  // each manifold's bucket; with two sides, last[body]: the last part (2 wave + side) that
+  // moved it, and after[part]: the other side's last wave whose part moved one of its bodies
+  if (split) {
+    s.last.assign(static_cast<size_t>(body_count), -1);
+    s.after.assign(2 * static_cast<size_t>(waves), -1);
+  }
   for (size_t index = 0; index < count; ++index) {
     const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
-    const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
-    const int32_t own = std::max(move_a ? wave[m.a] : -1, move_b ? wave[m.b] : -1) + 1;
-    if (move_a) wave[m.a] = own;
-    if (move_b) wave[m.b] = own;
-    waves = std::max(waves, own + 1);
-    bucket[index] = static_cast<size_t>(own) * kBuckets +
-                    2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) +
-                    (speculative(m) ? 1 : 0);
+    const int32_t side = s.side[index];
+    const int32_t part = 2 * static_cast<int32_t>(s.bucket[index]) + side;
+    if (split) {
+      for (const int32_t body : {m.a, m.b}) {
+        if (!(inv_mass[body] > 0.0)) continue;
+        const int32_t last = s.last[body];
+        if (last >= 0 && last % 2 != side)
+          s.after[static_cast<size_t>(part)] =
+              std::max(s.after[static_cast<size_t>(part)], last / 2);
+        s.last[body] = part;
+      }
+    }
+    s.bucket[index] = static_cast<size_t>(part) * kBuckets +
+                      2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) +
+                      (speculative(m) ? 1 : 0);
   }
-  start.assign(static_cast<size_t>(waves) * kBuckets + 1, 0);
-  for (size_t index = 0; index < count; ++index) ++start[bucket[index] + 1];
-  for (size_t i = 0; i + 1 < start.size(); ++i) start[i + 1] += start[i];
-  order.resize(count);
+  const size_t parts = 2 * static_cast<size_t>(waves);
+  s.start.assign(parts * kBuckets + 1, 0);
+  for (size_t index = 0; index < count; ++index) ++s.start[s.bucket[index] + 1];
+  for (size_t i = 0; i + 1 < s.start.size(); ++i) s.start[i + 1] += s.start[i];
+  s.order.resize(count);
   for (size_t index = 0; index < count; ++index)
-    order[start[bucket[index]]++] = chosen[index];   // (start: ends now)
-  // per wave: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
+    s.order[s.start[s.bucket[index]]++] = chosen[index];   // (start: ends now)
+  // per part: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
   // 1..4's remainders of two or three (padded groups), then the remainders of one and the
   // longer manifolds (one by one: a group of one lane costs more than its one manifold);
   // each copied in once (not over a new entry's zeros)
-  out.clear();
   out.reserve(count);
+  // (with two sides, last[body]: the last part, index in plan.waves, that moved it)
+  if (split) s.last.assign(static_cast<size_t>(body_count), -1);
   auto place = [&](size_t from, size_t end) {
-    for (size_t k = from; k < end; ++k) out.push_back(manifolds[static_cast<size_t>(order[k])]);
+    for (size_t k = from; k < end; ++k) {
+      const Manifold& m = manifolds[static_cast<size_t>(s.order[k])];
+      out.push_back(m);
+      if (split) {
+        const auto at = static_cast<int32_t>(plan.waves.size());
+        if (inv_mass[m.a] > 0.0) s.last[m.a] = at;
+        if (inv_mass[m.b] > 0.0) s.last[m.b] = at;
+      }
+    }
   };
-  plan.waves.clear();
-  plan.packed = false;
+  s.index.assign(parts, -1);   // each part's place in plan.waves (-1: empty)
   size_t from = 0;
-  for (int32_t l = 0; l < waves; ++l) {
+  for (size_t p = 0; p < parts; ++p) {
     size_t first[kKinds + 1];   // row count k + 1's manifolds: [first[k], first[k + 1])
     first[0] = from;
     for (int k = 0; k < kKinds; ++k)
-      first[k + 1] = start[static_cast<size_t>(l) * kBuckets + 2 * static_cast<size_t>(k) + 1];
+      first[k + 1] = s.start[p * kBuckets + 2 * static_cast<size_t>(k) + 1];
     from = first[kKinds];
+    if (first[0] == first[kKinds]) continue;
     SweepWave part;
+    part.side = static_cast<int32_t>(p % 2);
+    const int32_t after = split ? s.after[p] : -1;
+    part.after = after < 0 ? -1 : s.index[2 * static_cast<size_t>(after) + 1 - p % 2];
     part.first = out.size();
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
@@ -80,7 +210,28 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     }
     place(first[4], first[5]);
     part.end = out.size();
+    s.index[p] = static_cast<int32_t>(plan.waves.size());
     plan.waves.push_back(part);
+  }
+  // the spin rows' pass (after every part's rows, part by part): a part's spin rows wait
+  // for the other side's last part, of either pass, that moved one of their bodies (numbered
+  // as part i of the rows' pass: i; of the spin rows': size + i; last[body] starts from the
+  // rows' pass)
+  if (!split) return;
+  const auto size = static_cast<int32_t>(plan.waves.size());
+  for (int32_t i = 0; i < size; ++i) {
+    SweepWave& part = plan.waves[static_cast<size_t>(i)];
+    int32_t after = -1;
+    for (size_t k = part.first; k < part.end; ++k) {
+      for (const int32_t body : {out[k].a, out[k].b}) {
+        if (!(inv_mass[body] > 0.0)) continue;
+        const int32_t last = s.last[body];
+        if (plan.waves[static_cast<size_t>(last % size)].side != part.side)
+          after = std::max(after, last);
+        s.last[body] = size + i;
+      }
+    }
+    part.spin_after = after;
   }
 }
 

@@ -10,6 +10,15 @@
 // in any order, four at a time in lanes (wide groups) and on two threads. (Box2D v3
 // colours its constraint graph greedily instead; that reorders the sweep, and measured
 // here it broke the pile and heap laws whose margins the order had tuned.)
+//
+// For the two threads each wave is cut in two sides, each side's part the thread's that
+// runs it sweep after sweep: the movable bodies are ranked breadth first through the
+// manifolds joining two of them, from a body farthest from where the search began (in
+// each group of bodies so joined), and a manifold is on side 1 where its lower-ranked
+// movable body is in the last half of the ranks (by rows), else on side 0: each side a
+// connected region of the pile, whose bodies stay in its thread's cache and whose
+// manifolds wait for the other side's only along the seam between the two (SweepWave::
+// after: the other side's last part whose bodies it moves).
 #pragma once
 
 #include <cstdint>
@@ -19,19 +28,31 @@
 
 namespace collres {
 
+// wave_manifolds' scratch, kept between calls
+struct WaveScratch {
+  std::vector<int32_t> last;     // (N,) per body: the last wave or part that moved it
+  std::vector<int32_t> rank;     // (N,) per body: its place breadth first (-1: none)
+  int32_t ranked = 0;            // bodies ranked
+  uint64_t epoch = ~uint64_t{0};   // the rows (SweepPlan::rows_epoch) they were ranked for
+  std::vector<int32_t> begin, adjacent, queue;   // the movable bodies' neighbours; search
+  std::vector<int32_t> side;     // per chosen manifold
+  std::vector<size_t> bucket, start;
+  std::vector<int32_t> order, after, index;
+};
+
 // The manifolds `chosen` (indices into `manifolds`, ascending: the sweep's order) wave by
-// wave into `out` (SweepPlan's layout: within a wave, wide groups of kLanes manifolds of
-// one row count 1..4 first, then the rest of each row count 1..4 left two or three
-// (padded groups), then the rest left one and the longer manifolds one by one; within a row count the speculative
-// manifolds, every row with allowance > 0, last), each copied once; fills plan.waves and
-// clears plan.packed (its other fields are left as they are). The manifolds keep their
-// rows and spin rows (Manifold::spin); the rows keep their ContactRow::manifold.
-// `inv_mass` (N,) 1/kg: 0 for immovable bodies. `wave`, `bucket`, `start` and `order` are
-// scratch.
+// wave, each wave side 0's part then side 1's (the parts that are not empty), into `out`
+// (SweepPlan's layout, a part per SweepWave: within a part, wide groups of kLanes
+// manifolds of one row count 1..4 first, then the rest of each row count 1..4 left two or
+// three (padded groups), then the rest left one and the longer manifolds one by one;
+// within a row count the speculative manifolds, every row with allowance > 0, last), each
+// copied once; fills plan.waves (with each part's side, after and spin_after) and clears
+// plan.packed (its other fields are left as they are). The manifolds keep their rows and
+// spin rows (Manifold::spin); the rows keep their ContactRow::manifold. `inv_mass` (N,)
+// 1/kg: 0 for immovable bodies.
 void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
                     const std::vector<ContactRow>& rows, const double* inv_mass,
                     int64_t body_count, SweepPlan& plan, std::vector<Manifold>& out,
-                    std::vector<int32_t>& wave, std::vector<size_t>& bucket,
-                    std::vector<size_t>& start, std::vector<int32_t>& order);
+                    WaveScratch& scratch);
 
 }  // namespace collres

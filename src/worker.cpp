@@ -23,6 +23,16 @@ constexpr unsigned kExploreMost = Worker::kExplore << 6;
 constexpr double kWeight = 0.2;     // of a run's cost in the running mean
 constexpr int kBurst = 4;           // runs in a row in the mode not chosen
 constexpr double kGiveUp = 2.0;     // (Worker::run) a burst's run costing this many times more
+// polls (Worker::help) that find the other queue's next chunk ready, not claimed, before
+// a thread with nothing else to run takes it: ~2-3 us, where a thread at work claims its
+// next chunk within ~0.1 us of the last one (taking it sooner would move the chunk's data
+// to the other core, and it races the other thread for it)
+constexpr int kPatience = 64;
+
+constexpr uint64_t kClaim = uint64_t{1} << 16;   // a chunk claimed, in a queue's state
+inline uint32_t run_of(uint64_t state) { return static_cast<uint32_t>(state >> 32); }
+inline int claimed_of(uint64_t state) { return static_cast<int>((state >> 16) & 0xffffu); }
+inline int finished_of(uint64_t state) { return static_cast<int>(state & 0xffffu); }
 
 void wait_until(const std::function<bool()>& ready) {
   for (int i = 0; !ready(); ++i) {
@@ -36,7 +46,10 @@ void wait_until(const std::function<bool()>& ready) {
 }  // namespace
 
 Worker::Worker()
-    : gate_(new std::atomic<int32_t>[kMaxChunks]()),
+    : chunk_{std::unique_ptr<std::atomic<int32_t>[]>(new std::atomic<int32_t>[kMaxChunks]()),
+             std::unique_ptr<std::atomic<int32_t>[]>(new std::atomic<int32_t>[kMaxChunks]())},
+      need_{std::unique_ptr<std::atomic<int32_t>[]>(new std::atomic<int32_t>[kMaxChunks]()),
+            std::unique_ptr<std::atomic<int32_t>[]>(new std::atomic<int32_t>[kMaxChunks]())},
       thread_([this] { loop(); }) {}
 
 Worker::~Worker() {
@@ -51,8 +64,7 @@ Worker::~Worker() {
 void Worker::loop() {
   uint32_t seen = 0;   // the last run helped with
   for (;;) {
-    for (int i = 0; i < kSpins && static_cast<uint32_t>(ticket_.load() >> 32) == seen; ++i)
-      COLLRES_PAUSE();
+    for (int i = 0; i < kSpins && run_of(queue_[1].state.load()) == seen; ++i) COLLRES_PAUSE();
     uint32_t generation;
     {
       std::unique_lock<std::mutex> lock(mutex_);
@@ -60,21 +72,56 @@ void Worker::loop() {
       if (stop_) return;
       generation = seen = generation_;
     }
-    helped_.fetch_add(static_cast<uint64_t>(help(generation, finished_[1].count)),
-                      std::memory_order_relaxed);
+    helped_.fetch_add(static_cast<uint64_t>(help(generation, 1)), std::memory_order_relaxed);
   }
 }
 
-int Worker::help(uint32_t generation, std::atomic<int>& finished) {
+int Worker::help(uint32_t generation, int own) {
+  // the other queue's state as last seen, and the polls it stayed so while this thread had
+  // nothing to run: its thread is away (asleep, descheduled) once kPatience polls found
+  // its next chunk ready and not claimed
+  uint64_t watched = 0;
+  int still = 0;
   for (int ran = 0, waits = 0;;) {
-    const uint64_t ticket = ticket_.load(std::memory_order_acquire);
-    const int chunk = static_cast<int>(ticket & 0xffffu);
-    const int chunks = static_cast<int>((ticket >> 16) & 0xffffu);
-    if (static_cast<uint32_t>(ticket >> 32) != generation || chunk >= chunks) return ran;
-    // its gate first: the chunks it depends on, every chunk claimed before it, finish
-    // (each counts once: done() reaches the gate only when all before it are done); a
-    // ticket of a finished run may read the next run's gate (its claim then fails)
-    if (done() < gate_[chunk].load(std::memory_order_relaxed)) {
+    bool left = false;   // a chunk of the run not claimed yet
+    bool over = false;   // the run finished (a later one posted)
+    int taken = -1;      // the queue of the chunk claimed
+    uint64_t state = 0;
+    for (int j = 0; j < 2 && taken < 0 && !over; ++j) {
+      const int q = own ^ j;
+      state = queue_[q].state.load(std::memory_order_acquire);
+      if (run_of(state) != generation) {
+        over = true;
+        break;
+      }
+      if (j == 1 && state != watched) {
+        watched = state;
+        still = 0;
+      }
+      const int claimed = claimed_of(state);
+      if (claimed >= queue_[q].size.load(std::memory_order_relaxed)) continue;
+      left = true;
+      if (claimed != finished_of(state)) continue;   // (its chunk running)
+      // the chunks of the other queue it depends on; a state of a finished run may read
+      // the next run's need (its claim then fails)
+      const int32_t need = need_[q][claimed].load(std::memory_order_relaxed);
+      if (need > 0) {
+        const uint64_t other = queue_[q ^ 1].state.load(std::memory_order_acquire);
+        if (run_of(other) != generation) {
+          over = true;
+          break;
+        }
+        if (finished_of(other) < need) continue;
+      }
+      if (j == 1 && still < kPatience) continue;
+      uint64_t expected = state;
+      if (queue_[q].state.compare_exchange_strong(expected, state + kClaim,
+                                                  std::memory_order_acq_rel))
+        taken = q;
+    }
+    if (over || (!left && taken < 0)) return ran;
+    if (taken < 0) {
+      ++still;
       if (++waits < kSpins) {
         COLLRES_PAUSE();
       } else {
@@ -82,12 +129,10 @@ int Worker::help(uint32_t generation, std::atomic<int>& finished) {
       }
       continue;
     }
-    uint64_t expected = ticket;
-    if (!ticket_.compare_exchange_strong(expected, ticket + 1, std::memory_order_acq_rel))
-      continue;
     waits = 0;
-    (*task_)(chunk);
-    finished.store(finished.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+    (*task_)(chunk_[taken][claimed_of(state)].load(std::memory_order_relaxed));
+    queue_[taken].state.fetch_add(1, std::memory_order_release);
+    if (taken != own) watched = state + kClaim + 1;   // (its thread still away)
     ++ran;
   }
 }
@@ -95,22 +140,23 @@ int Worker::help(uint32_t generation, std::atomic<int>& finished) {
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                       int chunks, int kind, double work) {
   if (chunks < 0 || chunks > kMaxChunks) throw std::invalid_argument("Worker: chunks out of range");
-  run(&first, second, chunks, nullptr, kind, work);
+  run(&first, second, chunks, nullptr, nullptr, kind, work);
 }
 
-void Worker::run_waves(const std::function<void(int)>& task, int chunks, const int32_t* gate,
-                       int kind, double work) {
-  bool chain = true;   // (each chunk waits for every one before it: nothing to share)
-  for (int c = 0; c < chunks && chain; ++c) chain = gate[c] == c;
-  if (chain || chunks > kMaxChunks) {
+void Worker::run_sides(const std::function<void(int)>& task, int chunks, const uint8_t* side,
+                       const int32_t* need, int kind, double work) {
+  int in[2] = {0, 0};   // chunks per queue
+  for (int c = 0; c < chunks; ++c) ++in[side[c] & 1];
+  if (in[0] == 0 || in[1] == 0 || std::max(in[0], in[1]) > kMaxChunks) {
     for (int c = 0; c < chunks; ++c) task(c);
     return;
   }
-  run(nullptr, task, chunks, gate, kind, work);
+  run(nullptr, task, chunks, side, need, kind, work);
 }
 
 void Worker::run(const std::function<void()>* first, const std::function<void(int)>& task,
-                 int chunks, const int32_t* gate, int kind, double work) {
+                 int chunks, const uint8_t* side, const int32_t* need, int kind,
+                 double work) {
   chunks_run_ += static_cast<uint64_t>(chunks);
   Costs& costs = costs_[kind & 1];
   // the mode that has cost less per unit of work (an unmeasured mode first), the other
@@ -131,19 +177,30 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
       std::lock_guard<std::mutex> lock(mutex_);
       task_ = &task;
       generation = ++generation_;
-      for (int c = 0; c < chunks; ++c)
-        gate_[c].store(gate != nullptr ? gate[c] : c, std::memory_order_relaxed);
-      for (Finished& f : finished_) f.count.store(0, std::memory_order_relaxed);
-      ticket_.store(static_cast<uint64_t>(generation) << 32 |
-                        static_cast<uint64_t>(chunks) << 16,
-                    std::memory_order_release);
+      int size[2] = {0, 0};
+      for (int c = 0; c < chunks; ++c) {
+        const int q = side != nullptr ? side[c] & 1 : 1;   // (run_pair's: the worker's)
+        chunk_[q][size[q]].store(c, std::memory_order_relaxed);
+        need_[q][size[q]++].store(need != nullptr ? need[c] : 0, std::memory_order_relaxed);
+      }
+      for (int q = 0; q < 2; ++q) {
+        queue_[q].size.store(size[q], std::memory_order_relaxed);
+        queue_[q].state.store(static_cast<uint64_t>(generation) << 32,
+                              std::memory_order_release);
+      }
     }
     wake_.notify_one();
     if (first != nullptr) (*first)();
-    help(generation, finished_[0].count);   // the chunks left to claim
-    // then the worker's last ones (a chunk the worker began is finished before the next
+    help(generation, 0);   // the chunks left to claim
+    // then the worker's last one (a chunk the worker began is finished before the next
     // run is posted: it reads task_ only while it runs one)
-    wait_until([&] { return done() == chunks; });
+    wait_until([&] {
+      for (const Queue& q : queue_)
+        if (finished_of(q.state.load(std::memory_order_acquire)) <
+            q.size.load(std::memory_order_relaxed))
+          return false;
+      return true;
+    });
   } else {
     if (first != nullptr) (*first)();
     for (int c = 0; c < chunks; ++c) task(c);

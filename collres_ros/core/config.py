@@ -355,17 +355,21 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'restitution is the simultaneous answer; few contacts take part'),
     ParamSpec('threads', 'integer', 2,
               'Threads of detection and of the solve: with 2, the pairs of a step (64 or '
-              'more) are shared by two threads, and so is each velocity sweep with a wave to '
-              'split (parallel_wave), and the per-contact passes of the reference frame; '
-              'the answer is the same bits with 1 or 2', 1, 2,
+              'more) are shared by two threads, and so is each velocity sweep whose waves '
+              'are large enough (parallel_wave: each wave cut in two sides, connected halves '
+              'of the pile, one per thread), and the per-contact passes of the reference '
+              'frame; the answer is the same bits with 1 or 2', 1, 2,
               reason='pairs are independent, a wave\'s manifolds share no movable body and '
                      'each contact\'s reference frame is its own, so the second core can '
                      'take part of each; the cost model leaves the worker alone where it does '
-                     'not pay: settled piles of 1000 cubes 1.06-1.16 times faster on two '
-                     'threads over 30 steps, 0.98-1.00 over 100, mixed ones 0.91-1.05, piles '
-                     'of 100 0.98-1.00, with a busy loop beside them 0.96-1.02 (the caller runs '
-                     'every part the worker has not begun; timings on a machine other '
-                     'processes kept busy vary by about 5 %)'),
+                     'not pay: settled piles, the step on one thread over two (30 steps, '
+                     'five runs, load 1.3-4.0): 1000 cubes 1.03-1.22 at 120 Hz and 1.10-1.23 '
+                     'at '
+                     '30 Hz, mixed 0.97-1.07 and 0.92-1.25, piles of 100 0.98-1.00, with a '
+                     'busy loop beside them 0.93, 0.69 (mixed 1000, 30 Hz), 0.96 (the caller '
+                     'runs every part the worker has not begun; timings on a machine other '
+                     'processes kept busy vary by 5-10 %)'),
+
     ParamSpec('max_substeps', 'integer', 10,
               'Most substeps of a step\'s resting solve (max_substep)', 1, 64,
               reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 10 solves; '
@@ -432,18 +436,17 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'lanes (turning every aimed row in every substep cost 5 % of a 30 Hz step '
                      'of a settled mixed pile of 1000 bodies)'),
     ParamSpec('parallel_wave', 'integer', 16,
-              'A wave (manifolds that share no movable body, solved one after the other '
-              'in the sweep\'s order) of at least twice this many manifolds is split between '
-              'the two threads in parts of at least this many (up to 8, of like weight); '
-              'smaller waves are run whole, a run of them in one part; a sweep with no wave '
-              'to split stays on one thread; a per-contact pass is split in 8 parts of at '
+              'With two threads, the waves of a sweep (manifolds that share no movable body, '
+              'solved one after the other in the sweep\'s order) that average at least twice '
+              'this many manifolds are cut in two sides, one per thread (smaller ones stay '
+              'whole, the sweep on one thread); a per-contact pass is split in 8 parts of at '
               'least this many contacts', 1, 10**9,
-              reason='a hand-over between the cores costs about 0.25 us (a cache line '
-                     'there and back 0.47 us) against 64 ns a manifold; settled piles of 1000 '
-                     'cubes, forcing both threads on every sweep, the step on one thread over '
-                     'two (3 x 30 steps): 1.01, 1.07, 1.09, 1.12, 1.10 at 64, 32, 24, 16, 12 '
-                     '(120 Hz), 1.01 to 1.17 at 30 Hz; mixed piles 0.96-1.04 whatever the '
-                     'value (waves of 40-55 manifolds)'),
+              reason='a part handed over costs its thread a claim and the other side\'s count '
+                     '(a cache line there and back 0.47 us) against 64 ns a manifold, and a '
+                     'wave cut in two leaves more manifolds one by one: settled piles of 100 '
+                     '(waves of 8-10 manifolds on average), cut at 4, a sweep took 23-35 us '
+                     'on two threads against 12-15 on one; piles of 1000 (36-58 on average) '
+                     '63-101 us against 107-135'),
     ParamSpec('wide_rows', 'bool', True,
               'Solve each wave\'s manifolds four at a time (wide rows: structure of arrays, '
               'SIMD); off, one by one: the same bits', None, None,

@@ -5,23 +5,26 @@ one more than the highest wave of the manifolds before it that share a movable b
 manifolds of a wave share no movable body and the waves in turn are the sweep in the solve's
 order, bit for bit. A wave is solved four manifolds at a time in wide rows
 (``SOLVER_TUNING`` ``wide_rows``; the two or three left of a row count in a group padded
-with idle lanes); with two threads (``threads``) a whole sweep is handed to them at once,
-in parts claimed in order (a wave of at least twice ``parallel_wave`` manifolds split, a run
-of smaller waves in one part), and so are the per-contact passes of the reference frame.
+with idle lanes); with two threads (``threads``) and waves that average at least twice
+``parallel_wave`` manifolds, each wave is cut in two sides (connected halves of the pile),
+each side's parts one thread's queue, a part waiting only for the other side's last part
+that moved one of its bodies; the per-contact passes of the reference frame are shared too.
 Detection shares a step's pairs between the two threads too (``src/detection.h``: the
 first half here, the second on the worker, each into its own lane, joined in pair order).
 The laws: the waves hold (no movable body twice in a wave, each after one that moved its
 bodies, wide groups of one row count, every manifold of up to four rows
-in one but the one left of a row count); whatever the thread count and with wide rows on or
+in one but the one left of a row count), and each part waits for the other side's part
+that last moved one of its bodies; whatever the thread count and with wide rows on or
 off, every step's corrected states and impulses are the same bytes, and so is every array
 detection gives. Here a pile of cubes and spheres falls into a bin and settles (impacts,
 stacking, friction, rolling resistance), with a low ``parallel_wave`` so that most steps
-share waves between the threads.
+cut their waves in two sides.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.detection import Detection
@@ -70,7 +73,7 @@ def pile(count: int = 48) -> tuple[list[BodySpec], BodyStates]:
 def world(bodies: list[BodySpec], threads: int, wide_rows: bool = True) -> World:
     w = World(bodies, SolverSettings(sleeping=False))
     w._params.threads = threads
-    w._params.parallel_wave = 4
+    w._params.parallel_wave = 2
     w._params.wide_rows = wide_rows
     return w
 
@@ -94,24 +97,23 @@ def test_two_threads_and_one_by_one_give_the_bytes_of_one_thread_in_lanes():
             states[k] = result.states
             answers.append(answer(result))
         assert all(a == answers[0] for a in answers[1:])
-        shared_steps += any(end - first >= 8 for first, _, _, end in worlds[1]._solver.waves)
-    # the pile was in contact with waves shared by the threads nearly all the time
+        shared_steps += any(part[4] == 1 for part in worlds[1]._solver.waves)
+    # the pile was in contact with waves cut in two sides nearly all the time
     assert shared_steps > STEPS // 2
     assert np.isfinite(states[0].position).all()
     assert states[0].position[5:, 2].max() < 0.6          # it fell and piled up
 
 
-def test_a_sweep_with_no_wave_to_share_is_not_handed_over():
-    # the default parallel_wave: no wave of this pile has twice as many manifolds, so each
-    # sweep is a chain of parts, each waiting for all before it: run on the caller, not
-    # posted (a hand-over that buys nothing); what the threads share is the per-contact
-    # passes, kParts (8) parts each, three a step (reference frame, impacts, and prepare
-    # once per solve); the same bytes
+def test_a_sweep_with_waves_too_small_to_share_is_not_handed_over():
+    # the default parallel_wave: this pile's waves average fewer than twice as many
+    # manifolds, so they are not cut in sides and each sweep runs on the caller, not posted
+    # (a hand-over that buys nothing); what the threads share is the per-contact passes,
+    # kParts (8) parts each, three a step (reference frame, impacts, and prepare once per
+    # solve); the same bytes
     bodies, start = pile()
     one, two = (World(bodies, SolverSettings(sleeping=False)) for _ in range(2))
     one._params.threads, two._params.threads = 1, 2
     states = [start.copy(), start.copy()]
-    largest = 0
     for _ in range(STEPS):
         answers = []
         for k, w in enumerate((one, two)):
@@ -119,26 +121,30 @@ def test_a_sweep_with_no_wave_to_share_is_not_handed_over():
             states[k] = result.states
             answers.append(answer(result))
         assert answers[0] == answers[1]
-        largest = max([largest] + [end - first for first, _, _, end in two._solver.waves])
-    assert 0 < largest < 2 * two._params.parallel_wave
+        waves = two._solver.waves
+        assert all(part[4] == 0 for part in waves)
+        assert not waves or waves[-1][3] < 2 * two._params.parallel_wave * len(waves)
     posted = two._solver.helped[1]
     assert 0 < posted <= 8 * (3 * STEPS + two._solver.redone) and posted % 8 == 0
     assert one._solver.helped[1] == 0
 
 
-def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bodies():
+@pytest.mark.parametrize('threads', [1, 2])
+def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bodies(threads):
     bodies, state = pile()
-    w = world(bodies, 1)
+    w = world(bodies, threads)
     movable = w.dynamic
-    total = wide = lanes = 0
+    total = wide = lanes = split = 0
     for _ in range(STEPS):
         state = w.step(state, euler_step(state, w.dynamic, GRAVITY, DT), DT).states
         waves = w._solver.waves
         sweep = w._solver.sweep_bodies
         assert [s[0] for s in waves[1:]] == [s[3] for s in waves[:-1]]    # in a row
         assert (waves[-1][3] if waves else 0) == len(sweep)                # all of them
-        seen = set()     # the movable bodies of the waves before
-        for first, wide_end, lone, end in waves:
+        seen = set()     # the movable bodies of the parts before
+        begun = set()    # the sides whose first part is behind
+        last = {}        # per movable body: the last part (rows) that moved it
+        for i, (first, wide_end, lone, end, side, after, _) in enumerate(waves):
             assert first < wide_end or wide_end < end              # never empty
             assert first <= wide_end <= lone <= end and (wide_end - first) % 4 == 0
             counts = sweep[first:wide_end, 2].reshape(-1, 4)
@@ -152,17 +158,37 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
             assert np.isin(np.bincount(alone[alone <= 4], minlength=5), (0, 1)).all()
             pairs = sweep[first:end, :2]
             used = pairs[movable[pairs]]
-            assert len(np.unique(used)) == len(used)   # none twice in a wave
-            # each manifold of a wave after the first shares a movable body with the waves
-            # before (else it would be in an earlier wave)
-            if first > 0:
+            assert len(np.unique(used)) == len(used)   # none twice in a part
+            # each manifold of a side's part after its first shares a movable body with the
+            # parts before (else it would be in an earlier wave)
+            if side in begun:
                 assert all(any(b in seen for b in pair if movable[b]) for pair in pairs)
+            begun.add(side)
             seen.update(used.tolist())
+            # it waits for the other side's last part that moved one of its bodies
+            other = [last[b] for b in used.tolist() if b in last and waves[last[b]][4] != side]
+            assert after == max(other, default=-1)
+            last.update((b, i) for b in used.tolist())
             wide += wide_end - first
             lanes += lone - first
             total += end - first
-    assert total > 0 and wide > total // 2   # most manifolds solved in full groups
-    assert lanes > wide                      # and the rest of them in padded ones
+        # the spin rows (after every part's rows, part by part) the same way
+        size = len(waves)
+        for i, (first, _, _, end, side, _, spin_after) in enumerate(waves):
+            pairs = sweep[first:end, :2]
+            used = pairs[movable[pairs]].tolist()
+            other = [last[b] for b in used if waves[last[b] % size][4] != side]
+            assert spin_after == max(other, default=-1)
+            last.update((b, size + i) for b in used)
+        # with two threads, each side holds a fair share of the rows: halves by rows
+        rows = [sum(int(sweep[p[0]:p[3], 2].sum()) for p in waves if p[4] == k) for k in (0, 1)]
+        if rows[1]:
+            split += 1
+            assert min(rows) > 0.3 * sum(rows)
+    assert total > 0 and lanes > wide   # some manifolds solved in padded groups
+    if threads == 1:                    # and most in full ones (not a pile cut in sides
+        assert wide > total // 2        # of a few manifolds a part)
+    assert (split > STEPS // 2) == (threads == 2)   # cut in sides: with two threads only
 
 
 def test_detection_on_two_threads_gives_the_bytes_of_one_thread():

@@ -366,7 +366,7 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'five runs, load 1.3-4.0): 1000 cubes 1.03-1.22 at 120 Hz and 1.10-1.23 '
                      'at '
                      '30 Hz, mixed 0.97-1.07 and 0.92-1.25, piles of 100 0.98-1.00, with a '
-                     'busy loop beside them 0.93, 0.69 (mixed 1000, 30 Hz), 0.96 (the caller '
+                     'busy loop beside them 0.91-0.98 (two sides\' leftovers; the caller '
                      'runs every part the worker has not begun; timings on a machine other '
                      'processes kept busy vary by 5-10 %)'),
 

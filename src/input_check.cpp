@@ -1,7 +1,9 @@
 // The stream's usual step's input check (input_check.h).
 #include "input_check.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace collres {
 
@@ -23,6 +25,22 @@ bool usual_inputs(const double* in, std::size_t count, const double* limits, dou
     for (std::size_t j = 3; j < 7; ++j) copy[j] = row[j] / norm;
   }
   return true;
+}
+
+bool usual_contacts(const double* point, const double* normal, const double* separation,
+                    const double* toi, std::size_t count, double* unit) {
+  // every number summed: finite only when each is (an overflow of finite ones is refused
+  // too: the caller's row-by-row check takes it)
+  double total = 0.0, shortest = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < count; ++k) {
+    const double* n = normal + 3 * k;
+    const double* p = point + 3 * k;
+    const double length = std::sqrt((n[0] * n[0] + n[1] * n[1]) + n[2] * n[2]);
+    shortest = std::min(shortest, length);
+    total += ((p[0] + p[1]) + p[2]) + ((separation[k] + toi[k]) + length);
+    for (int d = 0; d < 3; ++d) unit[3 * k + d] = n[d] / length;
+  }
+  return std::isfinite(total) && shortest > 0.5;
 }
 
 }  // namespace collres

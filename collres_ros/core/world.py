@@ -414,23 +414,19 @@ def _states(values: np.ndarray) -> BodyStates:
 def _finite(contacts: ContactSet) -> ContactSet:
     """Only the contacts whose numbers are all finite and whose normal is not zero.
 
-    The normal's length is sqrt((x^2 + y^2) + z^2) column by column: the bits of
-    np.linalg.norm(axis=1) at a tenth of its cost; the usual set is checked by one sum of
-    its numbers (finite only when every one is: an overflow or a bad number is checked
-    again row by row) and its shortest normal; the normals are divided by their lengths
-    column by column (the same divisions)."""
-    n = np.asarray(contacts.normal, np.float64).reshape(-1, 3)
-    square = n * n   # (one product over the whole array: the same products as by column)
-    norm = np.sqrt((square[:, 0] + square[:, 1]) + square[:, 2])
-    if norm.size == 0 or (norm.min() > 0.5 and math.isfinite(
-            np.asarray(contacts.point).sum() + np.asarray(contacts.separation).sum()
-            + np.asarray(contacts.toi).sum() + norm.sum())):
-        normal = np.empty_like(n)   # (column by column: no broadcast of norm)
-        for k in range(3):
-            np.divide(n[:, k], norm, out=normal[:, k])
-        return ContactSet(contacts.body_a, contacts.body_b, contacts.point, normal,
+    The normal's length is sqrt((x^2 + y^2) + z^2), the bits of np.linalg.norm(axis=1);
+    the usual set (every number finite, every length above 0.5) is checked and its normals
+    divided by their lengths in one compiled pass (``_native.usual_contacts``: the same
+    divisions), any other row by row here."""
+    unit = _native.usual_contacts(contacts.point, contacts.normal, contacts.separation,
+                                  contacts.toi)
+    if unit is not None:
+        return ContactSet(contacts.body_a, contacts.body_b, contacts.point, unit,
                           contacts.separation, contacts.toi, contacts.kind, contacts.feature,
                           contacts.manifolds, contacts.piece_a, contacts.piece_b)
+    n = np.asarray(contacts.normal, np.float64).reshape(-1, 3)
+    square = n * n
+    norm = np.sqrt((square[:, 0] + square[:, 1]) + square[:, 2])
     ok = (np.isfinite(contacts.point).all(1) & np.isfinite(norm) & (norm > 0.5)
           & np.isfinite(contacts.separation) & np.isfinite(contacts.toi))
     kept = contacts.select(ok)

@@ -100,6 +100,61 @@ def test_non_finite_contacts_are_dropped_and_output_stays_finite():
     assert all(np.all(np.isfinite(a)) for a in (result.states.position, result.states.linear))
 
 
+def test_usual_contacts_unit_normals_bit_for_bit_and_none_on_any_bad_number():
+    # the compiled check of detection's usual contacts divides each normal by its length
+    # sqrt((x^2 + y^2) + z^2), bit for bit numpy's, and answers None (the row-by-row check)
+    # on any non-finite number, a normal of length 0.5 or less, or an array not C-contiguous
+    # float64 of its shape
+    rng = np.random.default_rng(7)
+    m = 50
+    point = rng.normal(size=(m, 3))
+    normal = rng.normal(size=(m, 3))
+    normal *= rng.uniform(0.6, 3.0, size=(m, 1)) / np.linalg.norm(normal, axis=1)[:, None]
+    separation, toi = rng.normal(size=m), rng.uniform(size=m)
+    square = normal * normal
+    length = np.sqrt((square[:, 0] + square[:, 1]) + square[:, 2])
+    unit = _native.usual_contacts(point, normal, separation, toi)
+    assert unit.tobytes() == (normal / length[:, None]).tobytes()
+    assert _native.usual_contacts(point[:0], normal[:0], separation[:0], toi[:0]).shape == (0, 3)
+    for name, bad in (('point', np.nan), ('normal', np.inf), ('separation', -np.inf),
+                      ('toi', np.nan), ('normal', 0.0)):
+        arrays = {'point': point.copy(), 'normal': normal.copy(),
+                  'separation': separation.copy(), 'toi': toi.copy()}
+        arrays[name][17] = bad
+        assert _native.usual_contacts(**arrays) is None, name
+    short = normal.copy()
+    short[3] = [0.5, 0.0, 0.0]
+    assert _native.usual_contacts(point, short, separation, toi) is None
+    wide = np.zeros((m, 6))
+    wide[:, ::2] = normal
+    assert _native.usual_contacts(point, wide[:, ::2], separation, toi) is None
+    assert _native.usual_contacts(point, normal.astype(np.float32), separation, toi) is None
+    assert _native.usual_contacts(point, normal, separation[:-1], toi) is None
+
+
+def test_contacts_with_a_strided_normal_are_checked_row_by_row_to_the_same_answer():
+    # a hand-made set whose normals are a strided view takes the row-by-row check: the
+    # same contacts and bits as the compiled one
+    bodies = [sphere('a', 0.1, 1.0, e=0.5), sphere('b', 0.1, 1.0, e=0.5)]
+    normals = np.array([[1.0, 0.1, 0.0], [0.9, -0.2, 0.1]])
+    answers = []
+    for strided in (False, True):
+        contacts = contact_set(0, 1, [[0, 0, 0], [0, 0.01, 0]], normals, [-0.001, -0.002],
+                               kind=ContactKind.PERSISTENT)
+        if strided:
+            wide = np.zeros((2, 6))
+            wide[:, ::2] = contacts.normal
+            contacts.normal = wide[:, ::2]
+        world = World(bodies, SolverSettings(), FixedContacts(contacts))
+        before = states([[-0.1, 0, 0], [0.1, 0, 0]], [[1.0, 0, 0], [-1.0, 0, 0]])
+        result = world.step(before, before.copy(), 0.01)
+        answers.append((result.states.linear.tobytes(), result.report.normal_impulse.tobytes(),
+                        result.report.contacts.normal.tobytes()))
+    assert answers[0] == answers[1]
+    assert np.linalg.norm(np.frombuffer(answers[0][2]).reshape(-1, 3), axis=1) == \
+        pytest.approx(1.0)
+
+
 def test_inactive_body_with_nan_twist_is_held_and_others_resolved():
     bodies = [sphere('a', 0.1, 1.0, e=0.0), sphere('b', 0.1, 1.0, e=0.0)]
     contacts = contact_set(0, 1, [0, 0, 0], [1, 0, 0], -0.001, kind=ContactKind.PERSISTENT)

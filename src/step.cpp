@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 
@@ -23,6 +24,16 @@ void load_twists(const BodyStatesView& s, const BodyProperties& bodies, double* 
 }
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+// Whether a row holds no impulse: its normal and friction impulses all +0 (not -0: a row
+// holding -0 would be rewritten +0 by its update), tested on their bits at once
+bool holds_nothing(const ContactRow& r) {
+  uint64_t bits[3];
+  std::memcpy(&bits[0], &r.normal, sizeof(double));
+  std::memcpy(&bits[1], &r.tangent[0], sizeof(double));
+  std::memcpy(&bits[2], &r.tangent[1], sizeof(double));
+  return (bits[0] | bits[1] | bits[2]) == 0;
+}
 
 bool persistent(int8_t kind) { return kind == static_cast<int8_t>(ContactKind::persistent); }
 
@@ -754,13 +765,8 @@ void StepSolver::prepare(StepContext& ctx) {
 }
 
 bool StepSolver::idle(const Manifold& manifold) const {
-  for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i) {
-    const ContactRow& r = rows_[i];
-    if (!(r.normal == 0.0 && r.tangent[0] == 0.0 && r.tangent[1] == 0.0 &&
-          !std::signbit(r.normal) && !std::signbit(r.tangent[0]) &&
-          !std::signbit(r.tangent[1])))
-      return false;
-  }
+  for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
+    if (!holds_nothing(rows_[i])) return false;
   if (manifold.spin < 0) return true;
   const Vec3& torque = spins_[manifold.spin].torque;
   return torque.x() == 0.0 && torque.y() == 0.0 && torque.z() == 0.0;
@@ -1106,21 +1112,25 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
     inertia_.resize(n);
     for (int64_t i = 0; i < n; ++i)
       if (touched_[i] && inv_mass[i] != 0.0) inertia_[i] = inv_inertia_[i].inverse();
+    // the islands pushed by a moving immovable body (driven, kinematic): they may gain. An
+    // immovable body's velocity is the same at every substep's start (nothing solves it)
+    driven_.clear();
+    auto moving = [&](int32_t i) {
+      const double* v = start_.data() + 6 * i;
+      return v[0] != 0.0 || v[1] != 0.0 || v[2] != 0.0 || v[3] != 0.0 || v[4] != 0.0 ||
+             v[5] != 0.0;
+    };
+    for (const ContactRow& r : rows_) {
+      if (r.ma == 0.0 && moving(r.a)) driven_.push_back(island_[r.b]);
+      if (r.mb == 0.0 && moving(r.b)) driven_.push_back(island_[r.a]);
+    }
     islands_ = true;
   }
   auto root = [&](int32_t i) { return island_[i]; };
-  // kinetic energy change of each island (J) and the scale it is judged against; an
-  // island pushed by a moving immovable body (driven, kinematic) may gain: not judged
+  // kinetic energy change of each island (J) and the scale it is judged against; a driven
+  // island is not judged
   gain_.assign(2 * n, 0.0);
-  auto moving = [&](int32_t i) {
-    const double* v = start_.data() + 6 * i;
-    return v[0] != 0.0 || v[1] != 0.0 || v[2] != 0.0 || v[3] != 0.0 || v[4] != 0.0 ||
-           v[5] != 0.0;
-  };
-  for (const ContactRow& r : rows_) {
-    if (r.ma == 0.0 && moving(r.a)) gain_[2 * root(r.b) + 1] = -1.0;
-    if (r.mb == 0.0 && moving(r.b)) gain_[2 * root(r.a) + 1] = -1.0;
-  }
+  for (const int32_t x : driven_) gain_[2 * x + 1] = -1.0;
   for (int64_t i = 0; i < n; ++i) {
     if (!touched_[i] || inv_mass[i] == 0.0) continue;
     const double* v0 = start_.data() + 6 * i;

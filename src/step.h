@@ -329,6 +329,8 @@ class StepSolver {
   std::vector<Mat3> inertia_;        // (N,) kg m^2, world frame: inv_inertia_^-1 (hold_energy)
   std::vector<double> gain_;         // (N, 2) J, per island root: the energy change, the
                                      // energy before (-1: driven, not judged)
+  std::vector<int32_t> driven_;      // island roots pushed by a moving immovable body (found
+                                     // with the islands)
   std::vector<double> fraction_;     // (N,) reference fraction of the step
   std::vector<int64_t> earliest_;    // (N,) its earliest detected impact (-1: none)
   std::vector<uint8_t> touched_, impacted_;

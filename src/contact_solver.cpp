@@ -385,8 +385,8 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
         for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
       for (int i = 0; i < m; ++i) {
         if (i == c) continue;
-        const double f = s[i][c] / s[c][c];
-        for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+        const double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
+        for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
       }
     }
     double n[4] = {}, t[4][2] = {};
@@ -532,8 +532,8 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
         for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
       for (int i = 0; i < m; ++i) {
         if (i == c) continue;
-        double f = s[i][c] / s[c][c];
-        for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+        double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
+        for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
       }
     }
     for (int i = 0; i < k; ++i) x[i] = 0.0;

@@ -248,16 +248,17 @@ void bind_solver(py::module_& m) {
       .def_property_readonly("sweep_bodies", [](const StepSolver& solver) {
         const std::vector<Manifold>& manifolds = solver.manifolds();
         py::array_t<int32_t> out({static_cast<py::ssize_t>(manifolds.size()),
-                                  static_cast<py::ssize_t>(3)});
+                                  static_cast<py::ssize_t>(4)});
         auto view = out.mutable_unchecked<2>();
         for (size_t m = 0; m < manifolds.size(); ++m) {
           view(m, 0) = manifolds[m].a;
           view(m, 1) = manifolds[m].b;
           view(m, 2) = manifolds[m].count;
+          view(m, 3) = manifolds[m].first;
         }
         return out;
       }, "The last step's swept manifolds (those its active set let in) in sweep order: "
-         "(body a, body b, rows) each.")
+         "(body a, body b, rows, first row) each; the first rows give the solve's order.")
       .def_property_readonly("helped", [](const StepSolver& solver) {
         return py::make_tuple(solver.helped(), solver.chunks_run());
       }, "Chunks of the waves' second halves run so far: (by the second thread, in all).")

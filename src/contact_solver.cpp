@@ -309,11 +309,15 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       const double held = b == 0 ? r[i].normal : r[i].tangent[b - 1];
       if (held != 0.0) apply(r[i], free, b, direction(r[i], b), -held);
     }
-  // m/s: the block's speeds without its impulses; a slip below kStill of it is none
+  // m/s: each row's velocity along n, t1, t2 without the block's impulses (what every
+  // solve's right-hand side reads), and the block's speeds: a slip below kStill of it is none
+  double speed[4][3];
   double scale = 0.0;
   for (int i = 0; i < k; ++i)
-    for (int b = 0; b < 3; ++b)
-      scale = std::max(scale, std::fabs(relative(r[i], free, b, direction(r[i], b))));
+    for (int b = 0; b < 3; ++b) {
+      speed[i][b] = relative(r[i], free, b, direction(r[i], b));
+      scale = std::max(scale, std::fabs(speed[i][b]));
+    }
   // impulse along row j's direction b moves row i's velocity along its direction a by
   // (each computed once, when first needed: the solves after the first reuse them)
   double effects[12][12];
@@ -356,8 +360,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
           const double e = column(i, dir[u], c);
           s[u][c] = c == u ? e * (1.0 + kRegular) : e;
         }
-        s[u][m] = -(relative(ru, free, dir[u], direction(ru, dir[u])) +
-                    (dir[u] == 0 ? ru.allowance : 0.0));
+        s[u][m] = -(speed[i][dir[u]] + (dir[u] == 0 ? ru.allowance : 0.0));
         continue;
       }
       // a sliding row's friction, linearised about the slip of the last try (Newton):
@@ -371,8 +374,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
         if (row[c] == i && dir[c] == 0) e -= ru.mu * aim[i][a];
         s[u][c] = e;
       }
-      s[u][m] = -stiff[i] * (p[0] * relative(ru, free, 1, ru.t1) +
-                             p[1] * relative(ru, free, 2, ru.t2));
+      s[u][m] = -stiff[i] * (p[0] * speed[i][1] + p[1] * speed[i][2]);
     }
     for (int c = 0; c < m; ++c) {   // Gauss-Jordan, partial pivoting
       int pivot = c;
@@ -383,8 +385,8 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
         for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
       for (int i = 0; i < m; ++i) {
         if (i == c) continue;
-        const double f = s[i][c] / s[c][c];
-        for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+        const double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
+        for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
       }
     }
     double n[4] = {}, t[4][2] = {};
@@ -530,8 +532,8 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
         for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
       for (int i = 0; i < m; ++i) {
         if (i == c) continue;
-        double f = s[i][c] / s[c][c];
-        for (int j = c; j <= m; ++j) s[i][j] -= f * s[c][j];
+        double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
+        for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
       }
     }
     for (int i = 0; i < k; ++i) x[i] = 0.0;

@@ -82,6 +82,88 @@ void sides(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& c
   for (int32_t& side : s.side) side = side >= cut ? 1 : 0;
 }
 
+// Moves manifolds to later waves where that fills lanes (s.bucket[index]: each chosen
+// manifold's wave, as found, then as moved), keeping the sweep's bits: a manifold may sit
+// in any wave after those of the manifolds before it and before those of the manifolds
+// after it that share a movable body with it (s.next: the next one on each of its movable
+// bodies), so the order in which each body's manifolds are solved is kept. Wave by wave,
+// for each side and row count 1..4 (s.side; the longer manifolds are solved one by one),
+// the r manifolds left over by its wide groups of kLanes (r = n mod kLanes, a padded group
+// or one solved one by one) are moved to the next wave when r of them may be (their next
+// manifolds two waves on or later; s.speculative ones first): there they join its
+// manifolds of the same side and row count, so no wave is left with more part-filled
+// groups or lone manifolds than before (the remainders of two waves become at most one).
+// `waves`: the number of waves (none is added).
+void fill_lanes(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
+                const double* inv_mass, int32_t waves, WaveScratch& s) {
+  const size_t count = chosen.size();
+  // each manifold's side and row count (key: 4 side + rows - 1; -1 for more than 4 rows),
+  // and its next one on its bodies A and B (-1: none, or the body immovable)
+  s.key.resize(count);
+  s.next.resize(2 * count);
+  std::fill(s.last.begin(), s.last.end(), -1);
+  for (size_t index = count; index-- > 0;) {
+    const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
+    s.key[index] = static_cast<int8_t>(m.count <= 4 ? 4 * s.side[index] + m.count - 1 : -1);
+    const int32_t bodies[2] = {m.a, m.b};
+    for (int j = 0; j < 2; ++j) {
+      const bool movable = inv_mass[bodies[j]] > 0.0;
+      s.next[2 * index + static_cast<size_t>(j)] = movable ? s.last[bodies[j]] : -1;
+      if (movable) s.last[bodies[j]] = static_cast<int32_t>(index);
+    }
+  }
+  // the manifolds of each wave as found, in order: wave w's members[start[w - 1], start[w])
+  // once the counts are placed (start[-1]: 0)
+  s.start.assign(static_cast<size_t>(waves) + 1, 0);
+  for (size_t index = 0; index < count; ++index) ++s.start[s.bucket[index] + 1];
+  for (size_t w = 0; w < static_cast<size_t>(waves); ++w) s.start[w + 1] += s.start[w];
+  s.members.resize(count);
+  for (size_t index = 0; index < count; ++index)
+    s.members[s.start[s.bucket[index]]++] = static_cast<int32_t>(index);   // (start: ends)
+  s.carry.clear();   // the manifolds moved into the wave at hand, and into the next
+  s.moved.clear();
+  for (size_t w = 0; w + 1 < static_cast<size_t>(waves); ++w) {
+    auto movable = [&](int32_t index) {   // to wave w + 1
+      for (int j = 0; j < 2; ++j) {
+        const int32_t next = s.next[2 * static_cast<size_t>(index) + static_cast<size_t>(j)];
+        if (next >= 0 && s.bucket[static_cast<size_t>(next)] < w + 2) return false;
+      }
+      return true;
+    };
+    // the wave's manifolds: those found in it, then those moved into it
+    const int32_t* found = s.members.data() + (w == 0 ? 0 : s.start[w - 1]);
+    const size_t found_count = s.start[w] - (w == 0 ? 0 : s.start[w - 1]);
+    const size_t total = found_count + s.carry.size();
+    auto at = [&](size_t i) { return i < found_count ? found[i] : s.carry[i - found_count]; };
+    int32_t left[8] = {}, may[8] = {};   // per key: the manifolds, those that may move
+    for (size_t i = 0; i < total; ++i) {
+      const int32_t index = at(i), k = s.key[static_cast<size_t>(index)];
+      if (k < 0) continue;
+      ++left[k];
+      if (movable(index)) ++may[k];
+    }
+    int32_t need = 0;   // manifolds to move
+    for (int k = 0; k < 8; ++k) {
+      left[k] %= kLanes;   // (now: how many to move)
+      if (may[k] < left[k]) left[k] = 0;
+      need += left[k];
+    }
+    for (int pass = 0; pass < 2 && need > 0; ++pass)   // the speculative ones first
+      for (size_t i = total; i-- > 0 && need > 0;) {
+        const int32_t index = at(i), k = s.key[static_cast<size_t>(index)];
+        if (k < 0 || left[k] == 0 ||
+            (s.speculative[static_cast<size_t>(index)] != 0) != (pass == 0) || !movable(index))
+          continue;
+        --left[k];
+        --need;
+        s.bucket[static_cast<size_t>(index)] = w + 1;
+        s.moved.push_back(index);
+      }
+    s.carry.swap(s.moved);
+    s.moved.clear();
+  }
+}
+
 }  // namespace
 
 void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
@@ -119,6 +201,14 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   } else {
     s.side.assign(count, 0);
   }
+  s.speculative.resize(count);
+  for (size_t index = 0; index < count; ++index) {
+    const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
+    bool all = true;
+    for (int32_t i = m.first; i < m.first + m.count && all; ++i) all = rows[i].allowance > 0.0;
+    s.speculative[index] = all ? 1 : 0;
+  }
+  fill_lanes(manifolds, chosen, inv_mass, waves, s);
   // stable counting sort by (wave, side, row count, speculative): bucket (2 wave + side) *
   // 10 + 2 (count - 1) + speculative (counts 1 to 4; the last two buckets of a part for
   // longer manifolds). A speculative manifold (every row with a gap to close: allowance >
@@ -126,11 +216,6 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   // after the others of its row count, so that most wide groups are all of one kind and a
   // group whose four lanes all stay idle costs only its approach test (solve_velocities)
   constexpr int kKinds = 5, kBuckets = 2 * kKinds;
-  auto speculative = [&](const Manifold& m) {
-    for (int32_t i = m.first; i < m.first + m.count; ++i)
-      if (!(rows[i].allowance > 0.0)) return false;
-    return true;
-  };
   // each manifold's bucket; with two sides, last[body]: the last part (2 wave + side) that
   // moved it, and after[part]: the other side's last wave whose part moved one of its bodies
   if (split) {
@@ -153,7 +238,7 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     }
     s.bucket[index] = static_cast<size_t>(part) * kBuckets +
                       2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) +
-                      (speculative(m) ? 1 : 0);
+                      s.speculative[index];
   }
   const size_t parts = 2 * static_cast<size_t>(waves);
   s.start.assign(parts * kBuckets + 1, 0);

@@ -7,7 +7,11 @@
 // more than the highest wave of the manifolds before it that share a movable body with
 // it (0 without one). Visiting the waves in turn is then the same sweep as the order,
 // bit for bit, and the manifolds of one wave share no movable body: they may be solved
-// in any order, four at a time in lanes (wide groups) and on two threads. (Box2D v3
+// in any order, four at a time in lanes (wide groups) and on two threads. A manifold may
+// as well sit in a later wave, before that of the next manifold on each of its movable
+// bodies (the order in which each body's manifolds are solved is what the bits depend
+// on): the manifolds a wave's wide groups leave over (fewer than four of a row count and
+// side) move to the next wave where they all may, to fill its groups. (Box2D v3
 // colours its constraint graph greedily instead; that reorders the sweep, and measured
 // here it broke the pile and heap laws whose margins the order had tuned.)
 //
@@ -38,6 +42,10 @@ struct WaveScratch {
   std::vector<int32_t> side;     // per chosen manifold
   std::vector<size_t> bucket, start;
   std::vector<int32_t> order, after, index;
+  std::vector<uint8_t> speculative;   // per chosen manifold: every row with allowance > 0
+  std::vector<int8_t> key;           // per chosen manifold: 4 side + rows - 1 (-1: > 4 rows)
+  std::vector<int32_t> next;         // per chosen manifold: the next one on its body A, B
+  std::vector<int32_t> members, carry, moved;   // fill_lanes: the waves' manifolds
 };
 
 // The manifolds `chosen` (indices into `manifolds`, ascending: the sweep's order) wave by

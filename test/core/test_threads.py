@@ -1,24 +1,26 @@
 """The velocity sweeps give the same bits whatever their layout: waves, lanes, threads.
 
 A sweep visits a solve's manifolds wave by wave (src/sweep_waves.h): a manifold's wave is
-one more than the highest wave of the manifolds before it that share a movable body, so the
-manifolds of a wave share no movable body and the waves in turn are the sweep in the solve's
-order, bit for bit. A wave is solved four manifolds at a time in wide rows
-(``SOLVER_TUNING`` ``wide_rows``; the two or three left of a row count in a group padded
-with idle lanes); with two threads (``threads``) and waves that average at least twice
-``parallel_wave`` manifolds, each wave is cut in two sides (connected halves of the pile),
-each side's parts one thread's queue, a part waiting only for the other side's last part
-that moved one of its bodies; the per-contact passes of the reference frame are shared too.
-Detection shares a step's pairs between the two threads too (``src/detection.h``: the
-first half here, the second on the worker, each into its own lane, joined in pair order).
-The laws: the waves hold (no movable body twice in a wave, each after one that moved its
-bodies, wide groups of one row count, every manifold of up to four rows
-in one but the one left of a row count), and each part waits for the other side's part
-that last moved one of its bodies; whatever the thread count and with wide rows on or
-off, every step's corrected states and impulses are the same bytes, and so is every array
-detection gives. Here a pile of cubes and spheres falls into a bin and settles (impacts,
-stacking, friction, rolling resistance), with a low ``parallel_wave`` so that most steps
-cut their waves in two sides.
+one more than the highest wave of the manifolds before it that share a movable body, or a
+later one before the next manifold on each of its movable bodies (to fill a later wave's
+wide groups with the manifolds a wave leaves over), so the manifolds of a wave share no
+movable body and the waves in turn are the sweep in the solve's order, bit for bit. A wave
+is solved four manifolds at a time in wide rows (``SOLVER_TUNING`` ``wide_rows``; the two
+or three left of a row count in a group padded with idle lanes); with two threads
+(``threads``) and waves that average at least twice ``parallel_wave`` manifolds, each wave
+is cut in two sides (connected halves of the pile), each side's parts one thread's queue, a
+part waiting only for the other side's last part that moved one of its bodies; the
+per-contact passes of the reference frame are shared too. Detection shares a step's pairs
+between the two threads too (``src/detection.h``: the first half here, the second on the
+worker, each into its own lane, joined in pair order).
+The laws: the waves hold (no movable body twice in a wave, each body's manifolds in the
+solve's order, wide groups of one row count, every manifold of up to four rows in one but
+the one left of a row count, fewer manifolds left over than waves as early as possible
+would leave), and each part waits for the other side's part that last moved one of its
+bodies; whatever the thread count and with wide rows on or off, every step's corrected
+states and impulses are the same bytes, and so is every array detection gives. Here a pile
+of cubes and spheres falls into a bin and settles (impacts, stacking, friction, rolling
+resistance), with a low ``parallel_wave`` so that most steps cut their waves in two sides.
 """
 
 from __future__ import annotations
@@ -141,8 +143,7 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
         sweep = w._solver.sweep_bodies
         assert [s[0] for s in waves[1:]] == [s[3] for s in waves[:-1]]    # in a row
         assert (waves[-1][3] if waves else 0) == len(sweep)                # all of them
-        seen = set()     # the movable bodies of the parts before
-        begun = set()    # the sides whose first part is behind
+        order = {}       # per movable body: the first row of its last manifold so far
         last = {}        # per movable body: the last part (rows) that moved it
         for i, (first, wide_end, lone, end, side, after, _) in enumerate(waves):
             assert first < wide_end or wide_end < end              # never empty
@@ -159,12 +160,12 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
             pairs = sweep[first:end, :2]
             used = pairs[movable[pairs]]
             assert len(np.unique(used)) == len(used)   # none twice in a part
-            # each manifold of a side's part after its first shares a movable body with the
-            # parts before (else it would be in an earlier wave)
-            if side in begun:
-                assert all(any(b in seen for b in pair if movable[b]) for pair in pairs)
-            begun.add(side)
-            seen.update(used.tolist())
+            # each movable body's manifolds in the solve's order (their first rows)
+            for pair, row in zip(pairs.tolist(), sweep[first:end, 3].tolist()):
+                for b in pair:
+                    if movable[b]:
+                        assert order.get(b, -1) < row
+                        order[b] = row
             # it waits for the other side's last part that moved one of its bodies
             other = [last[b] for b in used.tolist() if b in last and waves[last[b]][4] != side]
             assert after == max(other, default=-1)
@@ -189,6 +190,52 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
     if threads == 1:                    # and most in full ones (not a pile cut in sides
         assert wide > total // 2        # of a few manifolds a part)
     assert (split > STEPS // 2) == (threads == 2)   # cut in sides: with two threads only
+
+
+def part_filled(parts) -> int:
+    """Per part (its manifolds' row counts), per row count 1 to 4 whose manifolds are not a
+    multiple of four: one padded group or one manifold solved one by one; their sum."""
+    return sum(int(np.count_nonzero(np.bincount(k[k <= 4], minlength=5) % 4)) for k in parts)
+
+
+def left_over(waves: list[tuple], sweep: np.ndarray, movable: np.ndarray) -> tuple[int, int]:
+    """part_filled() of the waves, and of the waves as early as possible for the same
+    manifolds (each part's side kept): (as solved, as early as possible)."""
+    side = np.zeros(len(sweep), int)
+    for first, _, _, end, s, *_ in waves:
+        side[first:end] = s
+    solved = part_filled(sweep[w[0]:w[3], 2] for w in waves)
+    wave = {}        # per movable body: the last wave (as early as possible) that moved it
+    early = {}       # (wave, side) -> row counts
+    for i in np.argsort(sweep[:, 3], kind='stable'):
+        a, b, rows, _ = sweep[i].tolist()
+        own = 1 + max(wave.get(a, -1) if movable[a] else -1,
+                      wave.get(b, -1) if movable[b] else -1)
+        for body in (a, b):
+            if movable[body]:
+                wave[body] = own
+        early.setdefault((own, side[i]), []).append(rows)
+    return solved, part_filled(np.array(k) for k in early.values())
+
+
+@pytest.mark.parametrize('threads', [1, 2])
+def test_a_waves_leftovers_fill_the_next_waves_groups(threads):
+    # the manifolds a wave's wide groups leave over (fewer than four of a row count and a
+    # side: a padded group, or one solved one by one) move to the next wave when they all
+    # may: never more left over than with every manifold in its earliest wave, and fewer
+    # in most steps of the pile settling
+    bodies, state = pile()
+    w = world(bodies, threads)
+    fewer = steps = 0
+    for _ in range(STEPS):
+        state = w.step(state, euler_step(state, w.dynamic, GRAVITY, DT), DT).states
+        if not w._solver.waves:
+            continue
+        solved, early = left_over(w._solver.waves, w._solver.sweep_bodies, w.dynamic)
+        assert solved <= early
+        fewer += solved < early
+        steps += 1
+    assert fewer > steps // 2
 
 
 def test_detection_on_two_threads_gives_the_bytes_of_one_thread():

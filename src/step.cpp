@@ -1312,7 +1312,20 @@ bool StepSolver::land(StepContext& ctx, bool& struck) {
   }
   if (!any) return false;
   // every row again, the landing ones without allowance: the velocities (not the poses,
-  // which travel_ holds) leave the touching contacts at rest along their normals
+  // which travel_ holds) leave the touching contacts at rest along their normals. These
+  // sweeps are also the last ones of the answer's velocities, which the laws need whole: a
+  // settled pile lands 4-10 % of its rows at every step (bench/pile.py, 100 and 1000 bodies
+  // at 30 and 120 Hz: nearly all within 5e-5 m of the touch and approaching slower than 1e-3
+  // m/s) and its sweeps here change 50-87 % of its rows' impulses by more than `converged`
+  // (they never converge). Sweeping only the manifolds of the approaching landing rows and
+  // of their movable bodies (2.7-7.7 % fewer instructions a step) let a tower of 20 cubes of
+  // 0.2 m fall at 240 Hz (its floor contact lands: the column above stops as one); falling
+  // back to every row where that changed a row beyond them by 10 % of the fastest landing
+  // approach, the piles fell back at 11-12 of 12-13 landings; landing only rows approaching
+  // faster than 1 % of their bodies' g dt left a pile of 100 cubes awake after 4 s at 120
+  // Hz; 5 sweeps of every row instead of velocity_iterations let the tower fall, and with no
+  // landing at all its top sank 7 mm in 0.25 s, rocking at up to 0.07 m/s (landed: 0.8 mm,
+  // then still)
   sweep(ctx, p.velocity_iterations);
   // judged as a substep (against the last substep's start): the landing's sweeps with
   // friction can raise the energy too (a box on three close points: +7 % of the step's)

@@ -209,7 +209,7 @@ void Detector::set_filter(std::vector<std::uint64_t> group, std::vector<std::uin
 
 // -- motion and broad phase ----------------------------------------------------------------
 
-void Detector::prepare(const StepPoses& poses) {
+void Detector::prepare(const StepPoses& poses, bool queried) {
   const int n = pieces();
   bodies_.resize(n);
   for (int k = 0; k < n; ++k) {
@@ -220,8 +220,10 @@ void Detector::prepare(const StepPoses& poses) {
       body.moved = (body.p1 - body.p0).norm() +
                    (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
       if (!std::isfinite(body.moved)) body.moved = 0.0;
-      body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
-                                     body.p1 + body.r1 * shapes_[k].offset);
+      if (queried) {
+        body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
+                                       body.p1 + body.r1 * shapes_[k].offset);
+      }
       continue;
     }
     const double* p0 = poses.p0 + 3 * owner;
@@ -248,6 +250,12 @@ void Detector::prepare(const StepPoses& poses) {
       body.q0 = body.q1;
       body.fixed = true;
     }
+    body.turn = angle_between(body.q0, body.q1);
+    body.moved = (body.p1 - body.p0).norm() +
+                 (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
+    if (!std::isfinite(body.moved)) body.moved = 0.0;
+    body.r1 = body.q1.toRotationMatrix();
+    if (!queried) continue;
     body.linear = body.angular = Vec3::Zero();
     body.external_linear = body.external_angular = Vec3::Zero();
     if (!frozen && poses.linear != nullptr && finite(poses.linear + 3 * owner, 3) &&
@@ -265,11 +273,6 @@ void Detector::prepare(const StepPoses& poses) {
         body.external_linear != Vec3::Zero() || body.external_angular != Vec3::Zero(),
         body.linear != Vec3::Zero() || body.angular != Vec3::Zero(),
         body.p0 != body.p1 || !(body.q0.coeffs() == body.q1.coeffs()));
-    body.turn = angle_between(body.q0, body.q1);
-    body.moved = (body.p1 - body.p0).norm() +
-                 (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
-    if (!std::isfinite(body.moved)) body.moved = 0.0;
-    body.r1 = body.q1.toRotationMatrix();
     body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
                                    body.p1 + body.r1 * shapes_[k].offset);
   }
@@ -361,7 +364,7 @@ void Detector::find_pairs() {
 }
 
 void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {
-  prepare(poses);
+  prepare(poses, false);
   find_pairs();
   pairs.clear();
   for (const auto& [a, b] : pairs_) pairs.emplace_back(shapes_[a].body, shapes_[b].body);
@@ -370,7 +373,7 @@ void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int
 }
 
 void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) {
-  prepare(poses);
+  prepare(poses, false);
   fraction.assign(count(), 1.0);
   const double slop = settings_.linear_slop;
   std::vector<int> fixed;
@@ -448,7 +451,7 @@ void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) 
 void Detector::detect(const StepPoses& poses, ContactRows& out) {
   out.clear();
   out.reserve(last_rows_ + last_rows_ / 8 + 16);
-  prepare(poses);
+  prepare(poses, true);
   find_pairs();
   budget_ = StepBudget();
   if (pairs_.size() > static_cast<std::size_t>(std::max(settings_.max_pairs, 0))) {
@@ -867,11 +870,9 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   // state maybe (gap + relative motion beyond the margin), a hit that may bounce (a point
   // approaching faster than its resting speed along the normal), a deep overlap
   // (deep_persistent)
-  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
-                       B.angular.norm() * radius_or_zero(b);
   const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
   if (gap + relative > margin || -gap > deep ||
-      (gap < 0.0 && gap + relative > 0.0 && may_bounce(a, b, normal, speed))) {
+      (gap < 0.0 && gap + relative > 0.0 && may_bounce(a, b, normal, speed_bound(a, b)))) {
     out.drop_from(first);
     return false;
   }
@@ -907,6 +908,13 @@ bool Detector::still_apart(Lane& lane, std::int64_t key, int a, int b,
   return true;
 }
 
+double Detector::speed_bound(int a, int b) const {
+  const Body& A = bodies_[a];
+  const Body& B = bodies_[b];
+  return (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
+         B.angular.norm() * radius_or_zero(b);
+}
+
 double Detector::radius_or_zero(int body) const {
   const double r = shapes_[body].radius;
   return std::isfinite(r) ? r : 0.0;
@@ -935,9 +943,7 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
     lane.next.begin_apart(static_cast<std::int64_t>(a) * pieces() + b,
                           A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1, distance);
   }
-  // bound on the speed of any point of B relative to A (current twists), m/s
-  const double speed = (B.linear - A.linear).norm() + A.angular.norm() * radius_or_zero(a) +
-                       B.angular.norm() * radius_or_zero(b);
+  const double speed = speed_bound(a, b);
   // overlapping now, possibly apart before, and closing fast enough to bounce: its
   // previous state decides between a persistent contact and an impact
   const double approach = approach_bound(a, b);

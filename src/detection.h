@@ -172,7 +172,10 @@ class Detector {
     coal::Transform3s pose1;  // the coal geometry's pose at s = 1
   };
 
-  void prepare(const StepPoses& poses);
+  // Each shape's Body from `poses`; without `queried`, only its motion (poses, turn, moved,
+  // fixed, valid: what the broad phase and hold_back read), not the twists, loaded and
+  // pose1 that only the pair queries read (left as they were).
+  void prepare(const StepPoses& poses, bool queried);
   void find_pairs();
   double sphere_gap(int a, int b) const;
   double relative_motion(int a, int b) const;
@@ -249,6 +252,8 @@ class Detector {
   std::int64_t feature_of(Lane& lane, int a, int b, const Vec3& local_a,
                           const Vec3& local_b) const;
   Motion motion(int body) const;
+  // m/s, bound on the speed of any point of B relative to A (current twists)
+  double speed_bound(int a, int b) const;
   double radius_or_zero(int body) const;
 
   std::vector<BodyShape> shapes_;

@@ -630,15 +630,21 @@ void StepSolver::prepare(StepContext& ctx) {
   // written over the last step's rows (rows_ is cut to the `used` ones after): each field
   // is set here or by prepare_row, none twice (a new row's constructor zeros every field)
   size_t used = 0;
+  friction_.clear();
   for (int64_t span = 0; span < c.manifold_count; ++span) {
     const int64_t* manifold = c.manifolds + kManifoldFields * span;
     const auto first_row = static_cast<int32_t>(used);
+    // the pair of every row of the manifold (the binding checks it) and its restitution,
+    // once for them all
+    const int64_t a = manifold[0], b = manifold[1];
+    double e_a = bodies.restitution[a], e_b = bodies.restitution[b];
+    if (p.restitution_rule != CombineRule::kPerObject)
+      e_a = e_b = combine(e_a, e_b, p.restitution_rule);
     for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
       if (gap_[k] > 0.0 && !forced_[k] && approach_[k] + allowance_[k] > bound) {
         rowless_.push_back(static_cast<int32_t>(k));
         continue;
       }
-      const int64_t a = c.a[k], b = c.b[k];
       row_of_[k] = static_cast<int32_t>(used);
       if (used == rows_.size()) rows_.emplace_back();
       ContactRow& row = rows_[used++];
@@ -653,13 +659,8 @@ void StepSolver::prepare(StepContext& ctx) {
       row.ra = ra_[k];
       row.rb = rb_[k];
       row.allowance = allowance_[k];
-      if (p.restitution_rule == CombineRule::kPerObject) {
-        row.e_a = bodies.restitution[a];
-        row.e_b = bodies.restitution[b];
-      } else {
-        row.e_a = row.e_b = combine(bodies.restitution[a], bodies.restitution[b],
-                                    p.restitution_rule);
-      }
+      row.e_a = e_a;
+      row.e_b = e_b;
     }
     const auto count = static_cast<int32_t>(used) - first_row;
     if (count > 0) {
@@ -671,6 +672,12 @@ void StepSolver::prepare(StepContext& ctx) {
       // a body's impact this step: its blocks with their friction as one (mirror hits keep
       // mirror impulses); a settled pile keeps the cheaper split solve
       block.coupled = impacted_[block.a] || impacted_[block.b];
+      // its friction coefficients, once for its rows
+      const double mu_s = combine(bodies.static_friction[a], bodies.static_friction[b],
+                                  p.friction_rule);
+      friction_.push_back(mu_s);
+      friction_.push_back(std::min(mu_s, combine(bodies.kinetic_friction[a],
+                                                 bodies.kinetic_friction[b], p.friction_rule)));
     }
   }
   rows_.resize(used);
@@ -678,12 +685,8 @@ void StepSolver::prepare(StepContext& ctx) {
   in_parts(ctx, static_cast<int64_t>(rows_.size()), [&](int64_t lo, int64_t hi) {
     for (int64_t i = lo; i < hi; ++i) {
       ContactRow& row = rows_[static_cast<size_t>(i)];
-      const double mu_s = combine(bodies.static_friction[row.a], bodies.static_friction[row.b],
-                                  p.friction_rule);
-      const double mu_k = std::min(mu_s, combine(bodies.kinetic_friction[row.a],
-                                                 bodies.kinetic_friction[row.b],
-                                                 p.friction_rule));
-      prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu_s, mu_k);
+      const double* mu = friction_.data() + 2 * row.manifold;
+      prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu[0], mu[1]);
     }
   });
   // a manifold with a point that slips (faster than the sticking speed, prepare_row): its

@@ -401,6 +401,8 @@ class StepSolver {
   std::vector<ContactRow> rows_, shock_rows_;
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
                                                      // (manifolds_ in detection's order)
+  std::vector<double> friction_;     // (manifolds_, 2) its pair's static and kinetic
+                                     // friction coefficients (prepare)
   std::vector<Manifold> shock_blocks_;               // shock_rows_' blocks (shock_rows)
   std::vector<uint8_t> holding_;                     // (shock_rows' scratch, per body)
   std::vector<Manifold> swept_;      // the manifolds in the sweeps, in plan_'s order

@@ -565,10 +565,14 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
 
 }  // namespace
 
-COLLRES_CLONED
-void prepare_block(Manifold& block, const ContactRow* r) {
-  const int k = block.count;
-  for (int i = 0; i < k && k <= 4; ++i) {
+namespace {
+
+// prepare_block() of a block of k rows (k a constant: every loop unrolled, the Gauss-Jordan
+// tableau in registers); k 1 (no inverse) to 4
+template <int k>
+inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
+                                                            const ContactRow* r) {
+  for (int i = 0; i < k; ++i) {
     for (int j = 0; j < k; ++j) {
       block.plain[i][j] = (r[i].ma + r[i].mb) * dot(r[i].n, r[j].n) +
                           dot(r[i].ang_a[0], r[j].dw_a[0]) + dot(r[i].ang_b[0], r[j].dw_b[0]);
@@ -580,20 +584,18 @@ void prepare_block(Manifold& block, const ContactRow* r) {
     // points share equally, a symmetric hit gets symmetric impulses, no pivot is near zero
     block.delassus[i][i] *= 1.0 + kRegular;
   }
+  block.invertible = false;
+  if (k < 2) return;
   // its inverse (Gauss-Jordan, partial pivoting; a pivot below 1e-9 of its diagonal: none)
-  double s[4][8];
+  double s[k][2 * k];
   for (int i = 0; i < k; ++i)
     for (int j = 0; j < 2 * k; ++j)
       s[i][j] = j < k ? block.delassus[i][j] : (j - k == i ? 1.0 : 0.0);
-  block.invertible = k >= 2 && k <= 4;
-  for (int c = 0; c < k && block.invertible; ++c) {
+  for (int c = 0; c < k; ++c) {
     int pivot = c;
     for (int i = c + 1; i < k; ++i)
       if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
-    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(block.delassus[c][c]) + 1e-300) {
-      block.invertible = false;
-      break;
-    }
+    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(block.delassus[c][c]) + 1e-300) return;
     if (pivot != c)
       for (int j = 0; j < 2 * k; ++j) std::swap(s[c][j], s[pivot][j]);
     const double scale = 1.0 / s[c][c];
@@ -604,8 +606,22 @@ void prepare_block(Manifold& block, const ContactRow* r) {
       for (int j = 0; j < 2 * k; ++j) s[i][j] -= f * s[c][j];
     }
   }
-  for (int i = 0; i < k && block.invertible; ++i)
+  for (int i = 0; i < k; ++i)
     for (int j = 0; j < k; ++j) block.inverse[i][j] = s[i][k + j];
+  block.invertible = true;
+}
+
+}  // namespace
+
+COLLRES_CLONED
+void prepare_block(Manifold& block, const ContactRow* r) {
+  switch (block.count) {
+    case 1: prepare_block_of<1>(block, r); break;
+    case 2: prepare_block_of<2>(block, r); break;
+    case 3: prepare_block_of<3>(block, r); break;
+    case 4: prepare_block_of<4>(block, r); break;
+    default: block.invertible = false; break;   // (more rows: solved row by row)
+  }
 }
 
 double combine(double a, double b, CombineRule rule) {

@@ -482,28 +482,38 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
 // manifold (close points, small lever arms) and leaves it spinning. Returns the largest
 // impulse change, or -1 when no active set fits (the caller falls back to rows).
 // A `coupled` block: the whole block with its friction (solve_coupled) first.
-double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
+// `searched`: the block's q (below) as a wide group's lane found it, the lane's solve having
+// found no answer (solve_groups): the block is not idle and, invertible and not coupled, its
+// all-active answer and the set of the rows carrying impulse did not fit (two rows: no set
+// did); the search goes on from there, the same sets in the same order. Null: none tried.
+double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double* searched) {
   const int k = block.count;
   if (block.coupled) {
     const double step = solve_coupled(r, k, v);
     if (step >= 0.0) return step;
   }
+  const bool lanes_tried = searched != nullptr && block.invertible && !block.coupled;
+  if (lanes_tried && k == 2) return -1.0;
   const double (&a)[4][4] = block.delassus;
   double q[4], x[4];
-  bool idle = true;
-  for (int i = 0; i < k; ++i) {
-    double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
-    q[i] = b;
-    for (int j = 0; j < k; ++j) q[i] -= block.plain[i][j] * r[j].normal;
-    idle = idle && r[i].normal == 0.0 && q[i] >= 0.0;
+  if (searched != nullptr) {
+    for (int i = 0; i < k; ++i) q[i] = searched[i];
+  } else {
+    bool idle = true;
+    for (int i = 0; i < k; ++i) {
+      double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
+      q[i] = b;
+      for (int j = 0; j < k; ++j) q[i] -= block.plain[i][j] * r[j].normal;
+      idle = idle && r[i].normal == 0.0 && q[i] >= 0.0;
+    }
+    // no impulse and no row approaching beyond its allowance: x = 0 is the answer (the only
+    // one: A is positive definite), and nothing changes; the active-set search would try
+    // every set before the empty one (a speculative manifold that did not activate: most
+    // blocks of a settled pile at 30 Hz)
+    if (idle) return 0.0;
   }
-  // no impulse and no row approaching beyond its allowance: x = 0 is the answer (the only
-  // one: A is positive definite), and nothing changes; the active-set search would try
-  // every set before the empty one (a speculative manifold that did not activate: most
-  // blocks of a settled pile at 30 Hz)
-  if (idle) return 0.0;
   // every row active: the regularised matrix's inverse (prepare_block), when it has one
-  if (block.invertible) {
+  if (block.invertible && !lanes_tried) {
     bool ok = true;
     for (int i = 0; i < k; ++i) {
       x[i] = 0.0;
@@ -553,7 +563,7 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
   // set, largest first
   int carrying = 0;
   for (int i = 0; i < k; ++i) carrying |= r[i].normal > 0.0 ? 1 << i : 0;
-  const bool tried = block.invertible && carrying == (1 << k) - 1;
+  const bool tried = lanes_tried || (block.invertible && carrying == (1 << k) - 1);
   if (!tried && fits(carrying)) return take_block(r, k, x, v);
   for (int order = block.invertible ? 1 : 0; order < (1 << k); ++order) {
     const int set = kActiveSets.sets[k][order];
@@ -718,8 +728,10 @@ struct Progress {
 inline bool positive_zero(double x) { return x == 0.0 && !std::signbit(x); }
 
 // One sweep's update of one manifold (its rows; its spin row's load), twists at hand.
+// `searched`: solve_block's (a lane's q; the manifold is then not idle), or null.
 double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
-                      std::vector<SpinRow>* spins, Progress& progress) {
+                      std::vector<SpinRow>* spins, Progress& progress,
+                      const double* searched = nullptr) {
   const size_t lo = static_cast<size_t>(manifold.first);
   const size_t hi = lo + static_cast<size_t>(manifold.count);
   const int k = manifold.count;
@@ -727,7 +739,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
   // update would change nothing (solve_block's idle answer, solve_normal's max(0 - m q, 0)
   // = +0, solve_friction's empty cone): done, as solve_groups' idle groups (a speculative
   // manifold that did not activate)
-  bool idle = true;
+  bool idle = searched == nullptr;
   for (size_t i = lo; i < hi && idle; ++i) {
     const ContactRow& r = rows[i];
     idle = positive_zero(r.normal) && positive_zero(r.tangent[0]) &&
@@ -737,7 +749,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
     if (spins != nullptr && manifold.spin >= 0) (*spins)[manifold.spin].load = 0.0;
     return 0.0;
   }
-  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
+  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t, searched) : -1.0;
   if (step >= 0.0) {
     step = std::max(step, solve_friction_block(&rows[lo], k, t));
   } else {
@@ -752,6 +764,17 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
     (*spins)[manifold.spin].load = load;
   }
   return step;
+}
+
+// solve_manifold() of a manifold of 2 to 4 rows, lane l of a wide group, whose solve in
+// the lane found no answer (solve_groups; q its block's q in lanes: solve_block's
+// `searched`). Returns the largest impulse change (N s).
+double solve_searched(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
+                      const Lanes* q, int l) {
+  double searched[4];
+  for (int i = 0; i < manifold.count; ++i) searched[i] = q[i][l];
+  Progress own;
+  return solve_manifold(rows, manifold, t, nullptr, own, searched);
 }
 
 // One sweep over manifolds [from, to), one by one.
@@ -1343,8 +1366,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         ContactRow* r = &rows[static_cast<size_t>(manifold.first)];
         lane_to_rows(w, l, r, k);
         Twists lane = t.lane(l);
-        Progress own;
-        step[l] = solve_manifold(rows, manifold, lane, nullptr, own);
+        step[l] = solve_searched(rows, manifold, lane, q, l);
         rows_to_lane(r, k, w, l);
         t.set_lane(l, lane);
       }

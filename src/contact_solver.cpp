@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <limits>
+
+#include "sweep_waves.h"
 
 namespace collres {
 namespace {
@@ -1924,7 +1927,7 @@ static bool hold_lower(ContactRow& r, bool upper_b) {
 
 void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
                 std::vector<int32_t>& order, std::vector<ContactRow>& scratch,
-                std::vector<Manifold>& blocks, std::vector<uint8_t>& holding, double ratio) {
+                ShockBlocks& shock, std::vector<uint8_t>& holding, double ratio) {
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
     const ContactRow& row = rows[r];
@@ -1968,6 +1971,7 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
   };
   for (const ContactRow& r : scratch)
     if (held(r)) holding[level[r.b] > level[r.a] ? r.a : r.b] = 1;
+  std::vector<Manifold>& blocks = shock.blocks;
   blocks.clear();
   for (size_t j = 0; j < scratch.size(); ++j) {
     const ContactRow& r = scratch[j];
@@ -1981,12 +1985,38 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
     ++blocks.back().count;
   }
   for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
+  // each lower level's blocks in waves: a body's blocks in their order (its inverse mass
+  // as its rows had it before the copies held the lower one: a held body is movable, so
+  // the blocks on it stay in order too)
+  shock.inv_mass.assign(level.size(), 0.0);
+  for (const ContactRow& r : scratch) {
+    shock.inv_mass[r.a] = rows[r.contact].ma;
+    shock.inv_mass[r.b] = rows[r.contact].mb;
+  }
+  auto lower_of = [&](const Manifold& m) { return std::min(level[m.a], level[m.b]); };
+  WaveScratch waves;
+  std::vector<int32_t> chosen;
+  size_t levels = 0;
+  for (size_t lo = 0; lo < blocks.size(); ++levels) {
+    size_t hi = lo;
+    chosen.clear();
+    for (; hi < blocks.size() && lower_of(blocks[hi]) == lower_of(blocks[lo]); ++hi)
+      chosen.push_back(static_cast<int32_t>(hi));
+    if (shock.plans.size() <= levels) shock.plans.resize(levels + 1);
+    if (shock.levels.size() <= levels) shock.levels.resize(levels + 1);
+    SweepPlan& plan = shock.plans[levels];
+    ++plan.rows_epoch;   // (new rows: nothing of the last pool kept)
+    wave_manifolds(blocks, chosen, scratch, shock.inv_mass.data(),
+                   static_cast<int64_t>(level.size()), plan, shock.levels[levels], waves);
+    lo = hi;
+  }
+  shock.levels.resize(levels);
 }
 
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
-                     const std::vector<Manifold>& blocks, int sweeps) {
-  double* v = bodies.velocity;
+                     ShockBlocks& shock, int sweeps) {
+  const double* v = bodies.velocity;
   // the copies take the fields that change within a step from the rows they stand for
   for (ContactRow& r : scratch) {
     const ContactRow& row = rows[r.contact];
@@ -1996,35 +2026,32 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
     r.tangent[0] = row.tangent[0];
     r.tangent[1] = row.tangent[1];
   }
-  auto lower_of = [&](const Manifold& m) { return std::min(level[m.a], level[m.b]); };
-  Progress progress;
-  for (size_t lo = 0; lo < blocks.size();) {
-    size_t hi = lo;
-    while (hi < blocks.size() && lower_of(blocks[hi]) == lower_of(blocks[lo])) ++hi;
-    for (int sweep = 0; sweep < sweeps; ++sweep) {
-      for (size_t q = lo; q < hi; ++q) {
-        const Manifold& m = blocks[q];
-        // the lower body moving towards the upper one does not push it (no energy
-        // gain): only the upper body's own approach is stopped
-        const bool upper_b = level[m.b] > level[m.a];
-        const int32_t low = upper_b ? m.a : m.b;
-        double allowance[4];
-        for (int i = 0; i < m.count; ++i) {
-          ContactRow& r = scratch[static_cast<size_t>(m.first + i)];
-          const double towards = (upper_b ? 1.0 : -1.0) *
-                                 (dot(lin(v, low), r.n) +
-                                  dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
-          allowance[i] = r.allowance;
-          r.allowance += std::max(towards, 0.0);
-        }
-        Twists t(v, m.a, m.b);
-        solve_manifold(scratch, m, t, nullptr, progress);
-        t.store(v, m.a, m.b);
-        for (int i = 0; i < m.count; ++i)
-          scratch[static_cast<size_t>(m.first + i)].allowance = allowance[i];
+  for (size_t l = 0; l < shock.levels.size(); ++l) {
+    const std::vector<Manifold>& blocks = shock.levels[l];
+    // the lower body moving towards the upper one does not push it (no energy gain): only
+    // the upper body's own approach is stopped, each row's allowance the larger by the
+    // lower body's approach while the level is swept (a held lower body: its blocks leave
+    // its twist as it was)
+    shock.allowance.clear();
+    for (const Manifold& m : blocks) {
+      const bool upper_b = level[m.b] > level[m.a];
+      const int32_t low = upper_b ? m.a : m.b;
+      for (int i = 0; i < m.count; ++i) {
+        ContactRow& r = scratch[static_cast<size_t>(m.first + i)];
+        const double towards = (upper_b ? 1.0 : -1.0) *
+                               (dot(lin(v, low), r.n) +
+                                dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
+        shock.allowance.push_back(r.allowance);
+        r.allowance += std::max(towards, 0.0);
       }
     }
-    lo = hi;
+    // `sweeps` sweeps (a threshold below every change: never converged before)
+    solve_velocities(scratch, blocks, bodies, sweeps, -std::numeric_limits<double>::infinity(),
+                     nullptr, &shock.plans[l]);
+    size_t at = 0;
+    for (const Manifold& m : blocks)
+      for (int i = 0; i < m.count; ++i)
+        scratch[static_cast<size_t>(m.first + i)].allowance = shock.allowance[at++];
   }
   for (const ContactRow& r : scratch) {
     ContactRow& kept = rows[r.contact];

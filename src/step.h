@@ -401,7 +401,7 @@ class StepSolver {
   std::vector<ContactRow> rows_, shock_rows_;
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
                                                      // (manifolds_ in detection's order)
-  std::vector<Manifold> shock_blocks_;               // shock_rows_' blocks (shock_rows)
+  ShockBlocks shock_blocks_;                         // shock_rows_' blocks (shock_rows)
   std::vector<uint8_t> holding_;                     // (shock_rows' scratch, per body)
   std::vector<Manifold> swept_;      // the manifolds in the sweeps, in plan_'s order
   std::vector<int32_t> chosen_;      // their indices in manifolds_, ascending (admit)

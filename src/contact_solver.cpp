@@ -1927,7 +1927,7 @@ static bool hold_lower(ContactRow& r, bool upper_b) {
 
 void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
                 std::vector<int32_t>& order, std::vector<ContactRow>& scratch,
-                ShockBlocks& shock, std::vector<uint8_t>& holding, double ratio) {
+                ShockBlocks& shock, std::vector<uint8_t>& holding, double ratio, bool wide) {
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
     const ContactRow& row = rows[r];
@@ -2005,6 +2005,7 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
     if (shock.plans.size() <= levels) shock.plans.resize(levels + 1);
     if (shock.levels.size() <= levels) shock.levels.resize(levels + 1);
     SweepPlan& plan = shock.plans[levels];
+    plan.wide = wide;
     ++plan.rows_epoch;   // (new rows: nothing of the last pool kept)
     wave_manifolds(blocks, chosen, scratch, shock.inv_mass.data(),
                    static_cast<int64_t>(level.size()), plan, shock.levels[levels], waves);

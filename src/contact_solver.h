@@ -359,8 +359,8 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
 
 // propagate_shock's blocks (shock_rows): a manifold's rows on an immovable body together,
 // any other row alone, by the level of their lower body; the blocks of each such level
-// in the order its sweeps visit them (wave_manifolds: wave by wave, wide groups in lanes,
-// the same bits as in their order) and its SweepPlan (one thread).
+// in the order its sweeps visit them (wave_manifolds: wave by wave, wide groups in lanes
+// where `wide`, the same bits as in their order) and its SweepPlan (one thread).
 struct ShockBlocks {
   std::vector<Manifold> blocks;               // all of them, by lower level
   std::vector<std::vector<Manifold>> levels;  // each lower level's, in waves
@@ -387,10 +387,11 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
                      ShockBlocks& blocks, int sweeps);
 // propagate_shock's rows (`scratch`), in order, with their lower bodies held, and its
-// blocks (ShockBlocks); `order` and `holding` are scratch space.
+// blocks (ShockBlocks; `wide`: their wide groups in lanes, SweepPlan::wide); `order` and
+// `holding` are scratch space.
 void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
                 std::vector<int32_t>& order, std::vector<ContactRow>& scratch,
-                ShockBlocks& blocks, std::vector<uint8_t>& holding, double ratio);
+                ShockBlocks& blocks, std::vector<uint8_t>& holding, double ratio, bool wide);
 
 // Impacts as successive stages, before the resting contacts are solved. A stage takes
 // every row that approaches faster than its contact's `threshold` (and faster than its speculative

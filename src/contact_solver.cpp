@@ -478,6 +478,45 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
   return -1.0;
 }
 
+// solve_block's test of an active set `set` of m rows (bit i: row i of the block's k;
+// idx[0 .. m): its rows in order): x (k) of A_SS x_S = -q_S by Gaussian elimination with
+// partial pivoting, 0 off S; whether x >= 0 on S and w = A x + q >= 0 off S
+template <int m>
+inline __attribute__((always_inline)) bool fits_set(const double (&a)[4][4], const double* q,
+                                                    int k, int set, const int* idx,
+                                                    double* x) {
+  double s[m + 1][m + 1];
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < m; ++j) s[i][j] = a[idx[i]][idx[j]];
+    s[i][m] = -q[idx[i]];
+  }
+  for (int c = 0; c < m; ++c) {
+    int pivot = c;
+    for (int i = c + 1; i < m; ++i)
+      if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(a[idx[c]][idx[c]]) + 1e-300) return false;
+    if (pivot != c)
+      for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
+    for (int i = 0; i < m; ++i) {
+      if (i == c) continue;
+      double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
+      for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
+    }
+  }
+  for (int i = 0; i < k; ++i) x[i] = 0.0;
+  for (int i = 0; i < m; ++i) {
+    x[idx[i]] = s[i][m] / s[i][i];
+    if (!(x[idx[i]] >= -1e-12 * (1.0 + std::fabs(x[idx[i]])))) return false;
+  }
+  for (int i = 0; i < k; ++i) {
+    if (set & (1 << i)) continue;
+    double w = q[i];
+    for (int j = 0; j < k; ++j) w += a[i][j] * x[j];
+    if (!(w >= -1e-12 * (1.0 + std::fabs(q[i])))) return false;
+  }
+  return true;
+}
+
 // The normal rows of one manifold (2..4 points of a pair) solved together, exactly: the
 // small LCP  w = A x + q >= 0, x >= 0, x.w = 0  (A the rows' Delassus matrix, x the new
 // accumulated impulses) by trying the active sets (the rows that carry impulse now first,
@@ -531,36 +570,13 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double
     int idx[4], m = 0;
     for (int i = 0; i < k; ++i)
       if (set & (1 << i)) idx[m++] = i;
-    double s[4][5];
-    for (int i = 0; i < m; ++i) {
-      for (int j = 0; j < m; ++j) s[i][j] = a[idx[i]][idx[j]];
-      s[i][m] = -q[idx[i]];
+    switch (m) {   // (the set's size a constant: its elimination unrolled)
+      case 0: return fits_set<0>(a, q, k, set, idx, x);
+      case 1: return fits_set<1>(a, q, k, set, idx, x);
+      case 2: return fits_set<2>(a, q, k, set, idx, x);
+      case 3: return fits_set<3>(a, q, k, set, idx, x);
+      default: return fits_set<4>(a, q, k, set, idx, x);
     }
-    for (int c = 0; c < m; ++c) {
-      int pivot = c;
-      for (int i = c + 1; i < m; ++i)
-        if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
-      if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(a[idx[c]][idx[c]]) + 1e-300) return false;
-      if (pivot != c)
-        for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
-      for (int i = 0; i < m; ++i) {
-        if (i == c) continue;
-        double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
-        for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
-      }
-    }
-    for (int i = 0; i < k; ++i) x[i] = 0.0;
-    for (int i = 0; i < m; ++i) {
-      x[idx[i]] = s[i][m] / s[i][i];
-      if (!(x[idx[i]] >= -1e-12 * (1.0 + std::fabs(x[idx[i]])))) return false;
-    }
-    for (int i = 0; i < k; ++i) {
-      if (set & (1 << i)) continue;
-      double w = q[i];
-      for (int j = 0; j < k; ++j) w += a[i][j] * x[j];
-      if (!(w >= -1e-12 * (1.0 + std::fabs(q[i])))) return false;
-    }
-    return true;
   };
   // first the rows that carry impulse now (warm: usually still the answer), then every
   // set, largest first

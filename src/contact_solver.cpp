@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <limits>
+
+#include "sweep_waves.h"
 
 namespace collres {
 namespace {
@@ -475,6 +478,45 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
   return -1.0;
 }
 
+// solve_block's test of an active set `set` of m rows (bit i: row i of the block's k;
+// idx[0 .. m): its rows in order): x (k) of A_SS x_S = -q_S by Gaussian elimination with
+// partial pivoting, 0 off S; whether x >= 0 on S and w = A x + q >= 0 off S
+template <int m>
+inline __attribute__((always_inline)) bool fits_set(const double (&a)[4][4], const double* q,
+                                                    int k, int set, const int* idx,
+                                                    double* x) {
+  double s[m + 1][m + 1];
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < m; ++j) s[i][j] = a[idx[i]][idx[j]];
+    s[i][m] = -q[idx[i]];
+  }
+  for (int c = 0; c < m; ++c) {
+    int pivot = c;
+    for (int i = c + 1; i < m; ++i)
+      if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(a[idx[c]][idx[c]]) + 1e-300) return false;
+    if (pivot != c)
+      for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
+    for (int i = 0; i < m; ++i) {
+      if (i == c) continue;
+      double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
+      for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
+    }
+  }
+  for (int i = 0; i < k; ++i) x[i] = 0.0;
+  for (int i = 0; i < m; ++i) {
+    x[idx[i]] = s[i][m] / s[i][i];
+    if (!(x[idx[i]] >= -1e-12 * (1.0 + std::fabs(x[idx[i]])))) return false;
+  }
+  for (int i = 0; i < k; ++i) {
+    if (set & (1 << i)) continue;
+    double w = q[i];
+    for (int j = 0; j < k; ++j) w += a[i][j] * x[j];
+    if (!(w >= -1e-12 * (1.0 + std::fabs(q[i])))) return false;
+  }
+  return true;
+}
+
 // The normal rows of one manifold (2..4 points of a pair) solved together, exactly: the
 // small LCP  w = A x + q >= 0, x >= 0, x.w = 0  (A the rows' Delassus matrix, x the new
 // accumulated impulses) by trying the active sets (the rows that carry impulse now first,
@@ -482,28 +524,38 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
 // manifold (close points, small lever arms) and leaves it spinning. Returns the largest
 // impulse change, or -1 when no active set fits (the caller falls back to rows).
 // A `coupled` block: the whole block with its friction (solve_coupled) first.
-double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
+// `searched`: the block's q (below) as a wide group's lane found it, the lane's solve having
+// found no answer (solve_groups): the block is not idle and, invertible and not coupled, its
+// all-active answer and the set of the rows carrying impulse did not fit (two rows: no set
+// did); the search goes on from there, the same sets in the same order. Null: none tried.
+double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double* searched) {
   const int k = block.count;
   if (block.coupled) {
     const double step = solve_coupled(r, k, v);
     if (step >= 0.0) return step;
   }
+  const bool lanes_tried = searched != nullptr && block.invertible && !block.coupled;
+  if (lanes_tried && k == 2) return -1.0;
   const double (&a)[4][4] = block.delassus;
   double q[4], x[4];
-  bool idle = true;
-  for (int i = 0; i < k; ++i) {
-    double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
-    q[i] = b;
-    for (int j = 0; j < k; ++j) q[i] -= block.plain[i][j] * r[j].normal;
-    idle = idle && r[i].normal == 0.0 && q[i] >= 0.0;
+  if (searched != nullptr) {
+    for (int i = 0; i < k; ++i) q[i] = searched[i];
+  } else {
+    bool idle = true;
+    for (int i = 0; i < k; ++i) {
+      double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
+      q[i] = b;
+      for (int j = 0; j < k; ++j) q[i] -= block.plain[i][j] * r[j].normal;
+      idle = idle && r[i].normal == 0.0 && q[i] >= 0.0;
+    }
+    // no impulse and no row approaching beyond its allowance: x = 0 is the answer (the only
+    // one: A is positive definite), and nothing changes; the active-set search would try
+    // every set before the empty one (a speculative manifold that did not activate: most
+    // blocks of a settled pile at 30 Hz)
+    if (idle) return 0.0;
   }
-  // no impulse and no row approaching beyond its allowance: x = 0 is the answer (the only
-  // one: A is positive definite), and nothing changes; the active-set search would try
-  // every set before the empty one (a speculative manifold that did not activate: most
-  // blocks of a settled pile at 30 Hz)
-  if (idle) return 0.0;
   // every row active: the regularised matrix's inverse (prepare_block), when it has one
-  if (block.invertible) {
+  if (block.invertible && !lanes_tried) {
     bool ok = true;
     for (int i = 0; i < k; ++i) {
       x[i] = 0.0;
@@ -518,42 +570,19 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
     int idx[4], m = 0;
     for (int i = 0; i < k; ++i)
       if (set & (1 << i)) idx[m++] = i;
-    double s[4][5];
-    for (int i = 0; i < m; ++i) {
-      for (int j = 0; j < m; ++j) s[i][j] = a[idx[i]][idx[j]];
-      s[i][m] = -q[idx[i]];
+    switch (m) {   // (the set's size a constant: its elimination unrolled)
+      case 0: return fits_set<0>(a, q, k, set, idx, x);
+      case 1: return fits_set<1>(a, q, k, set, idx, x);
+      case 2: return fits_set<2>(a, q, k, set, idx, x);
+      case 3: return fits_set<3>(a, q, k, set, idx, x);
+      default: return fits_set<4>(a, q, k, set, idx, x);
     }
-    for (int c = 0; c < m; ++c) {
-      int pivot = c;
-      for (int i = c + 1; i < m; ++i)
-        if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
-      if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(a[idx[c]][idx[c]]) + 1e-300) return false;
-      if (pivot != c)
-        for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
-      for (int i = 0; i < m; ++i) {
-        if (i == c) continue;
-        double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
-        for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
-      }
-    }
-    for (int i = 0; i < k; ++i) x[i] = 0.0;
-    for (int i = 0; i < m; ++i) {
-      x[idx[i]] = s[i][m] / s[i][i];
-      if (!(x[idx[i]] >= -1e-12 * (1.0 + std::fabs(x[idx[i]])))) return false;
-    }
-    for (int i = 0; i < k; ++i) {
-      if (set & (1 << i)) continue;
-      double w = q[i];
-      for (int j = 0; j < k; ++j) w += a[i][j] * x[j];
-      if (!(w >= -1e-12 * (1.0 + std::fabs(q[i])))) return false;
-    }
-    return true;
   };
   // first the rows that carry impulse now (warm: usually still the answer), then every
   // set, largest first
   int carrying = 0;
   for (int i = 0; i < k; ++i) carrying |= r[i].normal > 0.0 ? 1 << i : 0;
-  const bool tried = block.invertible && carrying == (1 << k) - 1;
+  const bool tried = lanes_tried || (block.invertible && carrying == (1 << k) - 1);
   if (!tried && fits(carrying)) return take_block(r, k, x, v);
   for (int order = block.invertible ? 1 : 0; order < (1 << k); ++order) {
     const int set = kActiveSets.sets[k][order];
@@ -565,10 +594,14 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v) {
 
 }  // namespace
 
-COLLRES_CLONED
-void prepare_block(Manifold& block, const ContactRow* r) {
-  const int k = block.count;
-  for (int i = 0; i < k && k <= 4; ++i) {
+namespace {
+
+// prepare_block() of a block of k rows (k a constant: every loop unrolled, the Gauss-Jordan
+// tableau in registers); k 1 (no inverse) to 4
+template <int k>
+inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
+                                                            const ContactRow* r) {
+  for (int i = 0; i < k; ++i) {
     for (int j = 0; j < k; ++j) {
       block.plain[i][j] = (r[i].ma + r[i].mb) * dot(r[i].n, r[j].n) +
                           dot(r[i].ang_a[0], r[j].dw_a[0]) + dot(r[i].ang_b[0], r[j].dw_b[0]);
@@ -580,20 +613,18 @@ void prepare_block(Manifold& block, const ContactRow* r) {
     // points share equally, a symmetric hit gets symmetric impulses, no pivot is near zero
     block.delassus[i][i] *= 1.0 + kRegular;
   }
+  block.invertible = false;
+  if (k < 2) return;
   // its inverse (Gauss-Jordan, partial pivoting; a pivot below 1e-9 of its diagonal: none)
-  double s[4][8];
+  double s[k][2 * k];
   for (int i = 0; i < k; ++i)
     for (int j = 0; j < 2 * k; ++j)
       s[i][j] = j < k ? block.delassus[i][j] : (j - k == i ? 1.0 : 0.0);
-  block.invertible = k >= 2 && k <= 4;
-  for (int c = 0; c < k && block.invertible; ++c) {
+  for (int c = 0; c < k; ++c) {
     int pivot = c;
     for (int i = c + 1; i < k; ++i)
       if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
-    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(block.delassus[c][c]) + 1e-300) {
-      block.invertible = false;
-      break;
-    }
+    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(block.delassus[c][c]) + 1e-300) return;
     if (pivot != c)
       for (int j = 0; j < 2 * k; ++j) std::swap(s[c][j], s[pivot][j]);
     const double scale = 1.0 / s[c][c];
@@ -604,8 +635,22 @@ void prepare_block(Manifold& block, const ContactRow* r) {
       for (int j = 0; j < 2 * k; ++j) s[i][j] -= f * s[c][j];
     }
   }
-  for (int i = 0; i < k && block.invertible; ++i)
+  for (int i = 0; i < k; ++i)
     for (int j = 0; j < k; ++j) block.inverse[i][j] = s[i][k + j];
+  block.invertible = true;
+}
+
+}  // namespace
+
+COLLRES_CLONED
+void prepare_block(Manifold& block, const ContactRow* r) {
+  switch (block.count) {
+    case 1: prepare_block_of<1>(block, r); break;
+    case 2: prepare_block_of<2>(block, r); break;
+    case 3: prepare_block_of<3>(block, r); break;
+    case 4: prepare_block_of<4>(block, r); break;
+    default: block.invertible = false; break;   // (more rows: solved row by row)
+  }
 }
 
 double combine(double a, double b, CombineRule rule) {
@@ -702,8 +747,10 @@ struct Progress {
 inline bool positive_zero(double x) { return x == 0.0 && !std::signbit(x); }
 
 // One sweep's update of one manifold (its rows; its spin row's load), twists at hand.
+// `searched`: solve_block's (a lane's q; the manifold is then not idle), or null.
 double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
-                      std::vector<SpinRow>* spins, Progress& progress) {
+                      std::vector<SpinRow>* spins, Progress& progress,
+                      const double* searched = nullptr) {
   const size_t lo = static_cast<size_t>(manifold.first);
   const size_t hi = lo + static_cast<size_t>(manifold.count);
   const int k = manifold.count;
@@ -711,7 +758,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
   // update would change nothing (solve_block's idle answer, solve_normal's max(0 - m q, 0)
   // = +0, solve_friction's empty cone): done, as solve_groups' idle groups (a speculative
   // manifold that did not activate)
-  bool idle = true;
+  bool idle = searched == nullptr;
   for (size_t i = lo; i < hi && idle; ++i) {
     const ContactRow& r = rows[i];
     idle = positive_zero(r.normal) && positive_zero(r.tangent[0]) &&
@@ -721,7 +768,7 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
     if (spins != nullptr && manifold.spin >= 0) (*spins)[manifold.spin].load = 0.0;
     return 0.0;
   }
-  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t) : -1.0;
+  double step = k >= 2 && k <= 4 ? solve_block(&rows[lo], manifold, t, searched) : -1.0;
   if (step >= 0.0) {
     step = std::max(step, solve_friction_block(&rows[lo], k, t));
   } else {
@@ -736,6 +783,17 @@ double solve_manifold(std::vector<ContactRow>& rows, const Manifold& manifold, T
     (*spins)[manifold.spin].load = load;
   }
   return step;
+}
+
+// solve_manifold() of a manifold of 2 to 4 rows, lane l of a wide group, whose solve in
+// the lane found no answer (solve_groups; q its block's q in lanes: solve_block's
+// `searched`). Returns the largest impulse change (N s).
+double solve_searched(std::vector<ContactRow>& rows, const Manifold& manifold, Twists& t,
+                      const Lanes* q, int l) {
+  double searched[4];
+  for (int i = 0; i < manifold.count; ++i) searched[i] = q[i][l];
+  Progress own;
+  return solve_manifold(rows, manifold, t, nullptr, own, searched);
 }
 
 // One sweep over manifolds [from, to), one by one.
@@ -1327,8 +1385,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         ContactRow* r = &rows[static_cast<size_t>(manifold.first)];
         lane_to_rows(w, l, r, k);
         Twists lane = t.lane(l);
-        Progress own;
-        step[l] = solve_manifold(rows, manifold, lane, nullptr, own);
+        step[l] = solve_searched(rows, manifold, lane, q, l);
         rows_to_lane(r, k, w, l);
         t.set_lane(l, lane);
       }
@@ -1886,7 +1943,7 @@ static bool hold_lower(ContactRow& r, bool upper_b) {
 
 void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
                 std::vector<int32_t>& order, std::vector<ContactRow>& scratch,
-                std::vector<Manifold>& blocks, std::vector<uint8_t>& holding, double ratio) {
+                ShockBlocks& shock, std::vector<uint8_t>& holding, double ratio, bool wide) {
   order.clear();
   for (size_t r = 0; r < rows.size(); ++r) {
     const ContactRow& row = rows[r];
@@ -1930,6 +1987,7 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
   };
   for (const ContactRow& r : scratch)
     if (held(r)) holding[level[r.b] > level[r.a] ? r.a : r.b] = 1;
+  std::vector<Manifold>& blocks = shock.blocks;
   blocks.clear();
   for (size_t j = 0; j < scratch.size(); ++j) {
     const ContactRow& r = scratch[j];
@@ -1943,12 +2001,39 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
     ++blocks.back().count;
   }
   for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
+  // each lower level's blocks in waves: a body's blocks in their order (its inverse mass
+  // as its rows had it before the copies held the lower one: a held body is movable, so
+  // the blocks on it stay in order too)
+  shock.inv_mass.assign(level.size(), 0.0);
+  for (const ContactRow& r : scratch) {
+    shock.inv_mass[r.a] = rows[r.contact].ma;
+    shock.inv_mass[r.b] = rows[r.contact].mb;
+  }
+  auto lower_of = [&](const Manifold& m) { return std::min(level[m.a], level[m.b]); };
+  WaveScratch waves;
+  std::vector<int32_t> chosen;
+  size_t levels = 0;
+  for (size_t lo = 0; lo < blocks.size(); ++levels) {
+    size_t hi = lo;
+    chosen.clear();
+    for (; hi < blocks.size() && lower_of(blocks[hi]) == lower_of(blocks[lo]); ++hi)
+      chosen.push_back(static_cast<int32_t>(hi));
+    if (shock.plans.size() <= levels) shock.plans.resize(levels + 1);
+    if (shock.levels.size() <= levels) shock.levels.resize(levels + 1);
+    SweepPlan& plan = shock.plans[levels];
+    plan.wide = wide;
+    ++plan.rows_epoch;   // (new rows: nothing of the last pool kept)
+    wave_manifolds(blocks, chosen, scratch, shock.inv_mass.data(),
+                   static_cast<int64_t>(level.size()), plan, shock.levels[levels], waves);
+    lo = hi;
+  }
+  shock.levels.resize(levels);
 }
 
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
-                     const std::vector<Manifold>& blocks, int sweeps) {
-  double* v = bodies.velocity;
+                     ShockBlocks& shock, int sweeps) {
+  const double* v = bodies.velocity;
   // the copies take the fields that change within a step from the rows they stand for
   for (ContactRow& r : scratch) {
     const ContactRow& row = rows[r.contact];
@@ -1958,35 +2043,32 @@ void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
     r.tangent[0] = row.tangent[0];
     r.tangent[1] = row.tangent[1];
   }
-  auto lower_of = [&](const Manifold& m) { return std::min(level[m.a], level[m.b]); };
-  Progress progress;
-  for (size_t lo = 0; lo < blocks.size();) {
-    size_t hi = lo;
-    while (hi < blocks.size() && lower_of(blocks[hi]) == lower_of(blocks[lo])) ++hi;
-    for (int sweep = 0; sweep < sweeps; ++sweep) {
-      for (size_t q = lo; q < hi; ++q) {
-        const Manifold& m = blocks[q];
-        // the lower body moving towards the upper one does not push it (no energy
-        // gain): only the upper body's own approach is stopped
-        const bool upper_b = level[m.b] > level[m.a];
-        const int32_t low = upper_b ? m.a : m.b;
-        double allowance[4];
-        for (int i = 0; i < m.count; ++i) {
-          ContactRow& r = scratch[static_cast<size_t>(m.first + i)];
-          const double towards = (upper_b ? 1.0 : -1.0) *
-                                 (dot(lin(v, low), r.n) +
-                                  dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
-          allowance[i] = r.allowance;
-          r.allowance += std::max(towards, 0.0);
-        }
-        Twists t(v, m.a, m.b);
-        solve_manifold(scratch, m, t, nullptr, progress);
-        t.store(v, m.a, m.b);
-        for (int i = 0; i < m.count; ++i)
-          scratch[static_cast<size_t>(m.first + i)].allowance = allowance[i];
+  for (size_t l = 0; l < shock.levels.size(); ++l) {
+    const std::vector<Manifold>& blocks = shock.levels[l];
+    // the lower body moving towards the upper one does not push it (no energy gain): only
+    // the upper body's own approach is stopped, each row's allowance the larger by the
+    // lower body's approach while the level is swept (a held lower body: its blocks leave
+    // its twist as it was)
+    shock.allowance.clear();
+    for (const Manifold& m : blocks) {
+      const bool upper_b = level[m.b] > level[m.a];
+      const int32_t low = upper_b ? m.a : m.b;
+      for (int i = 0; i < m.count; ++i) {
+        ContactRow& r = scratch[static_cast<size_t>(m.first + i)];
+        const double towards = (upper_b ? 1.0 : -1.0) *
+                               (dot(lin(v, low), r.n) +
+                                dot(ang(v, low), upper_b ? r.ang_a[0] : r.ang_b[0]));
+        shock.allowance.push_back(r.allowance);
+        r.allowance += std::max(towards, 0.0);
       }
     }
-    lo = hi;
+    // `sweeps` sweeps (a threshold below every change: never converged before)
+    solve_velocities(scratch, blocks, bodies, sweeps, -std::numeric_limits<double>::infinity(),
+                     nullptr, &shock.plans[l]);
+    size_t at = 0;
+    for (const Manifold& m : blocks)
+      for (int i = 0; i < m.count; ++i)
+        scratch[static_cast<size_t>(m.first + i)].allowance = shock.allowance[at++];
   }
   for (const ContactRow& r : scratch) {
     ContactRow& kept = rows[r.contact];

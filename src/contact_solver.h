@@ -357,6 +357,18 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
                      SolverBodies& bodies, int iterations, double converged,
                      std::vector<SpinRow>* spins = nullptr, SweepPlan* plan = nullptr);
 
+// propagate_shock's blocks (shock_rows): a manifold's rows on an immovable body together,
+// any other row alone, by the level of their lower body; the blocks of each such level
+// in the order its sweeps visit them (wave_manifolds: wave by wave, wide groups in lanes
+// where `wide`, the same bits as in their order) and its SweepPlan (one thread).
+struct ShockBlocks {
+  std::vector<Manifold> blocks;               // all of them, by lower level
+  std::vector<std::vector<Manifold>> levels;  // each lower level's, in waves
+  std::vector<SweepPlan> plans;               // each lower level's
+  std::vector<double> inv_mass;               // (N,) 1/kg of the blocks' bodies (scratch)
+  std::vector<double> allowance;              // (propagate_shock's scratch)
+};
+
 // Shock propagation (Guendelman et al. 2003) on the velocities: `sweeps` sweeps of the
 // normal and friction rows between each pair of levels, non-bouncing rows only, from the
 // ground up, `level` (N,) the contact distance of each body
@@ -367,18 +379,19 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
 // while between equal masses the one-sided rows would disturb the converging sweeps (a
 // tower of equal cubes walks). The rows' accumulated normal impulses take up the change
 // (what the next step warm starts from); `blocks` (shock_rows) are solved as the sweeps
-// solve a manifold. `scratch`: shock_rows' copies of those rows
+// solve a manifold (a level's in lanes, solve_velocities). `scratch`: shock_rows' copies
+// of those rows
 // (their masses, bounce and the levels stay as prepared for the step: built once, each
 // call refreshes what changes, the allowances, friction coefficients and impulses).
 void propagate_shock(std::vector<ContactRow>& rows, SolverBodies& bodies,
                      const std::vector<int32_t>& level, std::vector<ContactRow>& scratch,
-                     const std::vector<Manifold>& blocks, int sweeps);
+                     ShockBlocks& blocks, int sweeps);
 // propagate_shock's rows (`scratch`), in order, with their lower bodies held, and its
-// blocks: a manifold's rows on an immovable body together, any other row alone; `order`
-// and `holding` are scratch space.
+// blocks (ShockBlocks; `wide`: their wide groups in lanes, SweepPlan::wide); `order` and
+// `holding` are scratch space.
 void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>& level,
                 std::vector<int32_t>& order, std::vector<ContactRow>& scratch,
-                std::vector<Manifold>& blocks, std::vector<uint8_t>& holding, double ratio);
+                ShockBlocks& blocks, std::vector<uint8_t>& holding, double ratio, bool wide);
 
 // Impacts as successive stages, before the resting contacts are solved. A stage takes
 // every row that approaches faster than its contact's `threshold` (and faster than its speculative

@@ -1229,7 +1229,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   travel_.assign(6 * n, 0.0);
   total_.assign(3 * rows, 0.0);
   shock_rows(rows_, level_, order32_, shock_rows_, shock_blocks_, holding_,
-             p.shock_ratio);   // (for every substep)
+             p.shock_ratio, p.wide_rows);   // (for every substep)
   int sweeps = 0;
   for (int s = 0; s < substeps; ++s) {
     if (s > 0) {
@@ -1245,7 +1245,8 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
         bool stale = false;   // (shock propagation's copy of a turned row)
         for (const ContactRow& r : shock_rows_) stale = stale || turned_[r.contact];
         if (stale)
-          shock_rows(rows_, level_, order32_, shock_rows_, shock_blocks_, holding_, p.shock_ratio);
+          shock_rows(rows_, level_, order32_, shock_rows_, shock_blocks_, holding_, p.shock_ratio,
+                     p.wide_rows);
       }
       warm_start(rows_, ctx.solver);
     }

@@ -403,7 +403,7 @@ class StepSolver {
                                                      // (manifolds_ in detection's order)
   std::vector<double> friction_;     // (manifolds_, 2) its pair's static and kinetic
                                      // friction coefficients (prepare)
-  std::vector<Manifold> shock_blocks_;               // shock_rows_' blocks (shock_rows)
+  ShockBlocks shock_blocks_;                         // shock_rows_' blocks (shock_rows)
   std::vector<uint8_t> holding_;                     // (shock_rows' scratch, per body)
   std::vector<Manifold> swept_;      // the manifolds in the sweeps, in plan_'s order
   std::vector<int32_t> chosen_;      // their indices in manifolds_, ascending (admit)

@@ -12,7 +12,8 @@ is cut in two sides (connected halves of the pile), each side's parts one thread
 part waiting only for the other side's last part that moved one of its bodies; the
 per-contact passes of the reference frame are shared too. Detection shares a step's pairs
 between the two threads too (``src/detection.h``: the first half here, the second on the
-worker, each into its own lane, joined in pair order).
+worker, each into its own lane, joined in pair order). Shock propagation sweeps its blocks
+the same way, one level of lower bodies at a time (one thread).
 The laws: the waves hold (no movable body twice in a wave, each body's manifolds in the
 solve's order, wide groups of one row count, every manifold of up to four rows in one but
 the one left of a row count, fewer manifolds left over than waves as early as possible
@@ -104,6 +105,38 @@ def test_two_threads_and_one_by_one_give_the_bytes_of_one_thread_in_lanes():
     assert shared_steps > STEPS // 2
     assert np.isfinite(states[0].position).all()
     assert states[0].position[5:, 2].max() < 0.6          # it fell and piled up
+
+
+def test_shock_propagation_in_lanes_gives_the_bytes_of_one_by_one():
+    # eight 20 kg boxes each on a 1 kg box on the floor: shock propagation holds each light
+    # box under its heavy one (its rows one by one, the light box movable) and solves the
+    # floor's manifolds as blocks, each level's blocks in waves, four at a time in lanes
+    # (wide rows) or one by one; the same bytes, on one thread or two
+    bodies = [BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)]
+    rng = np.random.default_rng(5)
+    positions = [np.zeros(3)]
+    for i in range(8):
+        for name, mass, z in (('light', 1.0, 0.05), ('heavy', 20.0, 0.15 + 0.02 * (i % 3))):
+            bodies.append(BodySpec(f'{name}{i}', 'box', (0.1,) * 3, mass=mass,
+                                   static_friction=0.6, kinetic_friction=0.4))
+            positions.append(np.array([0.3 * i + (rng.uniform(-0.02, 0.02) if mass > 1.0
+                                                  else 0.0), 0.0, z]))
+    start = BodyStates.zeros(len(bodies))
+    start.position[:] = positions
+    worlds = [world(bodies, 1), world(bodies, 1, False), world(bodies, 2), world(bodies, 1)]
+    worlds[-1]._params.shock_sweeps = 0
+    states = [start.copy() for _ in worlds]
+    differs = 0
+    for _ in range(60):
+        answers = []
+        for k, w in enumerate(worlds):
+            result = w.step(states[k], euler_step(states[k], w.dynamic, GRAVITY, DT), DT)
+            states[k] = result.states
+            answers.append(answer(result))
+        assert answers[1] == answers[0] and answers[2] == answers[0]
+        differs += answers[3] != answers[0]
+    assert differs == 60   # (shock propagation acted at every step)
+    assert np.all(np.abs(states[0].position[1::2, 2] - 0.05) < 1e-3)   # the light boxes held
 
 
 def test_a_sweep_with_waves_too_small_to_share_is_not_handed_over():

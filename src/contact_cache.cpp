@@ -2,16 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <numeric>
 #include <tuple>
 
 namespace collres {
 namespace {
 
-bool key_less(const CachedImpulse& e, int64_t a, int64_t b, int64_t f) {
-  return std::tie(e.a, e.b, e.feature) < std::tie(a, b, f);
-}
+// A stored pair's run longer than this is sorted by key (hand-made sets): a run is scanned
+// point by point, which a pile's few points a pair keep cheap
+constexpr int64_t kLongestRun = 32;
 
 // Whether the m contacts' pairs (a, b) never decrease (detection lists its pairs in order).
 bool pairs_in_order(int64_t m, const int64_t* a, const int64_t* b) {
@@ -24,144 +23,172 @@ bool pairs_in_order(int64_t m, const int64_t* a, const int64_t* b) {
 
 void ContactCache::store(int64_t m, const int64_t* a, const int64_t* b, const int64_t* feature,
                          const double* normal, const double* friction, const double* point) {
-  order_.resize(m);
-  std::iota(order_.begin(), order_.end(), 0);
-  // the contacts in key order, equal keys in caller order; detection lists its pairs in
-  // order, so then only each pair's run is sorted by feature (a run holds at most a
-  // pair's few points: insertion sort, stable), else every contact is
-  if (pairs_in_order(m, a, b)) {
-    for (int64_t k = 1; k < m; ++k) {
-      const int64_t i = order_[k];
-      int64_t j = k;
-      for (; j > 0 && a[order_[j - 1]] == a[i] && b[order_[j - 1]] == b[i] &&
-             feature[order_[j - 1]] > feature[i]; --j)
-        order_[j] = order_[j - 1];
-      order_[j] = i;
-    }
-  } else {
-    std::stable_sort(order_.begin(), order_.end(), [&](int64_t i, int64_t j) {
-      return std::tie(a[i], b[i], feature[i]) < std::tie(a[j], b[j], feature[j]);
-    });
-  }
-  entries_.clear();
-  stored_at_.assign(m, -1);
-  stored_by_.clear();
+  entries_.resize(static_cast<size_t>(m));   // (kept from store to store: rewritten here)
   for (int64_t k = 0; k < m; ++k) {
-    int64_t i = order_[k];
-    if (k + 1 < m) {            // keep the last of each run of equal keys
-      int64_t j = order_[k + 1];
-      if (a[i] == a[j] && b[i] == b[j] && feature[i] == feature[j]) continue;
-    }
-    stored_at_[i] = static_cast<int64_t>(entries_.size());
-    stored_by_.push_back(i);
-    CachedImpulse e;
-    e.a = a[i]; e.b = b[i]; e.feature = feature[i];
-    e.normal = normal[i];
+    CachedImpulse& e = entries_[static_cast<size_t>(k)];
+    e.a = a[k];
+    e.b = b[k];
+    e.feature = feature[k];
+    e.normal = normal[k];
     for (int d = 0; d < 3; ++d) {
-      e.friction[d] = friction[3 * i + d];
-      e.point[d] = point[3 * i + d];
+      e.friction[d] = friction[3 * k + d];
+      e.point[d] = point[3 * k + d];
     }
-    entries_.push_back(e);
+    e.live = true;
   }
+  live_count_ = m;
+  sorted_.clear();
+  // the pairs' runs: a contact is dead where a later one of its run has its feature
+  by_key_ = false;
+  for (int64_t lo = 0; lo < m && !by_key_;) {
+    int64_t hi = lo + 1;
+    while (hi < m && a[hi] == a[lo] && b[hi] == b[lo]) ++hi;
+    by_key_ = hi - lo > kLongestRun ||
+              (hi < m && std::tie(a[hi], b[hi]) < std::tie(a[lo], b[lo]));
+    for (int64_t k = lo; k + 1 < hi; ++k)
+      for (int64_t j = k + 1; j < hi; ++j)
+        if (feature[j] == feature[k]) {
+          entries_[k].live = false;
+          --live_count_;
+          break;
+        }
+    lo = hi;
+  }
+  if (!by_key_) return;
+  // every contact in key order, equal keys in caller order: the last of each run lives
+  for (CachedImpulse& e : entries_) e.live = true;
+  live_count_ = m;
+  sorted_.resize(m);
+  std::iota(sorted_.begin(), sorted_.end(), 0);
+  std::stable_sort(sorted_.begin(), sorted_.end(), [&](int64_t i, int64_t j) {
+    return std::tie(a[i], b[i], feature[i]) < std::tie(a[j], b[j], feature[j]);
+  });
+  int64_t kept = 0;
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t i = sorted_[k];
+    if (k + 1 < m) {
+      const int64_t j = sorted_[k + 1];
+      if (a[i] == a[j] && b[i] == b[j] && feature[i] == feature[j]) {
+        entries_[i].live = false;
+        --live_count_;
+        continue;
+      }
+    }
+    sorted_[kept++] = i;
+  }
+  sorted_.resize(kept);
+}
+
+int64_t ContactCache::pair_start(int64_t from, int64_t a, int64_t b) const {
+  auto below = [&](int64_t p) {
+    const CachedImpulse& e = entries_[at(p)];
+    return std::tie(e.a, e.b) < std::tie(a, b);
+  };
+  // galloping from `from` (the pairs between, mostly matched by their hints, passed in
+  // logarithmic time), then a binary search in the last stride
+  const int64_t end = places();
+  int64_t lo = from;
+  for (int64_t step = 1; lo < end && below(lo); step *= 2) {
+    const int64_t probe = std::min(lo + step, end);
+    if (probe < end && below(probe)) {
+      lo = probe + 1;
+    } else {
+      int64_t l = lo + 1, h = probe;
+      while (l < h) {
+        const int64_t mid = l + (h - l) / 2;
+        if (below(mid)) l = mid + 1; else h = mid;
+      }
+      lo = l;
+    }
+  }
+  return lo;
 }
 
 void ContactCache::lookup(int64_t m, const int64_t* a, const int64_t* b, const int64_t* feature,
                           const double* point, double match_radius, double* normal,
                           double* friction, uint8_t* found) {
-  const int64_t n = size();
-  taken_.assign(n, 0);
-  order_.assign(m, -1);                  // matched entry per query
-  auto begin = entries_.begin(), end = entries_.end();
-  const int64_t hints = static_cast<int64_t>(stored_at_.size());
-  // pairs in order (as detection lists them): the entries of a query's pair start at or
-  // after the last query's, so one pass over the entries finds them all
-  const bool in_order = pairs_in_order(m, a, b);
-  auto pair_start = begin;
-  auto pair_below = [&](const CachedImpulse& e, int64_t i) {
-    return std::tie(e.a, e.b) < std::tie(a[i], b[i]);
+  const int64_t count = static_cast<int64_t>(entries_.size()), end = places();
+  taken_.assign(count, 0);
+  // a query's impulse from stored contact c (-1: none)
+  auto give = [&](int64_t i, int64_t c) {
+    found[i] = c >= 0;
+    normal[i] = c >= 0 ? entries_[c].normal : 0.0;
+    for (int d = 0; d < 3; ++d) friction[3 * i + d] = c >= 0 ? entries_[c].friction[d] : 0.0;
+    if (c >= 0) taken_[c] = 1;
   };
+  // pairs in order (as detection lists them): a query's pair starts at or after the last
+  // query's, so one pass over the stored pairs finds them all
+  const bool in_order = pairs_in_order(m, a, b);
+  int64_t start = 0;
   // a query's hint: the stored contact as far on in the last store's order as the last
   // match's (detection lists the same contacts in the same order each step, shifted by
   // those that came and went before them)
   int64_t shift = 0;
   for (int64_t i = 0; i < m; ++i) {      // exact matches first: the hint, else a search
     const int64_t hint = i + shift;
-    if (hint >= 0 && hint < hints && stored_at_[hint] >= 0) {
-      const CachedImpulse& e = entries_[stored_at_[hint]];
-      if (e.a == a[i] && e.b == b[i] && e.feature == feature[i]) {
-        order_[i] = stored_at_[hint];
-        taken_[order_[i]] = 1;
+    if (hint >= 0 && hint < count) {
+      const CachedImpulse& e = entries_[hint];
+      if (e.live && e.a == a[i] && e.b == b[i] && e.feature == feature[i]) {
+        give(i, hint);
         continue;
       }
     }
-    auto it = end;                       // the first entry not below the query's key
-    if (in_order) {
-      // the first entry of the query's pair: galloping on from the last search's (the
-      // pairs between, mostly matched by their hints, passed in logarithmic time)
-      for (std::ptrdiff_t step = 1; pair_start != end && pair_below(*pair_start, i); step *= 2) {
-        const auto probe = end - pair_start > step ? pair_start + step : end;
-        if (probe != end && pair_below(*probe, i)) {
-          pair_start = probe + 1;
-        } else {
-          pair_start = std::partition_point(pair_start + 1, probe, [&](const CachedImpulse& e) {
-            return pair_below(e, i);
-          });
-        }
-      }
-      for (it = pair_start; it != end && key_less(*it, a[i], b[i], feature[i]); ++it) {}
+    int64_t chosen = -1;
+    if (by_key_) {
+      auto it = std::lower_bound(sorted_.begin(), sorted_.end(), 0, [&](int64_t c, int) {
+        const CachedImpulse& e = entries_[c];
+        return std::tie(e.a, e.b, e.feature) < std::tie(a[i], b[i], feature[i]);
+      });
+      if (it != sorted_.end() && entries_[*it].a == a[i] && entries_[*it].b == b[i] &&
+          entries_[*it].feature == feature[i])
+        chosen = *it;
     } else {
-      it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
-        return key_less(e, a[i], b[i], feature[i]);
-      });
-    }
-    if (it != end && it->a == a[i] && it->b == b[i] && it->feature == feature[i]) {
-      order_[i] = it - begin;
-      taken_[order_[i]] = 1;
-      shift = stored_by_[order_[i]] - i;
-    }
-  }
-  if (point != nullptr) {                // then the nearest free point of the same pair
-    for (int64_t i = 0; i < m; ++i) {
-      if (order_[i] >= 0) continue;
-      auto it = std::lower_bound(begin, end, 0, [&](const CachedImpulse& e, int) {
-        return key_less(e, a[i], b[i], std::numeric_limits<int64_t>::min());
-      });
-      double best = match_radius;
-      int64_t chosen = -1;
-      for (; it != end && it->a == a[i] && it->b == b[i]; ++it) {
-        int64_t k = it - begin;
-        if (taken_[k]) continue;
-        double dx = it->point[0] - point[3 * i], dy = it->point[1] - point[3 * i + 1];
-        double dz = it->point[2] - point[3 * i + 2];
-        double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
-        if (dist < best) {
-          best = dist;
-          chosen = k;
+      start = pair_start(in_order ? start : 0, a[i], b[i]);
+      for (int64_t c = start; c < end && entries_[c].a == a[i] && entries_[c].b == b[i]; ++c)
+        if (entries_[c].live && entries_[c].feature == feature[i]) {
+          chosen = c;
+          break;
         }
-      }
-      if (chosen >= 0) {
-        order_[i] = chosen;
-        taken_[chosen] = 1;
+    }
+    if (chosen >= 0) shift = chosen - i;
+    give(i, chosen);
+  }
+  if (point == nullptr) return;
+  for (int64_t i = 0; i < m; ++i) {      // then the nearest free point of the same pair
+    if (found[i]) continue;
+    double best = match_radius;
+    int64_t chosen = -1;
+    for (int64_t p = pair_start(0, a[i], b[i]); p < end; ++p) {
+      const int64_t c = at(p);
+      const CachedImpulse& e = entries_[c];
+      if (e.a != a[i] || e.b != b[i]) break;
+      if (!e.live || taken_[c]) continue;
+      double dx = e.point[0] - point[3 * i], dy = e.point[1] - point[3 * i + 1];
+      double dz = e.point[2] - point[3 * i + 2];
+      double dist = std::sqrt(dx * dx + dy * dy + dz * dz);
+      if (dist < best || (dist == best && chosen >= 0 && e.feature < entries_[chosen].feature)) {
+        best = dist;
+        chosen = c;
       }
     }
-  }
-  for (int64_t i = 0; i < m; ++i) {
-    const int64_t k = order_[i];
-    found[i] = k >= 0;
-    normal[i] = k >= 0 ? entries_[k].normal : 0.0;
-    for (int d = 0; d < 3; ++d) friction[3 * i + d] = k >= 0 ? entries_[k].friction[d] : 0.0;
+    if (chosen >= 0) give(i, chosen);
   }
 }
 
 void ContactCache::forget(int64_t k, const int64_t* bodies) {
-  auto involved = [&](const CachedImpulse& e) {
+  for (CachedImpulse& e : entries_) {
+    if (!e.live) continue;
     for (int64_t j = 0; j < k; ++j)
-      if (e.a == bodies[j] || e.b == bodies[j]) return true;
-    return false;
-  };
-  entries_.erase(std::remove_if(entries_.begin(), entries_.end(), involved), entries_.end());
-  stored_at_.clear();
-  stored_by_.assign(entries_.size(), -1);
+      if (e.a == bodies[j] || e.b == bodies[j]) {
+        e.live = false;
+        --live_count_;
+        break;
+      }
+  }
+  if (by_key_)
+    sorted_.erase(std::remove_if(sorted_.begin(), sorted_.end(),
+                                 [&](int64_t c) { return !entries_[c].live; }),
+                  sorted_.end());
 }
 
 }  // namespace collres

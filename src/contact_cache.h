@@ -4,7 +4,8 @@
 // world vector (applied to B, opposite on A) so that it projects onto next step's
 // tangents whatever they are. A contact whose feature id changed (e.g. a rolling
 // sphere) falls back to the stored point of the same pair nearest to it within
-// `match_radius`, each stored entry used at most once per lookup.
+// `match_radius` (ties: the smallest feature id), each stored entry used at most once per
+// lookup.
 #pragma once
 
 #include <cstdint>
@@ -17,6 +18,7 @@ struct CachedImpulse {
   double normal = 0.0;                   // N s, >= 0, along the normal, on B
   double friction[3] = {0, 0, 0};        // N s, world, on B
   double point[3] = {0, 0, 0};           // m, world, where it acted
+  bool live = true;                      // false: a later contact has its key, or forgotten
 };
 
 class ContactCache {
@@ -33,22 +35,30 @@ class ContactCache {
   // Drop every entry that involves one of these k body indices.
   void forget(int64_t k, const int64_t* bodies);
   void clear() {
-    entries_.clear();
-    stored_at_.clear();
-    stored_by_.clear();
+    store(0, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr);
   }
-  int64_t size() const { return static_cast<int64_t>(entries_.size()); }
+  int64_t size() const { return live_count_; }
 
  private:
-  std::vector<CachedImpulse> entries_;   // sorted by (a, b, feature), keys unique
-  std::vector<int64_t> stored_at_;       // entry of each contact of the last store, caller
-                                         // order (-1: a duplicate): detection tends to list
-                                         // the same contacts in the same order each step
-  std::vector<int64_t> stored_by_;       // the contact of the last store each entry holds
-                                         // (-1: unknown, after forget)
-  std::vector<CachedImpulse> scratch_;
-  std::vector<int64_t> order_;
-  std::vector<uint8_t> taken_;
+  // The stored contact at place p of the pair order (pairs (a, b) never decrease along it).
+  int64_t at(int64_t p) const { return by_key_ ? sorted_[p] : p; }
+  int64_t places() const {
+    return static_cast<int64_t>(by_key_ ? sorted_.size() : entries_.size());
+  }
+  // The first place whose pair is not below (a, b), searched in [from, places()).
+  int64_t pair_start(int64_t from, int64_t a, int64_t b) const;
+
+  // the last store's contacts in its order, as given (detection lists its pairs in order
+  // and the same contacts in the same order each step: a contact's entry is found at its
+  // place in that order, shifted by those that came and went before it)
+  std::vector<CachedImpulse> entries_;
+  int64_t live_count_ = 0;
+  // false: the stored pairs never decrease and none has more than a few contacts (a pair's
+  // contacts one short run, its features in any order); true: else (hand-made sets), and
+  // sorted_ lists the live contacts by key
+  bool by_key_ = false;
+  std::vector<int64_t> sorted_;
+  std::vector<uint8_t> taken_;     // lookup: per stored contact
 };
 
 }  // namespace collres

@@ -48,13 +48,14 @@ def test_cache_exact_nearest_and_forget():
 
 
 @pytest.mark.parametrize('pairs_in_order', [True, False])
-def test_cache_keeps_the_last_impulse_of_each_key_whatever_the_order(pairs_in_order):
+@pytest.mark.parametrize('bodies', [6, 60])
+def test_cache_keeps_the_last_impulse_of_each_key_whatever_the_order(pairs_in_order, bodies):
     """Stored contacts are found by (a, b, feature), a later duplicate of a key winning,
-    whether the pairs come in order (as detection lists them: each pair's features are
-    sorted in place) or not (every contact sorted)."""
+    whether the pairs come in order (as detection lists them), each with few contacts
+    (60 bodies) or many (6), or not."""
     rng = np.random.default_rng(7)
     m = 400
-    a = rng.integers(0, 6, m)
+    a = rng.integers(0, bodies, m)
     b = a + 1 + rng.integers(0, 6, m)
     feature = rng.integers(-3, 4, m)      # few features: many duplicates within a pair
     if pairs_in_order:

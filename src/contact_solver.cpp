@@ -680,8 +680,13 @@ double normal_velocity(const ContactRow& row, const double* v) {
   return relative(row, v, 0, row.n);
 }
 
-void frame_row(ContactRow& row, const SolverBodies& bodies) {
-  tangent_basis(row.n, row.t1, row.t2);
+void frame_row(ContactRow& row, const SolverBodies& bodies, const ContactRow* framed) {
+  if (framed != nullptr && std::memcmp(framed->n.data(), row.n.data(), sizeof(double) * 3) == 0) {
+    row.t1 = framed->t1;
+    row.t2 = framed->t2;
+  } else {
+    tangent_basis(row.n, row.t1, row.t2);
+  }
   row.ma = bodies.inv_mass[row.a];
   row.mb = bodies.inv_mass[row.b];
   const Mat3& ia = bodies.inv_inertia[row.a];
@@ -705,9 +710,10 @@ void frame_row(ContactRow& row, const SolverBodies& bodies) {
   row.kt[2] = block(2, 2);
 }
 
-void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
-                 double sticking_speed, double mu_static, double mu_kinetic) {
-  frame_row(row, bodies);
+void prepare_row(ContactRow& row, const ContactRow* framed, const SolverBodies& bodies,
+                 const double* slow, double sticking_speed, double mu_static,
+                 double mu_kinetic) {
+  frame_row(row, bodies, framed);
   double before[2];
   slip_velocity(row, slow, before);
   row.bounce = false;

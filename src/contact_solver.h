@@ -201,14 +201,17 @@ struct SolverBodies {
 };
 
 // A row's frame from its normal n and levers ra, rb: the tangents, the levers' cross
-// products and their images under the inverse inertias, the effective masses.
-void frame_row(ContactRow& row, const SolverBodies& bodies);
+// products and their images under the inverse inertias, the effective masses. `framed`: a
+// row framed before, or null; where its normal has row's bits (a manifold's rows share
+// one), row takes its tangents (tangent_basis of the same normal).
+void frame_row(ContactRow& row, const SolverBodies& bodies, const ContactRow* framed);
 
-// Prepare one row: its frame (frame_row), and the friction coefficient:
+// Prepare one row: its frame (frame_row, `framed` as there), and the friction coefficient:
 // static where `slow` (N, 6), the velocity that decides sticking (e.g. before this step's
 // external forces), slips slower than sticking_speed, else kinetic.
-void prepare_row(ContactRow& row, const SolverBodies& bodies, const double* slow,
-                 double sticking_speed, double mu_static, double mu_kinetic);
+void prepare_row(ContactRow& row, const ContactRow* framed, const SolverBodies& bodies,
+                 const double* slow, double sticking_speed, double mu_static,
+                 double mu_kinetic);
 
 // Apply the rows' accumulated impulses (warm start) to the velocities.
 void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);

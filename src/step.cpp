@@ -259,9 +259,16 @@ void StepSolver::reference_frame(StepContext& ctx) {
   }
   // per contact (frame_contacts), shared by the two threads; the bodies' flags after
   in_parts(ctx, m, [&](int64_t lo, int64_t hi) { frame_contacts(ctx, lo, hi); });
-  // the bodies' flags, from their contacts: resting on one from the start, near, supported
+  // the bodies' flags, from their contacts: resting on one from the start, near, supported;
+  // and each body's earliest detected impact (-1: none)
+  earliest_.assign(n, -1);
+  int64_t* const earliest = earliest_.data();
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
+    if (!persistent(c.kind[k])) {
+      for (const int64_t i : {a, b})
+        if (earliest[i] < 0 || c.toi[k] < c.toi[earliest[i]]) earliest[i] = k;
+    }
     if (touching[k]) rested[a] = rested[b] = 1;
     // The gap then is measured along the current normal, a lower bound of the true one:
     // two balls that pass each other fast turn their normal over the step and read as
@@ -340,15 +347,9 @@ void StepSolver::reference_frame(StepContext& ctx) {
   drift_.resize(m);
   double *const toi_of = toi_.data(), *const fraction = fraction_.data();
   uint8_t *const impact_of = impact_.data(), *const impacted = impacted_.data();
-  // each body's earliest detected impact (-1: none)
-  earliest_.assign(n, -1);
-  for (int64_t k = 0; k < m; ++k) {
-    if (persistent(c.kind[k])) continue;
-    for (const int64_t i : {c.a[k], c.b[k]})
-      if (earliest_[i] < 0 || c.toi[k] < c.toi[earliest_[i]]) earliest_[i] = k;
-  }
   // per contact (impact_contacts), shared by the two threads; the bodies' impacts after
   in_parts(ctx, m, [&](int64_t lo, int64_t hi) { impact_contacts(ctx, lo, hi); });
+  later_.resize(6 * n);
   for (int64_t k = 0; k < m; ++k) {
     if (!impact_of[k]) continue;
     const int64_t a = c.a[k], b = c.b[k];
@@ -367,13 +368,15 @@ void StepSolver::reference_frame(StepContext& ctx) {
     // state is the velocity over the step that led to it, at mid-step); for a body
     // touching something from the start, its previous twist (what it did while in
     // contact: the step's external change is carried by the resting solve, to_travel),
-    // also at its time of impact (held by its supports until then); else current
+    // also at its time of impact (held by its supports until then); else current; and
+    // the twist its contacts' pre-solve approach takes (later_, below)
     for (int d = 0; d < 6; ++d) {
       double now = now_[6 * i + d], then = then_[6 * i + d], external = now - then;
       velocity_[6 * i + d] = impacted_[i] ? (supported_[i] ? path_[6 * i + d]
                                                            : now + (f - 0.5) * external)
                              : rested_[i] ? then
                                           : now;
+      later_[6 * i + d] = rested_[i] ? now : velocity_[6 * i + d];
     }
   }
   // speculative allowance. Two free bodies (neither within the slop of anything at the
@@ -391,8 +394,6 @@ void StepSolver::reference_frame(StepContext& ctx) {
   // step's external change, which the resting solve meets; a body without an impact: its
   // current twist), the farthest contact point of each body, the fastest approach and the
   // largest restitution (prepare's row bound; the same for every solve of the step)
-  later_.resize(6 * n);
-  for (int64_t i = 0; i < 6 * n; ++i) later_[i] = rested_[i / 6] ? now_[i] : velocity_[i];
   fastest_ = 0.0;
   restitution_ = 0.0;
   reach_body_.assign(n, 0.0);   // (squared here)
@@ -681,12 +682,14 @@ void StepSolver::prepare(StepContext& ctx) {
     }
   }
   rows_.resize(used);
-  // each row's frame and friction coefficient (its own entry: on either thread)
+  // each row's frame and friction coefficient (its own entry: on either thread; the
+  // tangents of the row before in its part where their normals agree)
   in_parts(ctx, static_cast<int64_t>(rows_.size()), [&](int64_t lo, int64_t hi) {
     for (int64_t i = lo; i < hi; ++i) {
       ContactRow& row = rows_[static_cast<size_t>(i)];
       const double* mu = friction_.data() + 2 * row.manifold;
-      prepare_row(row, ctx.solver, then_.data(), p.sticking_speed, mu[0], mu[1]);
+      prepare_row(row, i > lo ? &rows_[static_cast<size_t>(i - 1)] : nullptr, ctx.solver,
+                  then_.data(), p.sticking_speed, mu[0], mu[1]);
     }
   });
   // a manifold with a point that slips (faster than the sticking speed, prepare_row): its
@@ -719,13 +722,13 @@ void StepSolver::prepare(StepContext& ctx) {
   reach_.resize(2 * manifolds_.size());
   for (size_t m = 0; m < manifolds_.size(); ++m) {
     const Manifold& manifold = manifolds_[m];
-    double reach_a = 0.0, reach_b = 0.0;
+    double reach_a = 0.0, reach_b = 0.0;   // (squared here: one root a manifold)
     for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i) {
-      reach_a = std::max(reach_a, length(rows_[i].ra));
-      reach_b = std::max(reach_b, length(rows_[i].rb));
+      reach_a = std::max(reach_a, dot(rows_[i].ra, rows_[i].ra));
+      reach_b = std::max(reach_b, dot(rows_[i].rb, rows_[i].rb));
     }
-    reach_[2 * m] = reach_a;
-    reach_[2 * m + 1] = reach_b;
+    reach_[2 * m] = std::sqrt(reach_a);
+    reach_[2 * m + 1] = std::sqrt(reach_b);
   }
   islands_ = false;
   known_ = false;
@@ -983,7 +986,7 @@ void StepSolver::aim(StepContext& ctx, const double* moved, const double* veloci
     r.ra = length(r.ra) * n;
     r.rb = -length(r.rb) * n;
     r.n = n;
-    frame_row(r, ctx.solver);
+    frame_row(r, ctx.solver, nullptr);
     r.tangent[0] = dot(friction, r.t1);
     r.tangent[1] = dot(friction, r.t2);
     const int32_t spin = manifolds_[static_cast<size_t>(r.manifold)].spin;

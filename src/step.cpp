@@ -154,14 +154,18 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   }
   // store impulses for next step's warm start, then report them
   report(ctx);
-  cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
-               cached_normal_.data(), report_out.friction_impulse, contacts.point);
   last_dt_ = dt;
   last_load_.swap(load_);
   last_warm_ = warm_enabled;
-  // correct poses: rewind / advance, then the split-impulse push-out (no velocity)
-  advance(ctx);
-  push_out(ctx);
+  // correct poses: rewind / advance, then the split-impulse push-out (no velocity); the
+  // cache's store meanwhile on the second thread (it reads the report, writes only itself)
+  beside(ctx, [&] {
+    advance(ctx);
+    push_out(ctx);
+  }, [&] {
+    cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
+                 cached_normal_.data(), report_out.friction_impulse, contacts.point);
+  });
   return stats;
 }
 
@@ -920,6 +924,18 @@ void StepSolver::in_parts(const StepContext& ctx, int64_t count,
     part(count * i / kParts, count * (i + 1) / kParts);
   };
   worker()->run_sides(chunk, kParts, kSide, kFree, 1, static_cast<double>(count));
+}
+
+void StepSolver::beside(const StepContext& ctx, const std::function<void()>& here,
+                        const std::function<void()>& there) {
+  const int64_t least = std::max<int64_t>(ctx.params.parallel_wave, 1);   // (as in_parts)
+  if (ctx.params.threads < 2 || ctx.contacts.count < kParts * least) {
+    here();
+    there();
+    return;
+  }
+  worker()->run_pair(here, [&](int) { there(); }, 1, 2,
+                     static_cast<double>(std::max<int64_t>(ctx.contacts.count, 1)));
 }
 
 double StepSolver::warm(StepContext& ctx, int substeps) {

@@ -295,6 +295,11 @@ class StepSolver {
   static constexpr int kParts = 8;
   void in_parts(const StepContext& ctx, int64_t count,
                 const std::function<void(int64_t, int64_t)>& part);
+  // here() on this thread and there() on the second one at once (they share no data), with
+  // threads 2 and at least kParts parallel_wave contacts (Worker::run_pair, its own kind of
+  // run); else one after the other, here
+  void beside(const StepContext& ctx, const std::function<void()>& here,
+              const std::function<void()>& there);
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
   void push_out(StepContext& ctx);

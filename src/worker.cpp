@@ -85,6 +85,7 @@ int Worker::help(uint32_t generation, int own) {
   for (int ran = 0, waits = 0;;) {
     bool left = false;   // a chunk of the run not claimed yet
     bool over = false;   // the run finished (a later one posted)
+    bool lent = false;   // a chunk of its own queue running (on the other thread)
     int taken = -1;      // the queue of the chunk claimed
     uint64_t state = 0;
     for (int j = 0; j < 2 && taken < 0 && !over; ++j) {
@@ -99,6 +100,7 @@ int Worker::help(uint32_t generation, int own) {
         still = 0;
       }
       const int claimed = claimed_of(state);
+      if (j == 0) lent = claimed != finished_of(state);
       if (claimed >= queue_[q].size.load(std::memory_order_relaxed)) continue;
       left = true;
       if (claimed != finished_of(state)) continue;   // (its chunk running)
@@ -113,7 +115,10 @@ int Worker::help(uint32_t generation, int own) {
         }
         if (finished_of(other) < need) continue;
       }
-      if (j == 1 && still < kPatience) continue;
+      // the other queue's next chunk only from a thread away, and not while that thread
+      // runs one of this queue's: it is at work, and taking its chunk in turn made the two
+      // run each other's chunks for the rest of the run, each after kPatience polls
+      if (j == 1 && (lent || still < kPatience)) continue;
       uint64_t expected = state;
       if (queue_[q].state.compare_exchange_strong(expected, state + kClaim,
                                                   std::memory_order_acq_rel))
@@ -158,7 +163,7 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
                  int chunks, const uint8_t* side, const int32_t* need, int kind,
                  double work) {
   chunks_run_ += static_cast<uint64_t>(chunks);
-  Costs& costs = costs_[kind & 1];
+  Costs& costs = costs_[std::clamp(kind, 0, kKinds - 1)];
   // the mode that has cost less per unit of work (an unmeasured mode first), the other
   // one for kBurst runs in a row every costs.every-th run: the first of those wakes the
   // worker (or brings the data back to the caller's core), the others measure the mode

@@ -7,12 +7,14 @@
 // chunks from need[c] on share no data with it). Each thread runs the chunks of its own
 // queue; a thread whose next chunk is not ready (or whose queue is done) runs the other
 // queue's next chunk if it is ready and nobody runs one of that queue (the other thread
-// descheduled, asleep, or behind), so the caller never waits for the worker to be
-// scheduled, only, at most, for the one chunk the worker is running when the next one
-// depends on it or the run ends. Each queue's state (its run, chunks claimed, chunks
-// finished) is one word on a cache line of its own, written by the thread that claims or
-// finishes a chunk of it: a thread that keeps to its own queue claims its chunks on its
-// own line, and a chunk costs the two cores, per gate, the other's word. A task whose
+// descheduled, asleep, or behind; not while the other thread runs a chunk of its own
+// queue: the two then ran each other's chunks, each after the polls of Worker::help's
+// patience), so the caller never waits for the worker to be scheduled, only, at most, for
+// the one chunk the worker is running when the next one depends on it or the run ends.
+// Each queue's state (its run, chunks claimed, chunks finished) is one word on a cache
+// line of its own, written by the thread that claims or finishes a chunk of it: a thread
+// that keeps to its own queue claims its chunks on its own line, and a chunk costs the two
+// cores, per gate, the other's word. A task whose
 // chunks touch data by queue (the sweeps: each thread the same bodies sweep after sweep)
 // keeps that data in its thread's cache.
 //
@@ -47,6 +49,7 @@ class Worker {
  public:
   static constexpr int kMaxChunks = 0xffff;  // per queue
   static constexpr unsigned kExplore = 17;   // runs of a kind between two in the mode not chosen
+  static constexpr int kKinds = 3;           // kinds of run (costs compared apart)
 
   Worker();
   ~Worker();
@@ -55,8 +58,8 @@ class Worker {
 
   // Runs `first` on this thread and second(0), ..., second(chunks - 1) in that order, on
   // the worker or here; returns when all are done. 0 <= chunks <= kMaxChunks. `kind` (0
-  // or 1) names the kind of run whose costs are compared, `work` its size (any unit, the
-  // same for the kind).
+  // to kKinds - 1) names the kind of run whose costs are compared, `work` its size (any
+  // unit, the same for the kind).
   void run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                 int chunks, int kind, double work);
   // Runs task(0), ..., task(chunks - 1), chunk c in queue side[c] (0 or 1), once need[c]
@@ -100,7 +103,7 @@ class Worker {
     double sum = 0.0;                   // its runs' costs so far (but the first's) ...
     int measured = 0;                   // ... and their count
   };
-  Costs costs_[2];
+  Costs costs_[kKinds];
   const std::function<void(int)>* task_ = nullptr;   // read only with a started chunk
   // per queue and place in it (kMaxChunks each): the chunk and its need, copied here when
   // the run is posted: a thread whose claim is of a finished run reads no freed memory

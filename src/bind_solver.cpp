@@ -208,6 +208,8 @@ void bind_solver(py::module_& m) {
       .def_readwrite("wide_rows", &SolverParams::wide_rows)
       .def_readwrite("max_substep", &SolverParams::max_substep)
       .def_readwrite("max_substeps", &SolverParams::max_substeps)
+      .def_readwrite("landing_substeps", &SolverParams::landing_substeps)
+      .def_readwrite("landing_sweeps", &SolverParams::landing_sweeps)
       .def_readwrite("substep_sink", &SolverParams::substep_sink)
       .def_readwrite("stack_sink", &SolverParams::stack_sink)
       .def_readwrite("later_impact", &SolverParams::later_impact)

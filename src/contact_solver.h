@@ -95,6 +95,8 @@ struct SolverParams {
   double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
                                         // long (StepSolver::soft_step) ...
   int max_substeps = 10;                // ... and at most this many per step
+  int landing_substeps = 5;             // from this many substeps on, the landing's sweeps
+  int landing_sweeps = 3;               // are the last substep's last this many (land)
   double later_impact = 1e-3;           // fraction of the step: a detected impact this much
                                         // later than its body's earliest ...
   double behind_cosine = 0.9;           // ... and behind it (normals out of the body within

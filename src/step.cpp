@@ -139,11 +139,14 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     iterations = std::max(iterations, static_cast<int>(std::lround(params.depth_sweeps * depth)));
     stats.rows = static_cast<int64_t>(rows_.size());
     stats.substeps = substeps;
-    stats.sweeps += soft_step(ctx, substeps, iterations);
+    // the landing's sweeps: from landing_substeps substeps on, the last substep's last
+    // landing_sweeps; fewer substeps: velocity_iterations sweeps after them (land)
+    const int shared = substeps >= params.landing_substeps ? params.landing_sweeps : 0;
+    stats.sweeps += soft_step(ctx, substeps, iterations, shared);
     // landing: the poses travel with the substeps' mean velocity; a speculative contact that
     // closes within the step ends it touching, and with no approach left for the next step
     bool struck = false;
-    const bool landed = land(ctx, struck);
+    const bool landed = land(ctx, shared, struck);
     if (!escaped(ctx, landed) && !struck) break;
   }
   redone_ += static_cast<uint64_t>(stats.redone);
@@ -1236,7 +1239,7 @@ bool StepSolver::escaped(const StepContext& ctx, bool landed) {
   return any;
 }
 
-int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
+int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int shared) {
   const SolverParams& p = ctx.params;
   const int64_t n = ctx.bodies.count;
   const size_t rows = rows_.size();
@@ -1278,7 +1281,8 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
                                            : gap_[r.contact] + normal_velocity(r, moved_.data());
       r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
     }
-    sweeps += sweep(ctx, iterations);
+    // (the last substep's last `shared` sweeps are the landing's, after the poses' travel)
+    sweeps += sweep(ctx, s + 1 < substeps ? iterations : std::max(iterations - shared, 1));
     propagate_shock(rows_, ctx.solver, level_, shock_rows_, shock_blocks_, p.shock_sweeps);
     // judged after shock propagation: its rows, swept one by one from the sweeps'
     // impulses, can raise the energy the sweeps kept (a box on one point of a fixed
@@ -1303,7 +1307,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations) {
   return sweeps;
 }
 
-bool StepSolver::land(StepContext& ctx, bool& struck) {
+bool StepSolver::land(StepContext& ctx, int shared, bool& struck) {
   const SolverParams& p = ctx.params;
   // the landing rows: speculative (a gap at the reference time) and holding, i.e. the
   // contact closes within the step and the solve let it approach by its gap only (an
@@ -1333,7 +1337,7 @@ bool StepSolver::land(StepContext& ctx, bool& struck) {
       }
     }
   }
-  if (!any) return false;
+  if (!any && shared == 0) return false;
   // every row again, the landing ones without allowance: the velocities (not the poses,
   // which travel_ holds) leave the touching contacts at rest along their normals. These
   // sweeps are also the last ones of the answer's velocities, which the laws need whole: a
@@ -1348,11 +1352,27 @@ bool StepSolver::land(StepContext& ctx, bool& struck) {
   // faster than 1 % of their bodies' g dt left a pile of 100 cubes awake after 4 s at 120
   // Hz; 5 sweeps of every row instead of velocity_iterations let the tower fall, and with no
   // landing at all its top sank 7 mm in 0.25 s, rocking at up to 0.07 m/s (landed: 0.8 mm,
-  // then still)
-  sweep(ctx, p.velocity_iterations);
+  // then still).
+  // From landing_substeps substeps on (30 Hz: five) the landing replaces sweeps instead of
+  // adding them: the last substep's first sweeps give the poses' travel, its last `shared`
+  // (landing_sweeps), every row with the step's allowance as above, the answer's
+  // velocities (with no landing row too, so that they always get the substep's sweeps).
+  // The answer needs the landing's own sweeps the more, the larger the last substep's
+  // share of the step. Shared at one substep (240 Hz, five and five) towers of 20 cubes of
+  // 0.2 m fell; at two (120 Hz) a 1000 kg cube on a 1 kg one slid 3.6 mm and a pile of 100
+  // cubes (bench/pile.py, seed 1) was awake after 6 s (also with ten for the poses and five
+  // more for the landing); at three (60 Hz) a column of 8 cubes dropped apart (bench_laws
+  // column) overlapped 10.6 mm; at three and four piles of 100 fell asleep 0.2-0.3 s later.
+  // At five: five for the landing left a box dropped on a settled pile 0.20 mm deep in it
+  // (0.11 with three, as with a landing of its own); the last substep's allowances instead
+  // of the step's let the column overlap 3.4 mm (1.2 mm now, 1.9 mm with a landing of its
+  // own); the poses' last travel from the landed velocities failed test_fast_approach.py's
+  // column and cube on a cube
+  const int sweeps = shared > 0 ? shared : p.velocity_iterations;
+  sweep(ctx, sweeps);
   // judged as a substep (against the last substep's start): the landing's sweeps with
   // friction can raise the energy too (a box on three close points: +7 % of the step's)
-  hold_energy(ctx, p.velocity_iterations);
+  hold_energy(ctx, sweeps);
   for (size_t i = 0; i < rows_.size(); ++i) {
     ContactRow& r = rows_[i];
     r.landing = r.normal - landing_[i];     // reported, not warm started

@@ -92,7 +92,9 @@
 //    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
 //    is solved again with no allowance, for the velocities only, so it ends the step
 //    touching and with no approach left to bounce on next step (land), an island it
-//    raised above the last substep's start energy solved as hold_energy does; one that
+//    raised above the last substep's start energy solved as hold_energy does (from
+//    landing_substeps substeps on, its sweeps are the last substep's last landing_sweeps,
+//    after the poses' travel, instead of velocity_iterations more); one that
 //    closes from a gap beyond the slop faster than the restitution threshold (its approach
 //    when the resting solve began) is an impact instead: the step is solved again from the
 //    pre-solve velocities (stages 2-6) with it in the impact stages (struck_), where it
@@ -239,7 +241,8 @@ class StepSolver {
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
                                                  // contacts cold
   int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
-  int soft_step(StepContext& ctx, int substeps, int iterations);   // returns the sweeps
+  // returns the sweeps; the last substep's last `shared` sweeps are left to land
+  int soft_step(StepContext& ctx, int substeps, int iterations, int shared);
   // The net under prepare's row bound, at the step's end: true when a contact without a
   // row ends the step closer than touching (its gap at the reference time plus how far the
   // substeps moved its points along the normal, moved_) or, after a landing (`landed`),
@@ -283,9 +286,12 @@ class StepSolver {
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
   bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
   int sweep(StepContext& ctx, int iterations);
-  // true when it solved (a landing row); `struck`: a landing row closed faster than the
-  // restitution threshold and was newly marked in struck_ (an impact when solved again)
-  bool land(StepContext& ctx, bool& struck);
+  // true when it swept (a landing row, or `shared`); `struck`: a landing row closed faster
+  // than the restitution threshold and was newly marked in struck_ (an impact when solved
+  // again)
+  // `shared` > 0: the last substep's last `shared` sweeps (soft_step left them), with or
+  // without a landing row, instead of velocity_iterations sweeps after the substeps
+  bool land(StepContext& ctx, int shared, bool& struck);
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use

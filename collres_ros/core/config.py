@@ -379,6 +379,26 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      '1000 at 30 Hz takes 508 substeps over 3 s instead of 501 (5 steps '
                      'above 8), and settled piles keep theirs at 30-240 Hz (at 10 Hz a settled '
                      'pile of 100 takes 10 instead of 8)'),
+    ParamSpec('landing_substeps', 'integer', 5,
+              'From this many substeps on, the landing (StepSolver::land) replaces sweeps: the '
+              'last substep\'s first sweeps give the poses\' travel, its last landing_sweeps, '
+              'the landing rows\' allowance removed, the answer\'s velocities; with fewer, '
+              'velocity_iterations sweeps of every row after the substeps', 1, 1000,
+              reason='the answer needs the landing\'s own sweeps the more, the larger the '
+                     'last substep\'s share of the step: shared at one substep (240 Hz) '
+                     'towers of 20 cubes of 0.2 m fell, at two (120 Hz) a pile of 100 cubes '
+                     '(bench/pile.py, seed 1) was awake after 6 s and a 1000 kg cube on a '
+                     '1 kg one slid 3.6 mm, at three (60 Hz) a column of 8 cubes dropped '
+                     'apart (bench_laws column) overlapped 10.6 mm, and at three and four '
+                     'piles of 100 fell asleep 0.2-0.3 s later; at five (30 Hz) the tests '
+                     'and bench_laws hold and a settled step sweeps 10 times fewer'),
+    ParamSpec('landing_sweeps', 'integer', 3,
+              'Of the last substep\'s sweeps, the landing\'s (landing_substeps)', 1, 1000,
+              reason='at 30 Hz the poses need the substep\'s first sweeps and the landing a '
+                     'few: five for the landing left a box dropped on a settled pile 0.20 mm '
+                     'deep in it (test_box_on_pile; 0.11 mm with three and with a landing of '
+                     'its own); two and three keep the column of 8 cubes within 1.8 and 1.2 '
+                     'mm (1.9 mm with a landing of its own)'),
     ParamSpec('later_impact', 'double', 1e-3,
               'A detected impact whose time of impact is later than the earliest of one of '
               'its bodies by more than this fraction of the step, behind it (behind_cosine), '

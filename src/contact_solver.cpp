@@ -383,29 +383,25 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       const int i = row[u];
       const ContactRow& ru = r[i];
       if (dir[u] == 0 || !slides[i]) {   // no approach beyond the allowance; no slip
-        for (int c = 0; c < m; ++c) {
-          const double e = column(i, dir[u], c);
-          s[u][c] = c == u ? e * (1.0 + kRegular) : e;
-        }
+        for (int c = 0; c < m; ++c) s[u][c] = column(i, dir[u], c);
+        s[u][u] *= 1.0 + kRegular;
         s[u][m] = -(speed[i][dir[u]] + (dir[u] == 0 ? ru.allowance : 0.0));
         continue;
       }
       // a sliding row's friction, linearised about the slip of the last try (Newton):
       // f - mu n aim + stiff P slip = 0, P = 1 - aim aim^T the part across aim; its two
-      // equations (u along t1, u + 1 along t2) from the same columns
+      // equations (u along t1, u + 1 along t2) from the same columns (its normal: u - 1)
       const double p[2][2] = {{1.0 - aim[i][0] * aim[i][0], 0.0 - aim[i][0] * aim[i][1]},
                               {0.0 - aim[i][1] * aim[i][0], 1.0 - aim[i][1] * aim[i][1]}};
       for (int c = 0; c < m; ++c) {
         const double c1 = column(i, 1, c), c2 = column(i, 2, c);
-        for (int a = 0; a < 2; ++a) {
-          double e = stiff[i] * (p[a][0] * c1 + p[a][1] * c2);
-          if (c == u + a) e = e * (1.0 + kRegular) + 1.0;
-          if (row[c] == i && dir[c] == 0) e -= ru.mu * aim[i][a];
-          s[u + a][c] = e;
-        }
+        for (int a = 0; a < 2; ++a) s[u + a][c] = stiff[i] * (p[a][0] * c1 + p[a][1] * c2);
       }
-      for (int a = 0; a < 2; ++a)
+      for (int a = 0; a < 2; ++a) {
+        s[u + a][u + a] = s[u + a][u + a] * (1.0 + kRegular) + 1.0;
+        s[u + a][u - 1] -= ru.mu * aim[i][a];
         s[u + a][m] = -stiff[i] * (p[a][0] * speed[i][1] + p[a][1] * speed[i][2]);
+      }
       ++u;   // (u + 1: done)
     }
     double x[12];

@@ -264,6 +264,28 @@ inline bool sliding(const ContactRow& r) {
   return r.normal > 0.0 && norm2(r.tangent[0], r.tangent[1]) >= r.mu * r.normal * (1.0 - kSlides);
 }
 
+// solve_coupled's linear solve of m unknowns: s[0 .. m) the tableau [matrix | right-hand
+// side], by Gauss-Jordan elimination with partial pivoting, the answer into x[0 .. m);
+// false when a pivot vanishes (within 1e-9 of its column's diagonal)
+template <int m>
+inline bool gauss_jordan(double (&s)[12][13], double* x) {
+  for (int c = 0; c < m; ++c) {
+    int pivot = c;
+    for (int i = c + 1; i < m; ++i)
+      if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
+    if (!(std::fabs(s[pivot][c]) > 1e-9 * std::fabs(s[c][c]) + 1e-300)) return false;
+    if (pivot != c)
+      for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
+    for (int i = 0; i < m; ++i) {
+      if (i == c) continue;
+      const double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
+      for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
+    }
+  }
+  for (int u = 0; u < m; ++u) x[u] = s[u][m] / s[u][u];
+  return true;
+}
+
 // The whole block of a manifold with its friction (solve_block: a coupled block, every
 // block of an impact stage, a manifold of a body with an impact this step and one with a
 // point that slips as the step begins), as a few linear solves from the twists without the
@@ -338,19 +360,21 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
     // unknown u: row[u]'s impulse along dir[u] (0 n, 1 t1, 2 t2); a sliding row with a
     // frozen aim has its normal only (its friction is mu times it along aim)
     int row[12], dir[12], m = 0;
+    bool frozen[12];   // unknown c a frozen sliding row's normal (its column holds its friction)
     for (int i = 0; i < k; ++i) {
       if (!active[i]) continue;
+      frozen[m] = slides[i] && stiff[i] == 0.0;
       row[m] = i, dir[m++] = 0;
-      if (slides[i] && stiff[i] == 0.0) continue;
-      row[m] = i, dir[m++] = 1;
-      row[m] = i, dir[m++] = 2;
+      if (frozen[m - 1]) continue;
+      frozen[m] = false, row[m] = i, dir[m++] = 1;
+      frozen[m] = false, row[m] = i, dir[m++] = 2;
     }
     if (m == 0) return -1.0;
     // e[a][c]: row i's velocity along its direction a per unit of unknown c
     auto column = [&](int i, int a, int c) {
       const int j = row[c];
       double e = effect(i, a, j, dir[c]);
-      if (dir[c] == 0 && slides[j] && stiff[j] == 0.0)
+      if (frozen[c])
         e += r[j].mu * (aim[j][0] * effect(i, a, j, 1) + aim[j][1] * effect(i, a, j, 2));
       return e;
     };
@@ -359,44 +383,48 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       const int i = row[u];
       const ContactRow& ru = r[i];
       if (dir[u] == 0 || !slides[i]) {   // no approach beyond the allowance; no slip
-        for (int c = 0; c < m; ++c) {
-          const double e = column(i, dir[u], c);
-          s[u][c] = c == u ? e * (1.0 + kRegular) : e;
-        }
+        for (int c = 0; c < m; ++c) s[u][c] = column(i, dir[u], c);
+        s[u][u] *= 1.0 + kRegular;
         s[u][m] = -(speed[i][dir[u]] + (dir[u] == 0 ? ru.allowance : 0.0));
         continue;
       }
       // a sliding row's friction, linearised about the slip of the last try (Newton):
-      // f - mu n aim + stiff P slip = 0, P = 1 - aim aim^T the part across aim
-      const int a = dir[u] - 1;
-      const double p[2] = {(a == 0 ? 1.0 : 0.0) - aim[i][a] * aim[i][0],
-                           (a == 1 ? 1.0 : 0.0) - aim[i][a] * aim[i][1]};
+      // f - mu n aim + stiff P slip = 0, P = 1 - aim aim^T the part across aim; its two
+      // equations (u along t1, u + 1 along t2) from the same columns (its normal: u - 1)
+      const double p[2][2] = {{1.0 - aim[i][0] * aim[i][0], 0.0 - aim[i][0] * aim[i][1]},
+                              {0.0 - aim[i][1] * aim[i][0], 1.0 - aim[i][1] * aim[i][1]}};
       for (int c = 0; c < m; ++c) {
-        double e = stiff[i] * (p[0] * column(i, 1, c) + p[1] * column(i, 2, c));
-        if (c == u) e = e * (1.0 + kRegular) + 1.0;
-        if (row[c] == i && dir[c] == 0) e -= ru.mu * aim[i][a];
-        s[u][c] = e;
+        const double c1 = column(i, 1, c), c2 = column(i, 2, c);
+        for (int a = 0; a < 2; ++a) s[u + a][c] = stiff[i] * (p[a][0] * c1 + p[a][1] * c2);
       }
-      s[u][m] = -stiff[i] * (p[0] * speed[i][1] + p[1] * speed[i][2]);
-    }
-    for (int c = 0; c < m; ++c) {   // Gauss-Jordan, partial pivoting
-      int pivot = c;
-      for (int i = c + 1; i < m; ++i)
-        if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
-      if (!(std::fabs(s[pivot][c]) > 1e-9 * std::fabs(s[c][c]) + 1e-300)) return -1.0;
-      if (pivot != c)
-        for (int j = 0; j <= m; ++j) std::swap(s[c][j], s[pivot][j]);
-      for (int i = 0; i < m; ++i) {
-        if (i == c) continue;
-        const double f = s[i][c] / s[c][c];   // (column c, off the pivot: never read again)
-        for (int j = c + 1; j <= m; ++j) s[i][j] -= f * s[c][j];
+      for (int a = 0; a < 2; ++a) {
+        s[u + a][u + a] = s[u + a][u + a] * (1.0 + kRegular) + 1.0;
+        s[u + a][u - 1] -= ru.mu * aim[i][a];
+        s[u + a][m] = -stiff[i] * (p[a][0] * speed[i][1] + p[a][1] * speed[i][2]);
       }
+      ++u;   // (u + 1: done)
     }
+    double x[12];
+    bool solved;
+    switch (m) {   // (m a constant: the elimination's loops unrolled)
+      case 1: solved = gauss_jordan<1>(s, x); break;
+      case 2: solved = gauss_jordan<2>(s, x); break;
+      case 3: solved = gauss_jordan<3>(s, x); break;
+      case 4: solved = gauss_jordan<4>(s, x); break;
+      case 5: solved = gauss_jordan<5>(s, x); break;
+      case 6: solved = gauss_jordan<6>(s, x); break;
+      case 7: solved = gauss_jordan<7>(s, x); break;
+      case 8: solved = gauss_jordan<8>(s, x); break;
+      case 9: solved = gauss_jordan<9>(s, x); break;
+      case 10: solved = gauss_jordan<10>(s, x); break;
+      case 11: solved = gauss_jordan<11>(s, x); break;
+      default: solved = gauss_jordan<12>(s, x); break;
+    }
+    if (!solved) return -1.0;
     double n[4] = {}, t[4][2] = {};
     for (int u = 0; u < m; ++u) {
-      const double x = s[u][m] / s[u][u];
-      if (dir[u] == 0) n[row[u]] = x;
-      else t[row[u]][dir[u] - 1] = x;
+      if (dir[u] == 0) n[row[u]] = x[u];
+      else t[row[u]][dir[u] - 1] = x[u];
     }
     bool again = false;
     for (int i = 0; i < k; ++i) {

@@ -1952,8 +1952,9 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
     if (groups > 0 && done == 1) ready_part(*plan, l, rows, manifolds, bodies.inv_mass, spins);
     if (groups > 0) solve_groups(*plan, l, 0, groups, rows, manifolds, v, spins, progress);
-    solve_manifolds(rows, manifolds, wide ? span.lone : span.first, span.end, bodies, spins,
-                    progress);
+    const size_t lone = wide ? span.lone : span.first;
+    if (lone < span.end)   // (most parts have none one by one: no call)
+      solve_manifolds(rows, manifolds, lone, span.end, bodies, spins, progress);
   };
   const bool spin_waves = spins != nullptr && wide;
   if (plan != nullptr) plan_chunks(*plan, spin_waves);

@@ -1547,19 +1547,16 @@ WIDE void solve_wide_spin(WideSpin& s, const WideGroup& g, double* v, Progress& 
   progress.lanes_change = maximum(progress.lanes_change, size);   // (0 where not moved)
 }
 
-// The spin rows of the wide groups [lo, hi) of wave l, in order (one call for a part of a
-// wave).
-COLLRES_CLONED
-void solve_wide_spins(SweepPlan& plan, size_t l, size_t lo, size_t hi, double* v,
-                      Progress& progress) {
+// The spin rows of the wide groups [lo, hi) of wave l, in order (inlined into sweep_chunk's
+// clones).
+WIDE void solve_wide_spins(SweepPlan& plan, size_t l, size_t lo, size_t hi, double* v,
+                           Progress& progress) {
   for (size_t item = lo; item < hi; ++item) {
     const int32_t entry = plan.slot[plan.wave_groups[l] + item];
     if (plan.spin_groups[entry].wide)
       solve_wide_spin(plan.spin_groups[entry], plan.groups[entry], v, progress);
   }
 }
-
-#undef WIDE
 
 // The plan's wide groups from the manifolds (pack_groups: plan.groups' entries, wave_groups,
 // slot; pack_entry then fills an entry's fields that stay as prepared for the whole step,
@@ -1849,21 +1846,42 @@ void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
   }
 }
 
-// The spin rows of part l of a sweep (SweepWave): its groups' in lanes (WideSpin), then
-// its manifolds' one by one (a wave's spin rows share no movable body: the bits of their
-// order).
-void spin_wave_part(SweepPlan& plan, std::vector<SpinRow>& spins,
-                    const std::vector<Manifold>& manifolds, const SolverBodies& bodies,
-                    size_t l, Progress& progress) {
+// The parts of a sweep's chunk (SweepChunk), in order: one call a chunk (the spin rows'
+// updates inlined). `ready`: the solve's first sweep.
+// Part l < the plan's waves (SweepWave): its wide groups (full, then padded; in the first
+// sweep made ready first, on the thread that sweeps them), then its manifolds one by one.
+// Else the spin rows of part l less the waves: its groups' in lanes (WideSpin), then its
+// manifolds' one by one (a wave's spin rows share no movable body: the bits of their order).
+COLLRES_CLONED
+void sweep_chunk(SweepPlan& plan, const SweepChunk& chunk, bool ready,
+                 std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
+                 const SolverBodies& bodies, std::vector<SpinRow>* spins, Progress& progress) {
   double* v = bodies.velocity;
-  const size_t groups = plan.wave_groups[l + 1] - plan.wave_groups[l];
-  if (groups > 0) solve_wide_spins(plan, l, 0, groups, v, progress);
-  for (size_t m = plan.waves[l].lone; m < plan.waves[l].end; ++m) {
-    const int32_t spin = manifolds[m].spin;
-    if (spin >= 0)
-      progress.change = std::max(progress.change, solve_spin(spins[spin], v, bodies.inv_mass));
+  const size_t waves = plan.waves.size();
+  for (uint32_t i = chunk.begin; i < chunk.end; ++i) {
+    const auto p = static_cast<size_t>(plan.chunk_parts[i]);
+    const size_t l = p < waves ? p : p - waves;
+    const SweepWave& span = plan.waves[l];
+    const size_t groups = plan.wide ? plan.wave_groups[l + 1] - plan.wave_groups[l] : 0;
+    if (p >= waves) {   // (spin parts: only where wide)
+      if (groups > 0) solve_wide_spins(plan, l, 0, groups, v, progress);
+      for (size_t m = span.lone; m < span.end; ++m) {
+        const int32_t spin = manifolds[m].spin;
+        if (spin >= 0)
+          progress.change = std::max(progress.change,
+                                     solve_spin((*spins)[spin], v, bodies.inv_mass));
+      }
+      continue;
+    }
+    if (groups > 0 && ready) ready_part(plan, l, rows, manifolds, bodies.inv_mass, spins);
+    if (groups > 0) solve_groups(plan, l, 0, groups, rows, manifolds, v, spins, progress);
+    const size_t lone = plan.wide ? span.lone : span.first;
+    if (lone < span.end)   // (most parts have none one by one: no call)
+      solve_manifolds(rows, manifolds, lone, span.end, bodies, spins, progress);
   }
 }
+
+#undef WIDE
 
 // A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_sides;
 // one thread runs them in turn): the parts of a wave (its sides) in the chunks of their
@@ -1943,37 +1961,16 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     pack_groups(*plan, rows, manifolds);
     plan->packed = true;
   }
-  double* v = bodies.velocity;
   int done = 0;
-  // part l of a sweep (SweepWave): its wide groups (full, then padded; in the first sweep
-  // made ready first, on the thread that sweeps them), then its manifolds one by one
-  auto wave_part = [&](size_t l, Progress& progress) {
-    const SweepWave& span = plan->waves[l];
-    const size_t groups = wide ? plan->wave_groups[l + 1] - plan->wave_groups[l] : 0;
-    if (groups > 0 && done == 1) ready_part(*plan, l, rows, manifolds, bodies.inv_mass, spins);
-    if (groups > 0) solve_groups(*plan, l, 0, groups, rows, manifolds, v, spins, progress);
-    const size_t lone = wide ? span.lone : span.first;
-    if (lone < span.end)   // (most parts have none one by one: no call)
-      solve_manifolds(rows, manifolds, lone, span.end, bodies, spins, progress);
-  };
   const bool spin_waves = spins != nullptr && wide;
   if (plan != nullptr) plan_chunks(*plan, spin_waves);
   const size_t chunks = plan != nullptr ? plan->chunks.size() : 0;
   // (per chunk: a chunk's part runs on either thread)
   std::vector<Progress> part(std::max<size_t>(chunks, 1));
   // chunk c of the sweep: its parts' rows or spin rows
-  const size_t waves = plan != nullptr ? plan->waves.size() : 0;
   const std::function<void(int)> chunk = [&](int c) {
-    const SweepChunk& k = plan->chunks[static_cast<size_t>(c)];
-    Progress& progress = part[static_cast<size_t>(c)];
-    for (uint32_t i = k.begin; i < k.end; ++i) {
-      const auto p = static_cast<size_t>(plan->chunk_parts[i]);
-      if (p >= waves) {
-        spin_wave_part(*plan, *spins, manifolds, bodies, p - waves, progress);
-      } else {
-        wave_part(p, progress);
-      }
-    }
+    sweep_chunk(*plan, plan->chunks[static_cast<size_t>(c)], done == 1, rows, manifolds, bodies,
+                spins, part[static_cast<size_t>(c)]);
   };
   while (done < iterations) {
     ++done;

@@ -37,12 +37,19 @@ bool holds_nothing(const ContactRow& r) {
 
 bool persistent(int8_t kind) { return kind == static_cast<int8_t>(ContactKind::persistent); }
 
-// Normal velocity of B's point relative to A's (< 0 approaching) for twists v (N, 6).
+// Normal velocity of B's point relative to A's (< 0 approaching) for A's twist at ta and
+// B's at tb (6 each).
+inline double normal_speed_of(const double* ta, const double* tb, const Vec3& ra, const Vec3& rb,
+                              const Vec3& n) {
+  Vec3 va = load3(ta) + cross(load3(ta + 3), ra);
+  Vec3 vb = load3(tb) + cross(load3(tb + 3), rb);
+  return dot(vb - va, n);
+}
+
+// ... for twists v (N, 6).
 inline double normal_speed(const double* v, int64_t a, int64_t b, const Vec3& ra, const Vec3& rb,
                            const Vec3& n) {
-  Vec3 va = load3(v + 6 * a) + cross(load3(v + 6 * a + 3), ra);
-  Vec3 vb = load3(v + 6 * b) + cross(load3(v + 6 * b + 3), rb);
-  return dot(vb - va, n);
+  return normal_speed_of(v + 6 * a, v + 6 * b, ra, rb, n);
 }
 
 // How body i moved over the step, from the poses (a step of several periods that its source
@@ -310,31 +317,37 @@ void StepSolver::reference_frame(StepContext& ctx) {
   // its contact rests below factor times that (else a column of cubes dropped apart at
   // 30 Hz took their slow landings as impacts and sank 16 mm into itself)
   // (none where no free movable body meets a supported one: a body on the floor, two
-  // supported bodies)
-  for (int64_t k = 0; k < m; ++k) {
-    const int64_t a = c.a[k], b = c.b[k];
-    const bool free_a = bodies.movable[a] && !supported_[a];
-    const bool free_b = bodies.movable[b] && !supported_[b];
-    if ((!supported_[a] && !supported_[b]) || (!free_a && !free_b)) continue;
-    const double held = before_[k] - normal_speed(path_.data(), a, b, ra_[k], rb_[k],
-                                                  load3(c.normal + 3 * k));
-    resting_speed_[k] = std::max(resting_speed_[k], ctx.params.resting_factor * held);
-  }
-  // held: a supported body does not move into what holds it (along the normal), a
-  // movable support taken as held still, an immovable or free one as it moves
+  // supported bodies).
+  // In the same pass, held: a supported body does not move into what holds it (along the
+  // normal), a movable support taken as held still, an immovable or free one as it moves.
+  // (The resting speed reads the twists the bodies had before any hold, path_ as it was
+  // filled above: a supported body's previous twist, another's current one.)
+  const double *const twist_then = then_.data(), *const twist_now = now_.data();
+  double* const path = path_.data();
+  double* const resting_of = resting_speed_.data();
+  const double* const start = start_speed_.data();
+  const Vec3 *const ra = ra_.data(), *const rb = rb_.data();
+  const double factor = ctx.params.resting_factor;
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const Vec3 normal = load3(c.normal + 3 * k);
-    if (!persistent(c.kind[k]) || gap_[k] > slop || std::abs(start_speed_[k]) > resting_speed_[k])
+    const bool free_a = bodies.movable[a] && !supported[a];
+    const bool free_b = bodies.movable[b] && !supported[b];
+    if ((supported[a] || supported[b]) && (free_a || free_b)) {
+      const double held = before[k] - normal_speed_of((supported[a] ? twist_then : twist_now) + 6 * a,
+                                                      (supported[b] ? twist_then : twist_now) + 6 * b,
+                                                      ra[k], rb[k], normal);
+      resting_of[k] = std::max(resting_of[k], factor * held);
+    }
+    if (!persistent(c.kind[k]) || gap[k] > slop || std::abs(start[k]) > resting_of[k])
       continue;
     for (const int64_t i : {a, b}) {
-      if (!supported_[i]) continue;
+      if (!supported[i]) continue;
       const int64_t other = i == a ? b : a;
       const Vec3 into = i == b ? normal : Vec3(-normal);   // from the support to i
-      const Vec3 held = supported_[other] ? Vec3::Zero() : load3(path_.data() + 6 * other);
-      const double approach = dot(load3(path_.data() + 6 * i) - held, into);
-      if (approach < 0.0)
-        store3(path_.data() + 6 * i, load3(path_.data() + 6 * i) - approach * into);
+      const Vec3 held = supported[other] ? Vec3::Zero() : load3(path + 6 * other);
+      const double approach = dot(load3(path + 6 * i) - held, into);
+      if (approach < 0.0) store3(path + 6 * i, load3(path + 6 * i) - approach * into);
     }
   }
   // the step's load: the momentum its external change gives each movable body (N s), and
@@ -401,33 +414,49 @@ void StepSolver::reference_frame(StepContext& ctx) {
   // step's external change, which the resting solve meets; a body without an impact: its
   // current twist), the farthest contact point of each body, the fastest approach and the
   // largest restitution (prepare's row bound; the same for every solve of the step)
-  fastest_ = 0.0;
-  restitution_ = 0.0;
+  // (the arrays through local pointers, each value in a local and stored once, the two
+  // maxima in locals: see frame_contacts)
+  double fastest = 0.0, restitution = 0.0;
   reach_body_.assign(n, 0.0);   // (squared here)
+  double* const reach = reach_body_.data();
+  const uint8_t* const near_of = near_.data();
+  const double *const drift = drift_.data(), *const moved_a = moved_a_.data();
+  const double* const later_of = later_.data();
+  double *const gap_of = gap_.data(), *const allowance = allowance_.data();
+  double *const remaining_of = remaining_.data(), *const span = span_.data();
+  double* const approach = approach_.data();
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
-    const double later = std::max(fraction_[a], fraction_[b]);
-    const bool own = !near_[a] && !near_[b];
-    const double fa = own ? fraction_[a] : later, fb = own ? fraction_[b] : later;
+    const double later = std::max(fraction[a], fraction[b]);
+    const bool own = !near_of[a] && !near_of[b];
+    const double fa = own ? fraction[a] : later, fb = own ? fraction[b] : later;
     const double remaining = std::max((1.0 - std::min(fa, fb)) * dt, 1e-9 * dt);
-    const double closed = allowance_[k], moved_b = closed + drift_[k] + moved_a_[k];
+    const double closed = allowance[k], moved_b = closed + drift[k] + moved_a[k];
     // an impact's own rows touch at its time of impact; its speculative corners (detected
     // impact rows with a positive separation) are that far from touching then; a demoted
     // impact: from the start
-    gap_[k] = impact_[k] ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
-              : fa == fb ? gap_[k] + (closed + drift_[k]) * fa
-                         : gap_[k] + fb * moved_b - fa * moved_a_[k];
-    remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
-    span_[k] = remaining;
-    allowance_[k] = std::max(gap_[k], 0.0) / remaining;
-    reach_body_[a] = std::max(reach_body_[a], dot(ra_[k], ra_[k]));
-    reach_body_[b] = std::max(reach_body_[b], dot(rb_[k], rb_[k]));
-    if (impacted_[a] || impacted_[b])
-      approach_[k] = normal_speed(later_.data(), a, b, ra_[k], rb_[k], load3(c.normal + 3 * k));
-    fastest_ = std::max(fastest_, -approach_[k]);
-    restitution_ = std::max({restitution_, bodies.restitution[a], bodies.restitution[b]});
+    const double gap_k = impact_of[k]
+                             ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
+                         : fa == fb ? gap_of[k] + (closed + drift[k]) * fa
+                                    : gap_of[k] + fb * moved_b - fa * moved_a[k];
+    gap_of[k] = gap_k;
+    remaining_of[k] = impact_of[k] ? (1.0 - toi_of[k]) * dt : remaining;
+    span[k] = remaining;
+    allowance[k] = std::max(gap_k, 0.0) / remaining;
+    const Vec3 lever_a = ra[k], lever_b = rb[k];
+    reach[a] = std::max(reach[a], dot(lever_a, lever_a));
+    reach[b] = std::max(reach[b], dot(lever_b, lever_b));
+    double speed = approach[k];
+    if (impacted[a] || impacted[b]) {
+      speed = normal_speed(later_of, a, b, lever_a, lever_b, load3(c.normal + 3 * k));
+      approach[k] = speed;
+    }
+    fastest = std::max(fastest, -speed);
+    restitution = std::max({restitution, bodies.restitution[a], bodies.restitution[b]});
   }
-  for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
+  fastest_ = fastest;
+  restitution_ = restitution;
+  for (int64_t i = 0; i < n; ++i) reach[i] = std::sqrt(reach[i]);
 }
 
 // The per-contact part of reference_frame for contacts [lo, hi): their levers (ra_, rb_),
@@ -471,18 +500,26 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
       if (fixed_a != fixed_b)
         point += (fixed_a ? 0.5 : -0.5) * c.separation[k] * normal;
     }
-    ra[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
-    rb[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
+    // (each value computed into a local and stored once: read back from its array after a
+    // store, it was loaded again, since the compiler cannot tell the arrays apart)
+    const Vec3 lever_a = point - (xa + at * (load3(current.position + 3 * a) - xa));
+    const Vec3 lever_b = point - (xb + at * (load3(current.position + 3 * b) - xb));
+    ra[k] = lever_a;
+    rb[k] = lever_b;
     // how far the two points closed over the step (m, from the poses: a step of several
     // periods that its source integrated is no straight line at the twist); a persistent
     // contact's gap at the previous state is its separation less that
-    travel[2 * k] = travelled(motion[a], ra[k]);
-    travel[2 * k + 1] = travelled(motion[b], rb[k]);
-    moved_a[k] = dot(travel[2 * k], normal);
-    const double closed = dot(travel[2 * k + 1], normal) - moved_a[k];
-    gap[k] = c.separation[k] - closed;
+    const Vec3 travel_a = travelled(motion[a], lever_a), travel_b = travelled(motion[b], lever_b);
+    travel[2 * k] = travel_a;
+    travel[2 * k + 1] = travel_b;
+    const double along_a = dot(travel_a, normal);
+    moved_a[k] = along_a;
+    const double closed = dot(travel_b, normal) - along_a;
+    const double gap_then = c.separation[k] - closed;
+    gap[k] = gap_then;
     allowance[k] = closed;           // (kept here for the loops below)
-    before[k] = normal_speed(then, a, b, ra[k], rb[k], normal);
+    const double speed_then = normal_speed(then, a, b, lever_a, lever_b, normal);
+    before[k] = speed_then;
     // the pre-solve approach at the current twists (a body with an impact: below), and the
     // contact's resting speed: slower approaches are RESTING and do not bounce. It is
     // factor times the approach the step's external change alone brought the pair
@@ -493,13 +530,15 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
     // once. Free bodies (no external change: a weightless gas, a ball drifting into a wall
     // in space) bounce at any approach: no load brings a slow bounce back, and resting it
     // would take energy that nothing returns (an elastic gas keeps its energy)
-    approach[k] = normal_speed(now, a, b, ra[k], rb[k], normal);
-    resting[k] = std::max(loaded[a] || loaded[b] ? floor : 0.0,
-                          factor * std::max(before[k] - approach[k], 0.0));
-    const double threshold = resting[k];
+    const double speed_now = normal_speed(now, a, b, lever_a, lever_b, normal);
+    approach[k] = speed_now;
+    const double threshold = std::max(loaded[a] || loaded[b] ? floor : 0.0,
+                                      factor * std::max(speed_then - speed_now, 0.0));
+    resting[k] = threshold;
     // touching at the previous state (within the slop) and not approaching then: in
     // contact from the start of the step; its bodies rest on it unless they have an impact
-    touching[k] = !detected && gap[k] <= slop && before[k] >= -sticking;
+    const bool within = !detected && gap_then <= slop;
+    touching[k] = within && speed_then >= -sticking;
     // (and only where the step's external change presses one of the two into the other:
     // without one, nothing holds a body there, and a ball that drifted into another in a
     // weightless gas, struck within the step, was held on it one-sidedly: momentum made,
@@ -508,8 +547,9 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
     // at the middle of its step): a ball falling into the slop of its floor at 0.487 m/s
     // at the previous step's middle, 0.507 m/s by its end, was held there as resting on
     // it (below the 0.5 m/s threshold) and did not bounce at 0.508 m/s (240 Hz)
-    start[k] = 0.5 * (before[k] + approach[k]);
-    if (!detected && gap[k] <= slop && std::abs(start[k]) <= threshold) {
+    const double speed_start = 0.5 * (speed_then + speed_now);
+    start[k] = speed_start;
+    if (within && std::abs(speed_start) <= threshold) {
       const Vec3 press_a = load3(now + 6 * a) - load3(then + 6 * a);
       const Vec3 press_b = load3(now + 6 * b) - load3(then + 6 * b);
       pressed[k] = dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0;
@@ -555,35 +595,41 @@ void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi)
   for (int64_t k = lo; k < hi; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
-    const Vec3 normal = load3(c.normal + 3 * k);
-    drift[k] = 0.0;
-    if (supported[a] || supported[b]) {
+    const bool held_pair = supported[a] || supported[b];
+    // (each value in a local, stored once: see frame_contacts)
+    double drifts = 0.0;
+    if (held_pair) {
+      const Vec3 normal = load3(c.normal + 3 * k);
       const Vec3 held_a = held(a, ra[k], travel[2 * k]);
-      drift[k] = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
+      drifts = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
       moved_a[k] -= dot(held_a, normal);
     }
-    const double v_in = approach[k], threshold = resting[k];
+    drift[k] = drifts;
+    const double threshold = resting[k], speed_then = before[k];
+    double gap_then = gap[k];
     // a persistent contact that closes within the step faster than the threshold at the
     // time it closes (on the held paths: its separation at the end is drift_ more than
     // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
     // v_in + (f - 1/2) (v_in - before) off the held paths: a ball landing at 0.51 m/s late
     // in a 120 Hz step whose mid-step approach was 0.50 m/s did not bounce)
-    const double end = c.separation[k] + drift[k];
-    const double meets = gap[k] / std::max(gap[k] - end, 1e-300);
-    const double v_then = supported[a] || supported[b]
-                              ? v_in : v_in + (meets - 0.5) * (v_in - before[k]);
-    bool closing = !detected && !touching[k] && gap[k] > 0.0 && end < 0.0 &&
-                   v_then < -threshold;
-    bool impact = detected || closing;
+    const double end = c.separation[k] + drifts;
+    bool closing = false;
     double toi = detected ? c.toi[k] : 0.0;
-    if (closing) toi = meets;
+    if (!detected && !touching[k] && gap_then > 0.0 && end < 0.0) {
+      const double v_in = approach[k];
+      const double meets = gap_then / std::max(gap_then - end, 1e-300);
+      const double v_then = held_pair ? v_in : v_in + (meets - 0.5) * (v_in - speed_then);
+      closing = v_then < -threshold;
+      if (closing) toi = meets;
+    }
+    bool impact = detected || closing;
     // a detected impact of a supported body: the time its rows reach their separation at
     // detection's time of impact f on the held paths, f closed / (closed + drift) (its
     // points close by closed over the step on the integrated paths); none within the step
     // there: a persistent contact from the start, its gap then the one at the time of
     // impact less what closed before it
-    if (detected && drift[k] != 0.0) {
-      const double closed = allowance[k], held = closed + drift[k];
+    if (detected && drifts != 0.0) {
+      const double closed = allowance[k], held = closed + drifts;
       const double at = closed < 0.0 && held < 0.0 ? toi * closed / held : 2.0;
       if (at > 1.0) {
         gap[k] = std::max(c.separation[k], 0.0) - toi * closed;
@@ -603,11 +649,10 @@ void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi)
     // external change brings (at the start its pair approached slower than the
     // threshold): after dropped inputs its source integrated it through its supports
     // into what lies below them; the contact is speculative from the start instead
-    if (impact && (rested[a] || rested[b]) && before[k] >= -threshold) {
+    if (impact && (rested[a] || rested[b]) && speed_then >= -threshold) {
       // a detected impact's rows touch (its corners: their separation) at the time of
       // impact, and closed by toi of the step's closing before
-      if (detected)
-        gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drift[k]);
+      if (detected) gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drifts);
       impact = closing = false;
       toi = 0.0;
     }

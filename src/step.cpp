@@ -231,6 +231,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   span_.resize(m);
   allowance_.resize(m);
   touching_.resize(m);
+  unsettled_.resize(m);
   moved_a_.resize(m);
   near_.assign(n, 0);
   fraction_.assign(n, 1.0);           // earliest time of impact per body (1: none)
@@ -311,36 +312,22 @@ void StepSolver::reference_frame(StepContext& ctx) {
   path_.resize(6 * n);
   for (int64_t i = 0; i < 6 * n; ++i)
     path_[i] = supported_[i / 6] ? then_[i] : now_[i];
-  // the external change of a supported body is taken by what holds it: a body that lands
-  // on it gathers the external change relative to it as on the floor (a cube falling onto
-  // one resting on the floor: g dt per step, not the none of two falling together), and
-  // its contact rests below factor times that (else a column of cubes dropped apart at
-  // 30 Hz took their slow landings as impacts and sank 16 mm into itself)
-  // (none where no free movable body meets a supported one: a body on the floor, two
-  // supported bodies).
-  // In the same pass, held: a supported body does not move into what holds it (along the
-  // normal), a movable support taken as held still, an immovable or free one as it moves.
-  // (The resting speed reads the twists the bodies had before any hold, path_ as it was
-  // filled above: a supported body's previous twist, another's current one.)
-  const double *const twist_then = then_.data(), *const twist_now = now_.data();
+  // each settled contact's resting speed where a supported body holds the other
+  // (held_resting); in the same pass, held: a supported body does not move into what holds
+  // it (along the normal), a movable support taken as held still, an immovable or free one
+  // as it moves
   double* const path = path_.data();
   double* const resting_of = resting_speed_.data();
   const double* const start = start_speed_.data();
   const Vec3 *const ra = ra_.data(), *const rb = rb_.data();
-  const double factor = ctx.params.resting_factor;
+  const uint8_t* const unsettled = unsettled_.data();
   for (int64_t k = 0; k < m; ++k) {
-    const int64_t a = c.a[k], b = c.b[k];
-    const Vec3 normal = load3(c.normal + 3 * k);
-    const bool free_a = bodies.movable[a] && !supported[a];
-    const bool free_b = bodies.movable[b] && !supported[b];
-    if ((supported[a] || supported[b]) && (free_a || free_b)) {
-      const double held = before[k] - normal_speed_of((supported[a] ? twist_then : twist_now) + 6 * a,
-                                                      (supported[b] ? twist_then : twist_now) + 6 * b,
-                                                      ra[k], rb[k], normal);
-      resting_of[k] = std::max(resting_of[k], factor * held);
-    }
+    if (unsettled[k]) continue;   // (settle)
+    resting_of[k] = held_resting(ctx, k, before[k], resting_of[k]);
     if (!persistent(c.kind[k]) || gap[k] > slop || std::abs(start[k]) > resting_of[k])
       continue;
+    const int64_t a = c.a[k], b = c.b[k];
+    const Vec3 normal = load3(c.normal + 3 * k);
     for (const int64_t i : {a, b}) {
       if (!supported[i]) continue;
       const int64_t other = i == a ? b : a;
@@ -448,6 +435,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
     reach[b] = std::max(reach[b], dot(lever_b, lever_b));
     double speed = approach[k];
     if (impacted[a] || impacted[b]) {
+      settle(ctx, k);   // (before its approach_ changes: settle reads frame_contacts's)
       speed = normal_speed(later_of, a, b, lever_a, lever_b, load3(c.normal + 3 * k));
       approach[k] = speed;
     }
@@ -480,6 +468,7 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
   double *const approach = approach_.data(), *const resting = resting_speed_.data();
   double* const start = start_speed_.data();
   const uint8_t* const loaded = loaded_.data();
+  uint8_t* const unsettled = unsettled_.data();
   const std::array<Vec3, 2>* const motion = motion_.data();
   for (int64_t k = lo; k < hi; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
@@ -518,26 +507,24 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
     const double gap_then = c.separation[k] - closed;
     gap[k] = gap_then;
     allowance[k] = closed;           // (kept here for the loops below)
-    const double speed_then = normal_speed(then, a, b, lever_a, lever_b, normal);
-    before[k] = speed_then;
-    // the pre-solve approach at the current twists (a body with an impact: below), and the
-    // contact's resting speed: slower approaches are RESTING and do not bounce. It is
-    // factor times the approach the step's external change alone brought the pair
-    // (current less previous twists along the normal: g dt for a body on a floor, none
-    // for two bodies falling together) and, where that change acts on one of the two (a
-    // load, as gravity), at least the floor: a resting body gathers that approach in every
-    // step and must not bounce on it, and a slower bounce under a load is pulled back at
-    // once. Free bodies (no external change: a weightless gas, a ball drifting into a wall
-    // in space) bounce at any approach: no load brings a slow bounce back, and resting it
-    // would take energy that nothing returns (an elastic gas keeps its energy)
+    // the pre-solve approach at the current twists (a body with an impact: below)
     const double speed_now = normal_speed(now, a, b, lever_a, lever_b, normal);
     approach[k] = speed_now;
-    const double threshold = std::max(loaded[a] || loaded[b] ? floor : 0.0,
-                                      factor * std::max(speed_then - speed_now, 0.0));
+    // a persistent contact beyond the slop at the previous state touches nothing from the
+    // start: its speed then and its resting speed are found where they are read (settle:
+    // most speculative points of a pile never are)
+    const bool within = !detected && gap_then <= slop;
+    unsettled[k] = !detected && !within;
+    if (unsettled[k]) {
+      touching[k] = 0;
+      continue;
+    }
+    const double speed_then = normal_speed(then, a, b, lever_a, lever_b, normal);
+    before[k] = speed_then;
+    const double threshold = resting_speed(loaded, a, b, speed_then, speed_now, floor, factor);
     resting[k] = threshold;
     // touching at the previous state (within the slop) and not approaching then: in
     // contact from the start of the step; its bodies rest on it unless they have an impact
-    const bool within = !detected && gap_then <= slop;
     touching[k] = within && speed_then >= -sticking;
     // (and only where the step's external change presses one of the two into the other:
     // without one, nothing holds a body there, and a ball that drifted into another in a
@@ -555,6 +542,56 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
       pressed[k] = dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0;
     }
   }
+}
+
+// The resting speed of a contact of bodies a and b whose normal speed was `then` at the
+// previous twists and is `now` at the current ones (m/s): slower approaches are RESTING and
+// do not bounce. It is factor times the approach the step's external change alone brought
+// the pair (current less previous twists along the normal: g dt for a body on a floor, none
+// for two bodies falling together) and, where that change acts on one of the two (loaded:
+// a load, as gravity), at least the floor: a resting body gathers that approach in every
+// step and must not bounce on it, and a slower bounce under a load is pulled back at once.
+// Free bodies (no external change: a weightless gas, a ball drifting into a wall in space)
+// bounce at any approach: no load brings a slow bounce back, and resting it would take
+// energy that nothing returns (an elastic gas keeps its energy)
+double StepSolver::resting_speed(const uint8_t* loaded, int64_t a, int64_t b, double then,
+                                 double now, double floor, double factor) {
+  return std::max(loaded[a] || loaded[b] ? floor : 0.0, factor * std::max(then - now, 0.0));
+}
+
+// The external change of a supported body is taken by what holds it: a body that lands on
+// it gathers the external change relative to it as on the floor (a cube falling onto one
+// resting on the floor: g dt per step, not the none of two falling together), and its
+// contact k rests below factor times that (else a column of cubes dropped apart at 30 Hz
+// took their slow landings as impacts and sank 16 mm into itself): `resting` raised to it
+// where a free movable body meets a supported one (not a body on the floor, nor two
+// supported bodies). `then`: k's normal speed at the previous twists (m/s); the twists on
+// the held paths as they start (path_ before any hold: a supported body's previous twist,
+// another's current one)
+double StepSolver::held_resting(const StepContext& ctx, int64_t k, double then,
+                                double resting) const {
+  const int64_t a = ctx.contacts.a[k], b = ctx.contacts.b[k];
+  const uint8_t* const movable = ctx.bodies.movable;
+  const bool free_a = movable[a] && !supported_[a], free_b = movable[b] && !supported_[b];
+  if ((!supported_[a] && !supported_[b]) || (!free_a && !free_b)) return resting;
+  const double held = then - normal_speed_of((supported_[a] ? then_ : now_).data() + 6 * a,
+                                             (supported_[b] ? then_ : now_).data() + 6 * b,
+                                             ra_[k], rb_[k], load3(ctx.contacts.normal + 3 * k));
+  return std::max(resting, ctx.params.resting_factor * held);
+}
+
+void StepSolver::settle(const StepContext& ctx, int64_t k) {
+  if (!unsettled_[k]) return;
+  const ContactsView& c = ctx.contacts;
+  const int64_t a = c.a[k], b = c.b[k];
+  const Vec3 normal = load3(c.normal + 3 * k);
+  const double then = normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal);
+  before_[k] = then;
+  // (an unsettled contact's approach_ is still the one at the current twists: frame_contacts)
+  resting_speed_[k] = held_resting(
+      ctx, k, then, resting_speed(loaded_.data(), a, b, then, approach_[k],
+                                  ctx.params.restitution_threshold, ctx.params.resting_factor));
+  unsettled_[k] = 0;
 }
 
 // The per-contact part of reference_frame for contacts [lo, hi) after the bodies' flags:
@@ -605,8 +642,7 @@ void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi)
       moved_a[k] -= dot(held_a, normal);
     }
     drift[k] = drifts;
-    const double threshold = resting[k], speed_then = before[k];
-    double gap_then = gap[k];
+    const double gap_then = gap[k];
     // a persistent contact that closes within the step faster than the threshold at the
     // time it closes (on the held paths: its separation at the end is drift_ more than
     // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
@@ -616,10 +652,11 @@ void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi)
     bool closing = false;
     double toi = detected ? c.toi[k] : 0.0;
     if (!detected && !touching[k] && gap_then > 0.0 && end < 0.0) {
+      settle(ctx, k);
       const double v_in = approach[k];
       const double meets = gap_then / std::max(gap_then - end, 1e-300);
-      const double v_then = held_pair ? v_in : v_in + (meets - 0.5) * (v_in - speed_then);
-      closing = v_then < -threshold;
+      const double v_then = held_pair ? v_in : v_in + (meets - 0.5) * (v_in - before[k]);
+      closing = v_then < -resting[k];
       if (closing) toi = meets;
     }
     bool impact = detected || closing;
@@ -649,7 +686,8 @@ void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi)
     // external change brings (at the start its pair approached slower than the
     // threshold): after dropped inputs its source integrated it through its supports
     // into what lies below them; the contact is speculative from the start instead
-    if (impact && (rested[a] || rested[b]) && speed_then >= -threshold) {
+    // (an impact is settled: detected, or closing)
+    if (impact && (rested[a] || rested[b]) && before[k] >= -resting[k]) {
       // a detected impact's rows touch (its corners: their separation) at the time of
       // impact, and closed by toi of the step's closing before
       if (detected) gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drifts);
@@ -698,6 +736,7 @@ void StepSolver::prepare(StepContext& ctx) {
         rowless_.push_back(static_cast<int32_t>(k));
         continue;
       }
+      settle(ctx, k);   // (its resting speed: the impact stages and the landing read it)
       row_of_[k] = static_cast<int32_t>(used);
       if (used == rows_.size()) rows_.emplace_back();
       ContactRow& row = rows_[used++];

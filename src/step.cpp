@@ -37,12 +37,19 @@ bool holds_nothing(const ContactRow& r) {
 
 bool persistent(int8_t kind) { return kind == static_cast<int8_t>(ContactKind::persistent); }
 
-// Normal velocity of B's point relative to A's (< 0 approaching) for twists v (N, 6).
+// Normal velocity of B's point relative to A's (< 0 approaching) for A's twist at ta and
+// B's at tb (6 each).
+inline double normal_speed_of(const double* ta, const double* tb, const Vec3& ra, const Vec3& rb,
+                              const Vec3& n) {
+  Vec3 va = load3(ta) + cross(load3(ta + 3), ra);
+  Vec3 vb = load3(tb) + cross(load3(tb + 3), rb);
+  return dot(vb - va, n);
+}
+
+// ... for twists v (N, 6).
 inline double normal_speed(const double* v, int64_t a, int64_t b, const Vec3& ra, const Vec3& rb,
                            const Vec3& n) {
-  Vec3 va = load3(v + 6 * a) + cross(load3(v + 6 * a + 3), ra);
-  Vec3 vb = load3(v + 6 * b) + cross(load3(v + 6 * b + 3), rb);
-  return dot(vb - va, n);
+  return normal_speed_of(v + 6 * a, v + 6 * b, ra, rb, n);
 }
 
 // How body i moved over the step, from the poses (a step of several periods that its source
@@ -224,6 +231,7 @@ void StepSolver::reference_frame(StepContext& ctx) {
   span_.resize(m);
   allowance_.resize(m);
   touching_.resize(m);
+  unsettled_.resize(m);
   moved_a_.resize(m);
   near_.assign(n, 0);
   fraction_.assign(n, 1.0);           // earliest time of impact per body (1: none)
@@ -304,37 +312,29 @@ void StepSolver::reference_frame(StepContext& ctx) {
   path_.resize(6 * n);
   for (int64_t i = 0; i < 6 * n; ++i)
     path_[i] = supported_[i / 6] ? then_[i] : now_[i];
-  // the external change of a supported body is taken by what holds it: a body that lands
-  // on it gathers the external change relative to it as on the floor (a cube falling onto
-  // one resting on the floor: g dt per step, not the none of two falling together), and
-  // its contact rests below factor times that (else a column of cubes dropped apart at
-  // 30 Hz took their slow landings as impacts and sank 16 mm into itself)
-  // (none where no free movable body meets a supported one: a body on the floor, two
-  // supported bodies)
+  // each settled contact's resting speed where a supported body holds the other
+  // (held_resting); in the same pass, held: a supported body does not move into what holds
+  // it (along the normal), a movable support taken as held still, an immovable or free one
+  // as it moves
+  double* const path = path_.data();
+  double* const resting_of = resting_speed_.data();
+  const double* const start = start_speed_.data();
+  const Vec3 *const ra = ra_.data(), *const rb = rb_.data();
+  const uint8_t* const unsettled = unsettled_.data();
   for (int64_t k = 0; k < m; ++k) {
-    const int64_t a = c.a[k], b = c.b[k];
-    const bool free_a = bodies.movable[a] && !supported_[a];
-    const bool free_b = bodies.movable[b] && !supported_[b];
-    if ((!supported_[a] && !supported_[b]) || (!free_a && !free_b)) continue;
-    const double held = before_[k] - normal_speed(path_.data(), a, b, ra_[k], rb_[k],
-                                                  load3(c.normal + 3 * k));
-    resting_speed_[k] = std::max(resting_speed_[k], ctx.params.resting_factor * held);
-  }
-  // held: a supported body does not move into what holds it (along the normal), a
-  // movable support taken as held still, an immovable or free one as it moves
-  for (int64_t k = 0; k < m; ++k) {
+    if (unsettled[k]) continue;   // (settle)
+    resting_of[k] = held_resting(ctx, k, before[k], resting_of[k]);
+    if (!persistent(c.kind[k]) || gap[k] > slop || std::abs(start[k]) > resting_of[k])
+      continue;
     const int64_t a = c.a[k], b = c.b[k];
     const Vec3 normal = load3(c.normal + 3 * k);
-    if (!persistent(c.kind[k]) || gap_[k] > slop || std::abs(start_speed_[k]) > resting_speed_[k])
-      continue;
     for (const int64_t i : {a, b}) {
-      if (!supported_[i]) continue;
+      if (!supported[i]) continue;
       const int64_t other = i == a ? b : a;
       const Vec3 into = i == b ? normal : Vec3(-normal);   // from the support to i
-      const Vec3 held = supported_[other] ? Vec3::Zero() : load3(path_.data() + 6 * other);
-      const double approach = dot(load3(path_.data() + 6 * i) - held, into);
-      if (approach < 0.0)
-        store3(path_.data() + 6 * i, load3(path_.data() + 6 * i) - approach * into);
+      const Vec3 held = supported[other] ? Vec3::Zero() : load3(path + 6 * other);
+      const double approach = dot(load3(path + 6 * i) - held, into);
+      if (approach < 0.0) store3(path + 6 * i, load3(path + 6 * i) - approach * into);
     }
   }
   // the step's load: the momentum its external change gives each movable body (N s), and
@@ -401,33 +401,50 @@ void StepSolver::reference_frame(StepContext& ctx) {
   // step's external change, which the resting solve meets; a body without an impact: its
   // current twist), the farthest contact point of each body, the fastest approach and the
   // largest restitution (prepare's row bound; the same for every solve of the step)
-  fastest_ = 0.0;
-  restitution_ = 0.0;
+  // (the arrays through local pointers, each value in a local and stored once, the two
+  // maxima in locals: see frame_contacts)
+  double fastest = 0.0, restitution = 0.0;
   reach_body_.assign(n, 0.0);   // (squared here)
+  double* const reach = reach_body_.data();
+  const uint8_t* const near_of = near_.data();
+  const double *const drift = drift_.data(), *const moved_a = moved_a_.data();
+  const double* const later_of = later_.data();
+  double *const gap_of = gap_.data(), *const allowance = allowance_.data();
+  double *const remaining_of = remaining_.data(), *const span = span_.data();
+  double* const approach = approach_.data();
   for (int64_t k = 0; k < m; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
-    const double later = std::max(fraction_[a], fraction_[b]);
-    const bool own = !near_[a] && !near_[b];
-    const double fa = own ? fraction_[a] : later, fb = own ? fraction_[b] : later;
+    const double later = std::max(fraction[a], fraction[b]);
+    const bool own = !near_of[a] && !near_of[b];
+    const double fa = own ? fraction[a] : later, fb = own ? fraction[b] : later;
     const double remaining = std::max((1.0 - std::min(fa, fb)) * dt, 1e-9 * dt);
-    const double closed = allowance_[k], moved_b = closed + drift_[k] + moved_a_[k];
+    const double closed = allowance[k], moved_b = closed + drift[k] + moved_a[k];
     // an impact's own rows touch at its time of impact; its speculative corners (detected
     // impact rows with a positive separation) are that far from touching then; a demoted
     // impact: from the start
-    gap_[k] = impact_[k] ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
-              : fa == fb ? gap_[k] + (closed + drift_[k]) * fa
-                         : gap_[k] + fb * moved_b - fa * moved_a_[k];
-    remaining_[k] = impact_[k] ? (1.0 - toi_[k]) * dt : remaining;
-    span_[k] = remaining;
-    allowance_[k] = std::max(gap_[k], 0.0) / remaining;
-    reach_body_[a] = std::max(reach_body_[a], dot(ra_[k], ra_[k]));
-    reach_body_[b] = std::max(reach_body_[b], dot(rb_[k], rb_[k]));
-    if (impacted_[a] || impacted_[b])
-      approach_[k] = normal_speed(later_.data(), a, b, ra_[k], rb_[k], load3(c.normal + 3 * k));
-    fastest_ = std::max(fastest_, -approach_[k]);
-    restitution_ = std::max({restitution_, bodies.restitution[a], bodies.restitution[b]});
+    const double gap_k = impact_of[k]
+                             ? (persistent(c.kind[k]) ? 0.0 : std::max(c.separation[k], 0.0))
+                         : fa == fb ? gap_of[k] + (closed + drift[k]) * fa
+                                    : gap_of[k] + fb * moved_b - fa * moved_a[k];
+    gap_of[k] = gap_k;
+    remaining_of[k] = impact_of[k] ? (1.0 - toi_of[k]) * dt : remaining;
+    span[k] = remaining;
+    allowance[k] = std::max(gap_k, 0.0) / remaining;
+    const Vec3 lever_a = ra[k], lever_b = rb[k];
+    reach[a] = std::max(reach[a], dot(lever_a, lever_a));
+    reach[b] = std::max(reach[b], dot(lever_b, lever_b));
+    double speed = approach[k];
+    if (impacted[a] || impacted[b]) {
+      settle(ctx, k);   // (before its approach_ changes: settle reads frame_contacts's)
+      speed = normal_speed(later_of, a, b, lever_a, lever_b, load3(c.normal + 3 * k));
+      approach[k] = speed;
+    }
+    fastest = std::max(fastest, -speed);
+    restitution = std::max({restitution, bodies.restitution[a], bodies.restitution[b]});
   }
-  for (int64_t i = 0; i < n; ++i) reach_body_[i] = std::sqrt(reach_body_[i]);
+  fastest_ = fastest;
+  restitution_ = restitution;
+  for (int64_t i = 0; i < n; ++i) reach[i] = std::sqrt(reach[i]);
 }
 
 // The per-contact part of reference_frame for contacts [lo, hi): their levers (ra_, rb_),
@@ -451,6 +468,7 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
   double *const approach = approach_.data(), *const resting = resting_speed_.data();
   double* const start = start_speed_.data();
   const uint8_t* const loaded = loaded_.data();
+  uint8_t* const unsettled = unsettled_.data();
   const std::array<Vec3, 2>* const motion = motion_.data();
   for (int64_t k = lo; k < hi; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
@@ -471,35 +489,43 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
       if (fixed_a != fixed_b)
         point += (fixed_a ? 0.5 : -0.5) * c.separation[k] * normal;
     }
-    ra[k] = point - (xa + at * (load3(current.position + 3 * a) - xa));
-    rb[k] = point - (xb + at * (load3(current.position + 3 * b) - xb));
+    // (each value computed into a local and stored once: read back from its array after a
+    // store, it was loaded again, since the compiler cannot tell the arrays apart)
+    const Vec3 lever_a = point - (xa + at * (load3(current.position + 3 * a) - xa));
+    const Vec3 lever_b = point - (xb + at * (load3(current.position + 3 * b) - xb));
+    ra[k] = lever_a;
+    rb[k] = lever_b;
     // how far the two points closed over the step (m, from the poses: a step of several
     // periods that its source integrated is no straight line at the twist); a persistent
     // contact's gap at the previous state is its separation less that
-    travel[2 * k] = travelled(motion[a], ra[k]);
-    travel[2 * k + 1] = travelled(motion[b], rb[k]);
-    moved_a[k] = dot(travel[2 * k], normal);
-    const double closed = dot(travel[2 * k + 1], normal) - moved_a[k];
-    gap[k] = c.separation[k] - closed;
+    const Vec3 travel_a = travelled(motion[a], lever_a), travel_b = travelled(motion[b], lever_b);
+    travel[2 * k] = travel_a;
+    travel[2 * k + 1] = travel_b;
+    const double along_a = dot(travel_a, normal);
+    moved_a[k] = along_a;
+    const double closed = dot(travel_b, normal) - along_a;
+    const double gap_then = c.separation[k] - closed;
+    gap[k] = gap_then;
     allowance[k] = closed;           // (kept here for the loops below)
-    before[k] = normal_speed(then, a, b, ra[k], rb[k], normal);
-    // the pre-solve approach at the current twists (a body with an impact: below), and the
-    // contact's resting speed: slower approaches are RESTING and do not bounce. It is
-    // factor times the approach the step's external change alone brought the pair
-    // (current less previous twists along the normal: g dt for a body on a floor, none
-    // for two bodies falling together) and, where that change acts on one of the two (a
-    // load, as gravity), at least the floor: a resting body gathers that approach in every
-    // step and must not bounce on it, and a slower bounce under a load is pulled back at
-    // once. Free bodies (no external change: a weightless gas, a ball drifting into a wall
-    // in space) bounce at any approach: no load brings a slow bounce back, and resting it
-    // would take energy that nothing returns (an elastic gas keeps its energy)
-    approach[k] = normal_speed(now, a, b, ra[k], rb[k], normal);
-    resting[k] = std::max(loaded[a] || loaded[b] ? floor : 0.0,
-                          factor * std::max(before[k] - approach[k], 0.0));
-    const double threshold = resting[k];
+    // the pre-solve approach at the current twists (a body with an impact: below)
+    const double speed_now = normal_speed(now, a, b, lever_a, lever_b, normal);
+    approach[k] = speed_now;
+    // a persistent contact beyond the slop at the previous state touches nothing from the
+    // start: its speed then and its resting speed are found where they are read (settle:
+    // most speculative points of a pile never are)
+    const bool within = !detected && gap_then <= slop;
+    unsettled[k] = !detected && !within;
+    if (unsettled[k]) {
+      touching[k] = 0;
+      continue;
+    }
+    const double speed_then = normal_speed(then, a, b, lever_a, lever_b, normal);
+    before[k] = speed_then;
+    const double threshold = resting_speed(loaded, a, b, speed_then, speed_now, floor, factor);
+    resting[k] = threshold;
     // touching at the previous state (within the slop) and not approaching then: in
     // contact from the start of the step; its bodies rest on it unless they have an impact
-    touching[k] = !detected && gap[k] <= slop && before[k] >= -sticking;
+    touching[k] = within && speed_then >= -sticking;
     // (and only where the step's external change presses one of the two into the other:
     // without one, nothing holds a body there, and a ball that drifted into another in a
     // weightless gas, struck within the step, was held on it one-sidedly: momentum made,
@@ -508,13 +534,64 @@ void StepSolver::frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi) 
     // at the middle of its step): a ball falling into the slop of its floor at 0.487 m/s
     // at the previous step's middle, 0.507 m/s by its end, was held there as resting on
     // it (below the 0.5 m/s threshold) and did not bounce at 0.508 m/s (240 Hz)
-    start[k] = 0.5 * (before[k] + approach[k]);
-    if (!detected && gap[k] <= slop && std::abs(start[k]) <= threshold) {
+    const double speed_start = 0.5 * (speed_then + speed_now);
+    start[k] = speed_start;
+    if (within && std::abs(speed_start) <= threshold) {
       const Vec3 press_a = load3(now + 6 * a) - load3(then + 6 * a);
       const Vec3 press_b = load3(now + 6 * b) - load3(then + 6 * b);
       pressed[k] = dot(press_a, normal) > 0.0 || dot(press_b, normal) < 0.0;
     }
   }
+}
+
+// The resting speed of a contact of bodies a and b whose normal speed was `then` at the
+// previous twists and is `now` at the current ones (m/s): slower approaches are RESTING and
+// do not bounce. It is factor times the approach the step's external change alone brought
+// the pair (current less previous twists along the normal: g dt for a body on a floor, none
+// for two bodies falling together) and, where that change acts on one of the two (loaded:
+// a load, as gravity), at least the floor: a resting body gathers that approach in every
+// step and must not bounce on it, and a slower bounce under a load is pulled back at once.
+// Free bodies (no external change: a weightless gas, a ball drifting into a wall in space)
+// bounce at any approach: no load brings a slow bounce back, and resting it would take
+// energy that nothing returns (an elastic gas keeps its energy)
+double StepSolver::resting_speed(const uint8_t* loaded, int64_t a, int64_t b, double then,
+                                 double now, double floor, double factor) {
+  return std::max(loaded[a] || loaded[b] ? floor : 0.0, factor * std::max(then - now, 0.0));
+}
+
+// The external change of a supported body is taken by what holds it: a body that lands on
+// it gathers the external change relative to it as on the floor (a cube falling onto one
+// resting on the floor: g dt per step, not the none of two falling together), and its
+// contact k rests below factor times that (else a column of cubes dropped apart at 30 Hz
+// took their slow landings as impacts and sank 16 mm into itself): `resting` raised to it
+// where a free movable body meets a supported one (not a body on the floor, nor two
+// supported bodies). `then`: k's normal speed at the previous twists (m/s); the twists on
+// the held paths as they start (path_ before any hold: a supported body's previous twist,
+// another's current one)
+double StepSolver::held_resting(const StepContext& ctx, int64_t k, double then,
+                                double resting) const {
+  const int64_t a = ctx.contacts.a[k], b = ctx.contacts.b[k];
+  const uint8_t* const movable = ctx.bodies.movable;
+  const bool free_a = movable[a] && !supported_[a], free_b = movable[b] && !supported_[b];
+  if ((!supported_[a] && !supported_[b]) || (!free_a && !free_b)) return resting;
+  const double held = then - normal_speed_of((supported_[a] ? then_ : now_).data() + 6 * a,
+                                             (supported_[b] ? then_ : now_).data() + 6 * b,
+                                             ra_[k], rb_[k], load3(ctx.contacts.normal + 3 * k));
+  return std::max(resting, ctx.params.resting_factor * held);
+}
+
+void StepSolver::settle(const StepContext& ctx, int64_t k) {
+  if (!unsettled_[k]) return;
+  const ContactsView& c = ctx.contacts;
+  const int64_t a = c.a[k], b = c.b[k];
+  const Vec3 normal = load3(c.normal + 3 * k);
+  const double then = normal_speed(then_.data(), a, b, ra_[k], rb_[k], normal);
+  before_[k] = then;
+  // (an unsettled contact's approach_ is still the one at the current twists: frame_contacts)
+  resting_speed_[k] = held_resting(
+      ctx, k, then, resting_speed(loaded_.data(), a, b, then, approach_[k],
+                                  ctx.params.restitution_threshold, ctx.params.resting_factor));
+  unsettled_[k] = 0;
 }
 
 // The per-contact part of reference_frame for contacts [lo, hi) after the bodies' flags:
@@ -555,35 +632,41 @@ void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi)
   for (int64_t k = lo; k < hi; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const bool detected = !persistent(c.kind[k]);
-    const Vec3 normal = load3(c.normal + 3 * k);
-    drift[k] = 0.0;
-    if (supported[a] || supported[b]) {
+    const bool held_pair = supported[a] || supported[b];
+    // (each value in a local, stored once: see frame_contacts)
+    double drifts = 0.0;
+    if (held_pair) {
+      const Vec3 normal = load3(c.normal + 3 * k);
       const Vec3 held_a = held(a, ra[k], travel[2 * k]);
-      drift[k] = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
+      drifts = dot(held_a - held(b, rb[k], travel[2 * k + 1]), normal);
       moved_a[k] -= dot(held_a, normal);
     }
-    const double v_in = approach[k], threshold = resting[k];
+    drift[k] = drifts;
+    const double gap_then = gap[k];
     // a persistent contact that closes within the step faster than the threshold at the
     // time it closes (on the held paths: its separation at the end is drift_ more than
     // detection's; a twist is the velocity at mid-step, so the approach at fraction f is
     // v_in + (f - 1/2) (v_in - before) off the held paths: a ball landing at 0.51 m/s late
     // in a 120 Hz step whose mid-step approach was 0.50 m/s did not bounce)
-    const double end = c.separation[k] + drift[k];
-    const double meets = gap[k] / std::max(gap[k] - end, 1e-300);
-    const double v_then = supported[a] || supported[b]
-                              ? v_in : v_in + (meets - 0.5) * (v_in - before[k]);
-    bool closing = !detected && !touching[k] && gap[k] > 0.0 && end < 0.0 &&
-                   v_then < -threshold;
-    bool impact = detected || closing;
+    const double end = c.separation[k] + drifts;
+    bool closing = false;
     double toi = detected ? c.toi[k] : 0.0;
-    if (closing) toi = meets;
+    if (!detected && !touching[k] && gap_then > 0.0 && end < 0.0) {
+      settle(ctx, k);
+      const double v_in = approach[k];
+      const double meets = gap_then / std::max(gap_then - end, 1e-300);
+      const double v_then = held_pair ? v_in : v_in + (meets - 0.5) * (v_in - before[k]);
+      closing = v_then < -resting[k];
+      if (closing) toi = meets;
+    }
+    bool impact = detected || closing;
     // a detected impact of a supported body: the time its rows reach their separation at
     // detection's time of impact f on the held paths, f closed / (closed + drift) (its
     // points close by closed over the step on the integrated paths); none within the step
     // there: a persistent contact from the start, its gap then the one at the time of
     // impact less what closed before it
-    if (detected && drift[k] != 0.0) {
-      const double closed = allowance[k], held = closed + drift[k];
+    if (detected && drifts != 0.0) {
+      const double closed = allowance[k], held = closed + drifts;
       const double at = closed < 0.0 && held < 0.0 ? toi * closed / held : 2.0;
       if (at > 1.0) {
         gap[k] = std::max(c.separation[k], 0.0) - toi * closed;
@@ -603,11 +686,11 @@ void StepSolver::impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi)
     // external change brings (at the start its pair approached slower than the
     // threshold): after dropped inputs its source integrated it through its supports
     // into what lies below them; the contact is speculative from the start instead
-    if (impact && (rested[a] || rested[b]) && before[k] >= -threshold) {
+    // (an impact is settled: detected, or closing)
+    if (impact && (rested[a] || rested[b]) && before[k] >= -resting[k]) {
       // a detected impact's rows touch (its corners: their separation) at the time of
       // impact, and closed by toi of the step's closing before
-      if (detected)
-        gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drift[k]);
+      if (detected) gap[k] = std::max(c.separation[k], 0.0) - toi * (allowance[k] + drifts);
       impact = closing = false;
       toi = 0.0;
     }
@@ -653,6 +736,7 @@ void StepSolver::prepare(StepContext& ctx) {
         rowless_.push_back(static_cast<int32_t>(k));
         continue;
       }
+      settle(ctx, k);   // (its resting speed: the impact stages and the landing read it)
       row_of_[k] = static_cast<int32_t>(used);
       if (used == rows_.size()) rows_.emplace_back();
       ContactRow& row = rows_[used++];

@@ -236,6 +236,12 @@ class StepSolver {
   // its per-contact parts, contacts [lo, hi) (in_parts)
   void frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   void impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
+  static double resting_speed(const uint8_t* loaded, int64_t a, int64_t b, double then,
+                              double now, double floor, double factor);
+  double held_resting(const StepContext& ctx, int64_t k, double then, double resting) const;
+  // an unsettled contact's before_ and resting_speed_ (frame_contacts leaves them to this:
+  // unsettled_), once
+  void settle(const StepContext& ctx, int64_t k);
   double longest_substep(const StepContext& ctx, int32_t depth) const;   // s: the substeps' bound
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
@@ -366,6 +372,9 @@ class StepSolver {
                                      // the step's external change pressing one body into
                                      // the other (what makes its bodies supported_)
   std::vector<uint8_t> touching_;    // (M,) persistent, within the slop at the previous state
+  std::vector<uint8_t> unsettled_;   // (M,) persistent, beyond the slop at the previous state,
+                                     // its before_ and resting_speed_ not yet found (settle),
+                                     // nor ever its start_speed_ (read within the slop only)
   std::vector<uint8_t> near_;        // (N,) movable, a persistent contact within the slop at
                                      // the previous state (approaching or not)
   std::vector<Mat3> inv_inertia_;    // (N,) world frame
@@ -382,7 +391,7 @@ class StepSolver {
   std::vector<double> start_speed_;  // m/s: normal speed at the step's start, the mean of the
                                      // previous and current twists' (< 0 approaching)
   std::vector<double> resting_speed_;   // m/s: per contact, slower approaches rest (do not
-                                        // bounce): reference_frame
+                                        // bounce): reference_frame (an unsettled_ one: settle)
   std::vector<double> drift_;        // m: how much more the separation grows over the step
                                      // on the held paths than on the integrated ones
   std::vector<double> moved_a_;      // m: how far A's point moves along the normal over the

@@ -52,17 +52,36 @@ void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t fir
   }
 }
 
-void ContactRows::drop_from(std::size_t first) {
-  body_a.resize(first);
-  body_b.resize(first);
-  point.resize(3 * first);
-  normal.resize(3 * first);
-  separation.resize(first);
-  toi.resize(first);
-  kind.resize(first);
-  feature.resize(first);
-  piece_a.resize(first);
-  piece_b.resize(first);
+void ContactRows::drop_from(std::size_t first) { rows_ = first; }
+
+void ContactRows::trim() {
+  body_a.resize(rows_);
+  body_b.resize(rows_);
+  point.resize(3 * rows_);
+  normal.resize(3 * rows_);
+  separation.resize(rows_);
+  toi.resize(rows_);
+  kind.resize(rows_);
+  feature.resize(rows_);
+  piece_a.resize(rows_);
+  piece_b.resize(rows_);
+}
+
+// Room for kRoomRows more rows (zeros, overwritten by `add`): one resize per column per
+// kRoomRows rows, within the reserved capacity for a step's usual rows.
+void ContactRows::make_room() {
+  constexpr std::size_t kRoomRows = 64;
+  const std::size_t rows = rows_ + kRoomRows;
+  body_a.resize(rows);
+  body_b.resize(rows);
+  point.resize(3 * rows);
+  normal.resize(3 * rows);
+  separation.resize(rows);
+  toi.resize(rows);
+  kind.resize(rows);
+  feature.resize(rows);
+  piece_a.resize(rows);
+  piece_b.resize(rows);
 }
 
 void ContactRows::keep(const std::vector<std::size_t>& rows) {
@@ -88,6 +107,7 @@ void ContactRows::keep(const std::vector<std::size_t>& rows) {
     }
     column.resize(to);
   };
+  rows_ = rows.size();
   compact(body_a, 1);
   compact(body_b, 1);
   compact(point, 3);
@@ -115,36 +135,49 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
     out.piece_a.push_back(piece_a[row]);
     out.piece_b.push_back(piece_b[row]);
   }
+  out.rows_ = rows.size();
 }
 
-// Inlined into the loops that add rows; the kind's byte is stored last (a byte's store may
-// alias any column's end, which the stores before it then need not load again).
+// Inlined into the loops that add rows: into the columns' room (one test a row, not one a
+// column); the kind's byte is stored last (a byte's store may alias any column's data
+// pointer, which the stores before it then need not load again).
 void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
                       double gap, double fraction, ContactKind contact, std::int64_t id) {
-  body_a.push_back(a.body);
-  body_b.push_back(b.body);
-  piece_a.push_back(a.piece);
-  piece_b.push_back(b.piece);
-  for (int k = 0; k < 3; ++k) point.push_back(at[k]);
-  for (int k = 0; k < 3; ++k) normal.push_back(n[k]);
-  separation.push_back(gap);
-  toi.push_back(fraction);
-  feature.push_back(id);
-  kind.push_back(static_cast<std::int8_t>(contact));
+  const std::size_t row = rows_;
+  if (row == body_a.size()) make_room();
+  body_a[row] = a.body;
+  body_b[row] = b.body;
+  piece_a[row] = a.piece;
+  piece_b[row] = b.piece;
+  double* const p = point.data() + 3 * row;
+  double* const m = normal.data() + 3 * row;
+  for (int k = 0; k < 3; ++k) p[k] = at[k];
+  for (int k = 0; k < 3; ++k) m[k] = n[k];
+  separation[row] = gap;
+  toi[row] = fraction;
+  feature[row] = id;
+  kind[row] = static_cast<std::int8_t>(contact);
+  rows_ = row + 1;
 }
 
 void ContactRows::append(const ContactRows& other) {
   const auto shift = static_cast<std::int64_t>(size());
-  body_a.insert(body_a.end(), other.body_a.begin(), other.body_a.end());
-  body_b.insert(body_b.end(), other.body_b.begin(), other.body_b.end());
-  point.insert(point.end(), other.point.begin(), other.point.end());
-  normal.insert(normal.end(), other.normal.begin(), other.normal.end());
-  separation.insert(separation.end(), other.separation.begin(), other.separation.end());
-  toi.insert(toi.end(), other.toi.begin(), other.toi.end());
-  kind.insert(kind.end(), other.kind.begin(), other.kind.end());
-  feature.insert(feature.end(), other.feature.begin(), other.feature.end());
-  piece_a.insert(piece_a.end(), other.piece_a.begin(), other.piece_a.end());
-  piece_b.insert(piece_b.end(), other.piece_b.begin(), other.piece_b.end());
+  trim();
+  // the end of other's rows in one of its columns (`width` values a row; its room after)
+  auto rows = [n = other.size()](const auto& column, std::size_t width) {
+    return column.begin() + static_cast<std::ptrdiff_t>(width * n);
+  };
+  body_a.insert(body_a.end(), other.body_a.begin(), rows(other.body_a, 1));
+  body_b.insert(body_b.end(), other.body_b.begin(), rows(other.body_b, 1));
+  point.insert(point.end(), other.point.begin(), rows(other.point, 3));
+  normal.insert(normal.end(), other.normal.begin(), rows(other.normal, 3));
+  separation.insert(separation.end(), other.separation.begin(), rows(other.separation, 1));
+  toi.insert(toi.end(), other.toi.begin(), rows(other.toi, 1));
+  kind.insert(kind.end(), other.kind.begin(), rows(other.kind, 1));
+  feature.insert(feature.end(), other.feature.begin(), rows(other.feature, 1));
+  piece_a.insert(piece_a.end(), other.piece_a.begin(), rows(other.piece_a, 1));
+  piece_b.insert(piece_b.end(), other.piece_b.begin(), rows(other.piece_b, 1));
+  rows_ += other.size();
   const std::size_t from = manifolds.size();
   manifolds.insert(manifolds.end(), other.manifolds.begin(), other.manifolds.end());
   for (std::size_t k = from; k < manifolds.size(); k += kManifoldFields) manifolds[k + 2] += shift;
@@ -162,6 +195,7 @@ void ContactRows::clear() {
   piece_a.clear();
   piece_b.clear();
   manifolds.clear();
+  rows_ = 0;
 }
 
 Detector::Detector(std::vector<BodyShape> shapes, int bodies)
@@ -495,6 +529,7 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   if (out.size() > static_cast<std::size_t>(std::max(settings_.max_contacts, 0))) {
     limit_rows(out);
   }
+  out.trim();
   last_rows_ = out.size();
 }
 

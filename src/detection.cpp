@@ -254,6 +254,7 @@ void Detector::prepare(const StepPoses& poses, bool queried) {
       body.moved = (body.p1 - body.p0).norm() +
                    (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
       if (!std::isfinite(body.moved)) body.moved = 0.0;
+      body.swing = body.turn * radius_or_zero(k);
       if (queried) {
         body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
                                        body.p1 + body.r1 * shapes_[k].offset);
@@ -285,6 +286,8 @@ void Detector::prepare(const StepPoses& poses, bool queried) {
       body.fixed = true;
     }
     body.turn = angle_between(body.q0, body.q1);
+    body.shift = body.p1 - body.p0;
+    body.swing = body.turn * radius_or_zero(k);
     body.moved = (body.p1 - body.p0).norm() +
                  (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
     if (!std::isfinite(body.moved)) body.moved = 0.0;
@@ -793,8 +796,7 @@ bool Detector::may_bounce(int a, int b, const Vec3& normal, double speed) const 
 double Detector::relative_motion(int a, int b) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
-  return ((B.p1 - B.p0) - (A.p1 - A.p0)).norm() + A.turn * radius_or_zero(a) +
-         B.turn * radius_or_zero(b);
+  return (B.shift - A.shift).norm() + A.swing + B.swing;
 }
 
 // m, bound on how much the pair's distance changes over the step: with a half-space, how far
@@ -808,8 +810,7 @@ double Detector::approach_bound(int a, int b) const {
   const Body& P = bodies_[plane];
   const Body& O = bodies_[other];
   const Vec3 normal = P.r1 * shapes_[plane].plane_normal;
-  return std::abs(((O.p1 - O.p0) - (P.p1 - P.p0)).dot(normal)) + P.turn * radius_or_zero(plane) +
-         O.turn * radius_or_zero(other);
+  return std::abs((O.shift - P.shift).dot(normal)) + P.swing + O.swing;
 }
 
 // Only pairs that need a coal query count: bounding spheres farther apart than the margin

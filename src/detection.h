@@ -166,6 +166,9 @@ class Detector {
                                              // external change (zero for frozen bodies)
     bool loaded = false;  // the step's external change acts on it (external_change_acts)
     double turn = 0.0;  // rad, rotation over the step
+    Vec3 shift = Vec3::Zero();  // m, p1 - p0
+    double swing = 0.0; // m, turn times the shape's bounding radius (0 when unbounded): how
+                        // far the turn may carry a point about the centre of mass
     double moved = 0.0; // m, bound on any point's travel over the step
     bool fixed = false; // static or frozen
     bool valid = true;  // finite pose

@@ -330,9 +330,11 @@ void Detector::find_pairs() {
     const Vec3 grow = Vec3::Constant(bulge + pad);
     boxes_[i] = {b0.lo.cwiseMin(b1.lo) - grow, b0.hi.cwiseMax(b1.hi) + grow};
   }
+  // the finite pairs sorted by (a, b) (finite_ is increasing), the others apart
   pairs_.clear();
   sweep_.pairs(boxes_, pairs_);
   for (auto& pair : pairs_) pair = {finite_[pair.first], finite_[pair.second]};
+  other_pairs_.clear();
   for (int plane : planes_) {  // half-space n.x <= d against each swept box, both poses
     const Body& body = bodies_[plane];
     const BodyShape& shape = shapes_[plane];
@@ -344,7 +346,7 @@ void Detector::find_pairs() {
     for (std::size_t i = 0; i < finite_.size(); ++i) {
       if (box_reaches_plane(boxes_[i], normal0, offset0, pad) ||
           (!still && box_reaches_plane(boxes_[i], normal1, offset1, pad))) {
-        pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
+        other_pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
       }
     }
   }
@@ -368,7 +370,7 @@ void Detector::find_pairs() {
       near = {near.lo - Vec3::Constant(pad), near.hi + Vec3::Constant(pad)};
       mesh.tree.query(near, [&](int t) {
         const int shape = mesh.first + t;
-        pairs_.emplace_back(std::min(shape, k), std::max(shape, k));
+        other_pairs_.emplace_back(std::min(shape, k), std::max(shape, k));
       });
     }
   }
@@ -379,25 +381,20 @@ void Detector::find_pairs() {
     return (a.fixed && b.fixed) || !a.valid || !b.valid || body_a == body_b ||
            !filter_.collides(body_a, body_b);
   };
-  pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), skip), pairs_.end());
-  // sorted by (a, b) in linear time: bucket by a, then sort each (short) bucket by b
-  bucket_start_.assign(pieces() + 1, 0);
-  for (const auto& pair : pairs_) ++bucket_start_[pair.first + 1];
-  for (int k = 0; k < pieces(); ++k) bucket_start_[k + 1] += bucket_start_[k];
-  bucket_fill_.assign(bucket_start_.begin(), bucket_start_.end() - 1);
-  bucket_.resize(pairs_.size());
-  for (const auto& pair : pairs_) bucket_[bucket_fill_[pair.first]++] = pair.second;
-  pairs_.resize(bucket_.size());   // room for every pair, cut to the distinct ones
+  // all sorted by (a, b): the others sorted and merged in, then the skipped ones and repeats
+  // dropped
+  std::sort(other_pairs_.begin(), other_pairs_.end());
+  merged_pairs_.resize(pairs_.size() + other_pairs_.size());
+  std::merge(pairs_.begin(), pairs_.end(), other_pairs_.begin(), other_pairs_.end(),
+             merged_pairs_.begin());
   std::size_t kept = 0;
-  for (int a = 0; a < pieces(); ++a) {
-    const auto first = bucket_.begin() + bucket_start_[a];
-    const auto last = bucket_.begin() + bucket_start_[a + 1];
-    std::sort(first, last);
-    for (auto it = first; it != last; ++it) {
-      if (it == first || *it != *(it - 1)) pairs_[kept++] = {a, *it};
+  for (const auto& pair : merged_pairs_) {
+    if (!skip(pair) && (kept == 0 || merged_pairs_[kept - 1] != pair)) {
+      merged_pairs_[kept++] = pair;
     }
   }
-  pairs_.resize(kept);
+  merged_pairs_.resize(kept);
+  pairs_.swap(merged_pairs_);
 }
 
 void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {

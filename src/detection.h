@@ -297,7 +297,8 @@ class Detector {
   std::vector<Aabb> boxes_;
   CoherentPairs sweep_;
   std::vector<std::pair<int, int>> pairs_;
-  std::vector<int> bucket_, bucket_start_, bucket_fill_;
+  std::vector<std::pair<int, int>> other_pairs_;    // find_pairs: with half-spaces and meshes
+  std::vector<std::pair<int, int>> merged_pairs_;   // find_pairs: scratch
   Lane lanes_[2];              // the caller's, the second half's (hold_back: the first)
   int threads_ = 1;            // of the next detect (set_threads)
   std::unique_ptr<Worker> worker_;   // the second half's thread, started at its first use

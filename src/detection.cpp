@@ -202,11 +202,13 @@ Detector::Detector(std::vector<BodyShape> shapes, int bodies)
     : shapes_(std::move(shapes)), bodies_count_(bodies), sweep_(kSkin) {
   int next = 0;   // the body the next shape may start
   mesh_.assign(std::max(bodies, 0), false);
+  sides_.assign(std::max(bodies, 0), 0);
   for (int k = 0; k < pieces(); ++k) {
     const int body = shapes_[k].body;
     if (body != next && body != next - 1) {
       throw std::invalid_argument("shapes must come in body order, every body at least one");
     }
+    if (body >= 0 && body < bodies) sides_[body] |= shapes_[k].is_static ? 1 : 2;
     compound_ = compound_ || body == next - 1;
     if (body == next) first_shape_.push_back(k);
     next = body + 1;
@@ -667,28 +669,41 @@ void Detector::drop_buried_faces(ContactRows& out) {
   several_.assign(static_cast<std::size_t>(bodies_count_), 0);
   sided_.clear();
   bool any = false;
-  for (std::size_t r = 0; r < count; ++r) {
-    const bool sa = shapes_[shape_of(out.body_a[r], out.piece_a[r])].is_static;
-    if (sa == shapes_[shape_of(out.body_b[r], out.piece_b[r])].is_static) continue;
-    sided_.push_back(r);
-    const auto moving = static_cast<std::size_t>(sa ? out.body_b[r] : out.body_a[r]);
-    const std::int64_t fixed = sa ? out.body_a[r] : out.body_b[r];
-    if (static_of_[moving] < 0) {
-      static_of_[moving] = fixed;
-    } else if (static_of_[moving] != fixed) {
-      several_[moving] = 1;
-      any = true;
+  // manifold by manifold (they tile the rows in order, each of one pair of bodies): a pair
+  // of two static or two moving bodies has no such row
+  for (std::size_t m = 0; m < out.manifolds.size(); m += kManifoldFields) {
+    const std::int64_t* span = out.manifolds.data() + m;
+    const char side = sides_[static_cast<std::size_t>(span[0])];
+    if (side != 3 && side == sides_[static_cast<std::size_t>(span[1])]) continue;
+    const auto end = static_cast<std::size_t>(span[2] + span[3]);
+    for (auto r = static_cast<std::size_t>(span[2]); r < end; ++r) {
+      const bool sa = shapes_[shape_of(out.body_a[r], out.piece_a[r])].is_static;
+      if (sa == shapes_[shape_of(out.body_b[r], out.piece_b[r])].is_static) continue;
+      const auto moving = static_cast<std::size_t>(sa ? out.body_b[r] : out.body_a[r]);
+      sided_.emplace_back(static_cast<std::int64_t>(moving), r);
+      const std::int64_t fixed = sa ? out.body_a[r] : out.body_b[r];
+      if (static_of_[moving] < 0) {
+        static_of_[moving] = fixed;
+      } else if (static_of_[moving] != fixed) {
+        several_[moving] = 1;
+        any = true;
+      }
     }
   }
   if (!any) return;
+  // the rows of the bodies that touch several, by body (in row order)
+  sided_.erase(std::remove_if(sided_.begin(), sided_.end(),
+                              [this](const std::pair<std::int64_t, std::size_t>& side) {
+                                return !several_[static_cast<std::size_t>(side.first)];
+                              }),
+               sided_.end());
+  std::sort(sided_.begin(), sided_.end());
   buried_sides_.clear();
-  for (const std::size_t r : sided_) {
+  for (const auto& [moving, r] : sided_) {
     const int a = shape_of(out.body_a[r], out.piece_a[r]);
     const int b = shape_of(out.body_b[r], out.piece_b[r]);
-    // the moving body, the static shape, the witness point on it, the normal out of it
+    // the static shape, the witness point on it, the normal out of it
     const bool a_static = shapes_[a].is_static;
-    const std::int64_t moving = a_static ? out.body_b[r] : out.body_a[r];
-    if (!several_[static_cast<std::size_t>(moving)]) continue;
     const Vec3 n(out.normal[3 * r], out.normal[3 * r + 1], out.normal[3 * r + 2]);
     const Vec3 p(out.point[3 * r], out.point[3 * r + 1], out.point[3 * r + 2]);
     const Vec3 outward = a_static ? n : Vec3(-n);
@@ -704,8 +719,6 @@ void Detector::drop_buried_faces(ContactRows& out) {
     buried_sides_.push_back({moving, a_static ? a : b, r, witness, then - ahead * outward,
                              outward, 0.0, behind});
   }
-  std::stable_sort(buried_sides_.begin(), buried_sides_.end(),
-                   [](const StaticSide& x, const StaticSide& y) { return x.moving < y.moving; });
   any = false;
   for (std::size_t lo = 0; lo < buried_sides_.size();) {
     std::size_t hi = lo + 1;

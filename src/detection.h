@@ -275,11 +275,12 @@ class Detector {
   ContactRows grouped_;        // scratch of group_by_bodies
   std::vector<int> planes_, finite_;
   std::vector<int> first_shape_;   // per body, its first shape
+  std::vector<char> sides_;        // per body: 1 its shapes are all static, 2 none, 3 some
   std::vector<char> buried_;       // drop_buried_faces: per row, dropped
   std::vector<std::int64_t> static_of_;  // drop_buried_faces: per body, a static body it
   std::vector<char> several_;            // touches; whether it touches another too
-  std::vector<std::size_t> sided_;       // drop_buried_faces: the rows of a moving and a
-                                         // static shape
+  std::vector<std::pair<std::int64_t, std::size_t>> sided_;   // drop_buried_faces: the rows
+                                         // of a moving and a static shape (moving body, row)
   struct StaticSide {   // drop_buried_faces: a row between a moving body and a static shape
     std::int64_t moving;
     int shape;

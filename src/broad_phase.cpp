@@ -111,6 +111,7 @@ void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
     }
     fat_pairs_.clear();
     overlapping_pairs(fat_, fat_pairs_);
+    sort_fat_pairs(static_cast<int>(boxes.size()));
   }
   // the exact test, axis by axis with an early out (most fat pairs that fail, fail on one),
   // into room for every fat pair (cut to those kept)
@@ -125,6 +126,20 @@ void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
     }
   }
   pairs.resize(kept);
+}
+
+void CoherentPairs::sort_fat_pairs(int count) {
+  // `from` into `to` by key(pair) in [0, count), pairs of one key in their order
+  auto by = [this, count](auto key, const std::vector<std::pair<int, int>>& from,
+                          std::vector<std::pair<int, int>>& to) {
+    start_.assign(count + 1, 0);
+    for (const auto& pair : from) ++start_[key(pair) + 1];
+    for (int k = 0; k < count; ++k) start_[k + 1] += start_[k];
+    for (const auto& pair : from) to[start_[key(pair)]++] = pair;
+  };
+  sorted_.resize(fat_pairs_.size());
+  by([](const std::pair<int, int>& pair) { return pair.second; }, fat_pairs_, sorted_);
+  by([](const std::pair<int, int>& pair) { return pair.first; }, sorted_, fat_pairs_);
 }
 
 PairFilter::PairFilter(int count, std::vector<std::uint64_t> group,

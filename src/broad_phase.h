@@ -31,18 +31,25 @@ void overlapping_pairs(const std::vector<Aabb>& boxes,
                        std::vector<std::pair<int, int>>& pairs);
 
 // Temporal coherence for `overlapping_pairs`: the pairs of boxes grown by a skin (m) are
-// kept while every box stays inside its grown ("fat") box, and each step only filters them
-// with the exact test; when a box leaves its fat box, all fat boxes are rebuilt and swept.
-// The answer is always exactly `overlapping_pairs` of the given boxes.
+// kept, sorted by (i, j), while every box stays inside its grown ("fat") box, and each step
+// only filters them with the exact test; when a box leaves its fat box, all fat boxes are
+// rebuilt, swept and their pairs sorted. The answer is always exactly the pairs of
+// `overlapping_pairs` of the given boxes, appended to `pairs` in increasing (i, j) order.
 class CoherentPairs {
  public:
   explicit CoherentPairs(double skin) : skin_(skin) {}
   void pairs(const std::vector<Aabb>& boxes, std::vector<std::pair<int, int>>& pairs);
 
  private:
+  // fat_pairs_ sorted by (i, j) in linear time: a counting sort by j, then one by i that
+  // keeps the order of equal i (`count` boxes)
+  void sort_fat_pairs(int count);
+
   double skin_;
   std::vector<Aabb> fat_;
   std::vector<std::pair<int, int>> fat_pairs_;
+  std::vector<int> start_;                       // sort_fat_pairs: bucket starts
+  std::vector<std::pair<int, int>> sorted_;      // sort_fat_pairs: sorted by j
 };
 
 // A fixed set of boxes (a triangle mesh's triangles, in its body frame) in a tree of

@@ -52,17 +52,36 @@ void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t fir
   }
 }
 
-void ContactRows::drop_from(std::size_t first) {
-  body_a.resize(first);
-  body_b.resize(first);
-  point.resize(3 * first);
-  normal.resize(3 * first);
-  separation.resize(first);
-  toi.resize(first);
-  kind.resize(first);
-  feature.resize(first);
-  piece_a.resize(first);
-  piece_b.resize(first);
+void ContactRows::drop_from(std::size_t first) { rows_ = first; }
+
+void ContactRows::trim() {
+  body_a.resize(rows_);
+  body_b.resize(rows_);
+  point.resize(3 * rows_);
+  normal.resize(3 * rows_);
+  separation.resize(rows_);
+  toi.resize(rows_);
+  kind.resize(rows_);
+  feature.resize(rows_);
+  piece_a.resize(rows_);
+  piece_b.resize(rows_);
+}
+
+// Room for kRoomRows more rows (zeros, overwritten by `add`): one resize per column per
+// kRoomRows rows, within the reserved capacity for a step's usual rows.
+void ContactRows::make_room() {
+  constexpr std::size_t kRoomRows = 64;
+  const std::size_t rows = rows_ + kRoomRows;
+  body_a.resize(rows);
+  body_b.resize(rows);
+  point.resize(3 * rows);
+  normal.resize(3 * rows);
+  separation.resize(rows);
+  toi.resize(rows);
+  kind.resize(rows);
+  feature.resize(rows);
+  piece_a.resize(rows);
+  piece_b.resize(rows);
 }
 
 void ContactRows::keep(const std::vector<std::size_t>& rows) {
@@ -88,6 +107,7 @@ void ContactRows::keep(const std::vector<std::size_t>& rows) {
     }
     column.resize(to);
   };
+  rows_ = rows.size();
   compact(body_a, 1);
   compact(body_b, 1);
   compact(point, 3);
@@ -115,36 +135,49 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
     out.piece_a.push_back(piece_a[row]);
     out.piece_b.push_back(piece_b[row]);
   }
+  out.rows_ = rows.size();
 }
 
-// Inlined into the loops that add rows; the kind's byte is stored last (a byte's store may
-// alias any column's end, which the stores before it then need not load again).
+// Inlined into the loops that add rows: into the columns' room (one test a row, not one a
+// column); the kind's byte is stored last (a byte's store may alias any column's data
+// pointer, which the stores before it then need not load again).
 void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
                       double gap, double fraction, ContactKind contact, std::int64_t id) {
-  body_a.push_back(a.body);
-  body_b.push_back(b.body);
-  piece_a.push_back(a.piece);
-  piece_b.push_back(b.piece);
-  for (int k = 0; k < 3; ++k) point.push_back(at[k]);
-  for (int k = 0; k < 3; ++k) normal.push_back(n[k]);
-  separation.push_back(gap);
-  toi.push_back(fraction);
-  feature.push_back(id);
-  kind.push_back(static_cast<std::int8_t>(contact));
+  const std::size_t row = rows_;
+  if (row == body_a.size()) make_room();
+  body_a[row] = a.body;
+  body_b[row] = b.body;
+  piece_a[row] = a.piece;
+  piece_b[row] = b.piece;
+  double* const p = point.data() + 3 * row;
+  double* const m = normal.data() + 3 * row;
+  for (int k = 0; k < 3; ++k) p[k] = at[k];
+  for (int k = 0; k < 3; ++k) m[k] = n[k];
+  separation[row] = gap;
+  toi[row] = fraction;
+  feature[row] = id;
+  kind[row] = static_cast<std::int8_t>(contact);
+  rows_ = row + 1;
 }
 
 void ContactRows::append(const ContactRows& other) {
   const auto shift = static_cast<std::int64_t>(size());
-  body_a.insert(body_a.end(), other.body_a.begin(), other.body_a.end());
-  body_b.insert(body_b.end(), other.body_b.begin(), other.body_b.end());
-  point.insert(point.end(), other.point.begin(), other.point.end());
-  normal.insert(normal.end(), other.normal.begin(), other.normal.end());
-  separation.insert(separation.end(), other.separation.begin(), other.separation.end());
-  toi.insert(toi.end(), other.toi.begin(), other.toi.end());
-  kind.insert(kind.end(), other.kind.begin(), other.kind.end());
-  feature.insert(feature.end(), other.feature.begin(), other.feature.end());
-  piece_a.insert(piece_a.end(), other.piece_a.begin(), other.piece_a.end());
-  piece_b.insert(piece_b.end(), other.piece_b.begin(), other.piece_b.end());
+  trim();
+  // the end of other's rows in one of its columns (`width` values a row; its room after)
+  auto rows = [n = other.size()](const auto& column, std::size_t width) {
+    return column.begin() + static_cast<std::ptrdiff_t>(width * n);
+  };
+  body_a.insert(body_a.end(), other.body_a.begin(), rows(other.body_a, 1));
+  body_b.insert(body_b.end(), other.body_b.begin(), rows(other.body_b, 1));
+  point.insert(point.end(), other.point.begin(), rows(other.point, 3));
+  normal.insert(normal.end(), other.normal.begin(), rows(other.normal, 3));
+  separation.insert(separation.end(), other.separation.begin(), rows(other.separation, 1));
+  toi.insert(toi.end(), other.toi.begin(), rows(other.toi, 1));
+  kind.insert(kind.end(), other.kind.begin(), rows(other.kind, 1));
+  feature.insert(feature.end(), other.feature.begin(), rows(other.feature, 1));
+  piece_a.insert(piece_a.end(), other.piece_a.begin(), rows(other.piece_a, 1));
+  piece_b.insert(piece_b.end(), other.piece_b.begin(), rows(other.piece_b, 1));
+  rows_ += other.size();
   const std::size_t from = manifolds.size();
   manifolds.insert(manifolds.end(), other.manifolds.begin(), other.manifolds.end());
   for (std::size_t k = from; k < manifolds.size(); k += kManifoldFields) manifolds[k + 2] += shift;
@@ -162,17 +195,20 @@ void ContactRows::clear() {
   piece_a.clear();
   piece_b.clear();
   manifolds.clear();
+  rows_ = 0;
 }
 
 Detector::Detector(std::vector<BodyShape> shapes, int bodies)
     : shapes_(std::move(shapes)), bodies_count_(bodies), sweep_(kSkin) {
   int next = 0;   // the body the next shape may start
   mesh_.assign(std::max(bodies, 0), false);
+  sides_.assign(std::max(bodies, 0), 0);
   for (int k = 0; k < pieces(); ++k) {
     const int body = shapes_[k].body;
     if (body != next && body != next - 1) {
       throw std::invalid_argument("shapes must come in body order, every body at least one");
     }
+    if (body >= 0 && body < bodies) sides_[body] |= shapes_[k].is_static ? 1 : 2;
     compound_ = compound_ || body == next - 1;
     if (body == next) first_shape_.push_back(k);
     next = body + 1;
@@ -220,6 +256,7 @@ void Detector::prepare(const StepPoses& poses, bool queried) {
       body.moved = (body.p1 - body.p0).norm() +
                    (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
       if (!std::isfinite(body.moved)) body.moved = 0.0;
+      body.swing = body.turn * radius_or_zero(k);
       if (queried) {
         body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
                                        body.p1 + body.r1 * shapes_[k].offset);
@@ -251,6 +288,8 @@ void Detector::prepare(const StepPoses& poses, bool queried) {
       body.fixed = true;
     }
     body.turn = angle_between(body.q0, body.q1);
+    body.shift = body.p1 - body.p0;
+    body.swing = body.turn * radius_or_zero(k);
     body.moved = (body.p1 - body.p0).norm() +
                  (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
     if (!std::isfinite(body.moved)) body.moved = 0.0;
@@ -293,9 +332,11 @@ void Detector::find_pairs() {
     const Vec3 grow = Vec3::Constant(bulge + pad);
     boxes_[i] = {b0.lo.cwiseMin(b1.lo) - grow, b0.hi.cwiseMax(b1.hi) + grow};
   }
+  // the finite pairs sorted by (a, b) (finite_ is increasing), the others apart
   pairs_.clear();
   sweep_.pairs(boxes_, pairs_);
   for (auto& pair : pairs_) pair = {finite_[pair.first], finite_[pair.second]};
+  other_pairs_.clear();
   for (int plane : planes_) {  // half-space n.x <= d against each swept box, both poses
     const Body& body = bodies_[plane];
     const BodyShape& shape = shapes_[plane];
@@ -307,7 +348,7 @@ void Detector::find_pairs() {
     for (std::size_t i = 0; i < finite_.size(); ++i) {
       if (box_reaches_plane(boxes_[i], normal0, offset0, pad) ||
           (!still && box_reaches_plane(boxes_[i], normal1, offset1, pad))) {
-        pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
+        other_pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
       }
     }
   }
@@ -331,7 +372,7 @@ void Detector::find_pairs() {
       near = {near.lo - Vec3::Constant(pad), near.hi + Vec3::Constant(pad)};
       mesh.tree.query(near, [&](int t) {
         const int shape = mesh.first + t;
-        pairs_.emplace_back(std::min(shape, k), std::max(shape, k));
+        other_pairs_.emplace_back(std::min(shape, k), std::max(shape, k));
       });
     }
   }
@@ -342,25 +383,20 @@ void Detector::find_pairs() {
     return (a.fixed && b.fixed) || !a.valid || !b.valid || body_a == body_b ||
            !filter_.collides(body_a, body_b);
   };
-  pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), skip), pairs_.end());
-  // sorted by (a, b) in linear time: bucket by a, then sort each (short) bucket by b
-  bucket_start_.assign(pieces() + 1, 0);
-  for (const auto& pair : pairs_) ++bucket_start_[pair.first + 1];
-  for (int k = 0; k < pieces(); ++k) bucket_start_[k + 1] += bucket_start_[k];
-  bucket_fill_.assign(bucket_start_.begin(), bucket_start_.end() - 1);
-  bucket_.resize(pairs_.size());
-  for (const auto& pair : pairs_) bucket_[bucket_fill_[pair.first]++] = pair.second;
-  pairs_.resize(bucket_.size());   // room for every pair, cut to the distinct ones
+  // all sorted by (a, b): the others sorted and merged in, then the skipped ones and repeats
+  // dropped
+  std::sort(other_pairs_.begin(), other_pairs_.end());
+  merged_pairs_.resize(pairs_.size() + other_pairs_.size());
+  std::merge(pairs_.begin(), pairs_.end(), other_pairs_.begin(), other_pairs_.end(),
+             merged_pairs_.begin());
   std::size_t kept = 0;
-  for (int a = 0; a < pieces(); ++a) {
-    const auto first = bucket_.begin() + bucket_start_[a];
-    const auto last = bucket_.begin() + bucket_start_[a + 1];
-    std::sort(first, last);
-    for (auto it = first; it != last; ++it) {
-      if (it == first || *it != *(it - 1)) pairs_[kept++] = {a, *it};
+  for (const auto& pair : merged_pairs_) {
+    if (!skip(pair) && (kept == 0 || merged_pairs_[kept - 1] != pair)) {
+      merged_pairs_[kept++] = pair;
     }
   }
-  pairs_.resize(kept);
+  merged_pairs_.resize(kept);
+  pairs_.swap(merged_pairs_);
 }
 
 void Detector::candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs) {
@@ -495,6 +531,7 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   if (out.size() > static_cast<std::size_t>(std::max(settings_.max_contacts, 0))) {
     limit_rows(out);
   }
+  out.trim();
   last_rows_ = out.size();
 }
 
@@ -632,28 +669,41 @@ void Detector::drop_buried_faces(ContactRows& out) {
   several_.assign(static_cast<std::size_t>(bodies_count_), 0);
   sided_.clear();
   bool any = false;
-  for (std::size_t r = 0; r < count; ++r) {
-    const bool sa = shapes_[shape_of(out.body_a[r], out.piece_a[r])].is_static;
-    if (sa == shapes_[shape_of(out.body_b[r], out.piece_b[r])].is_static) continue;
-    sided_.push_back(r);
-    const auto moving = static_cast<std::size_t>(sa ? out.body_b[r] : out.body_a[r]);
-    const std::int64_t fixed = sa ? out.body_a[r] : out.body_b[r];
-    if (static_of_[moving] < 0) {
-      static_of_[moving] = fixed;
-    } else if (static_of_[moving] != fixed) {
-      several_[moving] = 1;
-      any = true;
+  // manifold by manifold (they tile the rows in order, each of one pair of bodies): a pair
+  // of two static or two moving bodies has no such row
+  for (std::size_t m = 0; m < out.manifolds.size(); m += kManifoldFields) {
+    const std::int64_t* span = out.manifolds.data() + m;
+    const char side = sides_[static_cast<std::size_t>(span[0])];
+    if (side != 3 && side == sides_[static_cast<std::size_t>(span[1])]) continue;
+    const auto end = static_cast<std::size_t>(span[2] + span[3]);
+    for (auto r = static_cast<std::size_t>(span[2]); r < end; ++r) {
+      const bool sa = shapes_[shape_of(out.body_a[r], out.piece_a[r])].is_static;
+      if (sa == shapes_[shape_of(out.body_b[r], out.piece_b[r])].is_static) continue;
+      const auto moving = static_cast<std::size_t>(sa ? out.body_b[r] : out.body_a[r]);
+      sided_.emplace_back(static_cast<std::int64_t>(moving), r);
+      const std::int64_t fixed = sa ? out.body_a[r] : out.body_b[r];
+      if (static_of_[moving] < 0) {
+        static_of_[moving] = fixed;
+      } else if (static_of_[moving] != fixed) {
+        several_[moving] = 1;
+        any = true;
+      }
     }
   }
   if (!any) return;
+  // the rows of the bodies that touch several, by body (in row order)
+  sided_.erase(std::remove_if(sided_.begin(), sided_.end(),
+                              [this](const std::pair<std::int64_t, std::size_t>& side) {
+                                return !several_[static_cast<std::size_t>(side.first)];
+                              }),
+               sided_.end());
+  std::sort(sided_.begin(), sided_.end());
   buried_sides_.clear();
-  for (const std::size_t r : sided_) {
+  for (const auto& [moving, r] : sided_) {
     const int a = shape_of(out.body_a[r], out.piece_a[r]);
     const int b = shape_of(out.body_b[r], out.piece_b[r]);
-    // the moving body, the static shape, the witness point on it, the normal out of it
+    // the static shape, the witness point on it, the normal out of it
     const bool a_static = shapes_[a].is_static;
-    const std::int64_t moving = a_static ? out.body_b[r] : out.body_a[r];
-    if (!several_[static_cast<std::size_t>(moving)]) continue;
     const Vec3 n(out.normal[3 * r], out.normal[3 * r + 1], out.normal[3 * r + 2]);
     const Vec3 p(out.point[3 * r], out.point[3 * r + 1], out.point[3 * r + 2]);
     const Vec3 outward = a_static ? n : Vec3(-n);
@@ -669,8 +719,6 @@ void Detector::drop_buried_faces(ContactRows& out) {
     buried_sides_.push_back({moving, a_static ? a : b, r, witness, then - ahead * outward,
                              outward, 0.0, behind});
   }
-  std::stable_sort(buried_sides_.begin(), buried_sides_.end(),
-                   [](const StaticSide& x, const StaticSide& y) { return x.moving < y.moving; });
   any = false;
   for (std::size_t lo = 0; lo < buried_sides_.size();) {
     std::size_t hi = lo + 1;
@@ -758,8 +806,7 @@ bool Detector::may_bounce(int a, int b, const Vec3& normal, double speed) const 
 double Detector::relative_motion(int a, int b) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
-  return ((B.p1 - B.p0) - (A.p1 - A.p0)).norm() + A.turn * radius_or_zero(a) +
-         B.turn * radius_or_zero(b);
+  return (B.shift - A.shift).norm() + A.swing + B.swing;
 }
 
 // m, bound on how much the pair's distance changes over the step: with a half-space, how far
@@ -773,8 +820,7 @@ double Detector::approach_bound(int a, int b) const {
   const Body& P = bodies_[plane];
   const Body& O = bodies_[other];
   const Vec3 normal = P.r1 * shapes_[plane].plane_normal;
-  return std::abs(((O.p1 - O.p0) - (P.p1 - P.p0)).dot(normal)) + P.turn * radius_or_zero(plane) +
-         O.turn * radius_or_zero(other);
+  return std::abs((O.shift - P.shift).dot(normal)) + P.swing + O.swing;
 }
 
 // Only pairs that need a coal query count: bounding spheres farther apart than the margin

@@ -166,6 +166,9 @@ class Detector {
                                              // external change (zero for frozen bodies)
     bool loaded = false;  // the step's external change acts on it (external_change_acts)
     double turn = 0.0;  // rad, rotation over the step
+    Vec3 shift = Vec3::Zero();  // m, p1 - p0
+    double swing = 0.0; // m, turn times the shape's bounding radius (0 when unbounded): how
+                        // far the turn may carry a point about the centre of mass
     double moved = 0.0; // m, bound on any point's travel over the step
     bool fixed = false; // static or frozen
     bool valid = true;  // finite pose
@@ -272,11 +275,12 @@ class Detector {
   ContactRows grouped_;        // scratch of group_by_bodies
   std::vector<int> planes_, finite_;
   std::vector<int> first_shape_;   // per body, its first shape
+  std::vector<char> sides_;        // per body: 1 its shapes are all static, 2 none, 3 some
   std::vector<char> buried_;       // drop_buried_faces: per row, dropped
   std::vector<std::int64_t> static_of_;  // drop_buried_faces: per body, a static body it
   std::vector<char> several_;            // touches; whether it touches another too
-  std::vector<std::size_t> sided_;       // drop_buried_faces: the rows of a moving and a
-                                         // static shape
+  std::vector<std::pair<std::int64_t, std::size_t>> sided_;   // drop_buried_faces: the rows
+                                         // of a moving and a static shape (moving body, row)
   struct StaticSide {   // drop_buried_faces: a row between a moving body and a static shape
     std::int64_t moving;
     int shape;
@@ -294,7 +298,8 @@ class Detector {
   std::vector<Aabb> boxes_;
   CoherentPairs sweep_;
   std::vector<std::pair<int, int>> pairs_;
-  std::vector<int> bucket_, bucket_start_, bucket_fill_;
+  std::vector<std::pair<int, int>> other_pairs_;    // find_pairs: with half-spaces and meshes
+  std::vector<std::pair<int, int>> merged_pairs_;   // find_pairs: scratch
   Lane lanes_[2];              // the caller's, the second half's (hold_back: the first)
   int threads_ = 1;            // of the next detect (set_threads)
   std::unique_ptr<Worker> worker_;   // the second half's thread, started at its first use

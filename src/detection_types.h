@@ -78,8 +78,11 @@ struct StepPoses {
 
 struct BodyShape;   // shapes.h
 
-// Contact rows of one step, M of them, grouped by pair in increasing (a, b) order, and
-// their K manifolds (collres_ros.core.types.ContactSet, field by field).
+// Contact rows of one step, M = size() of them, grouped by pair in increasing (a, b) order,
+// and their K manifolds (collres_ros.core.types.ContactSet, field by field). While rows are
+// added, the row columns may be longer than M: room that `add` fills one row at a time
+// without growing every column per row; `trim` cuts them to M (Detector::detect returns
+// trimmed rows).
 struct ContactRows {
   std::vector<std::int64_t> body_a, body_b;  // (M,)
   std::vector<double> point;       // (M, 3) m, world, at the contact configuration
@@ -92,7 +95,7 @@ struct ContactRows {
   std::vector<std::int64_t> manifolds;  // (K, 4) a, b, first row, row count
 
   void clear();
-  void reserve(std::size_t rows);
+  void reserve(std::size_t rows);   // capacity of every column for this many rows
   // One row between the pieces a and b: point `at` (m, world), unit normal `n` A -> B,
   // separation `gap` (m), time of impact `fraction` (of the step), feature `id`.
   // (Inline, defined in detection.cpp, where all rows are added.)
@@ -101,7 +104,8 @@ struct ContactRows {
   // Close the manifold of pair (a, b) whose rows start at `first` (the rows added since);
   // a manifold without rows is no manifold.
   void close_manifold(std::int64_t a, std::int64_t b, std::size_t first);
-  // Drop the rows from `first` on (added since the last manifold was closed; first <= size).
+  // Drop the rows from `first` on (added since the last manifold was closed; first <= size);
+  // their columns' room stays.
   void drop_from(std::size_t first);
   // Keep only these rows (indices in increasing order), in their order; a manifold keeps
   // its kept rows (none: it goes).
@@ -111,7 +115,13 @@ struct ContactRows {
   void take(const std::vector<std::size_t>& rows, ContactRows& out) const;
   // `other`'s rows and manifolds after these (its manifolds' first rows shifted).
   void append(const ContactRows& other);
-  std::size_t size() const { return body_a.size(); }
+  // The row columns cut to size() rows (the room `add` left dropped).
+  void trim();
+  std::size_t size() const { return rows_; }
+
+ private:
+  void make_room();   // room for more rows in every row column (add, when it is full)
+  std::size_t rows_ = 0;
 };
 
 }  // namespace collres

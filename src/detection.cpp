@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <thread>
 
 namespace collres {
 
@@ -504,28 +505,40 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   };
   for (Lane& lane : lanes_) {
     lane.next.clear();
-    lane.cursor = 0;
+    lane.cursor[0] = lane.cursor[1] = 0;
   }
   if (threads_ < 2 || count < kParallelPairs) {
     run(lanes_[0], 0, count, out);
   } else {
-    // the first half here, the second in ordered chunks on the worker or here, into its
-    // own lane; then its rows and manifolds after the first half's: the order of one thread
+    // the first half here, the second in ordered chunks on the worker or here. This
+    // thread runs a chunk only after the first half (worker.h), and the chunks one at a
+    // time in order: so while it has run every chunk so far, its next one goes on in the
+    // first lane, into `out`; from the first chunk the worker takes on, the rest go into
+    // the second lane, whose rows then follow the first's (the order of one thread),
+    // copied only when the worker helped
     Lane& second = lanes_[1];
     second.rows.clear();
     const std::size_t half = count / 2;
     const int chunks = kPairChunks;
+    int direct = 0;   // the leading chunks run here, in the first lane (read only here)
+    const std::thread::id here = std::this_thread::get_id();
     if (!worker_) worker_ = std::make_unique<Worker>();
     worker_->run_pair([&] { run(lanes_[0], 0, half, out); },
                       [&](int c) {
-                        run(second, half + (count - half) * c / chunks,
-                            half + (count - half) * (c + 1) / chunks, second.rows);
+                        const std::size_t lo = half + (count - half) * c / chunks;
+                        const std::size_t hi = half + (count - half) * (c + 1) / chunks;
+                        if (std::this_thread::get_id() == here && c == direct) {
+                          run(lanes_[0], lo, hi, out);
+                          ++direct;
+                        } else {
+                          run(second, lo, hi, second.rows);
+                        }
                       },
                       chunks, 0, static_cast<double>(count));
-    out.append(second.rows);
-    lanes_[0].next.append(second.next);
+    if (direct < chunks) out.append(second.rows);
   }
-  stored_.swap(lanes_[0].next);
+  // the lanes' manifolds stay apart: the second's keys are all greater (none: it ran no pair)
+  for (int part = 0; part < 2; ++part) stored_[part].swap(lanes_[part].next);
   if (compound_) group_by_bodies(out);
   drop_buried_faces(out);
   if (out.size() > static_cast<std::size_t>(std::max(settings_.max_contacts, 0))) {
@@ -872,7 +885,8 @@ void Detector::limit_rows(ContactRows& out) {
 
 bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
-  const StoredManifold* stored = stored_.find(key, lane.cursor);
+  const int part = stored_[1].starts_by(key) ? 1 : 0;
+  const StoredManifold* stored = stored_[part].find(key, lane.cursor[part]);
   if (stored == nullptr) return false;
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
@@ -896,7 +910,7 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   // manifold share one normal); each row's points at the current poses give its row, added
   // at once and dropped again when the pair is not reused
   if (stored->count == 0) return true;
-  const StoredRow* const rows = &stored_.row(stored->first);
+  const StoredRow* const rows = &stored_[part].row(stored->first);
   const Vec3 normal = A.r1 * rows[0].normal_a;
   const std::size_t first = out.size();
   double gap = kInf;

@@ -73,7 +73,10 @@
 // Threads (set_threads): the pairs after the broad phase are independent (each reads the
 // step's bodies and the stored manifolds, writes its own rows and manifold): with two
 // threads the caller takes the first half and a worker the second, each into its own lane
-// (coal queries, scratch, rows, manifolds to store), joined in pair order: the same bits.
+// (coal queries, scratch, rows, manifolds to store), rows joined in pair order: the same
+// bits; the manifolds are stored as the two lanes' parts and looked up in either. The
+// second half's chunks that the caller runs before the worker takes one go on in the
+// caller's lane, so a step the worker did not help with copies nothing.
 //
 // Rows (ContactRows): PERSISTENT rows are at the current state (toi 0, separation > 0 for
 // a speculative gap, < 0 for a penetration). IMPACT rows have point and normal at the
@@ -127,7 +130,8 @@ class Detector {
   // Threads of the pairs' stage from the next step on (1 or 2): with 2, a step of at
   // least kParallelPairs pairs gives the first half to this thread and the second to a
   // worker (worker.h: chunks in order, each on the worker or here), each into its own
-  // lane, then joins them in pair order: the same rows, bit for bit, with 1 or 2.
+  // lane (the leading chunks run here: the first lane), then joins them in pair order:
+  // the same rows, bit for bit, with 1 or 2.
   void set_threads(int threads) { threads_ = threads; }
   // chunks of the second halves run so far: by the worker, and by either thread
   std::uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
@@ -152,7 +156,10 @@ class Detector {
   // The broad-phase pairs of bodies (a < b), sorted (for tests and tools).
   void candidate_pairs(const StepPoses& poses, std::vector<std::pair<int, int>>& pairs);
   // Forget the stored manifolds (e.g. after bodies were teleported).
-  void reset() { stored_.clear(); }
+  void reset() {
+    stored_[0].clear();
+    stored_[1].clear();
+  }
   // What the budget dropped in the last detect() (see the file comment).
   const StepBudget& budget() const { return budget_; }
 
@@ -213,7 +220,7 @@ class Detector {
     std::vector<std::pair<double, int>> heights;  // speculate: (height, corner) kept
     std::vector<std::int64_t> row_codes;
     ManifoldStore next;
-    std::size_t cursor = 0;     // its place in stored_
+    std::size_t cursor[2] = {0, 0};   // its place in either part of stored_
     ContactRows rows;           // the second lane's rows (the first writes the step's)
   };
   // The per-pair stages: each reads the step's bodies and the stored manifolds and
@@ -304,7 +311,8 @@ class Detector {
   int threads_ = 1;            // of the next detect (set_threads)
   std::unique_ptr<Worker> worker_;   // the second half's thread, started at its first use
   std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
-  ManifoldStore stored_;       // the last step's persistent manifolds
+  ManifoldStore stored_[2];    // the last step's persistent manifolds: the first lane's,
+                               // then the second's (its keys all greater; may be empty)
   StepBudget budget_;
   std::vector<double> depth_;        // budget: per pair or row, the ranking value
   std::vector<std::size_t> order_;   // budget: pairs or rows considered, by index

@@ -211,6 +211,9 @@ class ManifoldStore {
     return &pairs_[cursor];
   }
   const StoredRow& row(int index) const { return rows_[index]; }
+  // Whether a manifold of `key` would be here rather than in a store of lesser keys
+  // (its first key is at most `key`)
+  bool starts_by(std::int64_t key) const { return !keys_.empty() && keys_.front() <= key; }
   // Starts the manifold of `key` (keys in increasing order); rows follow with `add_row`.
   void begin(std::int64_t key, const Vec3& rel_p, const Quat& rel_q) {
     keys_.push_back(key);
@@ -229,16 +232,6 @@ class ManifoldStore {
   void add_rows(const StoredRow* rows, int count) {
     rows_.insert(rows_.end(), rows, rows + count);
     pairs_.back().count += count;
-  }
-  // `other`'s manifolds after these (its keys all greater).
-  void append(const ManifoldStore& other) {
-    const int shift = static_cast<int>(rows_.size());
-    keys_.insert(keys_.end(), other.keys_.begin(), other.keys_.end());
-    rows_.insert(rows_.end(), other.rows_.begin(), other.rows_.end());
-    for (StoredManifold m : other.pairs_) {
-      m.first += shift;
-      pairs_.push_back(m);
-    }
   }
   void swap(ManifoldStore& other) {
     keys_.swap(other.keys_);

@@ -31,16 +31,7 @@ double angle_between(const Quat& a, const Quat& b) {
 }  // namespace
 
 void ContactRows::reserve(std::size_t rows) {
-  body_a.reserve(rows);
-  body_b.reserve(rows);
-  point.reserve(3 * rows);
-  normal.reserve(3 * rows);
-  separation.reserve(rows);
-  toi.reserve(rows);
-  kind.reserve(rows);
-  feature.reserve(rows);
-  piece_a.reserve(rows);
-  piece_b.reserve(rows);
+  each_row_column([rows](auto& column, std::size_t width) { column.reserve(width * rows); });
   manifolds.reserve(kManifoldFields * rows);
 }
 
@@ -55,34 +46,17 @@ void ContactRows::close_manifold(std::int64_t a, std::int64_t b, std::size_t fir
 
 void ContactRows::drop_from(std::size_t first) { rows_ = first; }
 
-void ContactRows::trim() {
-  body_a.resize(rows_);
-  body_b.resize(rows_);
-  point.resize(3 * rows_);
-  normal.resize(3 * rows_);
-  separation.resize(rows_);
-  toi.resize(rows_);
-  kind.resize(rows_);
-  feature.resize(rows_);
-  piece_a.resize(rows_);
-  piece_b.resize(rows_);
-}
+void ContactRows::trim() { resize_columns(rows_); }
 
 // Room for kRoomRows more rows (zeros, overwritten by `add`): one resize per column per
 // kRoomRows rows, within the reserved capacity for a step's usual rows.
 void ContactRows::make_room() {
   constexpr std::size_t kRoomRows = 64;
-  const std::size_t rows = rows_ + kRoomRows;
-  body_a.resize(rows);
-  body_b.resize(rows);
-  point.resize(3 * rows);
-  normal.resize(3 * rows);
-  separation.resize(rows);
-  toi.resize(rows);
-  kind.resize(rows);
-  feature.resize(rows);
-  piece_a.resize(rows);
-  piece_b.resize(rows);
+  resize_columns(rows_ + kRoomRows);
+}
+
+void ContactRows::resize_columns(std::size_t rows) {
+  each_row_column([rows](auto& column, std::size_t width) { column.resize(width * rows); });
 }
 
 void ContactRows::keep(const std::vector<std::size_t>& rows) {

@@ -121,6 +121,21 @@ struct ContactRows {
 
  private:
   void make_room();   // room for more rows in every row column (add, when it is full)
+  void resize_columns(std::size_t rows);   // every row column to this many rows
+  // f(column, values a row) for each row column (not the manifolds)
+  template <class F>
+  void each_row_column(F&& f) {
+    f(body_a, 1);
+    f(body_b, 1);
+    f(point, 3);
+    f(normal, 3);
+    f(separation, 1);
+    f(toi, 1);
+    f(kind, 1);
+    f(feature, 1);
+    f(piece_a, 1);
+    f(piece_b, 1);
+  }
   std::size_t rows_ = 0;
 };
 

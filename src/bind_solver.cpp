@@ -239,16 +239,19 @@ void bind_solver(py::module_& m) {
         py::list waves;
         for (const SweepWave& w : solver.plan().waves)
           waves.append(py::make_tuple(w.first, w.wide_end, w.lone, w.end, w.side, w.after,
-                                      w.spin_after));
+                                      w.spin_after, w.seam));
         return waves;
       }, "The last step's sweep waves, in order, each cut in its sides' parts: (first, "
-         "wide_end, lone, end, side, after, spin_after) each; manifolds [first, wide_end) "
-         "in wide groups of 4, [wide_end, lone) in wide groups of 2 or 3 (one per row count "
-         "1 to 4, padded with idle lanes), [lone, end) one by one (the one left of a row "
-         "count, then more than 4 rows); no two manifolds of a wave share a movable body; "
-         "side 0 or 1 (1 only with two threads); after: the last part of the other side "
-         "that moved one of its bodies (-1: none), spin_after: that of its spin rows (the "
-         "parts' rows i, their spin rows len(waves) + i).")
+         "wide_end, lone, end, side, after, spin_after, seam) each; manifolds [first, "
+         "wide_end) in wide groups of 4, [wide_end, lone) in wide groups of 2 or 3 (one per "
+         "row count 1 to 4, padded with idle lanes), [lone, end) one by one (the one left of "
+         "a row count, then more than 4 rows); no two manifolds of a wave share a movable "
+         "body; side 0 or 1 (1 only where the waves are large enough: parallel_wave); seam: "
+         "a part of the seam's waves (manifolds joining the sides). The sweep: the rows of "
+         "the parts before the seam's, their spin rows, then the seam's rows and spin rows "
+         "(the parts' rows numbered i, their spin rows len(waves) + i); after: the part of "
+         "the other side last in that order to move one of its bodies before its rows (-1: "
+         "none), spin_after: the same for its spin rows.")
       .def_property_readonly("sweep_bodies", [](const StepSolver& solver) {
         const std::vector<Manifold>& manifolds = solver.manifolds();
         py::array_t<int32_t> out({static_cast<py::ssize_t>(manifolds.size()),

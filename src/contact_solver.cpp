@@ -1851,7 +1851,8 @@ void unpack_groups(const SweepPlan& plan, std::vector<ContactRow>& rows,
 // Part l < the plan's waves (SweepWave): its wide groups (full, then padded; in the first
 // sweep made ready first, on the thread that sweeps them), then its manifolds one by one.
 // Else the spin rows of part l less the waves: its groups' in lanes (WideSpin), then its
-// manifolds' one by one (a wave's spin rows share no movable body: the bits of their order).
+// manifolds' one by one (a wave's spin rows share no movable body: the bits of their order;
+// without wide groups, all of them one by one).
 COLLRES_CLONED
 void sweep_chunk(SweepPlan& plan, const SweepChunk& chunk, bool ready,
                  std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
@@ -1863,9 +1864,10 @@ void sweep_chunk(SweepPlan& plan, const SweepChunk& chunk, bool ready,
     const size_t l = p < waves ? p : p - waves;
     const SweepWave& span = plan.waves[l];
     const size_t groups = plan.wide ? plan.wave_groups[l + 1] - plan.wave_groups[l] : 0;
-    if (p >= waves) {   // (spin parts: only where wide)
+    if (p >= waves) {   // spin parts (none to solve without spins)
+      if (spins == nullptr) continue;
       if (groups > 0) solve_wide_spins(plan, l, 0, groups, v, progress);
-      for (size_t m = span.lone; m < span.end; ++m) {
+      for (size_t m = groups > 0 ? span.lone : span.first; m < span.end; ++m) {
         const int32_t spin = manifolds[m].spin;
         if (spin >= 0)
           progress.change = std::max(progress.change,
@@ -1884,21 +1886,22 @@ void sweep_chunk(SweepPlan& plan, const SweepChunk& chunk, bool ready,
 #undef WIDE
 
 // A sweep's work in chunks, in the sweep's order, for the two threads (Worker::run_sides;
-// one thread runs them in turn): the parts of a wave (its sides) in the chunks of their
-// side's queue, then, with `spins`, the parts' spin rows the same way (waiting as
-// SweepWave::after and spin_after say). A part joins its side's last chunk when it waits for
-// no more of the other side's chunks than that chunk does at its start, and that chunk's
-// last part is not one the other side waits for (a chunk ends with such a part, so that
-// the wait ends with it): no part waits longer than alone in a chunk, and a side's run of
-// parts between two waits is one hand-over (a settled mixed pile of 1000 bodies: 113 parts
-// and as many spin-row parts a sweep, 2-5 us each). Run in turn (one thread), a chunk's
-// parts go before the other side's parts between them, which share no movable body with
-// them (a part that does waits for that part: it starts a chunk).
-void plan_chunks(SweepPlan& plan, bool spins) {
+// one thread runs them in turn): the parts of the waves before the seam's (SweepWave::seam)
+// in the chunks of their side's queue, then their spin rows (if any) the same way, then
+// the seam's parts and their spin rows (SweepPlan::sequence; waiting as SweepWave::after
+// and spin_after say). A part joins its side's last chunk when it waits for no more of the
+// other side's chunks than that chunk does at its start, and that chunk's last part is not
+// one the other side waits for (a chunk ends with such a part, so that the wait ends with it): no
+// part waits longer than alone in a chunk, and a side's run of parts between two waits is
+// one hand-over (with two sides, each side's rows and spin rows wait for none: the seam's
+// wait for side 0's last parts on their bodies). Run in turn (one thread), a chunk's parts
+// go before the other side's parts between them, which share no movable body with them (a
+// part that does waits for that part: it starts a chunk).
+void plan_chunks(SweepPlan& plan) {
   plan.chunks.clear();
   plan.sides.clear();
   plan.needs.clear();
-  const size_t size = plan.waves.size(), parts = spins ? 2 * size : size;
+  const size_t size = plan.waves.size(), parts = plan.sequence.size();
   // part p: the rows of wave part p (p < size), or the spin rows of part p - size
   auto after = [&](size_t p) {
     return p < size ? plan.waves[p].after : plan.waves[p - size].spin_after;
@@ -1910,7 +1913,8 @@ void plan_chunks(SweepPlan& plan, bool spins) {
   plan.owner.resize(parts);
   int32_t queued[2] = {0, 0};   // chunks per side so far
   int32_t open[2] = {-1, -1};   // each side's chunk that a part may join (-1: none)
-  for (size_t p = 0; p < parts; ++p) {
+  for (const int32_t q : plan.sequence) {
+    const auto p = static_cast<size_t>(q);
     const int32_t side = plan.waves[p % size].side, waits = after(p);
     const int32_t need = waits < 0 ? 0 : plan.places[static_cast<size_t>(waits)] + 1;
     if (open[side] < 0 || need > plan.needs[static_cast<size_t>(open[side])]) {
@@ -1933,9 +1937,10 @@ void plan_chunks(SweepPlan& plan, bool spins) {
     chunk.end = chunk.begin;
   }
   plan.chunk_parts.resize(parts);
-  for (size_t p = 0; p < parts; ++p)
-    plan.chunk_parts[plan.chunks[static_cast<size_t>(plan.owner[p])].end++] =
-        static_cast<int32_t>(p);
+  for (const int32_t q : plan.sequence) {
+    SweepChunk& chunk = plan.chunks[static_cast<size_t>(plan.owner[static_cast<size_t>(q)])];
+    plan.chunk_parts[chunk.end++] = q;
+  }
 }
 
 }  // namespace
@@ -1962,8 +1967,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     plan->packed = true;
   }
   int done = 0;
-  const bool spin_waves = spins != nullptr && wide;
-  if (plan != nullptr) plan_chunks(*plan, spin_waves);
+  if (plan != nullptr) plan_chunks(*plan);
   const size_t chunks = plan != nullptr ? plan->chunks.size() : 0;
   // (per chunk: a chunk's part runs on either thread)
   std::vector<Progress> part(std::max<size_t>(chunks, 1));
@@ -1983,7 +1987,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
     } else {
       for (size_t c = 0; c < chunks; ++c) chunk(static_cast<int>(c));
     }
-    if (spins != nullptr && !spin_waves) solve_spins(*spins, 0, spin_count, bodies, part[0]);
+    if (spins != nullptr && plan == nullptr) solve_spins(*spins, 0, spin_count, bodies, part[0]);
     double change = 0.0, largest = 0.0;
     for (const Progress& p : part) {
       change = std::max(change, p.change);

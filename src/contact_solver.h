@@ -287,18 +287,22 @@ struct WideSpin {
 
 // How the velocity sweeps visit the manifolds (sweep_waves.h builds it): wave by wave,
 // no two manifolds of a wave sharing a movable body, so that a wave's manifolds may be
-// solved in any order, in lanes and on two threads, with the bits of the sweep in the
-// solve's order; each wave in two parts, its sides (sweep_waves.h), each a SweepWave.
-// Part w is manifolds [first, wide_end) in wide groups of kLanes (one row count each),
-// [wide_end, lone) the rest of each row count 1 to 4 left two or three in wide groups
-// padded with idle lanes, and [lone, end) one by one (a row count's one left, then the
-// manifolds of more rows). `after`: the last part of the other side (index in the plan's
-// waves) that moved one of its bodies, -1: none; `spin_after`: the same for its spin rows,
-// which come after every part's rows (part i's rows: i, its spin rows: the plan's parts
-// plus i).
+// solved in any order, in lanes and on two threads, with the bits of the sweep in its
+// order (the solve's order, or with two sides the sides' and the seam's: sweep_waves.h);
+// each wave in two parts, its sides, each a SweepWave. Part w is manifolds [first,
+// wide_end) in wide groups of kLanes (one row count each), [wide_end, lone) the rest of
+// each row count 1 to 4 left two or three in wide groups padded with idle lanes, and
+// [lone, end) one by one (a row count's one left, then the manifolds of more rows). The
+// spin rows come after the rows, part by part: the sweep (SweepPlan::sequence) is the
+// rows of the parts before the seam's, their spin rows, then the seam's parts' rows and
+// spin rows (part i's rows numbered i, its spin rows the plan's parts plus i). `after`:
+// the part (so numbered) of the other side that last moved one of its bodies before its
+// rows, -1: none; `spin_after`: the same for its spin rows; `seam`: a part of the seam's
+// waves (manifolds joining the two sides, after both).
 struct SweepWave {
   size_t first = 0, wide_end = 0, lone = 0, end = 0;
   int32_t side = 0, after = -1, spin_after = -1;
+  bool seam = false;
 };
 // What one thread runs of a sweep in one go (Worker::run_sides): the parts
 // SweepPlan::chunk_parts[begin, end), each the rows of part p (p < the plan's parts) or the
@@ -311,8 +315,12 @@ struct SweepPlan {
   bool wide = true;                     // wide groups solved in lanes (else one by one:
                                         // the same bits, SOLVER_TUNING wide_rows)
   size_t parallel = 0;                  // waves that average at least twice this many
-                                        // manifolds are cut in two sides (sweep_waves.h)
-  Worker* worker = nullptr;             // null: one thread (one side)
+                                        // manifolds are cut in two sides (sweep_waves.h;
+                                        // 0: never), whatever the threads
+  Worker* worker = nullptr;             // null: one thread (the sides in turn)
+  bool spin_rows = false;               // a manifold has a spin row (Manifold::spin): the
+                                        // sweep has spin parts
+  std::vector<int32_t> sequence;        // the sweep's parts in order (SweepWave)
   std::vector<SweepChunk> chunks;       // a sweep's chunks, in order, ...
   std::vector<uint8_t> sides;           // ... each one's side (its thread's queue) ...
   std::vector<int32_t> needs;           // ... and the other side's chunks it waits for
@@ -358,8 +366,10 @@ void repack(SweepPlan& plan, const uint8_t* changed);
 // circular cone mu * normal. Stops early when a sweep changes no impulse by more than
 // params.converged times the largest normal impulse. `spins` (rolling resistance and
 // torsional friction, may be null; a manifold's Manifold::spin names its own) are solved
-// after the rows in each sweep, in order. Without `plan`, the manifolds in their order on
-// one thread; with it, wave by wave (above): the same bits. A coupled manifold
+// after the rows in each sweep. Without `plan`, the manifolds in their order on one thread,
+// then the spin rows in theirs; with it (`manifolds` in the plan's waves), part by part in
+// the plan's sequence (above): the bits of the order the plan stands for, on one thread or
+// two. A coupled manifold
 // (Manifold::coupled) of 2 to 4 rows is solved as one block with its friction (normal
 // impulses, sticking friction, sliding friction mu times its normal). Immovable bodies'
 // velocities are read, never written. Returns the sweeps done.

@@ -56,30 +56,51 @@ void rank_bodies(const std::vector<Manifold>& manifolds, const double* inv_mass,
   s.ranked = ranked;
 }
 
-// Each chosen manifold's side (0 or 1) into s.side: 1 where its lower-ranked movable body
-// is ranked at or after the cut that leaves about half the rows before it.
+// Each chosen manifold's class into s.side: 0 where every movable body of it is ranked
+// before the cut, 1 where every one is ranked at or after it, 2 (the seam) where it has
+// one on each side; the cut the rank that leaves the most rows in the smaller of classes
+// 0 and 1 (a sweep's two halves run side by side, the seam after both: what it costs is
+// the rows left out of the smaller half). A movable body not ranked counts as ranked
+// after all of them.
 void sides(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
            const double* inv_mass, WaveScratch& s) {
   const int32_t ranked = s.ranked;
-  auto key = [&](const Manifold& k) {   // (a body not ranked: after all of them)
-    const int32_t a = inv_mass[k.a] > 0.0 && s.rank[k.a] >= 0 ? s.rank[k.a] : ranked;
-    const int32_t b = inv_mass[k.b] > 0.0 && s.rank[k.b] >= 0 ? s.rank[k.b] : ranked;
-    return std::min(a, b);
+  auto rank = [&](int32_t body) {   // (-1: immovable)
+    if (!(inv_mass[body] > 0.0)) return -1;
+    return s.rank[body] >= 0 ? s.rank[body] : ranked;
   };
-  s.queue.assign(static_cast<size_t>(ranked) + 1, 0);   // rows per key
-  s.side.resize(chosen.size());                          // (each one's key, for now)
-  int64_t rows = 0;
+  // rows per rank: of the manifolds whose highest-ranked movable body has it (before), and
+  // of those whose lowest-ranked one has it (from)
+  const size_t keys = static_cast<size_t>(ranked) + 1;
+  s.before.assign(keys, 0);
+  s.from.assign(keys + 1, 0);
+  for (const int32_t index : chosen) {
+    const Manifold& k = manifolds[static_cast<size_t>(index)];
+    const int32_t a = rank(k.a), b = rank(k.b);
+    const int32_t high = std::max(a, b), low = a < 0 ? b : (b < 0 ? a : std::min(a, b));
+    s.before[static_cast<size_t>(std::max(high, 0))] += k.count;
+    s.from[static_cast<size_t>(std::max(low, 0))] += k.count;
+  }
+  // rows of class 0 and 1 for cut c: the sum of before[0, c), that of from[c, keys)
+  for (size_t c = keys; c-- > 0;) s.from[c] += s.from[c + 1];
+  int32_t cut = 0;
+  int64_t best = -1, below = 0;
+  for (size_t c = 0; c <= keys; ++c) {
+    const int64_t smaller = std::min(below, s.from[c]);
+    if (smaller > best) {
+      best = smaller;
+      cut = static_cast<int32_t>(c);
+    }
+    if (c < keys) below += s.before[c];
+  }
+  s.side.resize(chosen.size());
   for (size_t index = 0; index < chosen.size(); ++index) {
     const Manifold& k = manifolds[static_cast<size_t>(chosen[index])];
-    s.side[index] = key(k);
-    s.queue[static_cast<size_t>(s.side[index])] += k.count;
-    rows += k.count;
+    const int32_t a = rank(k.a), b = rank(k.b);
+    const bool low = (a >= 0 && a < cut) || (b >= 0 && b < cut);
+    const bool high = a >= cut || b >= cut;
+    s.side[index] = low && high ? 2 : (high ? 1 : 0);
   }
-  int32_t cut = 0;
-  for (int64_t before = 0;
-       cut < ranked && 2 * (before + s.queue[static_cast<size_t>(cut)]) <= rows; ++cut)
-    before += s.queue[static_cast<size_t>(cut)];
-  for (int32_t& side : s.side) side = side >= cut ? 1 : 0;
 }
 
 // Moves manifolds to later waves where that fills lanes (s.bucket[index]: each chosen
@@ -95,7 +116,7 @@ void sides(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& c
 // groups or lone manifolds than before (the remainders of two waves become at most one).
 // `waves`: the number of waves (none is added).
 void fill_lanes(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
-                const double* inv_mass, int32_t waves, WaveScratch& s) {
+                const double* inv_mass, int32_t waves, int32_t fence, WaveScratch& s) {
   const size_t count = chosen.size();
   // each manifold's side and row count (key: 4 side + rows - 1; -1 for more than 4 rows),
   // and its next one on its bodies A and B (-1: none, or the body immovable)
@@ -124,6 +145,7 @@ void fill_lanes(const std::vector<Manifold>& manifolds, const std::vector<int32_
   s.moved.clear();
   for (size_t w = 0; w + 1 < static_cast<size_t>(waves); ++w) {
     auto movable = [&](int32_t index) {   // to wave w + 1
+      if (w + 1 == static_cast<size_t>(fence)) return false;
       for (int j = 0; j < 2; ++j) {
         const int32_t next = s.next[2 * static_cast<size_t>(index) + static_cast<size_t>(j)];
         if (next >= 0 && s.bucket[static_cast<size_t>(next)] < w + 2) return false;
@@ -172,43 +194,68 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
                     WaveScratch& s) {
   const size_t count = chosen.size();
   plan.waves.clear();
+  plan.sequence.clear();
   plan.packed = false;
   out.clear();
   if (count == 0) return;
-  // each manifold's wave (bucket[index], for now); last[body]: the last wave that moved it
+  // each manifold of `order` its wave (bucket[index], for now), from wave `least` on;
+  // last[body]: the last wave that moved it; returns one past the last wave
+  auto wave = [&](const std::vector<int32_t>& order, size_t from, size_t to, int32_t least) {
+    int32_t waves = least;
+    for (size_t index = from; index < to; ++index) {
+      const Manifold& m = manifolds[static_cast<size_t>(order[index])];
+      const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
+      const int32_t own = std::max({move_a ? s.last[m.a] : -1, move_b ? s.last[m.b] : -1,
+                                    least - 1}) + 1;
+      if (move_a) s.last[m.a] = own;
+      if (move_b) s.last[m.b] = own;
+      waves = std::max(waves, own + 1);
+      s.bucket[index] = static_cast<size_t>(own);
+    }
+    return waves;
+  };
   s.last.assign(static_cast<size_t>(body_count), -1);
   s.bucket.resize(count);
-  int32_t waves = 0;
-  for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
-    const bool move_a = inv_mass[m.a] > 0.0, move_b = inv_mass[m.b] > 0.0;
-    const int32_t own = std::max(move_a ? s.last[m.a] : -1, move_b ? s.last[m.b] : -1) + 1;
-    if (move_a) s.last[m.a] = own;
-    if (move_b) s.last[m.b] = own;
-    waves = std::max(waves, own + 1);
-    s.bucket[index] = static_cast<size_t>(own);
-  }
-  // two sides for two threads where the waves average at least twice plan.parallel
-  // manifolds (else side 0 only: a smaller part costs more to hand over than it holds)
-  const bool split = plan.worker != nullptr &&
-                     count >= 2 * std::max<size_t>(plan.parallel, 1) * static_cast<size_t>(waves);
+  int32_t waves = wave(chosen, 0, count, 0);
+  // two sides where the waves of the solve's order average at least twice plan.parallel
+  // manifolds (else side 0 only: a smaller part costs more to hand over than it holds;
+  // plan.parallel 0: one side), whatever the threads (the order is the sides')
+  const bool split = plan.parallel > 0 && count >= 2 * plan.parallel * static_cast<size_t>(waves);
+  const std::vector<int32_t>* order = &chosen;
+  int32_t fence = waves;   // the seam's first wave
   if (split) {
     if (s.epoch != plan.rows_epoch || s.rank.size() != static_cast<size_t>(body_count)) {
       rank_bodies(manifolds, inv_mass, body_count, s);
       s.epoch = plan.rows_epoch;
     }
     sides(manifolds, chosen, inv_mass, s);
+    // the sweep's order: class 0's manifolds, class 1's, then the seam's, each in the
+    // solve's order; the seam in waves of its own after the others' (its manifolds are
+    // the last on their bodies: any later wave keeps the bits of the order), on side 1
+    s.sorted.clear();
+    size_t starts[4] = {0, 0, 0, 0};   // class c: s.sorted[starts[c], starts[c + 1])
+    for (int32_t part = 0; part < 3; ++part) {
+      for (size_t index = 0; index < count; ++index)
+        if (s.side[index] == part) s.sorted.push_back(chosen[index]);
+      starts[part + 1] = s.sorted.size();
+    }
+    const size_t first = starts[2];   // the seam's first
+    for (size_t index = 0; index < count; ++index) s.side[index] = index >= starts[1] ? 1 : 0;
+    order = &s.sorted;
+    s.last.assign(static_cast<size_t>(body_count), -1);
+    fence = wave(*order, 0, first, 0);
+    waves = wave(*order, first, count, fence);
   } else {
     s.side.assign(count, 0);
   }
   s.speculative.resize(count);
   for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
+    const Manifold& m = manifolds[static_cast<size_t>((*order)[index])];
     bool all = true;
     for (int32_t i = m.first; i < m.first + m.count && all; ++i) all = rows[i].allowance > 0.0;
     s.speculative[index] = all ? 1 : 0;
   }
-  fill_lanes(manifolds, chosen, inv_mass, waves, s);
+  fill_lanes(manifolds, *order, inv_mass, waves, fence, s);
   // stable counting sort by (wave, side, row count, speculative): bucket (2 wave + side) *
   // 10 + 2 (count - 1) + speculative (counts 1 to 4; the last two buckets of a part for
   // longer manifolds). A speculative manifold (every row with a gap to close: allowance >
@@ -216,26 +263,10 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   // after the others of its row count, so that most wide groups are all of one kind and a
   // group whose four lanes all stay idle costs only its approach test (solve_velocities)
   constexpr int kKinds = 5, kBuckets = 2 * kKinds;
-  // each manifold's bucket; with two sides, last[body]: the last part (2 wave + side) that
-  // moved it, and after[part]: the other side's last wave whose part moved one of its bodies
-  if (split) {
-    s.last.assign(static_cast<size_t>(body_count), -1);
-    s.after.assign(2 * static_cast<size_t>(waves), -1);
-  }
+  // each manifold's bucket
   for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
-    const int32_t side = s.side[index];
-    const int32_t part = 2 * static_cast<int32_t>(s.bucket[index]) + side;
-    if (split) {
-      for (const int32_t body : {m.a, m.b}) {
-        if (!(inv_mass[body] > 0.0)) continue;
-        const int32_t last = s.last[body];
-        if (last >= 0 && last % 2 != side)
-          s.after[static_cast<size_t>(part)] =
-              std::max(s.after[static_cast<size_t>(part)], last / 2);
-        s.last[body] = part;
-      }
-    }
+    const Manifold& m = manifolds[static_cast<size_t>((*order)[index])];
+    const int32_t part = 2 * static_cast<int32_t>(s.bucket[index]) + s.side[index];
     s.bucket[index] = static_cast<size_t>(part) * kBuckets +
                       2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) +
                       s.speculative[index];
@@ -246,26 +277,15 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   for (size_t i = 0; i + 1 < s.start.size(); ++i) s.start[i + 1] += s.start[i];
   s.order.resize(count);
   for (size_t index = 0; index < count; ++index)
-    s.order[s.start[s.bucket[index]]++] = chosen[index];   // (start: ends now)
+    s.order[s.start[s.bucket[index]]++] = (*order)[index];   // (start: ends now)
   // per part: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
   // 1..4's remainders of two or three (padded groups), then the remainders of one and the
   // longer manifolds (one by one: a group of one lane costs more than its one manifold);
   // each copied in once (not over a new entry's zeros)
   out.reserve(count);
-  // (with two sides, last[body]: the last part, index in plan.waves, that moved it)
-  if (split) s.last.assign(static_cast<size_t>(body_count), -1);
   auto place = [&](size_t from, size_t end) {
-    for (size_t k = from; k < end; ++k) {
-      const Manifold& m = manifolds[static_cast<size_t>(s.order[k])];
-      out.push_back(m);
-      if (split) {
-        const auto at = static_cast<int32_t>(plan.waves.size());
-        if (inv_mass[m.a] > 0.0) s.last[m.a] = at;
-        if (inv_mass[m.b] > 0.0) s.last[m.b] = at;
-      }
-    }
+    for (size_t k = from; k < end; ++k) out.push_back(manifolds[static_cast<size_t>(s.order[k])]);
   };
-  s.index.assign(parts, -1);   // each part's place in plan.waves (-1: empty)
   size_t from = 0;
   for (size_t p = 0; p < parts; ++p) {
     size_t first[kKinds + 1];   // row count k + 1's manifolds: [first[k], first[k + 1])
@@ -276,8 +296,7 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     if (first[0] == first[kKinds]) continue;
     SweepWave part;
     part.side = static_cast<int32_t>(p % 2);
-    const int32_t after = split ? s.after[p] : -1;
-    part.after = after < 0 ? -1 : s.index[2 * static_cast<size_t>(after) + 1 - p % 2];
+    part.seam = p / 2 >= static_cast<size_t>(fence);
     part.first = out.size();
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
@@ -295,28 +314,42 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     }
     place(first[4], first[5]);
     part.end = out.size();
-    s.index[p] = static_cast<int32_t>(plan.waves.size());
     plan.waves.push_back(part);
   }
-  // the spin rows' pass (after every part's rows, part by part): a part's spin rows wait
-  // for the other side's last part, of either pass, that moved one of their bodies (numbered
-  // as part i of the rows' pass: i; of the spin rows': size + i; last[body] starts from the
-  // rows' pass)
-  if (!split) return;
+  // the sweep's parts in order (SweepPlan::sequence): the rows of the parts before the
+  // seam's, their spin rows, the seam's rows, their spin rows (spin parts only where a
+  // manifold has a spin row); with two sides, each part's wait: the other side's part
+  // last in that order to move one of its bodies (s.last[body]: the last part that moved
+  // it, s.index[part]: its place in the order)
+  plan.spin_rows = false;
+  for (const Manifold& m : out) plan.spin_rows = plan.spin_rows || m.spin >= 0;
   const auto size = static_cast<int32_t>(plan.waves.size());
-  for (int32_t i = 0; i < size; ++i) {
-    SweepWave& part = plan.waves[static_cast<size_t>(i)];
+  int32_t seam = size;   // the seam's first part
+  while (seam > 0 && plan.waves[static_cast<size_t>(seam) - 1].seam) --seam;
+  for (const auto [from, to] : {std::pair<int32_t, int32_t>{0, seam}, {seam, size}}) {
+    for (int32_t i = from; i < to; ++i) plan.sequence.push_back(i);
+    if (plan.spin_rows)
+      for (int32_t i = from; i < to; ++i) plan.sequence.push_back(size + i);
+  }
+  if (!split) return;
+  s.last.assign(static_cast<size_t>(body_count), -1);
+  s.index.assign(plan.sequence.size(), -1);
+  for (size_t at = 0; at < plan.sequence.size(); ++at) {
+    const int32_t id = plan.sequence[at];
+    SweepWave& part = plan.waves[static_cast<size_t>(id % size)];
     int32_t after = -1;
     for (size_t k = part.first; k < part.end; ++k) {
       for (const int32_t body : {out[k].a, out[k].b}) {
         if (!(inv_mass[body] > 0.0)) continue;
         const int32_t last = s.last[body];
-        if (plan.waves[static_cast<size_t>(last % size)].side != part.side)
-          after = std::max(after, last);
-        s.last[body] = size + i;
+        if (last >= 0 && plan.waves[static_cast<size_t>(last % size)].side != part.side &&
+            (after < 0 || s.index[static_cast<size_t>(last)] > s.index[static_cast<size_t>(after)]))
+          after = last;
+        s.last[body] = id;
       }
     }
-    part.spin_after = after;
+    s.index[static_cast<size_t>(id)] = static_cast<int32_t>(at);
+    (id < size ? part.after : part.spin_after) = after;
   }
 }
 

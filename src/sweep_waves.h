@@ -15,14 +15,22 @@
 // colours its constraint graph greedily instead; that reorders the sweep, and measured
 // here it broke the pile and heap laws whose margins the order had tuned.)
 //
-// For the two threads each wave is cut in two sides, each side's part the thread's that
-// runs it sweep after sweep: the movable bodies are ranked breadth first through the
+// Two sides, for two threads, where the waves are large enough (SweepPlan::parallel),
+// whatever the threads: the movable bodies are ranked breadth first through the
 // manifolds joining two of them, from a body farthest from where the search began (in
-// each group of bodies so joined), and a manifold is on side 1 where its lower-ranked
-// movable body is in the last half of the ranks (by rows), else on side 0: each side a
-// connected region of the pile, whose bodies stay in its thread's cache and whose
-// manifolds wait for the other side's only along the seam between the two (SweepWave::
-// after: the other side's last part whose bodies it moves).
+// each group of bodies so joined), and cut in two at a rank (the one that leaves the most
+// rows in the smaller side). The sweep's order is then side 0's manifolds (every movable
+// body of it before the cut), side 1's (every one at or after it), then the seam's (one
+// movable body each side), each in the solve's order: the two sides' manifolds share no
+// movable body, so their waves run side by side, each side's parts its thread's, sweep
+// after sweep (each a connected region of the pile, whose bodies stay in its thread's
+// cache), without waiting for the other's; the seam's manifolds, the last on their bodies,
+// take waves of their own after both sides' rows and spin rows (SweepWave::seam,
+// SweepPlan::sequence), on side 1, waiting for side 0's last parts on their bodies: the
+// worker's, which then runs on from the seam into the next sweep while the caller waits for
+// it (the other way round, the worker waited through the seam and had fallen asleep by the
+// next sweep: it started 20-100 us late).
+// Below that size, one side in the solve's order.
 #pragma once
 
 #include <cstdint>
@@ -39,23 +47,27 @@ struct WaveScratch {
   int32_t ranked = 0;            // bodies ranked
   uint64_t epoch = ~uint64_t{0};   // the rows (SweepPlan::rows_epoch) they were ranked for
   std::vector<int32_t> begin, adjacent, queue;   // the movable bodies' neighbours; search
-  std::vector<int32_t> side;     // per chosen manifold
+  std::vector<int32_t> side;     // per manifold of the sweep's order: its side (sides(): class)
+  std::vector<int64_t> before, from;   // sides(): rows per rank
+  std::vector<int32_t> sorted;   // the sweep's order with two sides (indices into manifolds)
   std::vector<size_t> bucket, start;
-  std::vector<int32_t> order, after, index;
+  std::vector<int32_t> order, index;
   std::vector<uint8_t> speculative;   // per chosen manifold: every row with allowance > 0
   std::vector<int8_t> key;           // per chosen manifold: 4 side + rows - 1 (-1: > 4 rows)
   std::vector<int32_t> next;         // per chosen manifold: the next one on its body A, B
   std::vector<int32_t> members, carry, moved;   // fill_lanes: the waves' manifolds
 };
 
-// The manifolds `chosen` (indices into `manifolds`, ascending: the sweep's order) wave by
+// The manifolds `chosen` (indices into `manifolds`, ascending: the solve's order), in the
+// sweep's order (above: the solve's, or with two sides the sides' then the seam's) wave by
 // wave, each wave side 0's part then side 1's (the parts that are not empty), into `out`
 // (SweepPlan's layout, a part per SweepWave: within a part, wide groups of kLanes
 // manifolds of one row count 1..4 first, then the rest of each row count 1..4 left two or
 // three (padded groups), then the rest left one and the longer manifolds one by one;
 // within a row count the speculative manifolds, every row with allowance > 0, last), each
-// copied once; fills plan.waves (with each part's side, after and spin_after) and clears
-// plan.packed (its other fields are left as they are). The manifolds keep their rows and
+// copied once; fills plan.waves (with each part's side, after, spin_after and seam),
+// plan.sequence and plan.spin_rows, and clears plan.packed (its other fields are left as
+// they are). The manifolds keep their rows and
 // spin rows (Manifold::spin); the rows keep their ContactRow::manifold. `inv_mass` (N,)
 // 1/kg: 0 for immovable bodies.
 void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,

@@ -356,9 +356,10 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
     ParamSpec('threads', 'integer', 2,
               'Threads of detection and of the solve: with 2, the pairs of a step (64 or '
               'more) are shared by two threads, and so is each velocity sweep whose waves '
-              'are large enough (parallel_wave: each wave cut in two sides, connected halves '
-              'of the pile, one per thread), and the per-contact passes of the reference '
-              'frame; the answer is the same bits with 1 or 2', 1, 2,
+              'are large enough (parallel_wave: the pile cut in two sides, connected halves '
+              'solved side by side, one per thread, then the seam between them), and the '
+              'per-contact passes of the reference frame; the answer is the same bits with '
+              '1 or 2', 1, 2,
               reason='pairs are independent, a wave\'s manifolds share no movable body and '
                      'each contact\'s reference frame is its own, so the second core can '
                      'take part of each; the cost model leaves the worker alone where it does '
@@ -456,17 +457,20 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'lanes (turning every aimed row in every substep cost 5 % of a 30 Hz step '
                      'of a settled mixed pile of 1000 bodies)'),
     ParamSpec('parallel_wave', 'integer', 16,
-              'With two threads, the waves of a sweep (manifolds that share no movable body, '
-              'solved one after the other in the sweep\'s order) that average at least twice '
-              'this many manifolds are cut in two sides, one per thread (smaller ones stay '
-              'whole, the sweep on one thread); a per-contact pass is split in 8 parts of at '
-              'least this many contacts', 1, 10**9,
+              'A sweep whose waves (manifolds that share no movable body, solved one after '
+              'the other in the solve\'s order) average at least twice this many manifolds '
+              'is cut in two sides, whatever the threads: each side\'s manifolds, then the '
+              'seam\'s (those joining the two), with two threads the sides side by side '
+              '(smaller sweeps stay whole, in the solve\'s order, on one thread); with two '
+              'threads a per-contact pass is split in 8 parts of at least this many contacts',
+              1, 10**9,
               reason='a part handed over costs its thread a claim and the other side\'s count '
                      '(a cache line there and back 0.47 us) against 64 ns a manifold, and a '
-                     'wave cut in two leaves more manifolds one by one: settled piles of 100 '
+                     'sweep cut in two leaves more manifolds one by one: settled piles of 100 '
                      '(waves of 8-10 manifolds on average), cut at 4, a sweep took 23-35 us '
-                     'on two threads against 12-15 on one; piles of 1000 (36-58 on average) '
-                     '63-101 us against 107-135'),
+                     'on two threads against 12-15 on one; settled piles of 1000 (36-58 on '
+                     'average; a seam of 0.5-5 % of the rows) solve 1.26-1.32 times as fast '
+                     'on two threads as on one'),
     ParamSpec('wide_rows', 'bool', True,
               'Solve each wave\'s manifolds four at a time (wide rows: structure of arrays, '
               'SIMD); off, one by one: the same bits', None, None,

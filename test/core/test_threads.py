@@ -172,16 +172,20 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
     bodies, state = pile()
     w = world(bodies, threads)
     movable = w.dynamic
-    total = wide = lanes = split = 0
+    total = wide = lanes = split = whole_total = whole_wide = 0
     for _ in range(STEPS):
         state = w.step(state, euler_step(state, w.dynamic, GRAVITY, DT), DT).states
         waves = w._solver.waves
         sweep = w._solver.sweep_bodies
         assert [s[0] for s in waves[1:]] == [s[3] for s in waves[:-1]]    # in a row
         assert (waves[-1][3] if waves else 0) == len(sweep)                # all of them
-        order = {}       # per movable body: the first row of its last manifold so far
-        last = {}        # per movable body: the last part (rows) that moved it
-        for i, (first, wide_end, lone, end, side, after, _) in enumerate(waves):
+        # the sweep's order: with two sides, side 0's manifolds, side 1's, then the seam's
+        # (parts after all the others'), each in the solve's order (their first rows)
+        seams = [part[7] for part in waves]
+        assert seams == sorted(seams)
+        own = [set(), set()]    # each side's bodies (but the seam's)
+        order = {}       # per movable body: (class, first row) of its last manifold so far
+        for first, wide_end, lone, end, side, _, _, seam in waves:
             assert first < wide_end or wide_end < end              # never empty
             assert first <= wide_end <= lone <= end and (wide_end - first) % 4 == 0
             counts = sweep[first:wide_end, 2].reshape(-1, 4)
@@ -196,36 +200,51 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
             pairs = sweep[first:end, :2]
             used = pairs[movable[pairs]]
             assert len(np.unique(used)) == len(used)   # none twice in a part
-            # each movable body's manifolds in the solve's order (their first rows)
+            # each movable body's manifolds in the sweep's order
             for pair, row in zip(pairs.tolist(), sweep[first:end, 3].tolist()):
                 for b in pair:
                     if movable[b]:
-                        assert order.get(b, -1) < row
-                        order[b] = row
-            # it waits for the other side's last part that moved one of its bodies
-            other = [last[b] for b in used.tolist() if b in last and waves[last[b]][4] != side]
-            assert after == max(other, default=-1)
-            last.update((b, i) for b in used.tolist())
+                        key = (2 if seam else side, row)
+                        assert order.get(b, (-1, -1)) < key
+                        order[b] = key
+            if seam:    # the seam joins two movable bodies, on side 1
+                assert side == 1 and movable[pairs].all()
+            else:
+                own[side].update(used.tolist())
             wide += wide_end - first
             lanes += lone - first
             total += end - first
-        # the spin rows (after every part's rows, part by part) the same way
+        assert not own[0] & own[1]      # the two sides share no movable body
+        # the sweep: the rows of the parts before the seam's, their spin rows (every
+        # manifold of this pile has one), then the seam's rows and spin rows (part i's rows
+        # numbered i, its spin rows size + i); each waits for the other side's part last
+        # in that order to move one of its bodies
         size = len(waves)
-        for i, (first, _, _, end, side, _, spin_after) in enumerate(waves):
+        seam = seams.index(True) if True in seams else size
+        last = {}        # per movable body: the last part that moved it
+        place = {}       # per part: its place in the sweep
+        for at, q in enumerate([*range(seam), *range(size, size + seam), *range(seam, size),
+                                *range(size + seam, 2 * size)]):
+            first, _, _, end, side, after, spin_after, _ = waves[q % size]
             pairs = sweep[first:end, :2]
             used = pairs[movable[pairs]].tolist()
-            other = [last[b] for b in used if waves[last[b] % size][4] != side]
-            assert spin_after == max(other, default=-1)
-            last.update((b, size + i) for b in used)
-        # with two threads, each side holds a fair share of the rows: halves by rows
-        rows = [sum(int(sweep[p[0]:p[3], 2].sum()) for p in waves if p[4] == k) for k in (0, 1)]
+            other = [last[b] for b in used if b in last and waves[last[b] % size][4] != side]
+            assert (after if q < size else spin_after) == max(other, key=place.get, default=-1)
+            last.update((b, q) for b in used)
+            place[q] = at
+        # cut in sides, each holds a fair share of the rows: halves by rows
+        rows = [sum(int(sweep[p[0]:p[3], 2].sum()) for p in waves if p[4] == k and not p[7])
+                for k in (0, 1)]
         if rows[1]:
             split += 1
-            assert min(rows) > 0.3 * sum(rows)
+            assert min(rows) > 0.3 * int(sweep[:, 2].sum())
+        else:
+            whole_total += sum(p[3] - p[0] for p in waves)
+            whole_wide += sum(p[1] - p[0] for p in waves)
     assert total > 0 and lanes > wide   # some manifolds solved in padded groups
-    if threads == 1:                    # and most in full ones (not a pile cut in sides
-        assert wide > total // 2        # of a few manifolds a part)
-    assert (split > STEPS // 2) == (threads == 2)   # cut in sides: with two threads only
+    if whole_total:                     # and, uncut, most in full ones (not a pile cut in
+        assert whole_wide > whole_total // 2   # sides of a few manifolds a part)
+    assert split > STEPS // 2   # cut in sides, whatever the threads (the order is theirs)
 
 
 def part_filled(parts) -> int:
@@ -236,17 +255,24 @@ def part_filled(parts) -> int:
 
 def left_over(waves: list[tuple], sweep: np.ndarray, movable: np.ndarray) -> tuple[int, int]:
     """part_filled() of the waves, and of the waves as early as possible for the same
-    manifolds (each part's side kept): (as solved, as early as possible)."""
+    manifolds in the sweep's order (each part's side kept; the seam's waves after all the
+    others'): (as solved, as early as possible)."""
     side = np.zeros(len(sweep), int)
-    for first, _, _, end, s, *_ in waves:
+    seam = np.zeros(len(sweep), bool)
+    for first, _, _, end, s, _, _, joins in waves:
         side[first:end] = s
+        seam[first:end] = joins
     solved = part_filled(sweep[w[0]:w[3], 2] for w in waves)
     wave = {}        # per movable body: the last wave (as early as possible) that moved it
     early = {}       # (wave, side) -> row counts
-    for i in np.argsort(sweep[:, 3], kind='stable'):
+    least = 0        # the seam's first wave
+    order = np.lexsort((sweep[:, 3], np.where(seam, 2, side)))   # the sweep's order
+    for i in order:
         a, b, rows, _ = sweep[i].tolist()
-        own = 1 + max(wave.get(a, -1) if movable[a] else -1,
-                      wave.get(b, -1) if movable[b] else -1)
+        if seam[i] and not least:
+            least = 1 + max(wave.values(), default=-1)
+        own = max(least, 1 + max(wave.get(a, -1) if movable[a] else -1,
+                                 wave.get(b, -1) if movable[b] else -1))
         for body in (a, b):
             if movable[body]:
                 wave[body] = own

@@ -98,11 +98,26 @@ void overlapping_pairs(const std::vector<Aabb>& boxes,
 
 void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
                           std::vector<std::pair<int, int>>& pairs) {
-  bool inside = fat_.size() == boxes.size();
-  for (std::size_t k = 0; inside && k < boxes.size(); ++k) {
-    inside = (boxes[k].lo.array() >= fat_[k].lo.array()).all() &&
-             (boxes[k].hi.array() <= fat_[k].hi.array()).all();
+  const std::size_t fat = refit(boxes, inside(boxes, 0, boxes.size()));
+  const std::size_t kept = pairs.size();
+  // into room for every fat pair, cut to those kept
+  pairs.resize(kept + fat);
+  pairs.resize(kept + test(boxes, 0, fat, pairs.data() + kept));
+}
+
+bool CoherentPairs::inside(const std::vector<Aabb>& boxes, std::size_t lo,
+                           std::size_t hi) const {
+  if (fat_.size() != boxes.size()) return false;
+  for (std::size_t k = lo; k < hi; ++k) {
+    if (!((boxes[k].lo.array() >= fat_[k].lo.array()).all() &&
+          (boxes[k].hi.array() <= fat_[k].hi.array()).all())) {
+      return false;
+    }
   }
+  return true;
+}
+
+std::size_t CoherentPairs::refit(const std::vector<Aabb>& boxes, bool inside) {
   if (!inside) {
     fat_.resize(boxes.size());
     const Vec3 skin = Vec3::Constant(skin_);
@@ -113,19 +128,26 @@ void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
     overlapping_pairs(fat_, fat_pairs_);
     sort_fat_pairs(static_cast<int>(boxes.size()));
   }
-  // the exact test, axis by axis with an early out (most fat pairs that fail, fail on one),
-  // into room for every fat pair (cut to those kept)
-  std::size_t kept = pairs.size();
-  pairs.resize(kept + fat_pairs_.size());
-  for (const auto& [i, j] : fat_pairs_) {
+  return fat_pairs_.size();
+}
+
+std::size_t CoherentPairs::test(const std::vector<Aabb>& boxes, std::size_t from,
+                                std::size_t to, std::pair<int, int>* out) const {
+  // the exact test without branches (whether a fat pair overlaps is a coin toss to the
+  // branch predictor): each fat pair is written to the next place, which only a kept one
+  // keeps
+  std::size_t kept = 0;
+  for (std::size_t k = from; k < to; ++k) {
+    const auto [i, j] = fat_pairs_[k];
     const Aabb& p = boxes[i];
     const Aabb& q = boxes[j];
-    if (p.lo.x() <= q.hi.x() && q.lo.x() <= p.hi.x() && p.lo.y() <= q.hi.y() &&
-        q.lo.y() <= p.hi.y() && p.lo.z() <= q.hi.z() && q.lo.z() <= p.hi.z()) {
-      pairs[kept++] = {i, j};
-    }
+    const bool overlap = (p.lo.x() <= q.hi.x()) & (q.lo.x() <= p.hi.x()) &
+                         (p.lo.y() <= q.hi.y()) & (q.lo.y() <= p.hi.y()) &
+                         (p.lo.z() <= q.hi.z()) & (q.lo.z() <= p.hi.z());
+    out[kept] = {i, j};
+    kept += static_cast<std::size_t>(overlap);
   }
-  pairs.resize(kept);
+  return kept;
 }
 
 void CoherentPairs::sort_fat_pairs(int count) {

@@ -39,6 +39,16 @@ class CoherentPairs {
  public:
   explicit CoherentPairs(double skin) : skin_(skin) {}
   void pairs(const std::vector<Aabb>& boxes, std::vector<std::pair<int, int>>& pairs);
+  // `pairs` in steps, so that two threads may share them: `inside`, whether boxes [lo, hi)
+  // are all inside their fat boxes (false when the boxes are not as many as the fat ones);
+  // `refit` to `boxes`, rebuilt unless `inside` held for all of them, returns the number of
+  // fat pairs; `test` writes the fat pairs [from, to) (of that number, in order) that
+  // overlap exactly to `out` on, in increasing (i, j) order, and returns how many. Several
+  // `inside`s, or several `test`s of one refit, may run at once.
+  bool inside(const std::vector<Aabb>& boxes, std::size_t lo, std::size_t hi) const;
+  std::size_t refit(const std::vector<Aabb>& boxes, bool inside);
+  std::size_t test(const std::vector<Aabb>& boxes, std::size_t from, std::size_t to,
+                   std::pair<int, int>* out) const;
 
  private:
   // fat_pairs_ sorted by (i, j) in linear time: a counting sort by j, then one by i that

@@ -1,6 +1,8 @@
 #include "detection.h"
 
 #include <algorithm>
+#include <array>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -135,23 +137,30 @@ void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, co
   rows_ = row + 1;
 }
 
-void ContactRows::append(const ContactRows& other) {
-  const auto shift = static_cast<std::int64_t>(size());
-  trim();
-  // the end of other's rows in one of its columns (`width` values a row; its room after)
-  auto rows = [n = other.size()](const auto& column, std::size_t width) {
-    return column.begin() + static_cast<std::ptrdiff_t>(width * n);
+void ContactRows::append_part(const ContactRows& other, int part) {
+  // a column cut to size() rows, then other's rows (`width` values a row; its room after)
+  auto join = [this, n = other.size()](auto& column, const auto& from, std::size_t width) {
+    column.resize(width * rows_);
+    column.insert(column.end(), from.begin(),
+                  from.begin() + static_cast<std::ptrdiff_t>(width * n));
   };
-  body_a.insert(body_a.end(), other.body_a.begin(), rows(other.body_a, 1));
-  body_b.insert(body_b.end(), other.body_b.begin(), rows(other.body_b, 1));
-  point.insert(point.end(), other.point.begin(), rows(other.point, 3));
-  normal.insert(normal.end(), other.normal.begin(), rows(other.normal, 3));
-  separation.insert(separation.end(), other.separation.begin(), rows(other.separation, 1));
-  toi.insert(toi.end(), other.toi.begin(), rows(other.toi, 1));
-  kind.insert(kind.end(), other.kind.begin(), rows(other.kind, 1));
-  feature.insert(feature.end(), other.feature.begin(), rows(other.feature, 1));
-  piece_a.insert(piece_a.end(), other.piece_a.begin(), rows(other.piece_a, 1));
-  piece_b.insert(piece_b.end(), other.piece_b.begin(), rows(other.piece_b, 1));
+  if (part == 0) {
+    join(point, other.point, 3);
+    join(normal, other.normal, 3);
+    return;
+  }
+  join(body_a, other.body_a, 1);
+  join(body_b, other.body_b, 1);
+  join(separation, other.separation, 1);
+  join(toi, other.toi, 1);
+  join(kind, other.kind, 1);
+  join(feature, other.feature, 1);
+  join(piece_a, other.piece_a, 1);
+  join(piece_b, other.piece_b, 1);
+}
+
+void ContactRows::appended(const ContactRows& other) {
+  const auto shift = static_cast<std::int64_t>(size());
   rows_ += other.size();
   const std::size_t from = manifolds.size();
   manifolds.insert(manifolds.end(), other.manifolds.begin(), other.manifolds.end());
@@ -198,6 +207,7 @@ Detector::Detector(std::vector<BodyShape> shapes, int bodies)
     (shapes_[k].kind == ShapeKind::plane ? planes_ : finite_).push_back(k);
   }
   if (next != bodies) throw std::invalid_argument("every body needs at least one shape");
+  boxes_.resize(finite_.size());
   mark_active_edges(shapes_);
   for (Mesh& mesh : meshes_) {
     std::vector<Aabb> boxes;
@@ -221,12 +231,15 @@ void Detector::set_filter(std::vector<std::uint64_t> group, std::vector<std::uin
 // -- motion and broad phase ----------------------------------------------------------------
 
 void Detector::prepare(const StepPoses& poses, bool queried) {
-  const int n = pieces();
-  bodies_.resize(n);
-  for (int k = 0; k < n; ++k) {
+  bodies_.resize(pieces());
+  prepare(poses, queried, 0, pieces());
+}
+
+void Detector::prepare(const StepPoses& poses, bool queried, int lo, int hi) {
+  for (int k = lo; k < hi; ++k) {
     Body& body = bodies_[k];
     const int owner = shapes_[k].body;
-    if (k > 0 && owner == shapes_[k - 1].body) {   // another piece: the same motion
+    if (k > lo && owner == shapes_[k - 1].body) {   // another piece: the same motion
       body = bodies_[k - 1];
       body.moved = (body.p1 - body.p0).norm() +
                    (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
@@ -293,9 +306,16 @@ void Detector::prepare(const StepPoses& poses, bool queried) {
 }
 
 void Detector::find_pairs() {
+  bound(0, finite_.size());
+  pairs_.resize(sweep_.refit(boxes_, sweep_.inside(boxes_, 0, boxes_.size())));
+  other_pairs_.clear();
+  pairs_.resize(finite_pairs(0, pairs_.size(), 0, finite_.size(), other_pairs_));
+  merge_pairs();
+}
+
+void Detector::bound(std::size_t lo, std::size_t hi) {
   const double pad = 0.5 * settings_.speculative_margin;
-  boxes_.resize(finite_.size());
-  for (std::size_t i = 0; i < finite_.size(); ++i) {
+  for (std::size_t i = lo; i < hi; ++i) {
     const int k = finite_[i];
     const Body& body = bodies_[k];
     const BodyShape& shape = shapes_[k];
@@ -307,11 +327,27 @@ void Detector::find_pairs() {
     const Vec3 grow = Vec3::Constant(bulge + pad);
     boxes_[i] = {b0.lo.cwiseMin(b1.lo) - grow, b0.hi.cwiseMax(b1.hi) + grow};
   }
-  // the finite pairs sorted by (a, b) (finite_ is increasing), the others apart
-  pairs_.clear();
-  sweep_.pairs(boxes_, pairs_);
-  for (auto& pair : pairs_) pair = {finite_[pair.first], finite_[pair.second]};
-  other_pairs_.clear();
+}
+
+bool Detector::skip(const std::pair<int, int>& pair) const {
+  const Body& a = bodies_[pair.first];
+  const Body& b = bodies_[pair.second];
+  const int body_a = shapes_[pair.first].body, body_b = shapes_[pair.second].body;
+  return (a.fixed && b.fixed) || !a.valid || !b.valid || body_a == body_b ||
+         !filter_.collides(body_a, body_b);
+}
+
+std::size_t Detector::finite_pairs(std::size_t from, std::size_t to, std::size_t lo,
+                                   std::size_t hi, std::vector<std::pair<int, int>>& others) {
+  // the finite pairs, sorted by (a, b) (finite_ is increasing), the skipped ones dropped
+  std::pair<int, int>* const part = pairs_.data() + from;
+  const std::size_t tested = sweep_.test(boxes_, from, to, part);
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < tested; ++k) {
+    const std::pair<int, int> pair{finite_[part[k].first], finite_[part[k].second]};
+    if (!skip(pair)) part[kept++] = pair;
+  }
+  const double pad = 0.5 * settings_.speculative_margin;
   for (int plane : planes_) {  // half-space n.x <= d against each swept box, both poses
     const Body& body = bodies_[plane];
     const BodyShape& shape = shapes_[plane];
@@ -320,13 +356,18 @@ void Detector::find_pairs() {
     const double offset1 = shape.plane_offset + normal1.dot(body.p1);
     // a half-space that did not move has one test
     const bool still = normal0 == normal1 && offset0 == offset1;
-    for (std::size_t i = 0; i < finite_.size(); ++i) {
+    for (std::size_t i = lo; i < hi; ++i) {
       if (box_reaches_plane(boxes_[i], normal0, offset0, pad) ||
           (!still && box_reaches_plane(boxes_[i], normal1, offset1, pad))) {
-        other_pairs_.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
+        others.emplace_back(std::min(plane, finite_[i]), std::max(plane, finite_[i]));
       }
     }
   }
+  return kept;
+}
+
+void Detector::merge_pairs() {
+  const double pad = 0.5 * settings_.speculative_margin;
   for (const Mesh& mesh : meshes_) {   // its triangles near each finite box, in its frame
     const Body& body = bodies_[mesh.first];   // the mesh body's motion
     const Mat3 r0 = body.q0.toRotationMatrix();
@@ -351,26 +392,19 @@ void Detector::find_pairs() {
       });
     }
   }
-  auto skip = [this](const std::pair<int, int>& pair) {
-    const Body& a = bodies_[pair.first];
-    const Body& b = bodies_[pair.second];
-    const int body_a = shapes_[pair.first].body, body_b = shapes_[pair.second].body;
-    return (a.fixed && b.fixed) || !a.valid || !b.valid || body_a == body_b ||
-           !filter_.collides(body_a, body_b);
-  };
-  // all sorted by (a, b): the others sorted and merged in, then the skipped ones and repeats
-  // dropped
+  // all sorted by (a, b): the others' skipped ones dropped, the rest sorted and merged in
+  // (no pair is in both: the others each have a half-space or a triangle, and each comes
+  // once)
+  other_pairs_.erase(std::remove_if(other_pairs_.begin(), other_pairs_.end(),
+                                    [this](const std::pair<int, int>& pair) {
+                                      return skip(pair);
+                                    }),
+                     other_pairs_.end());
+  if (other_pairs_.empty()) return;
   std::sort(other_pairs_.begin(), other_pairs_.end());
   merged_pairs_.resize(pairs_.size() + other_pairs_.size());
   std::merge(pairs_.begin(), pairs_.end(), other_pairs_.begin(), other_pairs_.end(),
              merged_pairs_.begin());
-  std::size_t kept = 0;
-  for (const auto& pair : merged_pairs_) {
-    if (!skip(pair) && (kept == 0 || merged_pairs_[kept - 1] != pair)) {
-      merged_pairs_[kept++] = pair;
-    }
-  }
-  merged_pairs_.resize(kept);
   pairs_.swap(merged_pairs_);
 }
 
@@ -462,54 +496,18 @@ void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) 
 void Detector::detect(const StepPoses& poses, ContactRows& out) {
   out.clear();
   out.reserve(last_rows_ + last_rows_ / 8 + 16);
-  prepare(poses, true);
-  find_pairs();
   budget_ = StepBudget();
-  if (pairs_.size() > static_cast<std::size_t>(std::max(settings_.max_pairs, 0))) {
-    limit_pairs();
-  }
-  // the pairs in turn: stored points or the narrow phase, in lanes (a pair reads only
-  // the step's poses and the stored manifolds, and writes only its lane)
-  const std::size_t count = pairs_.size();
-  auto run = [this, count](Lane& lane, std::size_t lo, std::size_t hi, ContactRows& rows) {
-    for (std::size_t k = lo; k < hi && k < count; ++k) {
-      const auto [a, b] = pairs_[k];
-      if (!reuse(lane, a, b, rows)) narrow_phase(lane, a, b, rows);
-    }
-  };
   for (Lane& lane : lanes_) {
     lane.next.clear();
     lane.cursor[0] = lane.cursor[1] = 0;
   }
-  if (threads_ < 2 || count < kParallelPairs) {
-    run(lanes_[0], 0, count, out);
+  if (threads_ < 2 || pieces() < kParallelShapes) {
+    prepare(poses, true);
+    find_pairs();
+    limit_pairs();
+    run_pairs(lanes_[0], 0, pairs_.size(), out);
   } else {
-    // the first half here, the second in ordered chunks on the worker or here. This
-    // thread runs a chunk only after the first half (worker.h), and the chunks one at a
-    // time in order: so while it has run every chunk so far, its next one goes on in the
-    // first lane, into `out`; from the first chunk the worker takes on, the rest go into
-    // the second lane, whose rows then follow the first's (the order of one thread),
-    // copied only when the worker helped
-    Lane& second = lanes_[1];
-    second.rows.clear();
-    const std::size_t half = count / 2;
-    const int chunks = kPairChunks;
-    int direct = 0;   // the leading chunks run here, in the first lane (read only here)
-    const std::thread::id here = std::this_thread::get_id();
-    if (!worker_) worker_ = std::make_unique<Worker>();
-    worker_->run_pair([&] { run(lanes_[0], 0, half, out); },
-                      [&](int c) {
-                        const std::size_t lo = half + (count - half) * c / chunks;
-                        const std::size_t hi = half + (count - half) * (c + 1) / chunks;
-                        if (std::this_thread::get_id() == here && c == direct) {
-                          run(lanes_[0], lo, hi, out);
-                          ++direct;
-                        } else {
-                          run(second, lo, hi, second.rows);
-                        }
-                      },
-                      chunks, 0, static_cast<double>(count));
-    if (direct < chunks) out.append(second.rows);
+    detect_paired(poses, out);
   }
   // the lanes' manifolds stay apart: the second's keys are all greater (none: it ran no pair)
   for (int part = 0; part < 2; ++part) stored_[part].swap(lanes_[part].next);
@@ -520,6 +518,135 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   }
   out.trim();
   last_rows_ = out.size();
+}
+
+void Detector::run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows& out) const {
+  for (std::size_t k = lo; k < hi; ++k) {
+    const auto [a, b] = pairs_[k];
+    if (!reuse(lane, a, b, out)) narrow_phase(lane, a, b, out);
+  }
+}
+
+// The chunks of one run (queue 0 this thread's, queue 1 the worker's; each starts once the
+// chunks of the other queue it reads are done, `need`), posted first so that the worker's
+// wake overlaps this thread's first chunk:
+//   0 (q0)  the motion of the first half of the bodies' shapes, their boxes, whether those
+//           are inside their fat boxes;  1 (q1) the same of the second half
+//   2 (q0, after 1)     the sweep's refit (rebuilt when a box left its fat box)
+//   3 (q1, after 0, 2)  the second half of the fat pairs tested, the half-spaces against
+//                       the second half of the boxes;  4 (q0) the same of the first halves
+//   5 (q0, after 3)     the two parts joined, the other pairs merged in, the budget
+//   6 (q0)              the first part of the pairs, into the first lane and `out`
+//   7.. (q1, after 5)   the rest of the pairs in kPairChunks ordered chunks
+//   then the second lane's rows after the first's, their columns in two parts: one (q0)
+//   after every pair chunk, the other (q1) after the first part.
+void Detector::detect_paired(const StepPoses& poses, ContactRows& out) {
+  using Clock = std::chrono::steady_clock;
+  bodies_.resize(pieces());
+  // the shapes of the first half of the bodies, and their finite ones
+  const int mid = first_shape_[static_cast<std::size_t>(bodies_count_ / 2)];
+  const auto finite_mid = static_cast<std::size_t>(
+      std::lower_bound(finite_.begin(), finite_.end(), mid) - finite_.begin());
+  constexpr int kStages = 7;   // the chunks before the second part's pairs
+  constexpr int kChunks = kStages + kPairChunks + 2;   // and the second lane's rows joined
+  std::array<std::uint8_t, kChunks> side{0, 1, 0, 1, 0, 0, 0};
+  std::array<std::int32_t, kChunks> need{0, 0, 1, 2, 1, 2, 2};
+  for (int c = kStages; c < kStages + kPairChunks; ++c) {
+    side[c] = 1;
+    need[c] = 4;
+  }
+  side[kChunks - 2] = 0;   // after every pair chunk
+  need[kChunks - 2] = 2 + kPairChunks;
+  side[kChunks - 1] = 1;   // after the first part's pairs
+  need[kChunks - 1] = 5;
+  bool inside[2] = {false, false};
+  std::size_t fat = 0, kept[2] = {0, 0}, count = 0, split = 0;
+  Lane& second = lanes_[1];
+  second.rows.clear();
+  int direct = 0;   // the leading pair chunks run here, in the first lane (read only here)
+  int helped = 0;   // pair chunks the worker ran
+  Clock::duration first_took{}, second_took{};
+  Clock::time_point second_began;
+  const std::thread::id here = std::this_thread::get_id();
+  auto task = [&](int c) {
+    switch (c) {
+      case 0:
+        prepare(poses, true, 0, mid);
+        bound(0, finite_mid);
+        inside[0] = sweep_.inside(boxes_, 0, finite_mid);
+        break;
+      case 1:
+        prepare(poses, true, mid, pieces());
+        bound(finite_mid, finite_.size());
+        inside[1] = sweep_.inside(boxes_, finite_mid, finite_.size());
+        break;
+      case 2:
+        fat = sweep_.refit(boxes_, inside[0] && inside[1]);
+        pairs_.resize(fat);
+        break;
+      case 3:
+        second.others.clear();
+        kept[1] = finite_pairs(fat / 2, fat, finite_mid, finite_.size(), second.others);
+        break;
+      case 4:
+        lanes_[0].others.clear();
+        kept[0] = finite_pairs(0, fat / 2, 0, finite_mid, lanes_[0].others);
+        break;
+      case 5: {
+        // the second part's pairs after the first's, the half-spaces' pairs of both
+        const auto from = pairs_.begin() + static_cast<std::ptrdiff_t>(fat / 2);
+        std::copy(from, from + static_cast<std::ptrdiff_t>(kept[1]),
+                  pairs_.begin() + static_cast<std::ptrdiff_t>(kept[0]));
+        pairs_.resize(kept[0] + kept[1]);
+        other_pairs_.assign(lanes_[0].others.begin(), lanes_[0].others.end());
+        other_pairs_.insert(other_pairs_.end(), second.others.begin(), second.others.end());
+        merge_pairs();
+        limit_pairs();
+        count = pairs_.size();
+        split = static_cast<std::size_t>(pair_share_ * static_cast<double>(count));
+        break;
+      }
+      case 6: {
+        const Clock::time_point began = Clock::now();
+        run_pairs(lanes_[0], 0, split, out);
+        first_took = Clock::now() - began;
+        break;
+      }
+      case kChunks - 2:
+      case kChunks - 1:
+        if (direct < kPairChunks) out.append_part(second.rows, c - (kChunks - 2));
+        break;
+      default: {
+        const int chunk = c - kStages;
+        const std::size_t lo = split + (count - split) * chunk / kPairChunks;
+        const std::size_t hi = split + (count - split) * (chunk + 1) / kPairChunks;
+        if (chunk == 0) second_began = Clock::now();
+        if (std::this_thread::get_id() == here && chunk == direct) {
+          run_pairs(lanes_[0], lo, hi, out);
+          ++direct;
+        } else {
+          run_pairs(second, lo, hi, second.rows);
+        }
+        if (std::this_thread::get_id() != here) ++helped;
+        if (chunk == kPairChunks - 1) second_took = Clock::now() - second_began;
+      }
+    }
+  };
+  if (!worker_) worker_ = std::make_unique<Worker>();
+  worker_->run_sides(task, kChunks, side.data(), need.data(), 0, static_cast<double>(pieces()));
+  if (direct < kPairChunks) out.appended(second.rows);
+  // the first part's share of the pairs, towards the one at which the two parts took as
+  // long, from the time a pair took in each (when the worker ran the whole second part)
+  if (helped == kPairChunks && split > 0 && count > split && first_took.count() > 0 &&
+      second_took.count() > 0) {
+    const double first = std::chrono::duration<double>(first_took).count() /
+                         static_cast<double>(split);
+    const double second_pair = std::chrono::duration<double>(second_took).count() /
+                               static_cast<double>(count - split);
+    const double even = second_pair / (first + second_pair);
+    pair_share_ = std::clamp(pair_share_ + kShareWeight * (even - pair_share_), kLeastShare,
+                             1.0 - kLeastShare);
+  }
 }
 
 // Rows grouped by pair of bodies in (a, b) order, manifold by manifold (piece pairs of one
@@ -814,6 +941,7 @@ double Detector::approach_bound(int a, int b) const {
 // and than the relative motion cannot touch (narrow_phase skips them unqueried).
 void Detector::limit_pairs() {
   const auto keep = static_cast<std::size_t>(std::max(settings_.max_pairs, 0));
+  if (pairs_.size() <= keep) return;
   const double margin = settings_.speculative_margin;
   depth_.clear();
   order_.clear();

@@ -109,8 +109,11 @@ constexpr double kApartSlack = 1e-5;      // m: a stored distance counts this mu
                                            // tolerance and the retry step on either measure)
 constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs of boxes
                                            // grown by this while no box leaves its own
-constexpr std::size_t kParallelPairs = 64; // a step of fewer pairs runs on one thread
-constexpr int kPairChunks = 8;             // chunks of the second half (Worker::run_pair)
+constexpr int kParallelShapes = 64;        // a detector of fewer shapes runs on one thread
+constexpr int kPairChunks = 8;             // chunks of the pairs' second part
+constexpr double kShareWeight = 0.25;      // of a step's even share in the first part's
+constexpr double kLeastShare = 0.25;       // share of the pairs (Detector::detect_paired),
+                                           // which keeps within [least, 1 - least]
 
 class Detector {
  public:
@@ -127,11 +130,17 @@ class Detector {
   void set_filter(std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
                   const std::vector<std::pair<int, int>>& ignored);
   const DetectionSettings& settings() const { return settings_; }
-  // Threads of the pairs' stage from the next step on (1 or 2): with 2, a step of at
-  // least kParallelPairs pairs gives the first half to this thread and the second to a
-  // worker (worker.h: chunks in order, each on the worker or here), each into its own
-  // lane (the leading chunks run here: the first lane), then joins them in pair order:
-  // the same rows, bit for bit, with 1 or 2.
+  // Threads of detection from the next step on (1 or 2): with 2 and at least
+  // kParallelShapes shapes, the step's stages run as chunks of one Worker::run_sides
+  // (worker.h), this thread's and the worker's, each chunk after those it reads
+  // (detect_paired): each half of the shapes' motion and swept boxes; the refit of the sweep;
+  // each half of its fat pairs tested (and the half-spaces against each half of the boxes);
+  // their join with the other pairs (meshes; the budget); then the pairs, a first part here
+  // into the first lane and the rest in kPairChunks ordered chunks (each on the worker or
+  // here) into the second lane (the leading chunks that run here: the first), whose rows
+  // then follow the first's (their columns copied by both threads, ContactRows::
+  // append_part): the same rows, bit for bit, with 1 or 2. The first part's share
+  // of the pairs follows the time a pair took in either part, so that both end together.
   void set_threads(int threads) { threads_ = threads; }
   // chunks of the second halves run so far: by the worker, and by either thread
   std::uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
@@ -186,7 +195,24 @@ class Detector {
   // fixed, valid: what the broad phase and hold_back read), not the twists, loaded and
   // pose1 that only the pair queries read (left as they were).
   void prepare(const StepPoses& poses, bool queried);
+  // ... of shapes [lo, hi) (lo the first shape of a body), bodies_ sized
+  void prepare(const StepPoses& poses, bool queried, int lo, int hi);
+  // The broad phase's pairs into pairs_ (sorted by (a, b)), in its stages: `bound`, the
+  // swept boxes of finite_[lo, hi); `finite_pairs`, the sweep's fat pairs [from, to)
+  // (CoherentPairs::refit, test) that overlap, as shape pairs written over pairs_[from, ...)
+  // but the skipped ones (returns how many), and the half-spaces' pairs with the boxes
+  // [lo, hi) into `others`; `merge_pairs`, the meshes' pairs added to other_pairs_, then
+  // other_pairs_ but the skipped ones merged into pairs_ (pairs_ holding only the finite
+  // pairs). Boxes and fat pairs of different ranges may be done at once.
   void find_pairs();
+  void bound(std::size_t lo, std::size_t hi);
+  std::size_t finite_pairs(std::size_t from, std::size_t to, std::size_t lo, std::size_t hi,
+                           std::vector<std::pair<int, int>>& others);
+  void merge_pairs();
+  // pairs of two fixed bodies, of a non-finite pose, of one body, or that the filter drops
+  bool skip(const std::pair<int, int>& pair) const;
+  // detect's stages on two threads (see set_threads)
+  void detect_paired(const StepPoses& poses, ContactRows& out);
   double sphere_gap(int a, int b) const;
   double relative_motion(int a, int b) const;
   double approach_bound(int a, int b) const;
@@ -222,10 +248,13 @@ class Detector {
     ManifoldStore next;
     std::size_t cursor[2] = {0, 0};   // its place in either part of stored_
     ContactRows rows;           // the second lane's rows (the first writes the step's)
+    std::vector<std::pair<int, int>> others;   // detect_paired: its half-spaces' pairs
   };
   // The per-pair stages: each reads the step's bodies and the stored manifolds and
   // writes only `lane` and `out` (so two lanes run at once).
   bool reuse(Lane& lane, int a, int b, ContactRows& out) const;
+  // pairs_[lo, hi) in turn: the stored points or the narrow phase
+  void run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows& out) const;
   // A pair stored apart (step 3) whose distance then, less how far either body moved
   // relative to the other since, is still beyond the margin and the step's relative motion:
   // the narrow phase would give it no rows (true; the record carried to the next step).
@@ -309,6 +338,7 @@ class Detector {
   std::vector<std::pair<int, int>> merged_pairs_;   // find_pairs: scratch
   Lane lanes_[2];              // the caller's, the second half's (hold_back: the first)
   int threads_ = 1;            // of the next detect (set_threads)
+  double pair_share_ = 0.5;    // detect_paired: the first part's share of the pairs
   std::unique_ptr<Worker> worker_;   // the second half's thread, started at its first use
   std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
   ManifoldStore stored_[2];    // the last step's persistent manifolds: the first lane's,

@@ -113,8 +113,12 @@ struct ContactRows {
   // These rows (any order, each at most once) in that order, into `out` (cleared first;
   // its manifolds are the caller's to set).
   void take(const std::vector<std::size_t>& rows, ContactRows& out) const;
-  // `other`'s rows and manifolds after these (its manifolds' first rows shifted).
-  void append(const ContactRows& other);
+  // `other`'s rows and manifolds after these, in steps of which two threads may run the
+  // parts at once: part 0 appends other's rows to the point and normal columns, part 1 to
+  // the others (each column cut to size() rows first); then `appended` counts the rows and
+  // appends other's manifolds (their first rows shifted).
+  void append_part(const ContactRows& other, int part);
+  void appended(const ContactRows& other);
   // The row columns cut to size() rows (the room `add` left dropped).
   void trim();
   std::size_t size() const { return rows_; }

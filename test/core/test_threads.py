@@ -10,9 +10,10 @@ or three left of a row count in a group padded with idle lanes); with two thread
 (``threads``) and waves that average at least twice ``parallel_wave`` manifolds, each wave
 is cut in two sides (connected halves of the pile), each side's parts one thread's queue, a
 part waiting only for the other side's last part that moved one of its bodies; the
-per-contact passes of the reference frame are shared too. Detection shares a step's pairs
-between the two threads too (``src/detection.h``: the first half here, the second on the
-worker, each into its own lane, joined in pair order). Shock propagation sweeps its blocks
+per-contact passes of the reference frame are shared too. Detection shares a step's stages
+between the two threads too (``src/detection.h``: the bodies' motion and boxes, the broad
+phase's fat pairs by halves; the pairs, a first part here, the rest on the worker, each into
+its own lane, joined in pair order). Shock propagation sweeps its blocks
 the same way, one level of lower bodies at a time (one thread).
 The laws: the waves hold (no movable body twice in a wave, each body's manifolds in the
 solve's order, wide groups of one row count, every manifold of up to four rows in one but
@@ -31,7 +32,8 @@ import pytest
 
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.detection import Detection
-from collres_ros.core.types import BodySpec, BodyStates
+from collres_ros.core.types import (COMPOUND, TRIANGLE_MESH, BodySpec, BodyStates,
+                                    CollisionFilter, Piece)
 from collres_ros.core.world import World
 from collres_ros.ros.integrator import euler_step
 
@@ -300,13 +302,24 @@ def test_a_waves_leftovers_fill_the_next_waves_groups(threads):
     assert fewer > steps // 2
 
 
-def test_detection_on_two_threads_gives_the_bytes_of_one_thread():
+@pytest.mark.parametrize('filtered', [False, True])
+def test_detection_on_two_threads_gives_the_bytes_of_one_thread(filtered):
     # the pile falling (impacts, times of impact, speculative corners), then settling
-    # (stored points reused): two detectors, one and two threads, on the same steps
+    # (stored points reused): two detectors, one and two threads, on the same steps; with a
+    # filter, the spheres and the walls pass through each other and some neighbours are
+    # ignored (pairs dropped in either thread's part of the broad phase)
     bodies, state = pile(96)
     w = world(bodies, 1)
     settings = SolverSettings(sleeping=False)
     one, two = Detection(bodies, settings), Detection(bodies, settings)
+    if filtered:
+        sphere = [b.shape == 'sphere' for b in bodies]
+        group = tuple(2 if s else 1 for s in sphere)
+        mask = tuple(1 if 1 <= k <= 4 else 3 for k in range(len(bodies)))   # walls: no spheres
+        ignored = tuple((k, k + 1) for k in range(5, len(bodies) - 1, 3))
+        for d in (one, two):
+            d.collision_filter = CollisionFilter(group, mask, ignored)
+        assert any(sphere)
     kinds = set()
     for _ in range(STEPS):
         current = euler_step(state, w.dynamic, GRAVITY, DT)
@@ -316,8 +329,44 @@ def test_detection_on_two_threads_gives_the_bytes_of_one_thread():
                      'manifolds', 'piece_a', 'piece_b'):
             assert np.ascontiguousarray(getattr(a, name)).tobytes() == \
                 np.ascontiguousarray(getattr(b, name)).tobytes(), name
+        if filtered:   # no sphere touches a wall, no ignored pair touches
+            pairs = set(zip(a.body_a.tolist(), a.body_b.tolist()))
+            assert not any(sphere[j] and 1 <= i <= 4 for i, j in pairs)
+            assert not pairs & set(ignored)
         kinds.update(np.unique(a.kind).tolist())
         state = w.step(state, current, DT).states
     assert len(kinds) >= 2                       # impacts and persistent contacts met
     assert two._native.helped[1] >= STEPS        # every step split its pairs in two
     assert one._native.helped[1] == 0
+
+
+def test_detection_of_compounds_and_a_mesh_on_two_threads_gives_the_bytes_of_one_thread():
+    # compound bodies (the pieces of a body share its motion: each thread prepares whole
+    # bodies) on a floor of two triangles (a mesh's pairs join the other pairs after both
+    # threads' halves of the broad phase)
+    bodies, state = pile(96)
+    half = 0.25
+    bodies[0] = BodySpec('floor', TRIANGLE_MESH, static=True,
+                         points=((-half, -half, 0.0), (half, -half, 0.0), (half, half, 0.0),
+                                 (-half, -half, 0.0), (half, half, 0.0), (-half, half, 0.0)))
+    for k in range(6, len(bodies), 4):
+        bodies[k] = BodySpec(bodies[k].name, COMPOUND, mass=1.0, pieces=(
+            Piece('left', 'box', (0.05, 0.1, 0.1), position=(-0.025, 0.0, 0.0)),
+            Piece('right', 'box', (0.05, 0.1, 0.1), position=(0.025, 0.0, 0.0))))
+    w = world(bodies, 1)
+    settings = SolverSettings(sleeping=False)
+    one, two = Detection(bodies, settings), Detection(bodies, settings)
+    on_floor = compounds = 0
+    for _ in range(STEPS):
+        current = euler_step(state, w.dynamic, GRAVITY, DT)
+        a = one.detect(state, current, None, 1)
+        b = two.detect(state, current, None, 2)
+        for name in ('body_a', 'body_b', 'point', 'normal', 'separation', 'toi', 'kind', 'feature',
+                     'manifolds', 'piece_a', 'piece_b'):
+            assert np.ascontiguousarray(getattr(a, name)).tobytes() == \
+                np.ascontiguousarray(getattr(b, name)).tobytes(), name
+        on_floor += int(np.count_nonzero(a.body_a == 0))
+        compounds += int(np.count_nonzero((a.piece_a > 0) | (a.piece_b > 0)))
+        state = w.step(state, current, DT).states
+    assert on_floor > 0 and compounds > 0        # the mesh and the pieces met
+    assert two._native.helped[1] >= STEPS

@@ -78,6 +78,15 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                            const BodyProperties& bodies, const ContactsView& contacts,
                            double dt, bool warm_enabled, const SolverParams& params,
                            BodyStatesOut& out, ContactsOut& report_out) {
+  // the second thread spins between its runs while the step is on (Worker::stay: its
+  // runs come with serial stages between them), woken now
+  struct Stay {
+    Worker* worker;
+    ~Stay() {
+      if (worker != nullptr) worker->stay(false);
+    }
+  } stay{params.threads >= 2 ? worker() : nullptr};
+  if (stay.worker != nullptr) stay.worker->stay(true);
   const int64_t n = bodies.count;
   velocity_.resize(6 * n);
   pseudo_.resize(6 * n);

@@ -236,6 +236,7 @@ class StepSolver {
   // its per-contact parts, contacts [lo, hi) (in_parts)
   void frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   void impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
+  void allow_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   static double resting_speed(const uint8_t* loaded, int64_t a, int64_t b, double then,
                               double now, double floor, double factor);
   double held_resting(const StepContext& ctx, int64_t k, double then, double resting) const;

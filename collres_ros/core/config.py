@@ -357,8 +357,9 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               'Threads of detection and of the solve: with 2, the pairs of a step (64 or '
               'more) are shared by two threads, and so is each velocity sweep whose waves '
               'are large enough (parallel_wave: each wave cut in two sides, connected halves '
-              'of the pile, one per thread), and the per-contact passes of the reference '
-              'frame; the answer is the same bits with 1 or 2', 1, 2,
+              'of the pile, one per thread), and the step\'s per-contact passes (reference '
+              'frame, rows, warm start, first admission, report); the answer is the same '
+              'bits with 1 or 2', 1, 2,
               reason='pairs are independent, a wave\'s manifolds share no movable body and '
                      'each contact\'s reference frame is its own, so the second core can '
                      'take part of each; the cost model leaves the worker alone where it does '

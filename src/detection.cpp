@@ -460,6 +460,15 @@ void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) 
 // -- one step -------------------------------------------------------------------------------
 
 void Detector::detect(const StepPoses& poses, ContactRows& out) {
+  // the second thread woken now (Worker::stay), its wake overlapping the broad phase
+  // before the pairs' run; it may sleep again once the step's detection is over
+  struct Stay {
+    Worker* worker;
+    ~Stay() {
+      if (worker != nullptr) worker->stay(false);
+    }
+  } stay{threads_ >= 2 ? worker_.get() : nullptr};
+  if (stay.worker != nullptr) stay.worker->stay(true);
   out.clear();
   out.reserve(last_rows_ + last_rows_ / 8 + 16);
   prepare(poses, true);

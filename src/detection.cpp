@@ -461,13 +461,15 @@ void Detector::hold_back(const StepPoses& poses, std::vector<double>& fraction) 
 
 void Detector::detect(const StepPoses& poses, ContactRows& out) {
   // the second thread woken now (Worker::stay), its wake overlapping the broad phase
-  // before the pairs' run; it may sleep again once the step's detection is over
+  // before the pairs' run, where it helped with the last step's (a small pile, whose
+  // pairs the cost model keeps on this thread, pays no wake); it may sleep again once the
+  // step's detection is over
   struct Stay {
     Worker* worker;
     ~Stay() {
       if (worker != nullptr) worker->stay(false);
     }
-  } stay{threads_ >= 2 ? worker_.get() : nullptr};
+  } stay{threads_ >= 2 && helping_ ? worker_.get() : nullptr};
   if (stay.worker != nullptr) stay.worker->stay(true);
   out.clear();
   out.reserve(last_rows_ + last_rows_ / 8 + 16);
@@ -492,6 +494,7 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   }
   if (threads_ < 2 || count < kParallelPairs) {
     run(lanes_[0], 0, count, out);
+    helping_ = false;
   } else {
     // the first half here, the second in ordered chunks on the worker or here. This
     // thread runs a chunk only after the first half (worker.h), and the chunks one at a
@@ -519,6 +522,7 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
                       },
                       chunks, 0, static_cast<double>(count));
     if (direct < chunks) out.append(second.rows);
+    helping_ = direct < chunks;   // (the worker took a chunk)
   }
   // the lanes' manifolds stay apart: the second's keys are all greater (none: it ran no pair)
   for (int part = 0; part < 2; ++part) stored_[part].swap(lanes_[part].next);

@@ -310,6 +310,7 @@ class Detector {
   Lane lanes_[2];              // the caller's, the second half's (hold_back: the first)
   int threads_ = 1;            // of the next detect (set_threads)
   std::unique_ptr<Worker> worker_;   // the second half's thread, started at its first use
+  bool helping_ = false;             // the worker ran a chunk of the last detect's pairs
   std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
   ManifoldStore stored_[2];    // the last step's persistent manifolds: the first lane's,
                                // then the second's (its keys all greater; may be empty)

@@ -80,13 +80,15 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                            double dt, bool warm_enabled, const SolverParams& params,
                            BodyStatesOut& out, ContactsOut& report_out) {
   // the second thread spins between its runs while the step is on (Worker::stay: its
-  // runs come with serial stages between them), woken now
+  // runs come with serial stages between them), woken now: where the last step's sweeps
+  // were cut in two sides (a pile too small for that, 100 bodies, pays more for the wake
+  // than its per-contact passes gain)
   struct Stay {
     Worker* worker;
     ~Stay() {
       if (worker != nullptr) worker->stay(false);
     }
-  } stay{params.threads >= 2 ? worker() : nullptr};
+  } stay{params.threads >= 2 && shared_ ? worker() : nullptr};
   if (stay.worker != nullptr) stay.worker->stay(true);
   const int64_t n = bodies.count;
   velocity_.resize(6 * n);
@@ -186,6 +188,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                  cached_normal_.data(), report_out.friction_impulse, contacts.point);
   });
+  shared_ = std::find(plan_.sides.begin(), plan_.sides.end(), 1) != plan_.sides.end();
   return stats;
 }
 
@@ -1388,11 +1391,18 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
   for (int s = 0; s < substeps; ++s) {
     if (s > 0) {
       // a rested body's share of the external change, then the warm start from the
-      // last substep's impulses (the spin rows start cold)
-      for (int64_t i = 0; i < n; ++i)
-        if (ramped_[i])
-          for (int d = 0; d < 6; ++d) velocity_[6 * i + d] += share * ramp_[6 * i + d];
-      start_.assign(velocity_.begin(), velocity_.end());
+      // last substep's impulses (the spin rows start cold); per body, in parts
+      start_.resize(6 * n);
+      in_parts(ctx, n, [&](int64_t lo, int64_t hi) {
+        const uint8_t* const ramped = ramped_.data();
+        const double* const ramp = ramp_.data();
+        double *const v = velocity_.data(), *const start = start_.data();
+        for (int64_t i = lo; i < hi; ++i) {
+          if (ramped[i])
+            for (int d = 0; d < 6; ++d) v[6 * i + d] += share * ramp[6 * i + d];
+          for (int d = 0; d < 6; ++d) start[6 * i + d] = v[6 * i + d];
+        }
+      });
       for (SpinRow& spin : spins_) spin.torque = Vec3::Zero();
       if (!aimed_.empty()) {
         aim(ctx, moved_.data(), velocity_.data(), 0.5 * ctx.dt * share);
@@ -1406,13 +1416,18 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
     }
     // each row may approach by its separation now: the reference gap plus how far its
     // two points moved along the normal in the substeps so far (no new detection; two
-    // spheres': from their centres, aim)
-    for (size_t i = 0; i < rows; ++i) {
-      ContactRow& r = rows_[i];
-      const double separation = aiming_[i] ? aimed_gap_[i]
-                                           : gap_[r.contact] + normal_velocity(r, moved_.data());
-      r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
-    }
+    // spheres': from their centres, aim); per row, in parts
+    in_parts(ctx, static_cast<int64_t>(rows), [&](int64_t lo, int64_t hi) {
+      const uint8_t* const aiming = aiming_.data();
+      const double *const aimed = aimed_gap_.data(), *const moved = moved_.data();
+      const double *const gap = gap_.data(), *const span = span_.data();
+      ContactRow* const row = rows_.data();
+      for (int64_t i = lo; i < hi; ++i) {
+        ContactRow& r = row[i];
+        const double separation = aiming[i] ? aimed[i] : gap[r.contact] + normal_velocity(r, moved);
+        r.allowance = std::max(separation, 0.0) / (span[r.contact] * share);
+      }
+    });
     // (the last substep's last `shared` sweeps are the landing's, after the poses' travel)
     sweeps += sweep(ctx, s + 1 < substeps ? iterations : std::max(iterations - shared, 1));
     propagate_shock(rows_, ctx.solver, level_, shock_rows_, shock_blocks_, p.shock_sweeps);
@@ -1420,18 +1435,30 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
     // impulses, can raise the energy the sweeps kept (a box on one point of a fixed
     // sphere: +2.6e-4)
     sweeps += hold_energy(ctx, iterations);
-    // the poses travel with the substep's velocity for its share of the body's time
-    for (int64_t i = 0; i < n; ++i) {
-      const double h = (1.0 - fraction_[i]) * ctx.dt * share;
-      for (int d = 0; d < 6; ++d) {
-        moved_[6 * i + d] += h * velocity_[6 * i + d];
-        travel_[6 * i + d] += share * velocity_[6 * i + d];
+    // the poses travel with the substep's velocity for its share of the body's time (per
+    // body), and the impulses are summed (per row), in parts
+    const double dt = ctx.dt;
+    in_parts(ctx, n, [&](int64_t lo, int64_t hi) {
+      const double *const fraction = fraction_.data(), *const v = velocity_.data();
+      double *const moved = moved_.data(), *const travel = travel_.data();
+      for (int64_t i = lo; i < hi; ++i) {
+        const double h = (1.0 - fraction[i]) * dt * share;
+        for (int d = 0; d < 6; ++d) {
+          moved[6 * i + d] += h * v[6 * i + d];
+          travel[6 * i + d] += share * v[6 * i + d];
+        }
       }
-    }
-    for (size_t i = 0; i < rows && s + 1 < substeps; ++i) {
-      total_[3 * i] += rows_[i].normal;
-      total_[3 * i + 1] += rows_[i].tangent[0];
-      total_[3 * i + 2] += rows_[i].tangent[1];
+    });
+    if (s + 1 < substeps) {
+      in_parts(ctx, static_cast<int64_t>(rows), [&](int64_t lo, int64_t hi) {
+        const ContactRow* const row = rows_.data();
+        double* const total = total_.data();
+        for (int64_t i = lo; i < hi; ++i) {
+          total[3 * i] += row[i].normal;
+          total[3 * i + 1] += row[i].tangent[0];
+          total[3 * i + 2] += row[i].tangent[1];
+        }
+      });
     }
   }
   // the step's allowances again, for the landing

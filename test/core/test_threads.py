@@ -143,11 +143,13 @@ def test_a_sweep_with_waves_too_small_to_share_is_not_handed_over():
     # the default parallel_wave: this pile's waves average fewer than twice as many
     # manifolds, so they are not cut in sides and each sweep runs on the caller, not posted
     # (a hand-over that buys nothing); what the threads share is the per-contact passes,
-    # kParts (8) parts each, at most eight a step (reference frame, impacts, allowances, the
-    # report's contacts and manifolds, and per solve prepare, warm start and the first
-    # admission; a pass over fewer than kParts parallel_wave items runs on the caller), and
-    # the cache's store beside the push-out, one chunk a step of at least kParts
-    # parallel_wave contacts; the same bytes
+    # kParts (8) parts each: five a step (reference frame, impacts, allowances, the report's
+    # contacts and manifolds), three per solve (prepare, warm start, the first admission)
+    # and four per substep of a solve at most (the rows' allowances and the bodies' travel,
+    # the bodies' share of the external change and the rows' sums between substeps); a pass
+    # over fewer than kParts parallel_wave items runs on the caller; and the cache's store
+    # beside the push-out, one chunk a step of at least kParts parallel_wave contacts; the
+    # same bytes
     bodies, start = pile()
     one, two = (World(bodies, SolverSettings(sleeping=False)) for _ in range(2))
     one._params.threads, two._params.threads = 1, 2
@@ -165,7 +167,9 @@ def test_a_sweep_with_waves_too_small_to_share_is_not_handed_over():
         assert all(part[4] == 0 for part in waves)
         assert not waves or waves[-1][3] < 2 * two._params.parallel_wave * len(waves)
     posted = two._solver.helped[1] - beside
-    assert 0 < posted <= 8 * (8 * STEPS + 3 * two._solver.redone) and posted % 8 == 0
+    solves = STEPS + two._solver.redone
+    assert 0 < posted <= 8 * (5 * STEPS + (3 + 4 * two._params.max_substeps) * solves)
+    assert posted % 8 == 0
     assert one._solver.helped[1] == 0
 
 

@@ -1,6 +1,7 @@
 #include "step.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -78,6 +79,17 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                            const BodyProperties& bodies, const ContactsView& contacts,
                            double dt, bool warm_enabled, const SolverParams& params,
                            BodyStatesOut& out, ContactsOut& report_out) {
+  // the second thread spins between its runs while the step is on (Worker::stay: its
+  // runs come with serial stages between them), woken now: where the last step's sweeps
+  // were cut in two sides (a pile too small for that, 100 bodies, pays more for the wake
+  // than its per-contact passes gain)
+  struct Stay {
+    Worker* worker;
+    ~Stay() {
+      if (worker != nullptr) worker->stay(false);
+    }
+  } stay{params.threads >= 2 && shared_ ? worker() : nullptr};
+  if (stay.worker != nullptr) stay.worker->stay(true);
   const int64_t n = bodies.count;
   velocity_.resize(6 * n);
   pseudo_.resize(6 * n);
@@ -176,6 +188,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                  cached_normal_.data(), report_out.friction_impulse, contacts.point);
   });
+  shared_ = std::find(plan_.sides.begin(), plan_.sides.end(), 1) != plan_.sides.end();
   return stats;
 }
 
@@ -399,20 +412,48 @@ void StepSolver::reference_frame(StepContext& ctx) {
   // (with own times, piles after dropped inputs slept later and a column sank).
   // In the same pass: the pre-solve approach of each contact (a rested body's with the
   // step's external change, which the resting solve meets; a body without an impact: its
-  // current twist), the farthest contact point of each body, the fastest approach and the
-  // largest restitution (prepare's row bound; the same for every solve of the step)
-  // (the arrays through local pointers, each value in a local and stored once, the two
-  // maxima in locals: see frame_contacts)
+  // current twist). Per contact (allow_contacts), shared by the two threads; then, in one
+  // pass, the
+  // farthest contact point of each body, the fastest approach and the largest restitution
+  // (prepare's row bound; the same for every solve of the step)
+  in_parts(ctx, m, [&](int64_t lo, int64_t hi) { allow_contacts(ctx, lo, hi); });
   double fastest = 0.0, restitution = 0.0;
   reach_body_.assign(n, 0.0);   // (squared here)
   double* const reach = reach_body_.data();
-  const uint8_t* const near_of = near_.data();
+  const double* const approach = approach_.data();
+  for (int64_t k = 0; k < m; ++k) {
+    const int64_t a = c.a[k], b = c.b[k];
+    const Vec3 lever_a = ra[k], lever_b = rb[k];
+    reach[a] = std::max(reach[a], dot(lever_a, lever_a));
+    reach[b] = std::max(reach[b], dot(lever_b, lever_b));
+    fastest = std::max(fastest, -approach[k]);
+    restitution = std::max({restitution, bodies.restitution[a], bodies.restitution[b]});
+  }
+  fastest_ = fastest;
+  restitution_ = restitution;
+  for (int64_t i = 0; i < n; ++i) reach[i] = std::sqrt(reach[i]);
+}
+
+// The per-contact part of reference_frame for contacts [lo, hi) after the bodies' times:
+// each one's gap at its reference time, the time left after it (remaining_, span_), its
+// allowance and its pre-solve approach (approach_; settle for a contact of an impacted
+// body); each writes only its own entries (on either thread: StepSolver::in_parts).
+COLLRES_CLONED
+void StepSolver::allow_contacts(const StepContext& ctx, int64_t lo, int64_t hi) {
+  // (the arrays through local pointers, each value in a local and stored once: see
+  // frame_contacts)
+  const ContactsView c = ctx.contacts;
+  const double dt = ctx.dt;
+  const double* const fraction = fraction_.data();
+  const uint8_t *const near_of = near_.data(), *const impacted = impacted_.data();
+  const uint8_t* const impact_of = impact_.data();
   const double *const drift = drift_.data(), *const moved_a = moved_a_.data();
-  const double* const later_of = later_.data();
+  const double *const later_of = later_.data(), *const toi_of = toi_.data();
+  const Vec3 *const ra = ra_.data(), *const rb = rb_.data();
   double *const gap_of = gap_.data(), *const allowance = allowance_.data();
   double *const remaining_of = remaining_.data(), *const span = span_.data();
   double* const approach = approach_.data();
-  for (int64_t k = 0; k < m; ++k) {
+  for (int64_t k = lo; k < hi; ++k) {
     const int64_t a = c.a[k], b = c.b[k];
     const double later = std::max(fraction[a], fraction[b]);
     const bool own = !near_of[a] && !near_of[b];
@@ -430,21 +471,11 @@ void StepSolver::reference_frame(StepContext& ctx) {
     remaining_of[k] = impact_of[k] ? (1.0 - toi_of[k]) * dt : remaining;
     span[k] = remaining;
     allowance[k] = std::max(gap_k, 0.0) / remaining;
-    const Vec3 lever_a = ra[k], lever_b = rb[k];
-    reach[a] = std::max(reach[a], dot(lever_a, lever_a));
-    reach[b] = std::max(reach[b], dot(lever_b, lever_b));
-    double speed = approach[k];
     if (impacted[a] || impacted[b]) {
       settle(ctx, k);   // (before its approach_ changes: settle reads frame_contacts's)
-      speed = normal_speed(later_of, a, b, lever_a, lever_b, load3(c.normal + 3 * k));
-      approach[k] = speed;
+      approach[k] = normal_speed(later_of, a, b, ra[k], rb[k], load3(c.normal + 3 * k));
     }
-    fastest = std::max(fastest, -speed);
-    restitution = std::max({restitution, bodies.restitution[a], bodies.restitution[b]});
   }
-  fastest_ = fastest;
-  restitution_ = restitution;
-  for (int64_t i = 0; i < n; ++i) reach[i] = std::sqrt(reach[i]);
 }
 
 // The per-contact part of reference_frame for contacts [lo, hi): their levers (ra_, rb_),
@@ -890,52 +921,68 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
       change_[2 * i + 1] = length(Vec3(now[3] - from[3], now[4] - from[4], now[5] - from[5]));
     }
   }
-  bool grew = false;
-  for (size_t m = 0; m < manifolds_.size(); ++m) {
-    if (in_[m]) continue;
-    const Manifold& manifold = manifolds_[m];
-    // a row's normal speed changed by at most |dv_a| + |dw_a| |r_a| + (the same on B)
-    double bound = 0.0;
-    if (known) {
-      const double* ca = change_.data() + 2 * manifold.a;
-      const double* cb = change_.data() + 2 * manifold.b;
-      bound = ca[0] + ca[1] * reach_[2 * m] + cb[0] + cb[1] * reach_[2 * m + 1];
-    }
-    // after the sweeps: its impulses and spin torque are as at the start (not swept)
-    if (verify && bound + 1e-9 <= 0.5 * slack_[m]) continue;
-    const bool quiet = idle(manifold);
-    if (known && !verify && quiet) {
-      // at a sweep's start: each row's normal speed at the last start (or a bound below
-      // it) less the bound, plus its allowance now
-      double least = std::numeric_limits<double>::infinity();
-      for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
-        least = std::min(least, speed_[i] - bound + rows_[i].allowance);
-      if (least > margin + 1e-9) {   // still out (its test's answer is known)
+  // per manifold (each writes only its own entries, its block and rows): the step's first
+  // check (every manifold's rows' speeds, most blocks prepared) on either thread, in parts
+  std::atomic<bool> grew{false};
+  const std::function<void(int64_t, int64_t)> check = [&](int64_t lo, int64_t hi) {
+    // (in locals: a store of a flag, a byte, may alias anything in memory)
+    const bool knows = known, after = verify;
+    const double least_free = margin;
+    const double* const vel = v;
+    bool grew_part = false;
+    for (auto m = static_cast<size_t>(lo); m < static_cast<size_t>(hi); ++m) {
+      if (in_[m]) continue;
+      const Manifold& manifold = manifolds_[m];
+      // a row's normal speed changed by at most |dv_a| + |dw_a| |r_a| + (the same on B)
+      double bound = 0.0;
+      if (knows) {
+        const double* ca = change_.data() + 2 * manifold.a;
+        const double* cb = change_.data() + 2 * manifold.b;
+        bound = ca[0] + ca[1] * reach_[2 * m] + cb[0] + cb[1] * reach_[2 * m + 1];
+      }
+      // after the sweeps: its impulses and spin torque are as at the start (not swept)
+      if (after && bound + 1e-9 <= 0.5 * slack_[m]) continue;
+      const bool quiet = idle(manifold);
+      if (knows && !after && quiet) {
+        // at a sweep's start: each row's normal speed at the last start (or a bound below
+        // it) less the bound, plus its allowance now
+        double least = std::numeric_limits<double>::infinity();
         for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
-          speed_[i] -= bound;
-        slack_[m] = least;
+          least = std::min(least, speed_[i] - bound + rows_[i].allowance);
+        if (least > least_free + 1e-9) {   // still out (its test's answer is known)
+          for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i)
+            speed_[i] -= bound;
+          slack_[m] = least;
+          continue;
+        }
+      }
+      bool out = quiet;
+      double slack = std::numeric_limits<double>::infinity();
+      for (int32_t i = manifold.first; i < manifold.first + manifold.count && out; ++i) {
+        const ContactRow& r = rows_[i];
+        const double speed = normal_velocity(r, vel), free = speed + r.allowance;
+        if (!after) speed_[i] = speed;
+        out = free > least_free;
+        slack = std::min(slack, free);
+      }
+      if (out) {
+        if (!after) slack_[m] = slack;
         continue;
       }
+      in_[m] = 1;
+      block(m);
+      grew_part = true;
     }
-    bool out = quiet;
-    double slack = std::numeric_limits<double>::infinity();
-    for (int32_t i = manifold.first; i < manifold.first + manifold.count && out; ++i) {
-      const ContactRow& r = rows_[i];
-      const double speed = normal_velocity(r, v), free = speed + r.allowance;
-      if (!verify) speed_[i] = speed;
-      out = free > margin;
-      slack = std::min(slack, free);
-    }
-    if (out) {
-      if (!verify) slack_[m] = slack;
-      continue;
-    }
-    in_[m] = 1;
-    block(m);
-    grew = true;
+    if (grew_part) grew.store(true, std::memory_order_relaxed);
+  };
+  const auto count = static_cast<int64_t>(manifolds_.size());
+  if (known) {
+    check(0, count);
+  } else {
+    in_parts(ctx, count, check);
   }
   known_ = true;
-  if (!grew) return false;
+  if (!grew.load(std::memory_order_relaxed)) return false;
   // the swept manifolds in detection's order, then in waves
   chosen_.clear();
   for (size_t m = 0; m < manifolds_.size(); ++m)
@@ -1043,19 +1090,23 @@ double StepSolver::warm(StepContext& ctx, int substeps) {
   cache_.lookup(m, c.a, c.b, c.feature, c.point, ctx.params.match_radius, cached_normal_.data(),
                 cached_friction_.data(), found_.data());
   for (int64_t k = 0; k < m; ++k) cold += collres::persistent(c.kind[k]) && !found_[k];
-  for (ContactRow& r : rows_) {
-    const int64_t k = r.contact;
-    Vec3 friction = load3(cached_friction_.data() + 3 * k);
-    r.normal = cached_normal_[k] * scale * share;
-    double tx = dot(r.t1, friction) * scale * share, ty = dot(r.t2, friction) * scale * share;
-    double size = norm2(tx, ty), limit = r.mu * r.normal;
-    if (size > limit) {
-      tx *= limit / size;
-      ty *= limit / size;
+  // per row (its own entries: on either thread)
+  in_parts(ctx, static_cast<int64_t>(rows_.size()), [&](int64_t lo, int64_t hi) {
+    for (int64_t i = lo; i < hi; ++i) {
+      ContactRow& r = rows_[static_cast<size_t>(i)];
+      const int64_t k = r.contact;
+      Vec3 friction = load3(cached_friction_.data() + 3 * k);
+      r.normal = cached_normal_[k] * scale * share;
+      double tx = dot(r.t1, friction) * scale * share, ty = dot(r.t2, friction) * scale * share;
+      double size = norm2(tx, ty), limit = r.mu * r.normal;
+      if (size > limit) {
+        tx *= limit / size;
+        ty *= limit / size;
+      }
+      r.tangent[0] = tx;
+      r.tangent[1] = ty;
     }
-    r.tangent[0] = tx;
-    r.tangent[1] = ty;
-  }
+  });
   return static_cast<double>(cold) / static_cast<double>(std::max<int64_t>(1, persistent));
 }
 
@@ -1340,11 +1391,18 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
   for (int s = 0; s < substeps; ++s) {
     if (s > 0) {
       // a rested body's share of the external change, then the warm start from the
-      // last substep's impulses (the spin rows start cold)
-      for (int64_t i = 0; i < n; ++i)
-        if (ramped_[i])
-          for (int d = 0; d < 6; ++d) velocity_[6 * i + d] += share * ramp_[6 * i + d];
-      start_.assign(velocity_.begin(), velocity_.end());
+      // last substep's impulses (the spin rows start cold); per body, in parts
+      start_.resize(6 * n);
+      in_parts(ctx, n, [&](int64_t lo, int64_t hi) {
+        const uint8_t* const ramped = ramped_.data();
+        const double* const ramp = ramp_.data();
+        double *const v = velocity_.data(), *const start = start_.data();
+        for (int64_t i = lo; i < hi; ++i) {
+          if (ramped[i])
+            for (int d = 0; d < 6; ++d) v[6 * i + d] += share * ramp[6 * i + d];
+          for (int d = 0; d < 6; ++d) start[6 * i + d] = v[6 * i + d];
+        }
+      });
       for (SpinRow& spin : spins_) spin.torque = Vec3::Zero();
       if (!aimed_.empty()) {
         aim(ctx, moved_.data(), velocity_.data(), 0.5 * ctx.dt * share);
@@ -1358,13 +1416,18 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
     }
     // each row may approach by its separation now: the reference gap plus how far its
     // two points moved along the normal in the substeps so far (no new detection; two
-    // spheres': from their centres, aim)
-    for (size_t i = 0; i < rows; ++i) {
-      ContactRow& r = rows_[i];
-      const double separation = aiming_[i] ? aimed_gap_[i]
-                                           : gap_[r.contact] + normal_velocity(r, moved_.data());
-      r.allowance = std::max(separation, 0.0) / (span_[r.contact] * share);
-    }
+    // spheres': from their centres, aim); per row, in parts
+    in_parts(ctx, static_cast<int64_t>(rows), [&](int64_t lo, int64_t hi) {
+      const uint8_t* const aiming = aiming_.data();
+      const double *const aimed = aimed_gap_.data(), *const moved = moved_.data();
+      const double *const gap = gap_.data(), *const span = span_.data();
+      ContactRow* const row = rows_.data();
+      for (int64_t i = lo; i < hi; ++i) {
+        ContactRow& r = row[i];
+        const double separation = aiming[i] ? aimed[i] : gap[r.contact] + normal_velocity(r, moved);
+        r.allowance = std::max(separation, 0.0) / (span[r.contact] * share);
+      }
+    });
     // (the last substep's last `shared` sweeps are the landing's, after the poses' travel)
     sweeps += sweep(ctx, s + 1 < substeps ? iterations : std::max(iterations - shared, 1));
     propagate_shock(rows_, ctx.solver, level_, shock_rows_, shock_blocks_, p.shock_sweeps);
@@ -1372,18 +1435,30 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
     // impulses, can raise the energy the sweeps kept (a box on one point of a fixed
     // sphere: +2.6e-4)
     sweeps += hold_energy(ctx, iterations);
-    // the poses travel with the substep's velocity for its share of the body's time
-    for (int64_t i = 0; i < n; ++i) {
-      const double h = (1.0 - fraction_[i]) * ctx.dt * share;
-      for (int d = 0; d < 6; ++d) {
-        moved_[6 * i + d] += h * velocity_[6 * i + d];
-        travel_[6 * i + d] += share * velocity_[6 * i + d];
+    // the poses travel with the substep's velocity for its share of the body's time (per
+    // body), and the impulses are summed (per row), in parts
+    const double dt = ctx.dt;
+    in_parts(ctx, n, [&](int64_t lo, int64_t hi) {
+      const double *const fraction = fraction_.data(), *const v = velocity_.data();
+      double *const moved = moved_.data(), *const travel = travel_.data();
+      for (int64_t i = lo; i < hi; ++i) {
+        const double h = (1.0 - fraction[i]) * dt * share;
+        for (int d = 0; d < 6; ++d) {
+          moved[6 * i + d] += h * v[6 * i + d];
+          travel[6 * i + d] += share * v[6 * i + d];
+        }
       }
-    }
-    for (size_t i = 0; i < rows && s + 1 < substeps; ++i) {
-      total_[3 * i] += rows_[i].normal;
-      total_[3 * i + 1] += rows_[i].tangent[0];
-      total_[3 * i + 2] += rows_[i].tangent[1];
+    });
+    if (s + 1 < substeps) {
+      in_parts(ctx, static_cast<int64_t>(rows), [&](int64_t lo, int64_t hi) {
+        const ContactRow* const row = rows_.data();
+        double* const total = total_.data();
+        for (int64_t i = lo; i < hi; ++i) {
+          total[3 * i] += row[i].normal;
+          total[3 * i + 1] += row[i].tangent[0];
+          total[3 * i + 2] += row[i].tangent[1];
+        }
+      });
     }
   }
   // the step's allowances again, for the landing
@@ -1472,41 +1547,61 @@ void StepSolver::report(StepContext& ctx) {
   const SolverParams& p = ctx.params;
   const ContactsOut out = ctx.report;
   const int64_t m = c.count;
-  cached_normal_.assign(m, 0.0);      // what is stored for the warm start
+  cached_normal_.resize(m);           // what is stored for the warm start
   double* const cached = cached_normal_.data();
   const double* const v = velocity_.data();
+  const int32_t* const row_of = row_of_.data();
   const double sticking_speed = p.sticking_speed;
-  for (int64_t k = 0; k < m; ++k) {
-    out.normal_impulse[k] = 0.0;
-    store3(out.friction_impulse + 3 * k, Vec3::Zero());
-    out.state[k] = kResting;          // no row: speculative, no impulse
-  }
-  for (const ContactRow& r : rows_) {
-    const int64_t k = r.contact;
-    cached[k] = r.normal;
-    out.normal_impulse[k] = r.normal + r.impact + r.landing;
-    store3(out.friction_impulse + 3 * k, friction_world(r));
-    out.state[k] = contact_state(r, v, sticking_speed);
-  }
-  // STICKING -> RESTING where a manifold's friction impulses sum to nothing (a box at rest
-  // on a flat floor may carry equal and opposite friction at its corners: no net friction)
-  for (int64_t span = 0; span < c.manifold_count; ++span) {
-    const int64_t lo = c.manifolds[kManifoldFields * span + 2];
-    const int64_t hi = lo + c.manifolds[kManifoldFields * span + 3];
-    bool sticking = false;
-    for (int64_t k = lo; k < hi && !sticking; ++k) sticking = out.state[k] == kSticking;
-    if (!sticking) continue;
-    Vec3 friction = Vec3::Zero();
-    double normal = 0.0;
+  // per contact, its row's impulses and state (none: speculative, no impulse); each part
+  // writes only its contacts' entries (on either thread)
+  in_parts(ctx, m, [&](int64_t lo, int64_t hi) {
+    // (in locals: see above)
+    const ContactsOut o = out;
+    double* const cache = cached;
+    const int32_t* const row = row_of;
+    const ContactRow* const rows = rows_.data();
+    const double* const vel = v;
+    const double sticking = sticking_speed;
     for (int64_t k = lo; k < hi; ++k) {
-      friction += load3(out.friction_impulse + 3 * k);
-      normal += out.normal_impulse[k];
+      if (row[k] < 0) {
+        cache[k] = 0.0;
+        o.normal_impulse[k] = 0.0;
+        store3(o.friction_impulse + 3 * k, Vec3::Zero());
+        o.state[k] = kResting;
+        continue;
+      }
+      const ContactRow& r = rows[row[k]];
+      cache[k] = r.normal;
+      o.normal_impulse[k] = r.normal + r.impact + r.landing;
+      store3(o.friction_impulse + 3 * k, friction_world(r));
+      o.state[k] = contact_state(r, vel, sticking);
     }
-    if (length(friction) <= p.balanced_friction * normal + 1e-15) {
-      for (int64_t k = lo; k < hi; ++k)
-        if (out.state[k] == kSticking) out.state[k] = kResting;
+  });
+  // STICKING -> RESTING where a manifold's friction impulses sum to nothing (a box at rest
+  // on a flat floor may carry equal and opposite friction at its corners: no net friction);
+  // each part writes only its manifolds' contacts
+  in_parts(ctx, c.manifold_count, [&](int64_t first, int64_t last) {
+    const ContactsOut o = out;   // (in locals: see above)
+    const int64_t* const manifolds = c.manifolds;
+    const double balanced = p.balanced_friction;
+    for (int64_t span = first; span < last; ++span) {
+      const int64_t lo = manifolds[kManifoldFields * span + 2];
+      const int64_t hi = lo + manifolds[kManifoldFields * span + 3];
+      bool sticking = false;
+      for (int64_t k = lo; k < hi && !sticking; ++k) sticking = o.state[k] == kSticking;
+      if (!sticking) continue;
+      Vec3 friction = Vec3::Zero();
+      double normal = 0.0;
+      for (int64_t k = lo; k < hi; ++k) {
+        friction += load3(o.friction_impulse + 3 * k);
+        normal += o.normal_impulse[k];
+      }
+      if (length(friction) <= balanced * normal + 1e-15) {
+        for (int64_t k = lo; k < hi; ++k)
+          if (o.state[k] == kSticking) o.state[k] = kResting;
+      }
     }
-  }
+  });
 }
 
 int32_t StepSolver::levels(StepContext& ctx) {

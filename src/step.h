@@ -236,6 +236,7 @@ class StepSolver {
   // its per-contact parts, contacts [lo, hi) (in_parts)
   void frame_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   void impact_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
+  void allow_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
   static double resting_speed(const uint8_t* loaded, int64_t a, int64_t b, double then,
                               double now, double floor, double factor);
   double held_resting(const StepContext& ctx, int64_t k, double then, double resting) const;
@@ -449,6 +450,7 @@ class StepSolver {
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
+  bool shared_ = false;              // the last step's sweeps were cut in two sides
   WaveScratch waving_;               // plan_sweeps: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };

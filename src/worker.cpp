@@ -55,6 +55,7 @@ Worker::Worker()
 Worker::~Worker() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    stay_.store(false, std::memory_order_relaxed);
     stop_ = true;
   }
   wake_.notify_one();
@@ -64,16 +65,45 @@ Worker::~Worker() {
 void Worker::loop() {
   uint32_t seen = 0;   // the last run helped with
   for (;;) {
-    for (int i = 0; i < kSpins && run_of(queue_[1].state.load()) == seen; ++i) COLLRES_PAUSE();
+    // spin for the next run (while the caller stays: stay(true), yielding the core every
+    // kSpins polls), then sleep
+    for (int i = 0; run_of(queue_[1].state.load()) == seen; ++i) {
+      if (i >= kSpins && !stay_.load(std::memory_order_relaxed)) break;
+      if (i % kSpins == kSpins - 1) {
+        std::this_thread::yield();
+      } else {
+        COLLRES_PAUSE();
+      }
+    }
     uint32_t generation;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+      wake_.wait(lock, [&] {
+        return stop_ || generation_ != seen || stay_.load(std::memory_order_relaxed);
+      });
       if (stop_) return;
+      if (generation_ == seen) continue;   // (woken to stay: spins for the next run)
       generation = seen = generation_;
     }
     helped_.fetch_add(static_cast<uint64_t>(help(generation, 1)), std::memory_order_relaxed);
   }
+}
+
+void Worker::stay(bool on) {
+  // only while a kind of run that has run is run paired (or is about to be explored so):
+  // on a machine whose other core is busy every kind runs alone, and the worker sleeps
+  bool paired = false;
+  for (const Costs& costs : costs_)
+    paired = paired || (costs.burst > 0 ? costs.explored
+                                        : (costs.paired > 0.0 || costs.alone > 0.0) &&
+                                              costs.paired <= costs.alone);
+  on = on && paired;
+  if (stay_.load(std::memory_order_relaxed) == on) return;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stay_.store(on, std::memory_order_relaxed);
+  }
+  if (on) wake_.notify_one();
 }
 
 int Worker::help(uint32_t generation, int own) {
@@ -235,8 +265,16 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
     }
     return;
   }
+  // (a run's cost counts at most kGiveUp times the mean: a run that the system delayed
+  // moves it by kWeight at most; a mode that keeps costing more, by that at every run)
   double& mean = paired ? costs.paired : costs.alone;
-  mean = mean == 0.0 ? cost : mean + kWeight * (cost - mean);
+  mean = mean == 0.0 ? cost : mean + kWeight * (std::min(cost, kGiveUp * mean) - mean);
+  // the mode it leaves (the other one's mean is lower now) is explored again after
+  // kExplore runs, not after the runs a burst of it found costlier last time
+  if ((costs.paired <= costs.alone) != paired) {
+    costs.every = kExplore;
+    costs.runs = 0;
+  }
 }
 
 }  // namespace collres

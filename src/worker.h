@@ -28,11 +28,18 @@
 // machine pays for one run); every 34th, 68th, ... up to 1088th run while the other one
 // keeps costing more: on a machine whose other core is busy, or with both threads on one
 // core, the caller ends up alone, running the chunks in their order (0, 1, ...: it must
-// be one in which each chunk follows the ones it depends on). A run with nothing in one of
-// the queues and no first task is run here. The worker spins briefly for the next task
-// (the solver posts one per sweep, back to back), then sleeps on a condition variable (a
+// be one in which each chunk follows the ones it depends on). A run counts in the chosen
+// mode's mean at most kGiveUp times that mean (one run the system delayed does not turn
+// the choice), and when the means turn the choice the mode left is explored again after 17
+// runs. A kind's runs should cost alike per unit of work in each mode (a solve's first
+// sweep, which readies its groups, is a kind apart). A run with nothing in one of the
+// queues and no first task is run here. The worker spins briefly for the next task (the
+// solver posts one per sweep, back to back), then sleeps on a condition variable (a
 // sleeping thread woken gets its core back sooner than a spinning one that has used up its
-// share of it). Results do not depend on which thread runs a chunk, nor on the mode.
+// share of it); between stay(true) and stay(false) (a solver step, whose stages between
+// its runs last 0.1-1.5 ms on 1000 bodies, where a wake costs ~0.1 ms) it spins on,
+// yielding its core now and then, while a kind of run is chosen paired. Results do not
+// depend on which thread runs a chunk, nor on the mode.
 #pragma once
 
 #include <atomic>
@@ -49,7 +56,7 @@ class Worker {
  public:
   static constexpr int kMaxChunks = 0xffff;  // per queue
   static constexpr unsigned kExplore = 17;   // runs of a kind between two in the mode not chosen
-  static constexpr int kKinds = 3;           // kinds of run (costs compared apart)
+  static constexpr int kKinds = 4;           // kinds of run (costs compared apart)
 
   Worker();
   ~Worker();
@@ -69,6 +76,13 @@ class Worker {
   // run with an empty queue, or more than kMaxChunks in one, runs here, in order.
   void run_sides(const std::function<void(int)>& task, int chunks, const uint8_t* side,
                  const int32_t* need, int kind, double work);
+
+  // on: the worker spins between runs (yielding its core now and then) until stay(false),
+  // instead of sleeping after a few polls, and is woken now, so that its wake (~0.1 ms on
+  // a virtual machine) overlaps the caller's work before the first run: for a caller that
+  // posts runs with stages of its own between them (a solver step: a run per sweep, and
+  // its per-contact passes). Only while a kind of run is chosen paired; else it sleeps.
+  void stay(bool on);
 
   // chunks of the second tasks run so far: by the worker, and by either thread
   uint64_t helped() const { return helped_.load(std::memory_order_relaxed); }
@@ -111,6 +125,7 @@ class Worker {
   std::unique_ptr<std::atomic<int32_t>[]> chunk_[2], need_[2];
   uint32_t generation_ = 0;           // (under mutex_) the run posted last
   bool stop_ = false;                 // (under mutex_)
+  std::atomic<bool> stay_{false};     // stay(true) on (written under mutex_)
   std::mutex mutex_;
   std::condition_variable wake_;
   std::thread thread_;                // last: started once the members above exist

@@ -358,8 +358,8 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               'more) are shared by two threads, and so is each velocity sweep whose waves '
               'are large enough (parallel_wave: the pile cut in two sides, connected halves '
               'solved side by side, one per thread, then the seam between them), and the '
-              'per-contact passes of the reference frame; the answer is the same bits with '
-              '1 or 2', 1, 2,
+              'step\'s per-contact passes (reference frame, rows, warm start, first '
+              'admission, report); the answer is the same bits with 1 or 2', 1, 2,
               reason='pairs are independent, a wave\'s manifolds share no movable body and '
                      'each contact\'s reference frame is its own, so the second core can '
                      'take part of each; the cost model leaves the worker alone where it does '

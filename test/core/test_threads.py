@@ -10,7 +10,7 @@ or three left of a row count in a group padded with idle lanes); with two thread
 (``threads``) and waves that average at least twice ``parallel_wave`` manifolds, each wave
 is cut in two sides (connected halves of the pile), each side's parts one thread's queue, a
 part waiting only for the other side's last part that moved one of its bodies; the
-per-contact passes of the reference frame are shared too. Detection shares a step's stages
+per-contact passes of the step are shared too. Detection shares a step's stages
 between the two threads too (``src/detection.h``: the bodies' motion and boxes, the broad
 phase's fat pairs by halves; the pairs, a first part here, the rest on the worker, each into
 its own lane, joined in pair order). Shock propagation sweeps its blocks
@@ -145,9 +145,13 @@ def test_a_sweep_with_waves_too_small_to_share_is_not_handed_over():
     # the default parallel_wave: this pile's waves average fewer than twice as many
     # manifolds, so they are not cut in sides and each sweep runs on the caller, not posted
     # (a hand-over that buys nothing); what the threads share is the per-contact passes,
-    # kParts (8) parts each, three a step (reference frame, impacts, and prepare once per
-    # solve), and the cache's store beside the push-out, one chunk a step of at least
-    # kParts parallel_wave contacts; the same bytes
+    # kParts (8) parts each: five a step (reference frame, impacts, allowances, the report's
+    # contacts and manifolds), three per solve (prepare, warm start, the first admission)
+    # and four per substep of a solve at most (the rows' allowances and the bodies' travel,
+    # the bodies' share of the external change and the rows' sums between substeps); a pass
+    # over fewer than kParts parallel_wave items runs on the caller; and the cache's store
+    # beside the push-out, one chunk a step of at least kParts parallel_wave contacts; the
+    # same bytes
     bodies, start = pile()
     one, two = (World(bodies, SolverSettings(sleeping=False)) for _ in range(2))
     one._params.threads, two._params.threads = 1, 2
@@ -165,7 +169,9 @@ def test_a_sweep_with_waves_too_small_to_share_is_not_handed_over():
         assert all(part[4] == 0 for part in waves)
         assert not waves or waves[-1][3] < 2 * two._params.parallel_wave * len(waves)
     posted = two._solver.helped[1] - beside
-    assert 0 < posted <= 8 * (3 * STEPS + two._solver.redone) and posted % 8 == 0
+    solves = STEPS + two._solver.redone
+    assert 0 < posted <= 8 * (5 * STEPS + (3 + 4 * two._params.max_substeps) * solves)
+    assert posted % 8 == 0
     assert one._solver.helped[1] == 0
 
 

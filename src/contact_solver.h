@@ -289,7 +289,7 @@ struct WideSpin {
 // no two manifolds of a wave sharing a movable body, so that a wave's manifolds may be
 // solved in any order, in lanes and on two threads, with the bits of the sweep in its
 // order (the solve's order, or with two sides the sides' and the seam's: sweep_waves.h);
-// each wave in two parts, its sides, each a SweepWave. Part w is manifolds [first,
+// each wave in two parts, its sides (one on one thread), each a SweepWave. Part w is manifolds [first,
 // wide_end) in wide groups of kLanes (one row count each), [wide_end, lone) the rest of
 // each row count 1 to 4 left two or three in wide groups padded with idle lanes, and
 // [lone, end) one by one (a row count's one left, then the manifolds of more rows). The

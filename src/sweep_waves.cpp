@@ -221,6 +221,10 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   // manifolds (else side 0 only: a smaller part costs more to hand over than it holds;
   // plan.parallel 0: one side), whatever the threads (the order is the sides')
   const bool split = plan.parallel > 0 && count >= 2 * plan.parallel * static_cast<size_t>(waves);
+  // with a worker each side its own parts (its thread's) and waits; on one thread a wave's
+  // two sides are one part (they share no movable body: the same bits) and nothing waits,
+  // so that the sides leave no more part-filled groups than one side does
+  const bool sided = split && plan.worker != nullptr;
   const std::vector<int32_t>* order = &chosen;
   int32_t fence = waves;   // the seam's first wave
   if (split) {
@@ -240,7 +244,8 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
       starts[part + 1] = s.sorted.size();
     }
     const size_t first = starts[2];   // the seam's first
-    for (size_t index = 0; index < count; ++index) s.side[index] = index >= starts[1] ? 1 : 0;
+    for (size_t index = 0; index < count; ++index)
+      s.side[index] = sided && index >= starts[1] ? 1 : 0;
     order = &s.sorted;
     s.last.assign(static_cast<size_t>(body_count), -1);
     fence = wave(*order, 0, first, 0);
@@ -331,7 +336,7 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     if (plan.spin_rows)
       for (int32_t i = from; i < to; ++i) plan.sequence.push_back(size + i);
   }
-  if (!split) return;
+  if (!sided) return;
   s.last.assign(static_cast<size_t>(body_count), -1);
   s.index.assign(plan.sequence.size(), -1);
   for (size_t at = 0; at < plan.sequence.size(); ++at) {

@@ -310,6 +310,14 @@ def test_a_waves_leftovers_fill_the_next_waves_groups(threads):
     assert fewer > steps // 2
 
 
+def assert_same_contacts(a, b) -> None:
+    """Two detections' ContactSets hold the same bytes, field by field."""
+    for name in ('body_a', 'body_b', 'point', 'normal', 'separation', 'toi', 'kind', 'feature',
+                 'manifolds', 'piece_a', 'piece_b'):
+        assert np.ascontiguousarray(getattr(a, name)).tobytes() == \
+            np.ascontiguousarray(getattr(b, name)).tobytes(), name
+
+
 @pytest.mark.parametrize('filtered', [False, True])
 def test_detection_on_two_threads_gives_the_bytes_of_one_thread(filtered):
     # the pile falling (impacts, times of impact, speculative corners), then settling
@@ -333,10 +341,7 @@ def test_detection_on_two_threads_gives_the_bytes_of_one_thread(filtered):
         current = euler_step(state, w.dynamic, GRAVITY, DT)
         a = one.detect(state, current, None, 1)
         b = two.detect(state, current, None, 2)
-        for name in ('body_a', 'body_b', 'point', 'normal', 'separation', 'toi', 'kind', 'feature',
-                     'manifolds', 'piece_a', 'piece_b'):
-            assert np.ascontiguousarray(getattr(a, name)).tobytes() == \
-                np.ascontiguousarray(getattr(b, name)).tobytes(), name
+        assert_same_contacts(a, b)
         if filtered:   # no sphere touches a wall, no ignored pair touches
             pairs = set(zip(a.body_a.tolist(), a.body_b.tolist()))
             assert not any(sphere[j] and 1 <= i <= 4 for i, j in pairs)
@@ -369,10 +374,7 @@ def test_detection_of_compounds_and_a_mesh_on_two_threads_gives_the_bytes_of_one
         current = euler_step(state, w.dynamic, GRAVITY, DT)
         a = one.detect(state, current, None, 1)
         b = two.detect(state, current, None, 2)
-        for name in ('body_a', 'body_b', 'point', 'normal', 'separation', 'toi', 'kind', 'feature',
-                     'manifolds', 'piece_a', 'piece_b'):
-            assert np.ascontiguousarray(getattr(a, name)).tobytes() == \
-                np.ascontiguousarray(getattr(b, name)).tobytes(), name
+        assert_same_contacts(a, b)
         on_floor += int(np.count_nonzero(a.body_a == 0))
         compounds += int(np.count_nonzero((a.piece_a > 0) | (a.piece_b > 0)))
         state = w.step(state, current, DT).states

@@ -300,8 +300,10 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // mirror-symmetric impulses. After each solve: a row whose normal would pull lets go; a
 // sticking row pushed beyond its cone slides along that friction; a sliding row whose
 // friction does not oppose its slip (straight, within kAimed) is aimed against it (a
-// Newton step), unless its slip is below kStill of the block's speeds, or its friction
-// runs along its slip and it was not pushed off its cone in this solve (it sticks); a row
+// Newton step, every sliding row of the block with it: a redundant block's rounding, 1e-9
+// rad, turned one point of a mirror pair and not the other), unless its slip is below
+// kStill of the block's speeds, or its friction runs along its slip and it was not pushed
+// off its cone in this solve (it sticks); a row
 // left out that approaches beyond its allowance takes part (sliding against its slip, or
 // sticking); and the block is solved again (at most kCoupledTries + 1 solves).
 // Why: the normal block for the friction held, then the friction block for those normals,
@@ -459,8 +461,11 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       for (int b = 0; b < 3; ++b)
         if (d[b] != 0.0) apply(r[i], after, b, direction(r[i], b), d[b]);
     }
-    // a sliding row whose friction does not oppose its slip straight is aimed against it
-    // (a Newton step), or sticks
+    // a sliding row whose friction runs along its slip sticks, unless it was pushed off its
+    // cone in this solve; where one does not oppose its slip straight, every sliding row
+    // is aimed against its slip (a Newton step: the block's rows alike, so that rounding
+    // below kAimed in one row and above it in its mirror image does not turn one alone)
+    bool turn = false;
     for (int i = 0; i < k; ++i) {
       if (!active[i] || !slides[i]) continue;
       const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
@@ -471,12 +476,19 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
         again = true;
       } else if (speed > kStill * scale &&
                  (along || std::fabs(aim[i][0] * y - aim[i][1] * x) > kAimed * speed)) {
-        pushed[i] = false;   // aimed anew: should its slip then run along it, it sticks
-        aim[i][0] = -x / speed;
-        aim[i][1] = -y / speed;
-        stiff[i] = r[i].mu * n[i] / speed;
-        again = true;
+        turn = true;
       }
+    }
+    for (int i = 0; i < k && turn; ++i) {
+      if (!active[i] || !slides[i]) continue;
+      const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
+      const double speed = norm2(x, y);
+      if (!(speed > kStill * scale)) continue;
+      pushed[i] = false;   // aimed anew: should its slip then run along it, it sticks
+      aim[i][0] = -x / speed;
+      aim[i][1] = -y / speed;
+      stiff[i] = r[i].mu * n[i] / speed;
+      again = true;
     }
     if (again) continue;
     for (int i = 0; i < k; ++i) {

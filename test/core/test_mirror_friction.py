@@ -236,3 +236,89 @@ def test_a_box_on_four_points_of_a_wall_whose_sliding_points_turn_gets_mirror_sy
     its direction while it does not, within 1e-9 rad), a point that would pull lets go and
     one left out that approaches takes part."""
     assert asymmetry(*sliding_hit(*hit)) < 1e-6
+
+
+def test_a_box_whose_sliding_points_have_rounding_in_their_aims_gets_mirror_symmetric_impulses():
+    """Two boxes through four mirror points, an impact at 30 Hz, the four points sliding
+    after their impact stages: a sliding point whose friction turned from its slip by more
+    than 1e-9 rad took a Newton step on its direction, and the block's redundant directions
+    (four points of a face: 12 impulses on 6 motions) carry rounding of that size, so one
+    point of a pair was aimed anew and not its mirror image (0.069 of the largest normal
+    impulse apart). Where one sliding point of a block is aimed anew, every one is. (The
+    numbers are written exactly: rounded to nine digits, the tie broke the other way.)"""
+    assert asymmetry(*sliding_hit(
+        False, [[0.5552072839898872, 0.6939023888129088, 0.05297602487008374],
+                [0.10871898538803541, 0.466677529213408, 0.060949519949608455]],
+        [4.383261417725351, 6.034133098989668], 0.09665602015660857, 0.4984185558618655,
+        [0.3571869543958735, 0.3033516610898394],
+        [-0.2995782001461625, -0.0, -0.01590289273012301],
+        [[-0.4652878932212986, 0.0, 0.012795257254953674],
+         [-1.3788006813427203, 0.0, 0.46417415796953904]],
+        [4.512493818271391, -1.7284155231261864], [-0.29424163734380215, -2.3000239952722854],
+        [[-0.11695577648360181, 0.06423633686837087, -0.11391622858832443],
+         [0.15018386387085797, 0.13033764378196833, 0.18551329609552858]],
+        [0.9985940004872084, 0.0, 0.05300964243374336], 30.0, True)) < 1e-6
+
+
+BLOCK_CYCLE_REASON = (
+    "the coupled block's moves between states (a row that would pull lets go, one beyond its "
+    'cone slides, a sliding one is aimed against its slip, one left out that approaches takes '
+    'part) cycle without an answer, and the split solve that takes over (the normal block, '
+    'then the friction block, each sweep) grows a mirror-antisymmetric part; a search of every '
+    'state (each row out, sticking or sliding; the answer leaving the least kinetic energy, '
+    'then the least impulses) made these symmetric, but in the bench pile of 100 cubes dropped '
+    'at 120 Hz it found an answer for 598 of the 11,871 blocks it searched and a box on top '
+    'rocked at up to 0.1 m/s for 1.2 s longer (test_rolling: still moving after 2 s)')
+
+
+@pytest.mark.xfail(strict=True, reason=BLOCK_CYCLE_REASON)
+def test_a_box_driven_into_a_wall_on_four_points_gets_mirror_symmetric_impulses():
+    """A box driven into a fixed wall (1.6 m/s) through four mirror points, touching from the
+    start, at 30 Hz: an impact stage. Its coupled block moves between states in a cycle (the
+    second pair's friction beyond its cone, it slides; the first pair would pull and lets
+    go, then approaches and takes part sliding; the second pair beyond its cone again...)
+    and finds no answer in any of the stage's 100 sweeps. Solved split (the normal block,
+    then the friction block) the sweeps move 0.004 N s a sweep of the second pair's load
+    onto the first, and the mirror-antisymmetric part grows about x2 a sweep to 0.003 of the
+    largest normal impulse (1.2054 / 1.2020 N s). Its one answer (every state searched):
+    the first pair sticks (1.488 N s each, restitution included), the second lets go."""
+    converged_and_symmetric(sliding_hit(
+        True, [[0.897625913, 0.812518555, 0.137413134], [0.719402207, 0.103891186, 0.103342842]],
+        [1.6519373, 2.1093095], 0.0260621903, 1.38200803, [0.925239847, 1.2929421],
+        [0.0536665994, -0.0, 0.295160797], [[0.0, 0.0, 0.0], [1.093695, 0.0, 1.18020671]],
+        [0.0, 2.89255316], [-1.74405475, -0.0548863855],
+        [[0.273005531, 0.103770381, 0.202394042], [-0.23457504, 0.0325427113, -0.129084615]],
+        [-0.178888665, 0.0, -0.983869323], 30.0))
+
+
+# Boxes on four mirror points of a fixed wall whose coupled blocks' moves cycle
+# (sliding_hit's arguments), drawn by bench/mirror_scan.py (seeds 75 to 200): 1.4e-6, 6e-4
+# and 0.0088 of the largest normal impulse apart
+FOUR_POINT_CYCLING_HITS = [
+    (True, [[0.0917466923, 0.107032006, 0.396546956], [0.165703421, 0.118824197, 0.903616954]],
+     [0.159415077, 3.71957458], 0.813313424, 0.742307335, [0.416515105, 0.703762447],
+     [0.198894509, -0.0, -0.224590682], [[0.0, 0.0, 0.0], [0.0906069749, 0.0, -0.0533278622]],
+     [0.0, -0.400558333], [1.02298586, -1.84707374],
+     [[-0.197354591, 0.0431230204, 0.211455745], [-0.272172625, 0.291798117, -0.161699847]],
+     [-0.662981695, 0.0, 0.748635607], 120.0, False),
+    (True, [[0.7032308, 0.20512221, 0.438745602], [0.563581855, 0.145183447, 0.18192577]],
+     [6.64579245, 0.70091101], 0.892686754, 1.36925084, [0.832573785, 0.70250798],
+     [-0.168346481, -0.0, 0.248313234], [[0.0, 0.0, 0.0], [-0.29090248, 0.0, 0.264020469]],
+     [0.0, -1.40625289], [-1.96114823, 0.430261027],
+     [[-0.0072125818, 0.0817882853, 0.130394492], [-0.121476539, 0.26343725, 0.174129179]],
+     [0.561154937, 0.0, -0.827710781], 30.0, True),
+    (True, [[0.243276273, 0.152501684, 0.585642088], [0.546720819, 0.111874253, 0.0545447205]],
+     [0.750586221, 0.777404846], 0.0735897826, 0.274626013, [0.216359832, 0.162153077],
+     [-0.299801684, -0.0, 0.0109064213], [[0.0, 0.0, 0.0], [-2.46585515, 0.0, 0.463829112]],
+     [0.0, 22.0440266], [-1.64540701, 1.04336161],
+     [[0.201912469, 0.0362864148, 0.0711857815], [-0.151003081, 0.26308674, -0.224929758]],
+     [0.999338948, 0.0, -0.0363547376], 240.0, False),
+]
+
+
+@pytest.mark.xfail(strict=True, reason=BLOCK_CYCLE_REASON)
+@pytest.mark.parametrize('hit', FOUR_POINT_CYCLING_HITS)
+def test_a_box_on_four_points_whose_block_moves_cycle_gets_mirror_symmetric_impulses(hit):
+    """The split solve's mirror-antisymmetric part, grown in the sweeps of a block whose
+    moves cycle, persistent or impact contacts of a box on a wall at 30 to 240 Hz."""
+    assert asymmetry(*sliding_hit(*hit)) < 1e-6

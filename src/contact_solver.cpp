@@ -250,13 +250,18 @@ const ActiveSets kActiveSets;
 
 // solve_coupled: solves of a block after the first at most (bench/mirror_scan.py's 42,700
 // hits solve 1.62 M coupled blocks: 98.9 % at the first solve, 1.1 % after 1 to 16 more,
-// 0.2 % find no answer within 17 and are solved split); the angle (rad) within
-// which a sliding row's friction opposes its slip; a slip below kStill of the block's
-// speeds is none (a row sliding at its cone's edge that barely slips: aimed anew, rounding
-// in a slip of 1e-7 m/s turned its friction by 1e-9 rad, which grew x2.5 a Newton step)
+// 0.2 % find no answer within 17: an impact stage's block then searches every state,
+// any other is solved split); the angle (rad) within which a sliding row's friction
+// opposes its slip; a slip below kStill of the block's speeds is none (a row sliding at
+// its cone's edge that barely slips: aimed anew, rounding in a slip of 1e-7 m/s turned its
+// friction by 1e-9 rad, which grew x2.5 a Newton step)
 constexpr int kCoupledTries = 16;
 constexpr double kAimed = 1e-9;
 constexpr double kStill = 1e-6;
+// solve_coupled's search of every state: Newton steps per state at most; answers whose
+// kinetic energies are this close (relative) give the same motion (rounding)
+constexpr int kNewtonSteps = 8;
+constexpr double kTie = 1e-9;
 // A row whose friction is at its cone's limit, within rounding: it slides, its friction
 // mu times its normal impulse along its slip (solve_friction_block keeps it there).
 constexpr double kSlides = 1e-9;
@@ -305,7 +310,12 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // kStill of the block's speeds, or its friction runs along its slip and it was not pushed
 // off its cone in this solve (it sticks); a row
 // left out that approaches beyond its allowance takes part (sliding against its slip, or
-// sticking); and the block is solved again (at most kCoupledTries + 1 solves).
+// sticking); and the block is solved again (at most kCoupledTries + 1 solves). These moves
+// can cycle (a box struck on a face by a wall, its two pairs of mirror points taking
+// turns: one pair's friction beyond its cone, it slides, the other pair would pull and
+// lets go, then approaches and takes part sliding, ... every sweep of its impact stage);
+// then, in an impact stage's block (`search`), every state of the rows is searched
+// (below).
 // Why: the normal block for the friction held, then the friction block for those normals,
 // each sweep, is an iteration whose mirror-antisymmetric part can grow: a sliding row's
 // friction follows its normal, the two points' friction turns the body, the turn moves
@@ -315,9 +325,10 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // at the direction it held does the same across sweeps (the friction update after the
 // block turns it against the slip, the next solve freezes that: x16 a sweep on a box
 // sliding on four points of a wall through an impact stage). Returns the largest impulse
-// change (N s), or -1 when no answer is found or a pivot vanishes (the caller solves the
-// normal block alone, then the friction block).
-double solve_coupled(ContactRow* r, int k, Twists& v) {
+// change (N s), or -1 when the moves find no answer and no state holds (or, without
+// `search`, none is searched) or a pivot vanishes in the moves' solves (the caller solves
+// the normal block alone, then the friction block: the iteration above).
+double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   bool active[4], slides[4], pushed[4] = {};   // pushed: off its cone in this solve
   double aim[4][2];   // unit direction (t1, t2) of a sliding row's friction
   double stiff[4];    // N s per m/s: its friction's response to slip across aim (0: frozen)
@@ -358,7 +369,10 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
     }
     return effects[p][q];
   };
-  for (int tries = 0; tries <= kCoupledTries; ++tries) {
+  // the block's answer for the rows' state (active, slides, aim, stiff) into n, t; false
+  // when no row is active or a pivot vanishes
+  double n[4] = {}, t[4][2] = {};
+  auto solve_state = [&]() -> bool {
     // unknown u: row[u]'s impulse along dir[u] (0 n, 1 t1, 2 t2); a sliding row with a
     // frozen aim has its normal only (its friction is mu times it along aim)
     int row[12], dir[12], m = 0;
@@ -371,7 +385,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       frozen[m] = false, row[m] = i, dir[m++] = 1;
       frozen[m] = false, row[m] = i, dir[m++] = 2;
     }
-    if (m == 0) return -1.0;
+    if (m == 0) return false;
     // e[a][c]: row i's velocity along its direction a per unit of unknown c
     auto column = [&](int i, int a, int c) {
       const int j = row[c];
@@ -422,12 +436,46 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       case 11: solved = gauss_jordan<11>(s, x); break;
       default: solved = gauss_jordan<12>(s, x); break;
     }
-    if (!solved) return -1.0;
-    double n[4] = {}, t[4][2] = {};
+    if (!solved) return false;
+    for (int i = 0; i < k; ++i) n[i] = t[i][0] = t[i][1] = 0.0;
     for (int u = 0; u < m; ++u) {
       if (dir[u] == 0) n[row[u]] = x[u];
       else t[row[u]][dir[u] - 1] = x[u];
     }
+    for (int i = 0; i < k; ++i)
+      if (active[i] && slides[i] && stiff[i] == 0.0) {   // frozen: mu n along its aim
+        t[i][0] = r[i].mu * aim[i][0] * n[i];
+        t[i][1] = r[i].mu * aim[i][1] * n[i];
+      }
+    return true;
+  };
+  // the twists with the answer's impulses
+  Twists after;
+  auto move = [&]() {
+    after = free;
+    for (int i = 0; i < k; ++i) {
+      if (!active[i]) continue;
+      const double d[3] = {n[i], t[i][0], t[i][1]};
+      for (int b = 0; b < 3; ++b)
+        if (d[b] != 0.0) apply(r[i], after, b, direction(r[i], b), d[b]);
+    }
+  };
+  // the answer taken: the rows' impulses and the twists; the largest impulse change
+  auto take = [&]() {
+    double change = 0.0;
+    for (int i = 0; i < k; ++i) {
+      change = std::max({change, std::fabs(n[i] - r[i].normal),
+                         std::fabs(t[i][0] - r[i].tangent[0]),
+                         std::fabs(t[i][1] - r[i].tangent[1])});
+      r[i].normal = n[i];
+      r[i].tangent[0] = t[i][0];
+      r[i].tangent[1] = t[i][1];
+    }
+    v = after;
+    return change;
+  };
+  for (int tries = 0; tries <= kCoupledTries; ++tries) {
+    if (!solve_state()) return -1.0;
     bool again = false;
     for (int i = 0; i < k; ++i) {
       if (!active[i]) continue;
@@ -436,13 +484,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
         again = true;
         continue;
       }
-      if (slides[i]) {
-        if (stiff[i] == 0.0) {
-          t[i][0] = r[i].mu * aim[i][0] * n[i];
-          t[i][1] = r[i].mu * aim[i][1] * n[i];
-        }
-        continue;
-      }
+      if (slides[i]) continue;
       const double size = norm2(t[i][0], t[i][1]);
       if (!(size <= r[i].mu * n[i])) {   // beyond its cone: it slides, along that friction
         slides[i] = true;
@@ -454,13 +496,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       }
     }
     if (again) continue;
-    Twists after = free;
-    for (int i = 0; i < k; ++i) {
-      if (!active[i]) continue;
-      const double d[3] = {n[i], t[i][0], t[i][1]};
-      for (int b = 0; b < 3; ++b)
-        if (d[b] != 0.0) apply(r[i], after, b, direction(r[i], b), d[b]);
-    }
+    move();
     // a sliding row whose friction runs along its slip sticks, unless it was pushed off its
     // cone in this solve; where one does not oppose its slip straight, every sliding row
     // is aimed against its slip (a Newton step: the block's rows alike, so that rounding
@@ -503,19 +539,109 @@ double solve_coupled(ContactRow* r, int k, Twists& v) {
       stiff[i] = 0.0;
     }
     if (again) continue;
-    double change = 0.0;
-    for (int i = 0; i < k; ++i) {
-      change = std::max({change, std::fabs(n[i] - r[i].normal),
-                         std::fabs(t[i][0] - r[i].tangent[0]),
-                         std::fabs(t[i][1] - r[i].tangent[1])});
-      r[i].normal = n[i];
-      r[i].tangent[0] = t[i][0];
-      r[i].tangent[1] = t[i][1];
-    }
-    v = after;
-    return change;
+    return take();
   }
-  return -1.0;
+  // no answer from the state the block held (its moves between states cycled): every
+  // state, each row left out (0), sticking (1) or sliding (2), and of the answers that
+  // hold the one that leaves the block's bodies the least kinetic energy, of those within
+  // kTie of it the one of least impulses (their squares weighted by the diagonal, as
+  // kRegular weighs them: the one solve's least-norm answer). Coulomb friction on a
+  // redundant block can have several answers: a box struck on a face by a wall whose two
+  // mirror points can each carry it alone, or both (the most dissipative), or a box on a
+  // box through four points, whose states give the same motion with other impulses (the
+  // least, as kRegular picks in one solve). Neither choice depends on the rows' order: a
+  // mirror-symmetric hit gets mirror-symmetric impulses. A sliding row starts against its
+  // slip without the block's impulses (no slip then: not this state); while one does not
+  // oppose its slip straight (within kAimed; a slip below kStill of the block's speeds is
+  // none), every sliding row takes a Newton step, kNewtonSteps at most. An answer holds
+  // where no active row pulls, no sticking row is beyond its cone, every sliding row's
+  // friction opposes its slip and no row left out approaches beyond its allowance.
+  if (!search) return -1.0;
+  bool found = false;
+  double least = 0.0;   // J: the kinetic energy the best answer adds (< 0: takes)
+  double smallest = 0.0;   // J: its impulses' squares, each times its row's own effect
+  double best_n[4], best_t[4][2];
+  Twists best_after;
+  int states = 1;
+  for (int i = 0; i < k; ++i) states *= 3;
+  for (int state = 1; state < states; ++state) {
+    bool holds = true;
+    for (int i = 0, code = state; i < k; ++i, code /= 3) {
+      active[i] = code % 3 != 0;
+      slides[i] = code % 3 == 2;
+      stiff[i] = 0.0;
+      const double speed_t = norm2(speed[i][1], speed[i][2]);
+      holds = holds && (!slides[i] || speed_t > 0.0);
+      aim[i][0] = slides[i] && speed_t > 0.0 ? -speed[i][1] / speed_t : 0.0;
+      aim[i][1] = slides[i] && speed_t > 0.0 ? -speed[i][2] / speed_t : 0.0;
+    }
+    for (int step = 0; holds && step <= kNewtonSteps; ++step) {
+      if (!solve_state()) {
+        holds = false;
+        break;
+      }
+      for (int i = 0; i < k && holds; ++i)
+        holds = !active[i] || (n[i] >= 0.0 && (slides[i] ||
+                                               norm2(t[i][0], t[i][1]) <= r[i].mu * n[i]));
+      if (!holds) break;
+      move();
+      bool aimed = true;
+      for (int i = 0; i < k; ++i) {
+        if (!active[i] || !slides[i]) continue;
+        const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
+        const double speed = norm2(x, y);
+        aimed = aimed && (!(speed > kStill * scale) ||
+                          (aim[i][0] * x + aim[i][1] * y < 0.0 &&
+                           std::fabs(aim[i][0] * y - aim[i][1] * x) <= kAimed * speed));
+      }
+      for (int i = 0; i < k && !aimed; ++i) {   // (every sliding row, as above)
+        if (!active[i] || !slides[i]) continue;
+        const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
+        const double speed = norm2(x, y);
+        if (!(speed > kStill * scale)) continue;
+        aim[i][0] = -x / speed;
+        aim[i][1] = -y / speed;
+        stiff[i] = r[i].mu * n[i] / speed;
+      }
+      if (!aimed) {
+        holds = step < kNewtonSteps;
+        continue;
+      }
+      for (int i = 0; i < k && holds; ++i)
+        holds = active[i] || relative(r[i], after, 0, r[i].n) + r[i].allowance >= 0.0;
+      if (!holds) break;
+      // the kinetic energy its impulses add: each impulse times its row's mean velocity
+      // along it, before and after
+      double added = 0.0;
+      for (int i = 0; i < k; ++i) {
+        if (!active[i]) continue;
+        const double d[3] = {n[i], t[i][0], t[i][1]};
+        for (int b = 0; b < 3; ++b)
+          added += 0.5 * d[b] * (speed[i][b] + relative(r[i], after, b, direction(r[i], b)));
+      }
+      double size = 0.0;
+      for (int i = 0; i < k; ++i) {
+        if (!active[i]) continue;
+        const double d[3] = {n[i], t[i][0], t[i][1]};
+        for (int b = 0; b < 3; ++b) size += effect(i, b, i, b) * d[b] * d[b];
+      }
+      const double tie = kTie * std::max(std::fabs(added), std::fabs(least));
+      if (!found || added < least - tie || (added <= least + tie && size < smallest)) {
+        found = true;
+        least = added;
+        smallest = size;
+        std::copy(&n[0], &n[0] + 4, best_n);
+        std::copy(&t[0][0], &t[0][0] + 8, &best_t[0][0]);
+        best_after = after;
+      }
+      break;
+    }
+  }
+  if (!found) return -1.0;
+  std::copy(best_n, best_n + 4, n);
+  std::copy(&best_t[0][0], &best_t[0][0] + 8, &t[0][0]);
+  after = best_after;
+  return take();
 }
 
 // solve_block's test of an active set `set` of m rows (bit i: row i of the block's k;
@@ -571,7 +697,7 @@ inline __attribute__((always_inline)) bool fits_set(const double (&a)[4][4], con
 double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double* searched) {
   const int k = block.count;
   if (block.coupled) {
-    const double step = solve_coupled(r, k, v);
+    const double step = solve_coupled(r, k, v, block.search);
     if (step >= 0.0) return step;
   }
   const bool lanes_tried = searched != nullptr && block.invertible && !block.coupled;
@@ -2373,6 +2499,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
         blocks.back().b = c.b;
         blocks.back().first = static_cast<int32_t>(j);
         blocks.back().coupled = true;
+        blocks.back().search = true;
       }
       ++blocks.back().count;
       scratch.push_back(c);

@@ -474,6 +474,22 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
     v = after;
     return change;
   };
+  // a Newton step: every sliding row of the block aimed against its slip (the rows alike,
+  // so that rounding below kAimed in one row and above it in its mirror image does not turn
+  // one alone), its friction's response to slip across the aim from its normal impulse; a
+  // slip below kStill of the block's speeds is none (left as it is)
+  auto aim_sliding = [&]() {
+    for (int i = 0; i < k; ++i) {
+      if (!active[i] || !slides[i]) continue;
+      const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
+      const double speed = norm2(x, y);
+      if (!(speed > kStill * scale)) continue;
+      pushed[i] = false;   // aimed anew: should its slip then run along it, it sticks
+      aim[i][0] = -x / speed;
+      aim[i][1] = -y / speed;
+      stiff[i] = r[i].mu * n[i] / speed;
+    }
+  };
   for (int tries = 0; tries <= kCoupledTries; ++tries) {
     if (!solve_state()) return -1.0;
     bool again = false;
@@ -499,8 +515,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
     move();
     // a sliding row whose friction runs along its slip sticks, unless it was pushed off its
     // cone in this solve; where one does not oppose its slip straight, every sliding row
-    // is aimed against its slip (a Newton step: the block's rows alike, so that rounding
-    // below kAimed in one row and above it in its mirror image does not turn one alone)
+    // takes a Newton step (aim_sliding)
     bool turn = false;
     for (int i = 0; i < k; ++i) {
       if (!active[i] || !slides[i]) continue;
@@ -515,15 +530,8 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
         turn = true;
       }
     }
-    for (int i = 0; i < k && turn; ++i) {
-      if (!active[i] || !slides[i]) continue;
-      const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
-      const double speed = norm2(x, y);
-      if (!(speed > kStill * scale)) continue;
-      pushed[i] = false;   // aimed anew: should its slip then run along it, it sticks
-      aim[i][0] = -x / speed;
-      aim[i][1] = -y / speed;
-      stiff[i] = r[i].mu * n[i] / speed;
+    if (turn) {
+      aim_sliding();
       again = true;
     }
     if (again) continue;
@@ -594,16 +602,8 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
                           (aim[i][0] * x + aim[i][1] * y < 0.0 &&
                            std::fabs(aim[i][0] * y - aim[i][1] * x) <= kAimed * speed));
       }
-      for (int i = 0; i < k && !aimed; ++i) {   // (every sliding row, as above)
-        if (!active[i] || !slides[i]) continue;
-        const double x = relative(r[i], after, 1, r[i].t1), y = relative(r[i], after, 2, r[i].t2);
-        const double speed = norm2(x, y);
-        if (!(speed > kStill * scale)) continue;
-        aim[i][0] = -x / speed;
-        aim[i][1] = -y / speed;
-        stiff[i] = r[i].mu * n[i] / speed;
-      }
       if (!aimed) {
+        aim_sliding();
         holds = step < kNewtonSteps;
         continue;
       }

@@ -250,7 +250,7 @@ const ActiveSets kActiveSets;
 
 // solve_coupled: solves of a block after the first at most (bench/mirror_scan.py's 42,700
 // hits solve 1.62 M coupled blocks: 98.9 % at the first solve, 1.1 % after 1 to 16 more,
-// 0.2 % find no answer within 17: an impact stage's block then searches every state,
+// 0.2 % find no answer within 17: a block that `search`es then searches every state,
 // any other is solved split); the angle (rad) within which a sliding row's friction
 // opposes its slip; a slip below kStill of the block's speeds is none (a row sliding at
 // its cone's edge that barely slips: aimed anew, rounding in a slip of 1e-7 m/s turned its
@@ -314,8 +314,8 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // can cycle (a box struck on a face by a wall, its two pairs of mirror points taking
 // turns: one pair's friction beyond its cone, it slides, the other pair would pull and
 // lets go, then approaches and takes part sliding, ... every sweep of its impact stage);
-// then, in an impact stage's block (`search`), every state of the rows is searched
-// (below).
+// then, in a block that `search`es (an impact stage's; in the resting sweeps one that is
+// its movable bodies' only manifold), every state of the rows is searched (below).
 // Why: the normal block for the friction held, then the friction block for those normals,
 // each sweep, is an iteration whose mirror-antisymmetric part can grow: a sliding row's
 // friction follows its normal, the two points' friction turns the body, the turn moves

@@ -161,12 +161,12 @@ struct Manifold {
                                  // whose points slipped faster than the sticking speed
                                  // as the step began), else the normal block, then the
                                  // friction block
-  bool search = false;           // an impact stage's block: should its coupled solve's
-                                 // moves find no answer, every state is searched
-                                 // (solve_coupled); elsewhere it is solved split (in
-                                 // the resting sweeps the search's answers kept a box
-                                 // on a pile of 100 cubes at 120 Hz rocking at 0.1 m/s
-                                 // for a second longer)
+  bool search = false;           // should its coupled solve's moves find no answer,
+                                 // every state is searched (solve_coupled): an impact
+                                 // stage's block, and in the resting sweeps a coupled
+                                 // block that is the only manifold of each of its
+                                 // movable bodies (StepSolver::prepare); else it is
+                                 // solved split
   // 2 to 4 rows (prepare_block, once per step): the normal rows' Delassus matrix
   // J_i M^-1 J_j^T (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block
   // solve's regularisation), and the inverse of the latter (the all-active answer); the

@@ -822,6 +822,22 @@ void StepSolver::prepare(StepContext& ctx) {
   for (Manifold& block : manifolds_)
     for (int32_t i = block.first; i < block.first + block.count && !block.coupled; ++i)
       block.coupled = !rows_[i].sticking;
+  // a coupled block whose moves between states find no answer searches every state
+  // (solve_coupled) where it is the only manifold of each of its movable bodies: the block
+  // alone then answers for its bodies, and each sweep searches from the twists without its
+  // impulses, which no other manifold moves. Where a body is in other manifolds too, the
+  // block is solved split: the search's answer jumps between states as the neighbours'
+  // impulses change, and their next updates undo the jump (a pile of 100 cubes dropped at
+  // 120 Hz: 598 answers found, each moving 1 to 100 % of its block's largest normal
+  // impulse, kept a box rocking at 0.1 m/s a second longer), where the split solve's
+  // updates move the impulses a share at a time
+  manifolds_of_.assign(static_cast<size_t>(ctx.solver.count), 0);
+  for (const Manifold& block : manifolds_) {
+    ++manifolds_of_[block.a];
+    ++manifolds_of_[block.b];
+  }
+  auto only = [&](int32_t i) { return ctx.solver.inv_mass[i] == 0.0 || manifolds_of_[i] == 1; };
+  for (Manifold& block : manifolds_) block.search = block.coupled && only(block.a) && only(block.b);
   // the rows aim turns: of two spheres, alone in their manifold, one pressed onto the
   // other from the start (pressed_), neither body impacted
   aimed_.clear();

@@ -424,6 +424,7 @@ class StepSolver {
                                                      // (manifolds_ in detection's order)
   std::vector<double> friction_;     // (manifolds_, 2) its pair's static and kinetic
                                      // friction coefficients (prepare)
+  std::vector<int32_t> manifolds_of_;  // (N,) how many of manifolds_ each body is in (prepare)
   ShockBlocks shock_blocks_;                         // shock_rows_' blocks (shock_rows)
   std::vector<uint8_t> holding_;                     // (shock_rows' scratch, per body)
   std::vector<Manifold> swept_;      // the manifolds in the sweeps, in plan_'s order

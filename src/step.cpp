@@ -6,6 +6,8 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <new>
+#include <type_traits>
 
 #include "sweep_waves.h"
 
@@ -766,13 +768,10 @@ void StepSolver::prepare(StepContext& ctx) {
   // written over the last step's rows (rows_ is cut to the ones used): each field is set
   // here or by prepare_row, none twice (a new row's constructor zeros every field). Per
   // manifold, in parts (each writes only its own contacts', rows' and constraint's
-  // entries): its rows counted (and their contacts settled: the impact stages and the
-  // landing read the resting speed), then, after the rows and constraints of the manifolds
-  // before it (their counts' running sums), written
+  // entries): its rows counted (row_of_ 0 until placed; and their contacts settled: the
+  // impact stages and the landing read the resting speed), then, after the rows and
+  // constraints of the manifolds before it (their counts' running sums), written
   const int64_t spans = c.manifold_count;
-  auto is_row = [&](int64_t k) {
-    return !(gap_[k] > 0.0 && !forced_[k] && approach_[k] + allowance_[k] > bound);
-  };
   placed_.resize(2 * (spans + 1));
   int32_t* const placed = placed_.data();
   in_parts(ctx, spans, [&](int64_t lo, int64_t hi) {
@@ -780,8 +779,9 @@ void StepSolver::prepare(StepContext& ctx) {
       const int64_t* manifold = c.manifolds + kManifoldFields * span;
       int32_t count = 0;
       for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
-        if (!is_row(k)) continue;
+        if (gap_[k] > 0.0 && !forced_[k] && approach_[k] + allowance_[k] > bound) continue;
         settle(ctx, k);
+        row_of_[k] = 0;
         ++count;
       }
       placed[2 * span + 2] = count;
@@ -796,7 +796,7 @@ void StepSolver::prepare(StepContext& ctx) {
   const auto used = static_cast<size_t>(placed[2 * spans]);
   const auto blocks = static_cast<size_t>(placed[2 * spans + 1]);
   rows_.resize(used);
-  manifolds_.resize(blocks);   // (each written anew below)
+  manifolds_.resize(blocks);   // (each constructed anew below)
   friction_.resize(2 * blocks);
   in_parts(ctx, spans, [&](int64_t lo, int64_t hi) {
     for (int64_t span = lo; span < hi; ++span) {
@@ -811,7 +811,7 @@ void StepSolver::prepare(StepContext& ctx) {
         e_a = e_b = combine(e_a, e_b, p.restitution_rule);
       int32_t at = first_row;
       for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
-        if (!is_row(k)) continue;
+        if (row_of_[k] < 0) continue;
         row_of_[k] = at;
         ContactRow& row = rows_[static_cast<size_t>(at++)];
         row.normal = row.tangent[0] = row.tangent[1] = 0.0;   // no impulse yet
@@ -828,8 +828,10 @@ void StepSolver::prepare(StepContext& ctx) {
         row.e_a = e_a;
         row.e_b = e_b;
       }
-      Manifold& block = manifolds_[static_cast<size_t>(index)];
-      block = Manifold();
+      // (constructed anew in its place, every field as a new constraint's: trivially
+      // destructible, its old value needs no end)
+      static_assert(std::is_trivially_destructible_v<Manifold>);
+      Manifold& block = *new (&manifolds_[static_cast<size_t>(index)]) Manifold();
       block.a = rows_[first_row].a;   // (detection's manifold[0], [1])
       block.b = rows_[first_row].b;
       block.first = first_row;

@@ -6,6 +6,8 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <new>
+#include <type_traits>
 
 #include "sweep_waves.h"
 
@@ -107,6 +109,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   pre_.assign(velocity_.begin(), velocity_.end());
   forced_.assign(static_cast<size_t>(contacts.count), 0);
   struck_.assign(static_cast<size_t>(contacts.count), 0);
+  recalled_ = false;
   StepStats stats;
   for (;; ++stats.redone) {
     if (stats.redone > 0) std::copy(pre_.begin(), pre_.end(), velocity_.begin());
@@ -127,27 +130,39 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     // (it bounces with its restitution, its gap not yet closed)
     for (ContactRow& r : rows_)
       if (struck_[r.contact]) r.allowance = 0.0;
-    resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
-                    impact_work_);
-    for (ContactRow& r : rows_) r.allowance = allowance_[r.contact];
-    // from here on an impacted body's velocity is the one its pose travels with over the
-    // rest of the step (its velocity at the time of impact plus half the external change
-    // over the rest, advance): the resting solve keeps that travel out of the partners
-    // substeps of the resting solve: as many as keep each within params.max_substep,
-    // and within sqrt(substep_sink r / a) for every solver row (a a movable body's
-    // external acceleration, r the row's lever from its centre of mass), and within
-    // sqrt(stack_sink r / a) / D (D the levels of the deepest stack)
-    const int32_t depth = levels(ctx);
-    const int substeps = static_cast<int>(std::clamp(
-        std::ceil(dt / longest_substep(ctx, depth) * (1.0 - 1e-6)), 1.0,
-        static_cast<double>(std::max(params.max_substeps, 1))));
-    to_travel(ctx, substeps);
+    // (the cache's impulses of the contacts meanwhile on the second thread, for the warm
+    // start: recall reads the contacts and the cache, writes only its own)
+    int32_t depth = 0;
+    int substeps = 1;
+    beside(ctx, [&] {
+      resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
+                      impact_work_);
+      for (ContactRow& r : rows_) r.allowance = allowance_[r.contact];
+      // from here on an impacted body's velocity is the one its pose travels with over the
+      // rest of the step (its velocity at the time of impact plus half the external change
+      // over the rest, advance): the resting solve keeps that travel out of the partners
+      // substeps of the resting solve: as many as keep each within params.max_substep,
+      // and within sqrt(substep_sink r / a) for every solver row (a a movable body's
+      // external acceleration, r the row's lever from its centre of mass), and within
+      // sqrt(stack_sink r / a) / D (D the levels of the deepest stack)
+      depth = levels(ctx);
+      substeps = static_cast<int>(std::clamp(
+          std::ceil(dt / longest_substep(ctx, depth) * (1.0 - 1e-6)), 1.0,
+          static_cast<double>(std::max(params.max_substeps, 1))));
+      to_travel(ctx, substeps);
+    }, [&] { recall(ctx); }, kBesideRecall);
     aim(ctx, nullptr, velocity_.data(), 0.5 * dt / substeps);
     // warm start from last step's impulses of the same pair and feature (a substep's share)
     double cold = warm(ctx, substeps);
     start_.assign(velocity_.begin(), velocity_.end());
     resting_.assign(velocity_.begin(), velocity_.end());
-    warm_start(rows_, ctx.solver);
+    // the rows' copies for shock propagation meanwhile on the second thread (for every
+    // substep of the solve: shock_rows reads the rows and their levels, which the warm
+    // start leaves as they are, and writes only its own)
+    beside(ctx, [&] { warm_start(rows_, ctx.solver); }, [&] {
+      shock_rows(rows_, level_, order32_, shock_rows_, shock_blocks_, holding_,
+                 params.shock_ratio, params.wide_rows);
+    }, kBesideShock);
     // iterate: sequential impulses (more sweeps while resting contacts are new, for a step
     // k periods long sqrt(k) times as many: a load k times the last, whose residual sinks
     // the poses k^2 times as far, and at least depth_sweeps per level of the deepest
@@ -187,7 +202,7 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   }, [&] {
     cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                  cached_normal_.data(), report_out.friction_impulse, contacts.point);
-  });
+  }, kBesideStore);
   shared_ = std::find(plan_.sides.begin(), plan_.sides.end(), 1) != plan_.sides.end();
   return stats;
 }
@@ -256,35 +271,34 @@ void StepSolver::reference_frame(StepContext& ctx) {
   approach_.resize(m);
   start_speed_.resize(m);
   resting_speed_.resize(m);
-  for (int64_t k = 0; k < m; ++k) {   // each body in contact's motion, once
-    for (const int64_t i : {c.a[k], c.b[k]}) {
-      if (touched_[i]) continue;
-      touched_[i] = 1;
-      motion_[i] = body_motion(previous, current, i);
-    }
-  }
+  for (int64_t k = 0; k < m; ++k) touched_[c.a[k]] = touched_[c.b[k]] = 1;
   uint8_t *const touching = touching_.data(), *const rested = rested_.data();
   uint8_t *const near = near_.data(), *const supported = supported_.data();
   pressed_.assign(m, 0);
   const uint8_t* const pressed = pressed_.data();
   const double *const gap = gap_.data(), *const before = before_.data();
   const double* const resting = resting_speed_.data();
-  // per body: whether the step's external change acts on it (external_change_acts: a
-  // pile restarted after a gap, its twists the source's g dt into the supports, bounced
-  // on that approach before unknown changes counted)
-  loaded_.assign(n, 0);
-  for (int64_t i = 0; i < n; ++i) {
-    bool changed = false, moving = false, moved = false;
-    for (int d = 0; d < 6; ++d) {
-      changed = changed || now_[6 * i + d] != then_[6 * i + d];
-      moving = moving || now_[6 * i + d] != 0.0;
+  // per body (each writes only its own entries: in parts): a body in contact's motion, and
+  // whether the step's external change acts on it (external_change_acts: a pile restarted
+  // after a gap, its twists the source's g dt into the supports, bounced on that approach
+  // before unknown changes counted)
+  loaded_.resize(n);
+  in_parts(ctx, n, [&](int64_t lo, int64_t hi) {
+    const double *const now = now_.data(), *const then = then_.data();
+    for (int64_t i = lo; i < hi; ++i) {
+      if (touched_[i]) motion_[i] = body_motion(previous, current, i);
+      bool changed = false, moving = false, moved = false;
+      for (int d = 0; d < 6; ++d) {
+        changed = changed || now[6 * i + d] != then[6 * i + d];
+        moving = moving || now[6 * i + d] != 0.0;
+      }
+      for (int d = 0; d < 3; ++d)
+        moved = moved || previous.position[3 * i + d] != current.position[3 * i + d];
+      for (int d = 0; d < 4; ++d)
+        moved = moved || previous.orientation[4 * i + d] != current.orientation[4 * i + d];
+      loaded_[i] = external_change_acts(changed, moving, moved);
     }
-    for (int d = 0; d < 3; ++d)
-      moved = moved || previous.position[3 * i + d] != current.position[3 * i + d];
-    for (int d = 0; d < 4; ++d)
-      moved = moved || previous.orientation[4 * i + d] != current.orientation[4 * i + d];
-    loaded_[i] = external_change_acts(changed, moving, moved);
-  }
+  });
   // per contact (frame_contacts), shared by the two threads; the bodies' flags after
   in_parts(ctx, m, [&](int64_t lo, int64_t hi) { frame_contacts(ctx, lo, hi); });
   // the bodies' flags, from their contacts: resting on one from the start, near, supported;
@@ -377,28 +391,31 @@ void StepSolver::reference_frame(StepContext& ctx) {
     fraction[a] = std::min(fraction[a], toi_of[k]);
     fraction[b] = std::min(fraction[b], toi_of[k]);
   }
-  for (int64_t i = 0; i < n; ++i) {
-    bool movable = bodies.movable[i] != 0;
-    touched_[i] = touched_[i] && movable;
-    impacted_[i] = impacted_[i] && movable;
-    rested_[i] = rested_[i] && !impacted_[i];
-    double f = impacted_[i] ? std::clamp(fraction_[i], 0.0, 1.0) : 0.0;
-    fraction_[i] = f;
-    // pre-solve velocity: at the time of impact for impacted bodies (the twist of a
-    // state is the velocity over the step that led to it, at mid-step); for a body
-    // touching something from the start, its previous twist (what it did while in
-    // contact: the step's external change is carried by the resting solve, to_travel),
-    // also at its time of impact (held by its supports until then); else current; and
-    // the twist its contacts' pre-solve approach takes (later_, below)
-    for (int d = 0; d < 6; ++d) {
-      double now = now_[6 * i + d], then = then_[6 * i + d], external = now - then;
-      velocity_[6 * i + d] = impacted_[i] ? (supported_[i] ? path_[6 * i + d]
-                                                           : now + (f - 0.5) * external)
-                             : rested_[i] ? then
-                                          : now;
-      later_[6 * i + d] = rested_[i] ? now : velocity_[6 * i + d];
+  // per body (its own entries: in parts)
+  in_parts(ctx, n, [&](int64_t lo, int64_t hi) {
+    for (int64_t i = lo; i < hi; ++i) {
+      bool movable = bodies.movable[i] != 0;
+      touched_[i] = touched_[i] && movable;
+      impacted_[i] = impacted_[i] && movable;
+      rested_[i] = rested_[i] && !impacted_[i];
+      double f = impacted_[i] ? std::clamp(fraction_[i], 0.0, 1.0) : 0.0;
+      fraction_[i] = f;
+      // pre-solve velocity: at the time of impact for impacted bodies (the twist of a
+      // state is the velocity over the step that led to it, at mid-step); for a body
+      // touching something from the start, its previous twist (what it did while in
+      // contact: the step's external change is carried by the resting solve, to_travel),
+      // also at its time of impact (held by its supports until then); else current; and
+      // the twist its contacts' pre-solve approach takes (later_, below)
+      for (int d = 0; d < 6; ++d) {
+        double now = now_[6 * i + d], then = then_[6 * i + d], external = now - then;
+        velocity_[6 * i + d] = impacted_[i] ? (supported_[i] ? path_[6 * i + d]
+                                                             : now + (f - 0.5) * external)
+                               : rested_[i] ? then
+                                            : now;
+        later_[6 * i + d] = rested_[i] ? now : velocity_[6 * i + d];
+      }
     }
-  }
+  });
   // speculative allowance. Two free bodies (neither within the slop of anything at the
   // step's start): the gap with each body at its own reference time, where the solve
   // moves it from (a body without an impact from the step's start, whatever its partner's
@@ -745,65 +762,93 @@ void StepSolver::prepare(StepContext& ctx) {
   // cannot turn it around ((1 + e) per hit); one that the answer does turn around gets a
   // row (escaped, forced_)
   const double bound = p.row_bound * (1.0 + restitution_) * fastest_;
-  manifolds_.clear();
   row_of_.assign(m, -1);
   rowless_.clear();
   // rows in the order of detection's manifolds, one constraint per manifold with rows,
-  // written over the last step's rows (rows_ is cut to the `used` ones after): each field
-  // is set here or by prepare_row, none twice (a new row's constructor zeros every field)
-  size_t used = 0;
-  friction_.clear();
-  for (int64_t span = 0; span < c.manifold_count; ++span) {
-    const int64_t* manifold = c.manifolds + kManifoldFields * span;
-    const auto first_row = static_cast<int32_t>(used);
-    // the pair of every row of the manifold (the binding checks it) and its restitution,
-    // once for them all
-    const int64_t a = manifold[0], b = manifold[1];
-    double e_a = bodies.restitution[a], e_b = bodies.restitution[b];
-    if (p.restitution_rule != CombineRule::kPerObject)
-      e_a = e_b = combine(e_a, e_b, p.restitution_rule);
-    for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
-      if (gap_[k] > 0.0 && !forced_[k] && approach_[k] + allowance_[k] > bound) {
-        rowless_.push_back(static_cast<int32_t>(k));
-        continue;
+  // written over the last step's rows (rows_ is cut to the ones used): each field is set
+  // here or by prepare_row, none twice (a new row's constructor zeros every field). Per
+  // manifold, in parts (each writes only its own contacts', rows' and constraint's
+  // entries): its rows counted (row_of_ 0 until placed; and their contacts settled: the
+  // impact stages and the landing read the resting speed), then, after the rows and
+  // constraints of the manifolds before it (their counts' running sums), written
+  const int64_t spans = c.manifold_count;
+  placed_.resize(2 * (spans + 1));
+  int32_t* const placed = placed_.data();
+  in_parts(ctx, spans, [&](int64_t lo, int64_t hi) {
+    for (int64_t span = lo; span < hi; ++span) {
+      const int64_t* manifold = c.manifolds + kManifoldFields * span;
+      int32_t count = 0;
+      for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
+        if (gap_[k] > 0.0 && !forced_[k] && approach_[k] + allowance_[k] > bound) continue;
+        settle(ctx, k);
+        row_of_[k] = 0;
+        ++count;
       }
-      settle(ctx, k);   // (its resting speed: the impact stages and the landing read it)
-      row_of_[k] = static_cast<int32_t>(used);
-      if (used == rows_.size()) rows_.emplace_back();
-      ContactRow& row = rows_[used++];
-      row.normal = row.tangent[0] = row.tangent[1] = 0.0;   // no impulse yet
-      row.impact = row.impact_tangent[0] = row.impact_tangent[1] = 0.0;
-      row.landing = row.push = row.pseudo = 0.0;
-      row.a = static_cast<int32_t>(a);
-      row.b = static_cast<int32_t>(b);
-      row.contact = static_cast<int32_t>(k);
-      row.manifold = static_cast<int32_t>(manifolds_.size());
-      row.n = load3(c.normal + 3 * k);
-      row.ra = ra_[k];
-      row.rb = rb_[k];
-      row.allowance = allowance_[k];
-      row.e_a = e_a;
-      row.e_b = e_b;
+      placed[2 * span + 2] = count;
+      placed[2 * span + 3] = count > 0;
     }
-    const auto count = static_cast<int32_t>(used) - first_row;
-    if (count > 0) {
-      Manifold& block = manifolds_.emplace_back();
+  });
+  placed[0] = placed[1] = 0;
+  for (int64_t span = 0; span < spans; ++span) {
+    placed[2 * span + 2] += placed[2 * span];
+    placed[2 * span + 3] += placed[2 * span + 1];
+  }
+  const auto used = static_cast<size_t>(placed[2 * spans]);
+  const auto blocks = static_cast<size_t>(placed[2 * spans + 1]);
+  rows_.resize(used);
+  manifolds_.resize(blocks);   // (each constructed anew below)
+  friction_.resize(2 * blocks);
+  in_parts(ctx, spans, [&](int64_t lo, int64_t hi) {
+    for (int64_t span = lo; span < hi; ++span) {
+      const int64_t* manifold = c.manifolds + kManifoldFields * span;
+      const int32_t first_row = placed[2 * span], index = placed[2 * span + 1];
+      if (placed[2 * span + 2] == first_row) continue;   // (no row)
+      // the pair of every row of the manifold (the binding checks it) and its restitution,
+      // once for them all
+      const int64_t a = manifold[0], b = manifold[1];
+      double e_a = bodies.restitution[a], e_b = bodies.restitution[b];
+      if (p.restitution_rule != CombineRule::kPerObject)
+        e_a = e_b = combine(e_a, e_b, p.restitution_rule);
+      int32_t at = first_row;
+      for (int64_t k = manifold[2]; k < manifold[2] + manifold[3]; ++k) {
+        if (row_of_[k] < 0) continue;
+        row_of_[k] = at;
+        ContactRow& row = rows_[static_cast<size_t>(at++)];
+        row.normal = row.tangent[0] = row.tangent[1] = 0.0;   // no impulse yet
+        row.impact = row.impact_tangent[0] = row.impact_tangent[1] = 0.0;
+        row.landing = row.push = row.pseudo = 0.0;
+        row.a = static_cast<int32_t>(a);
+        row.b = static_cast<int32_t>(b);
+        row.contact = static_cast<int32_t>(k);
+        row.manifold = index;
+        row.n = load3(c.normal + 3 * k);
+        row.ra = ra_[k];
+        row.rb = rb_[k];
+        row.allowance = allowance_[k];
+        row.e_a = e_a;
+        row.e_b = e_b;
+      }
+      // (constructed anew in its place, every field as a new constraint's: trivially
+      // destructible, its old value needs no end)
+      static_assert(std::is_trivially_destructible_v<Manifold>);
+      Manifold& block = *new (&manifolds_[static_cast<size_t>(index)]) Manifold();
       block.a = rows_[first_row].a;   // (detection's manifold[0], [1])
       block.b = rows_[first_row].b;
       block.first = first_row;
-      block.count = count;
+      block.count = at - first_row;
       // a body's impact this step: its blocks with their friction as one (mirror hits keep
       // mirror impulses); a settled pile keeps the cheaper split solve
       block.coupled = impacted_[block.a] || impacted_[block.b];
       // its friction coefficients, once for its rows
       const double mu_s = combine(bodies.static_friction[a], bodies.static_friction[b],
                                   p.friction_rule);
-      friction_.push_back(mu_s);
-      friction_.push_back(std::min(mu_s, combine(bodies.kinetic_friction[a],
-                                                 bodies.kinetic_friction[b], p.friction_rule)));
+      friction_[2 * index] = mu_s;
+      friction_[2 * index + 1] = std::min(
+          mu_s, combine(bodies.kinetic_friction[a], bodies.kinetic_friction[b], p.friction_rule));
     }
-  }
-  rows_.resize(used);
+  });
+  for (int64_t k = 0; k < m; ++k)
+    if (row_of_[k] < 0) rowless_.push_back(static_cast<int32_t>(k));
   // each row's frame and friction coefficient (its own entry: on either thread; the
   // tangents of the row before in its part where their normals agree)
   in_parts(ctx, static_cast<int64_t>(rows_.size()), [&](int64_t lo, int64_t hi) {
@@ -1077,34 +1122,45 @@ void StepSolver::in_parts(const StepContext& ctx, int64_t count,
 }
 
 void StepSolver::beside(const StepContext& ctx, const std::function<void()>& here,
-                        const std::function<void()>& there) {
+                        const std::function<void()>& there, int kind) {
   const int64_t least = std::max<int64_t>(ctx.params.parallel_wave, 1);   // (as in_parts)
   if (ctx.params.threads < 2 || ctx.contacts.count < kParts * least) {
     here();
     there();
     return;
   }
-  worker()->run_pair(here, [&](int) { there(); }, 1, 2,
+  worker()->run_pair(here, [&](int) { there(); }, 1, kind,
                      static_cast<double>(std::max<int64_t>(ctx.contacts.count, 1)));
 }
 
-double StepSolver::warm(StepContext& ctx, int substeps) {
-  const ContactsView& c = ctx.contacts;
-  const double ratio = ctx.params.warm_start_ratio;
-  const int64_t m = c.count;
-  int64_t persistent = 0, cold = 0;
-  for (int64_t k = 0; k < m; ++k) persistent += collres::persistent(c.kind[k]);
+bool StepSolver::warmable(const StepContext& ctx) const {
   // impulses of a step of another length are a different answer: scaled by dt / last dt
   // only near 1, never from a fresh step (e.g. a nominal dt after a pause)
-  const double scale = last_dt_ > 0.0 ? growth_ : 0.0;
-  const double share = 1.0 / substeps;   // a substep carries its share of the step's
-  const bool usable = ctx.warm && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
-  if (!usable) return persistent > 0 ? 1.0 : 0.0;
+  const double scale = last_dt_ > 0.0 ? growth_ : 0.0, ratio = ctx.params.warm_start_ratio;
+  return ctx.warm && last_warm_ && scale >= 1.0 / ratio && scale <= ratio;
+}
+
+void StepSolver::recall(const StepContext& ctx) {
+  if (recalled_ || !warmable(ctx)) return;
+  const ContactsView& c = ctx.contacts;
+  const int64_t m = c.count;
   cached_normal_.resize(m);
   cached_friction_.resize(3 * m);
   found_.resize(m);
   cache_.lookup(m, c.a, c.b, c.feature, c.point, ctx.params.match_radius, cached_normal_.data(),
                 cached_friction_.data(), found_.data());
+  recalled_ = true;
+}
+
+double StepSolver::warm(StepContext& ctx, int substeps) {
+  const ContactsView& c = ctx.contacts;
+  const int64_t m = c.count;
+  int64_t persistent = 0, cold = 0;
+  for (int64_t k = 0; k < m; ++k) persistent += collres::persistent(c.kind[k]);
+  const double scale = growth_;   // (warmable: the last step's impulses, scaled)
+  const double share = 1.0 / substeps;   // a substep carries its share of the step's
+  if (!warmable(ctx)) return persistent > 0 ? 1.0 : 0.0;
+  recall(ctx);   // (done beside the impact stages)
   for (int64_t k = 0; k < m; ++k) cold += collres::persistent(c.kind[k]) && !found_[k];
   // per row (its own entries: on either thread)
   in_parts(ctx, static_cast<int64_t>(rows_.size()), [&](int64_t lo, int64_t hi) {
@@ -1357,37 +1413,45 @@ bool StepSolver::escaped(const StepContext& ctx, bool landed) {
   // per body: how far a point of it moved (m) and how much its speed changed from the
   // pre-solve velocity at most (m/s), over the reach of its contacts; a contact whose gap
   // or slack exceeds its two bodies' is known to hold (the test's answer: the same bits)
+  // (per body, then per contact without a row: each writes only its own entries, in parts)
   change_.resize(2 * n);
-  for (int64_t i = 0; i < n; ++i) {
-    const double* x = moved_.data() + 6 * i;
-    const double* v = velocity_.data() + 6 * i;
-    const double* u = later_.data() + 6 * i;
-    change_[2 * i] = length(load3(x)) + length(load3(x + 3)) * reach_body_[i];
-    change_[2 * i + 1] = landed ? length(load3(v) - load3(u)) +
-                                      length(load3(v + 3) - load3(u + 3)) * reach_body_[i]
-                                : 0.0;
-  }
-  constexpr double kSure = 1.0 + 1e-9;   // (rounding)
-  bool any = false;
-  for (const int32_t k : rowless_) {
-    const int64_t a = c.a[k], b = c.b[k];
-    const double* ca = change_.data() + 2 * a;
-    const double* cb = change_.data() + 2 * b;
-    if (gap_[k] > kSure * (ca[0] + cb[0]) &&
-        (!landed || approach_[k] + allowance_[k] > kSure * (ca[1] + cb[1])))
-      continue;
-    const Vec3 normal = load3(c.normal + 3 * k);
-    // its separation at the step's end: the reference gap plus how far the substeps moved
-    // its two points along the normal; after a landing, its approach then
-    bool out = gap_[k] + normal_speed(moved_.data(), a, b, ra_[k], rb_[k], normal) < 0.0;
-    out = out || (landed && normal_speed(velocity_.data(), a, b, ra_[k], rb_[k], normal) +
-                                    allowance_[k] < 0.0);
-    if (out) {
-      forced_[k] = 1;
-      any = true;
+  in_parts(ctx, n, [&](int64_t lo, int64_t hi) {
+    for (int64_t i = lo; i < hi; ++i) {
+      const double* x = moved_.data() + 6 * i;
+      const double* v = velocity_.data() + 6 * i;
+      const double* u = later_.data() + 6 * i;
+      change_[2 * i] = length(load3(x)) + length(load3(x + 3)) * reach_body_[i];
+      change_[2 * i + 1] = landed ? length(load3(v) - load3(u)) +
+                                        length(load3(v + 3) - load3(u + 3)) * reach_body_[i]
+                                  : 0.0;
     }
-  }
-  return any;
+  });
+  constexpr double kSure = 1.0 + 1e-9;   // (rounding)
+  std::atomic<bool> any{false};
+  in_parts(ctx, static_cast<int64_t>(rowless_.size()), [&](int64_t lo, int64_t hi) {
+    bool forced = false;
+    for (int64_t j = lo; j < hi; ++j) {
+      const int32_t k = rowless_[static_cast<size_t>(j)];
+      const int64_t a = c.a[k], b = c.b[k];
+      const double* ca = change_.data() + 2 * a;
+      const double* cb = change_.data() + 2 * b;
+      if (gap_[k] > kSure * (ca[0] + cb[0]) &&
+          (!landed || approach_[k] + allowance_[k] > kSure * (ca[1] + cb[1])))
+        continue;
+      const Vec3 normal = load3(c.normal + 3 * k);
+      // its separation at the step's end: the reference gap plus how far the substeps moved
+      // its two points along the normal; after a landing, its approach then
+      bool out = gap_[k] + normal_speed(moved_.data(), a, b, ra_[k], rb_[k], normal) < 0.0;
+      out = out || (landed && normal_speed(velocity_.data(), a, b, ra_[k], rb_[k], normal) +
+                                      allowance_[k] < 0.0);
+      if (out) {
+        forced_[k] = 1;
+        forced = true;
+      }
+    }
+    if (forced) any.store(true, std::memory_order_relaxed);
+  });
+  return any.load(std::memory_order_relaxed);
 }
 
 int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int shared) {
@@ -1401,8 +1465,6 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
   moved_.assign(6 * n, 0.0);
   travel_.assign(6 * n, 0.0);
   total_.assign(3 * rows, 0.0);
-  shock_rows(rows_, level_, order32_, shock_rows_, shock_blocks_, holding_,
-             p.shock_ratio, p.wide_rows);   // (for every substep)
   int sweeps = 0;
   for (int s = 0; s < substeps; ++s) {
     if (s > 0) {

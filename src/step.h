@@ -247,6 +247,11 @@ class StepSolver {
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
                                                  // contacts cold
+  // whether this step's rows may start from the cache's impulses (warm)
+  bool warmable(const StepContext& ctx) const;
+  // the cache's impulses of this step's contacts (cached_normal_, cached_friction_, found_),
+  // where warmable: once a step (the cache changes only at its end)
+  void recall(const StepContext& ctx);
   int32_t levels(StepContext& ctx);   // contact levels (level_); returns the largest
   // returns the sweeps; the last substep's last `shared` sweeps are left to land
   int soft_step(StepContext& ctx, int substeps, int iterations, int shared);
@@ -309,10 +314,13 @@ class StepSolver {
   void in_parts(const StepContext& ctx, int64_t count,
                 const std::function<void(int64_t, int64_t)>& part);
   // here() on this thread and there() on the second one at once (they share no data), with
-  // threads 2 and at least kParts parallel_wave contacts (Worker::run_pair, its own kind of
-  // run); else one after the other, here
+  // threads 2 and at least kParts parallel_wave contacts (Worker::run_pair, run `kind`:
+  // each pairing its own, kBeside...); else one after the other, here
+  static constexpr int kBesideStore = 2;   // the cache's store beside the push-out
+  static constexpr int kBesideRecall = 4;  // recall beside the impacts to the travel
+  static constexpr int kBesideShock = 5;   // shock_rows beside the first warm start
   void beside(const StepContext& ctx, const std::function<void()>& here,
-              const std::function<void()>& there);
+              const std::function<void()>& there, int kind);
   void report(StepContext& ctx);
   void advance(StepContext& ctx);
   void push_out(StepContext& ctx);
@@ -409,6 +417,8 @@ class StepSolver {
   std::vector<double> aimed_gap_;    // (rows) m: an aimed row's separation where aim
                                      // measured it
   std::vector<int32_t> rowless_;     // the contacts without a row (prepare)
+  std::vector<int32_t> placed_;      // (K + 1, 2) prepare: the rows and the constraints of
+                                     // detection's manifolds before each one
   std::vector<uint8_t> forced_;      // (M,) 1: a row whatever the bound (the net let it in)
   std::vector<uint8_t> struck_;      // (M,) 1: a speculative contact the impact stages take
                                      // (land found it closing faster than the threshold)
@@ -419,6 +429,7 @@ class StepSolver {
   uint64_t redone_ = 0;
   std::vector<double> cached_normal_, cached_friction_, impact_work_, landing_;
   std::vector<uint8_t> found_;
+  bool recalled_ = false;            // cached_normal_, ... hold this step's (recall)
   std::vector<ContactRow> rows_, shock_rows_;
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
                                                      // (manifolds_ in detection's order)

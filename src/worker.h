@@ -56,7 +56,7 @@ class Worker {
  public:
   static constexpr int kMaxChunks = 0xffff;  // per queue
   static constexpr unsigned kExplore = 17;   // runs of a kind between two in the mode not chosen
-  static constexpr int kKinds = 4;           // kinds of run (costs compared apart)
+  static constexpr int kKinds = 6;           // kinds of run (costs compared apart)
 
   Worker();
   ~Worker();

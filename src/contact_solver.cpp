@@ -1185,15 +1185,15 @@ WIDE void friction_target(const WideRow& r, Lanes x, Lanes y, Lanes& tx, Lanes& 
 WIDE Lanes solve_friction(WideRow& r, const WideGroup& g, WideTwists& t, Mask live) {
   const Mask held = (r.normal != 0.0) | (r.tangent[0] != 0.0) | (r.tangent[1] != 0.0);
   live &= held;
-  const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
+  const Lanes x = relative(r, t, 1, g.t1), y = relative(r, t, 2, g.t2);
   Lanes tx, ty;
   friction_target(r, x, y, tx, ty);
   const Lanes zero = splat(0.0);
   const Lanes d_x = pick(live, tx - r.tangent[0], zero), d_y = pick(live, ty - r.tangent[1], zero);
   r.tangent[0] = pick(live, tx, r.tangent[0]);
   r.tangent[1] = pick(live, ty, r.tangent[1]);
-  apply(r, g, t, 1, r.t1, d_x);
-  apply(r, g, t, 2, r.t2, d_y);
+  apply(r, g, t, 1, g.t1, d_x);
+  apply(r, g, t, 2, g.t2, d_y);
   return maximum(magnitude(d_x), magnitude(d_y));
 }
 
@@ -1221,15 +1221,15 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
     const Lanes d_y = pick(over[i], r.tangent[1] * scale - r.tangent[1], zero);
     r.tangent[0] = pick(over[i], r.tangent[0] + d_x, r.tangent[0]);
     r.tangent[1] = pick(over[i], r.tangent[1] + d_y, r.tangent[1]);
-    apply(r, g, t, 1, r.t1, d_x);
-    apply(r, g, t, 2, r.t2, d_y);
+    apply(r, g, t, 1, g.t1, d_x);
+    apply(r, g, t, 2, g.t2, d_y);
     change = maximum(change, maximum(magnitude(d_x), magnitude(d_y)));
   }
   Lanes d[4][2];
   Lanes along = zero;
   for (int i = 0; i < k; ++i) {
     WideRow& r = w[i];
-    const Lanes x = relative(r, t, 1, r.t1), y = relative(r, t, 2, r.t2);
+    const Lanes x = relative(r, t, 1, g.t1), y = relative(r, t, 2, g.t2);
     const Mask on = live & ((r.normal != 0.0) | (r.tangent[0] != 0.0) | (r.tangent[1] != 0.0));
     Lanes tx, ty;
     friction_target(r, x, y, tx, ty);
@@ -1243,8 +1243,8 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
   // from t, delta); after the targets, which read t alone: fewer values live at once
   WideTwists moved = t;
   for (int i = 0; i < k; ++i) {
-    apply_all(w[i], g, moved, 1, w[i].t1, d[i][0]);
-    apply_all(w[i], g, moved, 2, w[i].t2, d[i][1]);
+    apply_all(w[i], g, moved, 1, g.t1, d[i][0]);
+    apply_all(w[i], g, moved, 2, g.t2, d[i][1]);
   }
   WideTwists delta = moved;
   delta.va = WideVec{moved.va.x - t.va.x, moved.va.y - t.va.y, moved.va.z - t.va.z};
@@ -1253,8 +1253,8 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
   delta.wb = WideVec{moved.wb.x - t.wb.x, moved.wb.y - t.wb.y, moved.wb.z - t.wb.z};
   Lanes curve = zero;
   for (int i = 0; i < k; ++i)
-    curve += d[i][0] * relative(w[i], delta, 1, w[i].t1) +
-             d[i][1] * relative(w[i], delta, 2, w[i].t2);
+    curve += d[i][0] * relative(w[i], delta, 1, g.t1) +
+             d[i][1] * relative(w[i], delta, 2, g.t2);
   const Lanes s = pick(curve > -along, -along / curve, splat(1.0));
   auto take = [&](WideVec& to, const WideVec& by) __attribute__((always_inline)) {
     to.x = pick(go, to.x + s * by.x, to.x);
@@ -1280,7 +1280,7 @@ WIDE Lanes solve_normal(WideRow& r, const WideGroup& g, WideTwists& t, Lanes fre
   const Lanes new_n = maximum(r.normal - r.normal_mass * free, splat(0.0));
   const Lanes d_n = new_n - r.normal;
   r.normal = new_n;
-  apply(r, g, t, 0, r.n, d_n);
+  apply(r, g, t, 0, g.n, d_n);
   return magnitude(d_n);
 }
 
@@ -1318,7 +1318,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   // (free[i]: row i's normal speed plus its allowance, m/s, from the twists as loaded: what
   // the normal updates below start from too)
   Lanes free[4];
-  for (int i = 0; i < k; ++i) free[i] = relative(w[i], t, 0, w[i].n) + w[i].allowance;
+  for (int i = 0; i < k; ++i) free[i] = relative(w[i], t, 0, g.n) + w[i].allowance;
   {
     Mask idle = (Mask){-1, -1, -1, -1};
     const Mask zero = (Mask){0, 0, 0, 0};
@@ -1380,12 +1380,12 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       Mask fit[3];
       for (int i = 0; i < 2; ++i) {
         const int j = 1 - i;
-        const Lanes a_ii = g.delassus[i][i];
+        const Lanes a_ii = kept->delassus[i][i];
         const Lanes x_i = (-q[i]) / a_ii;
         candidate[i][i] = x_i;
         candidate[i][j] = zero;
-        const Lanes w_j = q[j] + g.delassus[j][0] * candidate[i][0] +
-                          g.delassus[j][1] * candidate[i][1];
+        const Lanes w_j = q[j] + kept->delassus[j][0] * candidate[i][0] +
+                          kept->delassus[j][1] * candidate[i][1];
         fit[i] = (magnitude(a_ii) > 1e-9 * magnitude(a_ii) + 1e-300) &
                  (x_i >= -1e-12 * (1.0 + magnitude(x_i))) &
                  (w_j >= -1e-12 * (1.0 + magnitude(q[j])));
@@ -1393,7 +1393,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       candidate[2][0] = candidate[2][1] = zero;
       fit[2] = (Mask){-1, -1, -1, -1};
       for (int i = 0; i < 2; ++i)
-        fit[2] &= q[i] + g.delassus[i][0] * zero + g.delassus[i][1] * zero >=
+        fit[2] &= q[i] + kept->delassus[i][0] * zero + kept->delassus[i][1] * zero >=
                   -1e-12 * (1.0 + magnitude(q[i]));
       Mask chosen = {0, 0, 0, 0};
       Lanes found[2] = {zero, zero};
@@ -1453,9 +1453,9 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         for (int r = 0; r < 4; ++r) e[r][4] = zero;   // the right-hand side, -q of the set
         for (int i = 0; i < k; ++i)
           for (int r = 0; r <= i; ++r) e[r][4] = pick(in[r][i], -q[i], e[r][4]);
-        Mask kept_bits = (Mask){-1, -1, -1, -1};
-        if (kept != nullptr) std::memcpy(&kept_bits, kept->set, sizeof(kept_bits));
-        const bool replay = kept != nullptr && !any(tried & (kept_bits != bits));
+        Mask kept_bits;
+        std::memcpy(&kept_bits, kept->set, sizeof(kept_bits));
+        const bool replay = !any(tried & (kept_bits != bits));
         Mask ok = tried;
         if (replay) {
           // the kept elimination on the right-hand side alone (its swaps and multiples)
@@ -1488,8 +1488,8 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
                 e[r][r][l] = 1.0;
                 continue;
               }
-              for (int c = 0; c < m; ++c) e[r][c][l] = g.delassus[idx[r]][idx[c]][l];
-              diagonal[r][l] = g.delassus[idx[r]][idx[r]][l];
+              for (int c = 0; c < m; ++c) e[r][c][l] = kept->delassus[idx[r]][idx[c]][l];
+              diagonal[r][l] = kept->delassus[idx[r]][idx[r]][l];
             }
           }
           Mask usable = (Mask){-1, -1, -1, -1};
@@ -1515,17 +1515,16 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
               if (r == c) continue;
               const Lanes f = e[r][c] / e[c][c];
               for (int j = c; j < 5; ++j) e[r][j] -= f * e[c][j];
-              if (kept != nullptr) kept->factor[c][r] = f;
+              kept->factor[c][r] = f;
             }
-            if (kept != nullptr) kept->pivot[c] = pivot;
+            kept->pivot[c] = pivot;
           }
           ok &= usable;
-          if (kept != nullptr) {   // kept for the next sweeps (lanes not tried: none, -1)
-            for (int r = 0; r < 4; ++r) kept->diagonal[r] = e[r][r];
-            kept->usable = (Lanes)usable;
-            const Mask set = bits | ~tried;
-            std::memcpy(kept->set, &set, sizeof(set));
-          }
+          // kept for the next sweeps (lanes not tried: none, -1)
+          for (int r = 0; r < 4; ++r) kept->diagonal[r] = e[r][r];
+          kept->usable = (Lanes)usable;
+          const Mask set = bits | ~tried;
+          std::memcpy(kept->set, &set, sizeof(set));
         }
         Lanes x[4];   // the set's r-th row's impulse
         for (int r = 0; r < 4; ++r) x[r] = e[r][4] / e[r][r];
@@ -1537,7 +1536,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
           }
         for (int i = 0; i < k; ++i) {   // the rows left out: no approach
           Lanes w_i = q[i];
-          for (int j = 0; j < k; ++j) w_i += g.delassus[i][j] * xs[j];
+          for (int j = 0; j < k; ++j) w_i += kept->delassus[i][j] * xs[j];
           ok &= carry[i] | (w_i >= -1e-12 * (1.0 + magnitude(q[i])));
         }
         for (int i = 0; i < k; ++i) {   // take_block
@@ -1549,7 +1548,7 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         search &= ~ok;
       }
     }
-    for (int i = 0; i < k; ++i) apply(w[i], g, t, 0, w[i].n, taken[i]);
+    for (int i = 0; i < k; ++i) apply(w[i], g, t, 0, g.n, taken[i]);
     if (any(search)) {
       for (int l = 0; l < kLanes; ++l) {
         if (!search[l]) continue;
@@ -1599,7 +1598,7 @@ void solve_groups(SweepPlan& plan, size_t l, size_t lo, size_t hi,
     WideRow* const w = &plan.wide_rows[g.row];
     WideSpin* const spin_lanes = spins != nullptr && plan.spin_groups[entry].wide
                                      ? &plan.spin_groups[entry] : nullptr;
-    WideFace* const kept = g.count >= 3 ? &plan.faces[entry] : nullptr;
+    WideFace* const kept = &plan.faces[entry];   // (read where the search runs: 2 to 4 rows)
     switch (g.count) {   // 1 to 4 (WideGroup)
       case 1:
         solve_group_of<1>(g, w, rows, manifolds, v, spins, spin_lanes, kept, progress);
@@ -1703,19 +1702,22 @@ WIDE void solve_wide_spins(SweepPlan& plan, size_t l, size_t lo, size_t hi, doub
 // entry and kept elimination (the same fields from the same rows: the same bits); the
 // others get new entries (SweepPlan::fresh). A wave's groups: its full ones, then its
 // padded ones (each run of one row count in [wide_end, lone)).
-// Lane l of group g an idle pad (WideGroup): its rows zero, lane 0's bodies, not written.
-void pad_lane(WideGroup& g, WideRow* w, int l) {
+// Lane l of group g an idle pad (WideGroup): its rows and frame zero, lane 0's bodies, not
+// written.
+void pad_lane(WideGroup& g, WideRow* w, WideFace& search, int l) {
   g.offset_a[l] = g.offset_a[0];
   g.offset_b[l] = g.offset_b[0];
   g.write_a[l] = g.write_b[l] = false;
   g.ma[l] = g.mb[l] = 0.0;
   g.invertible[l] = 0.0;
+  for (int e = 0; e < 3; ++e) g.n[e][l] = g.t1[e][l] = g.t2[e][l] = 0.0;
   for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) g.plain[i][j][l] = g.inverse[i][j][l] = g.delassus[i][j][l] = 0.0;
+    for (int j = 0; j < 4; ++j)
+      g.plain[i][j][l] = g.inverse[i][j][l] = search.delassus[i][j][l] = 0.0;
   for (int i = 0; i < g.count; ++i) {
     WideRow& r = w[i];
     for (int e = 0; e < 3; ++e) {
-      r.n[e][l] = r.t1[e][l] = r.t2[e][l] = r.kt[e][l] = 0.0;
+      r.kt[e][l] = 0.0;
       for (int d = 0; d < 3; ++d)
         r.ang_a[d][e][l] = r.ang_b[d][e][l] = r.dw_a[d][e][l] = r.dw_b[d][e][l] = 0.0;
     }
@@ -1724,14 +1726,18 @@ void pad_lane(WideGroup& g, WideRow* w, int l) {
   }
 }
 
-// The numbers of a ContactRow from n to dw_b (n, t1, t2, ang_a, ang_b, dw_a, dw_b: 45, in
-// that order) are those of a WideRow's first 45 Lanes, in the same order.
-constexpr size_t kHot = 45;
+// The numbers of a ContactRow from ang_a to dw_b (ang_a, ang_b, dw_a, dw_b: 36, in that
+// order) are those of a WideRow's first 36 Lanes, in the same order; its frame (n, t1, t2:
+// 9) those of a WideGroup's n, t1, t2.
+constexpr size_t kHot = 36;
 static_assert(sizeof(Vec3) == 3 * sizeof(double), "a Vec3 is its three numbers");
-static_assert(offsetof(ContactRow, ma) - offsetof(ContactRow, n) == kHot * sizeof(double),
-              "ContactRow's directions, levers and their images follow each other");
+static_assert(offsetof(ContactRow, ma) - offsetof(ContactRow, ang_a) == kHot * sizeof(double),
+              "ContactRow's levers and their images follow each other");
 static_assert(offsetof(WideRow, normal_mass) == kHot * sizeof(Lanes),
-              "WideRow's directions, levers and their images come first, in the same order");
+              "WideRow's levers and their images come first, in the same order");
+static_assert(offsetof(ContactRow, ang_a) - offsetof(ContactRow, n) == 9 * sizeof(double) &&
+                  offsetof(WideGroup, t2) - offsetof(WideGroup, n) == 6 * sizeof(Lanes),
+              "a frame's numbers follow each other, n, t1, t2");
 // ... and so are the numbers from normal_mass on: normal_mass, kt (3), allowance, mu,
 // normal, tangent (2)
 template <typename Row, size_t kSize>
@@ -1757,10 +1763,10 @@ inline __attribute__((always_inline)) void transpose_rows(const ContactRow* cons
 }
 
 // pack_groups' fields of a group of four manifolds (no padding lane) that are read row by
-// row: its matrices and its rows' constant fields, four numbers of each lane at a time
-// (one load per lane, a 4x4 transpose, four stores), the same values.
+// row: its matrices, its frame and its rows' constant fields, four numbers of each lane at
+// a time (one load per lane, a 4x4 transpose, four stores), the same values.
 COLLRES_CLONED
-void pack_full(WideGroup& g, WideRow* w, const std::vector<ContactRow>& rows,
+void pack_full(WideGroup& g, WideRow* w, WideFace& search, const std::vector<ContactRow>& rows,
                const std::vector<Manifold>& manifolds) {
   const Manifold* m[kLanes];
   for (int l = 0; l < kLanes; ++l) m[l] = &manifolds[g.manifold + static_cast<size_t>(l)];
@@ -1774,13 +1780,16 @@ void pack_full(WideGroup& g, WideRow* w, const std::vector<ContactRow>& rows,
   };
   matrix(&Manifold::plain, g.plain);
   matrix(&Manifold::inverse, g.inverse);
-  matrix(&Manifold::delassus, g.delassus);
+  matrix(&Manifold::delassus, search.delassus);
+  const ContactRow* c[kLanes];
+  for (int l = 0; l < kLanes; ++l) c[l] = &rows[static_cast<size_t>(m[l]->first)];
+  transpose_rows(c, offsetof(ContactRow, n), g.n);   // the frame: n, t1.x
+  transpose_rows(c, offsetof(ContactRow, n) + 4 * sizeof(double), g.t1 + 1);   // to t2.y
+  for (int l = 0; l < kLanes; ++l) g.t2[2][l] = c[l]->t2[2];
   for (int i = 0; i < g.count; ++i) {
-    const ContactRow* c[kLanes];
     for (int l = 0; l < kLanes; ++l) c[l] = &rows[static_cast<size_t>(m[l]->first + i)];
-    for (size_t q = 0; q + 4 <= kHot; q += 4)
-      transpose_rows(c, offsetof(ContactRow, n) + q * sizeof(double), w[i].n + q);
-    for (int l = 0; l < kLanes; ++l) w[i].dw_b[2][2][l] = c[l]->dw_b[2][2];
+    for (size_t q = 0; q < kHot; q += 4)
+      transpose_rows(c, offsetof(ContactRow, ang_a) + q * sizeof(double), w[i].ang_a[0] + q);
     transpose_rows(c, offsetof(ContactRow, normal_mass), &w[i].normal_mass);   // and kt
   }
 }
@@ -1836,9 +1845,10 @@ void pack_groups(SweepPlan& plan, const std::vector<ContactRow>& rows,
 void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& rows,
                 const std::vector<Manifold>& manifolds, const double* inv_mass) {
   WideGroup& g = plan.groups[entry];
-  for (int l = 0; l < kLanes; ++l) plan.faces[entry].set[l] = -1;   // (nothing kept)
+  WideFace& search = plan.faces[entry];
+  for (int l = 0; l < kLanes; ++l) search.set[l] = -1;   // (nothing kept)
   const bool full = g.lanes == kLanes;
-  if (full) pack_full(g, &plan.wide_rows[g.row], rows, manifolds);
+  if (full) pack_full(g, &plan.wide_rows[g.row], search, rows, manifolds);
   for (int l = 0; l < g.lanes; ++l) {
     const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
     g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
@@ -1854,15 +1864,17 @@ void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& r
       for (int j = 0; j < g.count; ++j) {
         g.plain[i][j][l] = m.plain[i][j];
         g.inverse[i][j][l] = m.inverse[i][j];
-        g.delassus[i][j][l] = m.delassus[i][j];
+        search.delassus[i][j][l] = m.delassus[i][j];
       }
+    for (int e = 0; e < 3; ++e) {
+      g.n[e][l] = r[0].n[e];
+      g.t1[e][l] = r[0].t1[e];
+      g.t2[e][l] = r[0].t2[e];
+    }
     for (int i = 0; i < g.count; ++i) {
       WideRow& w = plan.wide_rows[g.row + static_cast<size_t>(i)];
       const ContactRow& c = r[i];
       for (int e = 0; e < 3; ++e) {
-        w.n[e][l] = c.n[e];
-        w.t1[e][l] = c.t1[e];
-        w.t2[e][l] = c.t2[e];
         for (int d = 0; d < 3; ++d) {
           w.ang_a[d][e][l] = c.ang_a[d][e];
           w.ang_b[d][e][l] = c.ang_b[d][e];
@@ -1874,7 +1886,7 @@ void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& r
       w.normal_mass[l] = c.normal_mass;
     }
   }
-  for (int l = g.lanes; l < kLanes; ++l) pad_lane(g, &plan.wide_rows[g.row], l);
+  for (int l = g.lanes; l < kLanes; ++l) pad_lane(g, &plan.wide_rows[g.row], search, l);
 }
 
 // The wide rows' fields that change between calls of solve_velocities in a step (the

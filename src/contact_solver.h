@@ -233,19 +233,20 @@ typedef double Lanes __attribute__((vector_size(32), aligned(32)));
 
 // One row index of a wide group's four manifolds as a structure of arrays (lane l: row
 // `first + i` of the group's manifold l): the ContactRow fields the velocity sweeps read
-// and write, same units and signs. Vectors are [x, y, z]; [k][.] for d = n, t1, t2.
+// and write but the frame (n, t1, t2: one per manifold, in its WideGroup), same units and
+// signs. Vectors are [x, y, z]; [k][.] for d = n, t1, t2.
 struct WideRow {
-  Lanes n[3], t1[3], t2[3];
   Lanes ang_a[3][3], ang_b[3][3], dw_a[3][3], dw_b[3][3];
   Lanes normal_mass, kt[3], allowance, mu;
   Lanes normal, tangent[2];
 };
 
-// Up to four manifolds of one wave with the same number of rows (1 to 4), solved in
-// lanes: their rows are WideRows [row, row + count); `manifold` is the first of them
-// (consecutive in the solve's order, in lanes [0, lanes)). A lane past them is idle
-// padding: its rows all zero (no impulse, no mass, allowance 0: every update leaves it
-// at +0 and changes no twist), its bodies lane 0's, read and never written.
+// Up to four manifolds of one wave with the same number of rows (1 to 4), the rows of
+// each sharing one frame (wave_manifolds), solved in lanes: their rows are WideRows [row,
+// row + count); `manifold` is the first of them (consecutive in the solve's order, in
+// lanes [0, lanes)). A lane past them is idle padding: its rows and frame all zero (no
+// impulse, no mass, allowance 0: every update leaves it at +0 and changes no twist), its
+// bodies lane 0's, read and never written. (What only the searches read: WideFace.)
 struct WideGroup {
   size_t manifold = 0, row = 0;
   int count = 0;
@@ -256,21 +257,23 @@ struct WideGroup {
                                                          // its twist's numbers in velocity
   bool write_a[kLanes] = {}, write_b[kLanes] = {};   // movable: its twist is stored
   Lanes ma, mb;                  // 1/kg
-  Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
-  Lanes delassus[4][4];          // Manifold::delassus (the active-set search in lanes)
   Lanes invertible;              // 1 where Manifold::invertible and not ::coupled, else 0
                                  // (a lane without it is solved by solve_manifold)
+  Lanes n[3], t1[3], t2[3];      // each manifold's frame: every row's (unit, world)
+  Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
 };
 
-// A face group's (3 or 4 rows) elimination of its lanes' carrying sets (solve_groups, when
-// the all-active answer does not fit), kept from one sweep to the next: its pivots,
-// multipliers and eliminated diagonal depend only on each lane's set and the group's
-// Delassus matrices (the same for the whole plan), so while every lane that needs it asks
-// for the set kept, the right-hand side alone is eliminated with them: the same operations
-// on it, the same bits.
+// What a wide group of 2 to 4 rows reads only where the all-active answer does not fit
+// (solve_groups): its Delassus matrices, and for a face group (3 or 4 rows) its lanes'
+// carrying sets' elimination, kept from one sweep to the next: its pivots, multipliers
+// and eliminated diagonal depend only on each lane's set and the group's Delassus
+// matrices (the same for the whole plan), so while every lane that needs it asks for the
+// set kept, the right-hand side alone is eliminated with them: the same operations on
+// it, the same bits.
 struct WideFace {
   alignas(32) int64_t set[kLanes] = {-1, -1, -1, -1};   // per lane the carrying set kept
                                                       // (bit i: row i), -1: none
+  Lanes delassus[4][4];                 // Manifold::delassus (the active-set search)
   Lanes pivot[4];                       // column c: the row swapped into place (as double)
   Lanes factor[4][4];                   // [c][r]: row c's multiple taken from row r != c
   Lanes diagonal[4];                    // the eliminated matrix's diagonal
@@ -341,7 +344,7 @@ struct SweepPlan {
   std::vector<size_t> wave_groups;      // groups of wave w: slot[wave_groups[w], [w + 1])
   std::vector<WideSpin> spin_groups;    // per entry: its manifolds' spin rows, in lanes
                                         // (spin -1 in a lane: none; WideSpin::wide)
-  std::vector<WideFace> faces;          // per entry: its kept elimination (3 or 4 rows)
+  std::vector<WideFace> faces;          // per entry: its search's data (2 to 4 rows)
   bool packed = false;                  // groups and spin_groups hold the prepared rows'
                                         // constant fields (the first solve_velocities of
                                         // a plan packs them; wave_manifolds clears this)

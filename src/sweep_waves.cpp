@@ -1,9 +1,14 @@
 #include "sweep_waves.h"
 
 #include <algorithm>
+#include <cstring>
 
 namespace collres {
 namespace {
+
+// A manifold's kind (WaveScratch::kind): its row count 1 to 4 (solved in wide groups), or
+// this (one by one: more rows, or rows of more than one frame)
+constexpr int kKinds = 5;
 
 // The movable bodies' ranks (s.rank), breadth first through the manifolds that join two
 // of them, each group of bodies so joined from a body its search from its first body
@@ -118,14 +123,15 @@ void sides(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& c
 void fill_lanes(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
                 const double* inv_mass, int32_t waves, int32_t fence, WaveScratch& s) {
   const size_t count = chosen.size();
-  // each manifold's side and row count (key: 4 side + rows - 1; -1 for more than 4 rows),
+  // each manifold's side and kind (key: 4 side + kind - 1; -1 for kind 5, one by one),
   // and its next one on its bodies A and B (-1: none, or the body immovable)
   s.key.resize(count);
   s.next.resize(2 * count);
   std::fill(s.last.begin(), s.last.end(), -1);
   for (size_t index = count; index-- > 0;) {
     const Manifold& m = manifolds[static_cast<size_t>(chosen[index])];
-    s.key[index] = static_cast<int8_t>(m.count <= 4 ? 4 * s.side[index] + m.count - 1 : -1);
+    s.key[index] = static_cast<int8_t>(s.kind[index] <= 4 ? 4 * s.side[index] + s.kind[index] - 1
+                                                          : -1);
     const int32_t bodies[2] = {m.a, m.b};
     for (int j = 0; j < 2; ++j) {
       const bool movable = inv_mass[bodies[j]] > 0.0;
@@ -254,27 +260,35 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     s.side.assign(count, 0);
   }
   s.speculative.resize(count);
+  s.kind.resize(count);
+  auto same = [](const Vec3& a, const Vec3& b) {
+    return std::memcmp(a.data(), b.data(), 3 * sizeof(double)) == 0;
+  };
   for (size_t index = 0; index < count; ++index) {
     const Manifold& m = manifolds[static_cast<size_t>((*order)[index])];
-    bool all = true;
-    for (int32_t i = m.first; i < m.first + m.count && all; ++i) all = rows[i].allowance > 0.0;
+    bool all = true, framed = m.count <= 4;
+    const ContactRow& r = rows[static_cast<size_t>(m.first)];
+    for (int32_t i = m.first; i < m.first + m.count; ++i) {
+      all = all && rows[i].allowance > 0.0;
+      framed = framed && same(rows[i].n, r.n) && same(rows[i].t1, r.t1) && same(rows[i].t2, r.t2);
+    }
     s.speculative[index] = all ? 1 : 0;
+    s.kind[index] = static_cast<int8_t>(framed ? m.count : kKinds);
   }
   fill_lanes(manifolds, *order, inv_mass, waves, fence, s);
-  // stable counting sort by (wave, side, row count, speculative): bucket (2 wave + side) *
-  // 10 + 2 (count - 1) + speculative (counts 1 to 4; the last two buckets of a part for
-  // longer manifolds). A speculative manifold (every row with a gap to close: allowance >
-  // 0) is the kind that carries no impulse (at 30 Hz about 60 % of a settled pile's rows):
-  // after the others of its row count, so that most wide groups are all of one kind and a
-  // group whose four lanes all stay idle costs only its approach test (solve_velocities)
-  constexpr int kKinds = 5, kBuckets = 2 * kKinds;
+  // stable counting sort by (wave, side, kind, speculative): bucket (2 wave + side) *
+  // 10 + 2 (kind - 1) + speculative (row counts 1 to 4; the last two buckets of a part for
+  // the manifolds solved one by one). A speculative manifold (every row with a gap to
+  // close: allowance > 0) is the sort that carries no impulse (at 30 Hz about 60 % of a
+  // settled pile's rows): after the others of its row count, so that most wide groups
+  // are all of one sort and a group whose four lanes all stay idle costs only its
+  // approach test (solve_velocities)
+  constexpr int kBuckets = 2 * kKinds;
   // each manifold's bucket
   for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds[static_cast<size_t>((*order)[index])];
     const int32_t part = 2 * static_cast<int32_t>(s.bucket[index]) + s.side[index];
     s.bucket[index] = static_cast<size_t>(part) * kBuckets +
-                      2 * static_cast<size_t>(std::min(m.count, kKinds) - 1) +
-                      s.speculative[index];
+                      2 * static_cast<size_t>(s.kind[index] - 1) + s.speculative[index];
   }
   const size_t parts = 2 * static_cast<size_t>(waves);
   s.start.assign(parts * kBuckets + 1, 0);

@@ -55,7 +55,9 @@ struct WaveScratch {
   std::vector<size_t> bucket, start;
   std::vector<int32_t> order, index;
   std::vector<uint8_t> speculative;   // per chosen manifold: every row with allowance > 0
-  std::vector<int8_t> key;           // per chosen manifold: 4 side + rows - 1 (-1: > 4 rows)
+  std::vector<int8_t> kind;          // per chosen manifold: its rows (1 to 4) where they
+                                     // share one frame (WideGroup), else 5 (one by one)
+  std::vector<int8_t> key;           // per chosen manifold: 4 side + kind - 1 (-1: kind 5)
   std::vector<int32_t> next;         // per chosen manifold: the next one on its body A, B
   std::vector<int32_t> members, carry, moved;   // fill_lanes: the waves' manifolds
 };
@@ -66,7 +68,8 @@ struct WaveScratch {
 // one thread: plan.worker null), into `out`
 // (SweepPlan's layout, a part per SweepWave: within a part, wide groups of kLanes
 // manifolds of one row count 1..4 first, then the rest of each row count 1..4 left two or
-// three (padded groups), then the rest left one and the longer manifolds one by one;
+// three (padded groups), then the rest left one and the longer manifolds one by one (and
+// those whose rows do not share one frame, n, t1 and t2: a wide group keeps one a lane);
 // within a row count the speculative manifolds, every row with allowance > 0, last), each
 // copied once; fills plan.waves (with each part's side, after, spin_after and seam; with
 // a worker the waits, else none),

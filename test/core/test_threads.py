@@ -16,9 +16,9 @@ phase's fat pairs by halves; the pairs, a first part here, the rest on the worke
 its own lane, joined in pair order). Shock propagation sweeps its blocks
 the same way, one level of lower bodies at a time (one thread).
 The laws: the waves hold (no movable body twice in a wave, each body's manifolds in the
-solve's order, wide groups of one row count, every manifold of up to four rows in one but
-the one left of a row count, fewer manifolds left over than waves as early as possible
-would leave), and each part waits for the other side's part that last moved one of its
+solve's order, wide groups of one row count, every manifold of up to four rows sharing one
+frame in one but the one left of a row count, fewer manifolds left over than waves as early
+as possible would leave), and each part waits for the other side's part that last moved one of its
 bodies; whatever the thread count and with wide rows on or off, every step's corrected
 states and impulses are the same bytes, and so is every array detection gives. Here a pile
 of cubes and spheres falls into a bin and settles (impacts, stacking, friction, rolling
@@ -33,9 +33,12 @@ import pytest
 from collres_ros.core.config import SolverSettings
 from collres_ros.core.detection import Detection
 from collres_ros.core.types import (COMPOUND, TRIANGLE_MESH, BodySpec, BodyStates,
-                                    CollisionFilter, Piece)
+                                    CollisionFilter, ContactKind, ContactSet, pair_manifolds,
+                                    Piece)
 from collres_ros.core.world import World
 from collres_ros.ros.integrator import euler_step
+
+from contacts import box, FixedContacts  # noqa: I100
 
 DT = 1.0 / 120.0
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -385,3 +388,46 @@ def test_detection_of_compounds_and_a_mesh_on_two_threads_gives_the_bytes_of_one
         state = w.step(state, current, DT).states
     assert on_floor > 0 and compounds > 0        # the mesh and the pieces met
     assert two._native.helped[1] >= STEPS
+
+
+def test_a_manifold_whose_points_have_two_frames_is_solved_one_by_one_with_the_same_bytes():
+    # five boxes resting on the floor on four points each, hand-made: one box's points carry
+    # two normals (two of them tilted by 1e-3 rad), so its rows share no frame (n, t1, t2)
+    # and no wide group takes it (a group keeps one frame a lane): solved one by one after
+    # the group of the other four; with wide rows on or off, on one thread or two, the same
+    # bytes
+    size = 0.1
+    bodies = [BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)]
+    bodies += [box(f'box{i}', (size,) * 3, 1.0, mu_s=0.6, mu_k=0.4) for i in range(5)]
+    start = BodyStates.zeros(len(bodies))
+    points, normals = [], []
+    for i in range(5):
+        start.position[i + 1] = (0.3 * i, 0.0, 0.5 * size - 0.001)
+        for k, (x, y) in enumerate(((-1, -1), (1, -1), (1, 1), (-1, 1))):
+            points.append((0.3 * i + 0.5 * size * x, 0.5 * size * y, -0.0005))
+            tilt = 1e-3 if i == 2 and k >= 2 else 0.0
+            normals.append((np.sin(tilt), 0.0, np.cos(tilt)))
+    count = len(points)
+    body_a = np.zeros(count, np.int64)
+    body_b = np.repeat(np.arange(1, 6, dtype=np.int64), 4)
+    contacts = ContactSet(body_a, body_b, np.array(points), np.array(normals),
+                          np.full(count, -0.001), np.zeros(count),
+                          np.full(count, int(ContactKind.PERSISTENT), np.int8),
+                          np.arange(count, dtype=np.int64), pair_manifolds(body_a, body_b))
+    answers = []
+    for threads, wide in ((1, True), (2, True), (1, False)):
+        w = World(bodies, SolverSettings(sleeping=False), FixedContacts(contacts))
+        w._params.threads = threads
+        w._params.wide_rows = wide
+        state = start.copy()
+        steps = []
+        for _ in range(5):
+            result = w.step(state, euler_step(state, w.dynamic, GRAVITY, DT), DT)
+            state = result.states
+            steps.append(answer(result))
+            ((first, wide_end, lone, end, *_),) = w._solver.waves
+            assert (wide_end - first, end - lone) == (4, 1)
+            assert w._solver.sweep_bodies[lone, 1] == 3   # the box of two frames
+        assert result.report.normal_impulse.min() > 0.0
+        answers.append(steps)
+    assert answers[1] == answers[0] and answers[2] == answers[0]

@@ -299,10 +299,17 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // mu times its normal along its aim (a unit direction in t1, t2): frozen (its column holds
 // its friction's effect too), or after a Newton step, f - mu n aim + stiff P slip = 0 with
 // aim against the last slip, P = 1 - aim aim^T and stiff = mu n / |slip| (N s per m/s),
-// the exact linearisation of f = -mu n slip / |slip| there. The matrix's diagonal is a
-// fraction kRegular heavier on the total impulses: the least-norm answer of a redundant
-// block (four points of a face: 12 rows on 6 motions), so a mirror-symmetric hit gets
-// mirror-symmetric impulses. After each solve: a row whose normal would pull lets go; a
+// the exact linearisation of f = -mu n slip / |slip| there. The matrix's diagonal is
+// heavier on the total impulses by a fraction kRegular of each unknown's own effect along
+// its direction (the row's K_nn, K_t1t1 or K_t2t2, > 0): the least-norm answer of a
+// redundant block (four points of a face: 12 rows on 6 motions), so a mirror-symmetric hit
+// gets mirror-symmetric impulses. (Not a fraction of the column's diagonal: a frozen
+// sliding row's holds its friction's effect too, K_nn + mu aim . K_nt, which can cancel
+// K_nn or turn it negative. On a box struck sliding on four points of another, the normals
+// leave one direction free, the mirror-antisymmetric one; weighted so, its regularisation
+// nearly vanished, 1.9e-10 of the block's scale instead of 1e-8, and rounding of 1e-14 in
+// the matrix parted the mirror points' normal impulses by 1e-5 of them.) After each
+// solve: a row whose normal would pull lets go; a
 // sticking row pushed beyond its cone slides along that friction; a sliding row whose
 // friction does not oppose its slip (straight, within kAimed) is aimed against it (a
 // Newton step, every sliding row of the block with it: a redundant block's rounding, 1e-9
@@ -400,7 +407,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
       const ContactRow& ru = r[i];
       if (dir[u] == 0 || !slides[i]) {   // no approach beyond the allowance; no slip
         for (int c = 0; c < m; ++c) s[u][c] = column(i, dir[u], c);
-        s[u][u] *= 1.0 + kRegular;
+        s[u][u] += kRegular * effect(i, dir[u], i, dir[u]);
         s[u][m] = -(speed[i][dir[u]] + (dir[u] == 0 ? ru.allowance : 0.0));
         continue;
       }

@@ -345,3 +345,23 @@ def test_a_box_struck_sliding_on_four_points_of_another_gets_mirror_symmetric_im
         [[0.19824201839109545, 0.07577810831289285, 0.0814852493085918],
          [0.05860659444261779, 0.1991661541902316, -0.26556592506676496]],
         [-0.38233816023106176, 0.0, -0.9240224733366212], 60.0)) < 1e-6
+
+
+def test_a_box_whose_block_lets_every_point_go_gets_mirror_symmetric_impulses():
+    """A box struck on four mirror points of a fixed wall at 120 Hz. In the resting sweeps
+    its coupled block's moves ended with one pair sliding, the other left out, and the
+    sliding pair's frozen friction pulling its normals: every point let go, and the split
+    solve that took over (the normal block, then the friction block) grew the
+    mirror-antisymmetric part x2 to x4 a sweep, to 1.7e-6 of the largest normal impulse. The
+    block is its box's only manifold: it searches every state there, as where its moves
+    cycle (4e-8). (The numbers are written exactly.)"""
+    assert asymmetry(*sliding_hit(
+        True, [[0.2900822141047918, 0.7229253877051852, 0.07502617944508179],
+               [0.16928827362399282, 0.11890803494020738, 0.6739614080182998]],
+        [0.8975338358445304, 0.6571918972522365], 0.10993430066803633, 1.20064914184553,
+        [1.070101926118588, 0.6157479076915684], [0.29394260258042804, -0.0, 0.059981216962016894],
+        [[0.0, 0.0, 0.0], [0.313729976119603, 0.0, -0.2353665259938457]],
+        [0.0, 1.5608572385718307], [1.931248200055685, 1.1710768236836975],
+        [[0.2050680513592597, 0.2078071466325186, -0.18747945138277555],
+         [0.22657086064635484, 0.09702882357798846, 0.036177030240445995]],
+        [-0.9798086752680935, 0.0, -0.19993738987338966], 120.0, True)) < 1e-6

@@ -299,10 +299,17 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // mu times its normal along its aim (a unit direction in t1, t2): frozen (its column holds
 // its friction's effect too), or after a Newton step, f - mu n aim + stiff P slip = 0 with
 // aim against the last slip, P = 1 - aim aim^T and stiff = mu n / |slip| (N s per m/s),
-// the exact linearisation of f = -mu n slip / |slip| there. The matrix's diagonal is a
-// fraction kRegular heavier on the total impulses: the least-norm answer of a redundant
-// block (four points of a face: 12 rows on 6 motions), so a mirror-symmetric hit gets
-// mirror-symmetric impulses. After each solve: a row whose normal would pull lets go; a
+// the exact linearisation of f = -mu n slip / |slip| there. The matrix's diagonal is
+// heavier on the total impulses by a fraction kRegular of each unknown's own effect along
+// its direction (the row's K_nn, K_t1t1 or K_t2t2, > 0): the least-norm answer of a
+// redundant block (four points of a face: 12 rows on 6 motions), so a mirror-symmetric hit
+// gets mirror-symmetric impulses. (Not a fraction of the column's diagonal: a frozen
+// sliding row's holds its friction's effect too, K_nn + mu aim . K_nt, which can cancel
+// K_nn or turn it negative. On a box struck sliding on four points of another, the normals
+// leave one direction free, the mirror-antisymmetric one; weighted so, its regularisation
+// nearly vanished, 1.9e-10 of the block's scale instead of 1e-8, and rounding of 1e-14 in
+// the matrix parted the mirror points' normal impulses by 1e-5 of them.) After each
+// solve: a row whose normal would pull lets go; a
 // sticking row pushed beyond its cone slides along that friction; a sliding row whose
 // friction does not oppose its slip (straight, within kAimed) is aimed against it (a
 // Newton step, every sliding row of the block with it: a redundant block's rounding, 1e-9
@@ -313,9 +320,11 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // sticking); and the block is solved again (at most kCoupledTries + 1 solves). These moves
 // can cycle (a box struck on a face by a wall, its two pairs of mirror points taking
 // turns: one pair's friction beyond its cone, it slides, the other pair would pull and
-// lets go, then approaches and takes part sliding, ... every sweep of its impact stage);
-// then, in a block that `search`es (an impact stage's; in the resting sweeps one that is
-// its movable bodies' only manifold), every state of the rows is searched (below).
+// lets go, then approaches and takes part sliding, ... every sweep of its impact stage),
+// or let every row go (a box on four points of a wall: one pair sliding, the other left
+// out, and the sliding pair's frozen friction pulls its normals), or meet a vanishing
+// pivot; then, in a block that `search`es (an impact stage's; in the resting sweeps one
+// that is its movable bodies' only manifold), every state of the rows is searched (below).
 // Why: the normal block for the friction held, then the friction block for those normals,
 // each sweep, is an iteration whose mirror-antisymmetric part can grow: a sliding row's
 // friction follows its normal, the two points' friction turns the body, the turn moves
@@ -325,9 +334,10 @@ inline bool gauss_jordan(double (&s)[12][13], double* x) {
 // at the direction it held does the same across sweeps (the friction update after the
 // block turns it against the slip, the next solve freezes that: x16 a sweep on a box
 // sliding on four points of a wall through an impact stage). Returns the largest impulse
-// change (N s), or -1 when the moves find no answer and no state holds (or, without
-// `search`, none is searched) or a pivot vanishes in the moves' solves (the caller solves
-// the normal block alone, then the friction block: the iteration above).
+// change (N s), or -1 when no row is active as the solve begins (a block holding no
+// impulse) or a pivot vanishes in its first solve, or when the moves find no answer and no
+// state holds (or two hold as well: below; or, without `search`, none is searched): the
+// caller solves the normal block alone, then the friction block (the iteration above).
 double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   bool active[4], slides[4], pushed[4] = {};   // pushed: off its cone in this solve
   double aim[4][2];   // unit direction (t1, t2) of a sliding row's friction
@@ -400,7 +410,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
       const ContactRow& ru = r[i];
       if (dir[u] == 0 || !slides[i]) {   // no approach beyond the allowance; no slip
         for (int c = 0; c < m; ++c) s[u][c] = column(i, dir[u], c);
-        s[u][u] *= 1.0 + kRegular;
+        s[u][u] += kRegular * effect(i, dir[u], i, dir[u]);
         s[u][m] = -(speed[i][dir[u]] + (dir[u] == 0 ? ru.allowance : 0.0));
         continue;
       }
@@ -491,7 +501,10 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
     }
   };
   for (int tries = 0; tries <= kCoupledTries; ++tries) {
-    if (!solve_state()) return -1.0;
+    if (!solve_state()) {   // no row active, or a pivot vanished
+      if (tries == 0) return -1.0;
+      break;
+    }
     bool again = false;
     for (int i = 0; i < k; ++i) {
       if (!active[i]) continue;
@@ -549,7 +562,8 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
     if (again) continue;
     return take();
   }
-  // no answer from the state the block held (its moves between states cycled): every
+  // no answer from the state the block held (its moves between states cycled, let every
+  // row go, or met a vanishing pivot): every
   // state, each row left out (0), sticking (1) or sliding (2), and of the answers that
   // hold the one that leaves the block's bodies the least kinetic energy, of those within
   // kTie of it the one of least impulses (their squares weighted by the diagonal, as
@@ -558,7 +572,10 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   // mirror points can each carry it alone, or both (the most dissipative), or a box on a
   // box through four points, whose states give the same motion with other impulses (the
   // least, as kRegular picks in one solve). Neither choice depends on the rows' order: a
-  // mirror-symmetric hit gets mirror-symmetric impulses. A sliding row starts against its
+  // mirror-symmetric hit gets mirror-symmetric impulses; where another answer is as good
+  // (its energy and impulses within kTie of the best's: the best's mirror image, one point
+  // of a pair carrying a box alone where both together do not hold) the choice would, and
+  // none is taken (-1). A sliding row starts against its
   // slip without the block's impulses (no slip then: not this state); while one does not
   // oppose its slip straight (within kAimed; a slip below kStill of the block's speeds is
   // none), every sliding row takes a Newton step, kNewtonSteps at most. An answer holds
@@ -566,6 +583,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   // friction opposes its slip and no row left out approaches beyond its allowance.
   if (!search) return -1.0;
   bool found = false;
+  bool tied = false;    // another answer as good as the best
   double least = 0.0;   // J: the kinetic energy the best answer adds (< 0: takes)
   double smallest = 0.0;   // J: its impulses' squares, each times its row's own effect
   double best_n[4], best_t[4][2];
@@ -626,8 +644,12 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
         for (int b = 0; b < 3; ++b) size += effect(i, b, i, b) * d[b] * d[b];
       }
       const double tie = kTie * std::max(std::fabs(added), std::fabs(least));
-      if (!found || added < least - tie || (added <= least + tie && size < smallest)) {
+      if (found && std::fabs(added - least) <= tie &&
+          std::fabs(size - smallest) <= kTie * std::max(size, smallest)) {
+        tied = true;
+      } else if (!found || added < least - tie || (added <= least + tie && size < smallest)) {
         found = true;
+        tied = false;
         least = added;
         smallest = size;
         std::copy(&n[0], &n[0] + 4, best_n);
@@ -637,7 +659,7 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
       break;
     }
   }
-  if (!found) return -1.0;
+  if (!found || tied) return -1.0;
   std::copy(best_n, best_n + 4, n);
   std::copy(&best_t[0][0], &best_t[0][0] + 8, &t[0][0]);
   after = best_after;

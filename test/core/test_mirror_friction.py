@@ -323,3 +323,45 @@ def test_a_box_on_four_points_whose_block_moves_cycle_gets_mirror_symmetric_impu
     does (each point out, sticking or sliding; the answer leaving the least kinetic energy,
     then the least impulses): 3e-7 and 6e-16 of the largest normal impulse apart."""
     assert asymmetry(*sliding_hit(*hit)) < 1e-6
+
+
+def test_a_box_struck_sliding_on_four_points_of_another_gets_mirror_symmetric_impulses():
+    """Two boxes through four mirror points, persistent but closing at 60 Hz (an impact
+    stage), the four points sliding with their friction frozen along its direction: each such
+    row's normal column holds its friction's effect too, and its diagonal (K_nn + mu aim .
+    K_nt, negative on one pair here) weighted the regularisation, which so nearly vanished
+    along the one direction the four normals leave free (the mirror-antisymmetric one), and
+    the pairs' normal impulses were 2.6e-6 of the largest apart, whatever the sweep. Each
+    unknown is now weighed by its own effect along its direction: 2e-8. (The numbers are
+    written exactly.)"""
+    assert asymmetry(*sliding_hit(
+        False, [[0.7147139122736751, 0.5518385732319413, 0.45625277227265165],
+                [0.1445606676850003, 0.06682606705143913, 0.23644020326873044]],
+        [4.351327713382963, 0.9001273934031744], 0.6635141183080079, 1.032345429972398,
+        [0.6757390663112041, 1.0000861931257525], [0.11470144806931852, -0.0, 0.2772067420009864],
+        [[0.5543548132349565, 0.0, -0.9387458673167084],
+         [2.0856413598388515, 0.0, 3.1481678241861117]],
+        [14.089397052236839, -12.648150564339527], [1.4609986467611753, 1.3663494878870184],
+        [[0.19824201839109545, 0.07577810831289285, 0.0814852493085918],
+         [0.05860659444261779, 0.1991661541902316, -0.26556592506676496]],
+        [-0.38233816023106176, 0.0, -0.9240224733366212], 60.0)) < 1e-6
+
+
+def test_a_box_whose_block_lets_every_point_go_gets_mirror_symmetric_impulses():
+    """A box struck on four mirror points of a fixed wall at 120 Hz. In the resting sweeps
+    its coupled block's moves ended with one pair sliding, the other left out, and the
+    sliding pair's frozen friction pulling its normals: every point let go, and the split
+    solve that took over (the normal block, then the friction block) grew the
+    mirror-antisymmetric part x2 to x4 a sweep, to 1.7e-6 of the largest normal impulse. The
+    block is its box's only manifold: it searches every state there, as where its moves
+    cycle (4e-8). (The numbers are written exactly.)"""
+    assert asymmetry(*sliding_hit(
+        True, [[0.2900822141047918, 0.7229253877051852, 0.07502617944508179],
+               [0.16928827362399282, 0.11890803494020738, 0.6739614080182998]],
+        [0.8975338358445304, 0.6571918972522365], 0.10993430066803633, 1.20064914184553,
+        [1.070101926118588, 0.6157479076915684], [0.29394260258042804, -0.0, 0.059981216962016894],
+        [[0.0, 0.0, 0.0], [0.313729976119603, 0.0, -0.2353665259938457]],
+        [0.0, 1.5608572385718307], [1.931248200055685, 1.1710768236836975],
+        [[0.2050680513592597, 0.2078071466325186, -0.18747945138277555],
+         [0.22657086064635484, 0.09702882357798846, 0.036177030240445995]],
+        [-0.9798086752680935, 0.0, -0.19993738987338966], 120.0, True)) < 1e-6

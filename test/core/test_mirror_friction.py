@@ -365,3 +365,27 @@ def test_a_box_whose_block_lets_every_point_go_gets_mirror_symmetric_impulses():
         [[0.2050680513592597, 0.2078071466325186, -0.18747945138277555],
          [0.22657086064635484, 0.09702882357798846, 0.036177030240445995]],
         [-0.9798086752680935, 0.0, -0.19993738987338966], 120.0, True)) < 1e-6
+
+
+def test_a_box_struck_sliding_on_a_face_with_a_free_direction_gets_mirror_symmetric_impulses():
+    """Two boxes through four mirror points, touching from the start and closing at 60 Hz (an
+    impact stage), the four points sliding. Four normals of one face leave one direction
+    free (4 normal impulses on 3 motions: the mirror-antisymmetric one), and the block's
+    first sweep, holding no impulse yet, took the all-active answer from the regularised
+    matrix's inverse, whose entries along that direction are 1e8 times the answer: the
+    rounding of its row-ordered sums left the mirror points' normal impulses 1.6e-8 of them
+    apart, and the sliding rows' frozen solves grew that to 1.45e-6 of the largest normal
+    impulse. The inverse now leaves the free direction out (the least-norm answer, no
+    impulse along it): 9e-9. (The numbers are written exactly.)"""
+    assert asymmetry(*sliding_hit(
+        False, [[0.4626397426399336, 0.5809723448008962, 0.13885087718523245],
+                [0.9677264868568713, 0.10236208098141683, 0.2986660722530674]],
+        [2.0516324858136064, 1.6652055543769364], 0.9007320378902577, 0.38867255988649024,
+        [0.3722955409646644, 0.2564178142024412],
+        [-0.06340969619415142, -0.0, 0.2932221179047812],
+        [[0.1553279554824693, 0.0, 0.1735420939146457],
+         [0.07057520227945763, 0.0, 0.16054957469847647]],
+        [1.5628677942806615, 1.5312256645663223], [0.6723594219476832, -1.522942990570752],
+        [[0.2971418320359213, 0.2074129825813849, 0.16359558875079416],
+         [-0.14669779556080378, 0.24121826835183766, -0.14776502752125614]],
+        [0.21136565398050472, 0.0, -0.9774070596826041], 60.0)) < 1e-6

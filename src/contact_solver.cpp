@@ -262,6 +262,10 @@ constexpr double kStill = 1e-6;
 // kinetic energies are this close (relative) give the same motion (rounding)
 constexpr int kNewtonSteps = 8;
 constexpr double kTie = 1e-9;
+// ... and answers as good whose impulses are within this of the largest normal impulse
+// are one answer reached from two states (a redundant block's rounding through its free
+// directions: 1e-8), not a tie (a mirror image: up to 1 apart)
+constexpr double kSame = 1e-7;
 // A row whose friction is at its cone's limit, within rounding: it slides, its friction
 // mu times its normal impulse along its slip (solve_friction_block keeps it there).
 constexpr double kSlides = 1e-9;
@@ -564,23 +568,32 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   }
   // no answer from the state the block held (its moves between states cycled, let every
   // row go, or met a vanishing pivot): every
-  // state, each row left out (0), sticking (1) or sliding (2), and of the answers that
-  // hold the one that leaves the block's bodies the least kinetic energy, of those within
-  // kTie of it the one of least impulses (their squares weighted by the diagonal, as
-  // kRegular weighs them: the one solve's least-norm answer). Coulomb friction on a
-  // redundant block can have several answers: a box struck on a face by a wall whose two
-  // mirror points can each carry it alone, or both (the most dissipative), or a box on a
-  // box through four points, whose states give the same motion with other impulses (the
-  // least, as kRegular picks in one solve). Neither choice depends on the rows' order: a
-  // mirror-symmetric hit gets mirror-symmetric impulses; where another answer is as good
-  // (its energy and impulses within kTie of the best's: the best's mirror image, one point
-  // of a pair carrying a box alone where both together do not hold) the choice would, and
-  // none is taken (-1). A sliding row starts against its
-  // slip without the block's impulses (no slip then: not this state); while one does not
-  // oppose its slip straight (within kAimed; a slip below kStill of the block's speeds is
-  // none), every sliding row takes a Newton step, kNewtonSteps at most. An answer holds
-  // where no active row pulls, no sticking row is beyond its cone, every sliding row's
-  // friction opposes its slip and no row left out approaches beyond its allowance.
+  // state, each row left out (0), sticking (1), sliding (2) or at its cone's edge (3), and
+  // of the answers that hold the one that leaves the block's bodies the least kinetic
+  // energy, of those within kTie of it the one of least impulses (their squares weighted
+  // by the diagonal, as kRegular weighs them: the one solve's least-norm answer). Coulomb
+  // friction on a redundant block can have several answers: a box struck on a face by a
+  // wall whose two mirror points can each carry it alone, or both (the most dissipative),
+  // or a box on a box through four points, whose states give the same motion with other
+  // impulses (the least, as kRegular picks in one solve). Neither choice depends on the
+  // rows' order: a mirror-symmetric hit gets mirror-symmetric impulses; where another
+  // answer is as good (its energy and impulses within kTie of the best's, its impulses
+  // more than kSame of the largest apart: the best's mirror image, one point of a pair
+  // carrying a box alone where both together do not hold) the choice would, and none is
+  // taken (-1); one within kSame is the same answer reached from another state (a
+  // redundant block's rounding). A sliding row starts against its slip without the
+  // block's impulses (no slip then: not this state). A row at its cone's edge is one
+  // that the block's all-sticking answer pushes beyond its cone (only such a row has that
+  // state): it starts sliding along that friction, mu times its normal impulse, and holds
+  // there where its slip vanishes (the block sticks as a whole, its other rows taking the
+  // rest of the load): a box struck on a face by a wall at 240 Hz, whose all-sticking
+  // answer pushed both pairs beyond their cones in opposite directions, all four sliding
+  // turned the slip over each Newton step, and only the one pair held at its edge against
+  // the other pair's sticking holds. While a sliding row does not oppose its slip straight
+  // (within kAimed; a slip below kStill of the block's speeds is none), every sliding row
+  // takes a Newton step, kNewtonSteps at most. An answer holds where no active row pulls,
+  // no sticking row is beyond its cone, every sliding row's friction opposes its slip and
+  // no row left out approaches beyond its allowance.
   if (!search) return -1.0;
   bool found = false;
   bool tied = false;    // another answer as good as the best
@@ -588,14 +601,36 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   double smallest = 0.0;   // J: its impulses' squares, each times its row's own effect
   double best_n[4], best_t[4][2];
   Twists best_after;
+  // the rows the all-sticking answer pushes beyond their cones, and that friction's
+  // direction (unit, t1 and t2): their edge
+  int kinds[4];   // each row's states: 4 with an edge, else 3
+  double edge[4][2];
+  for (int i = 0; i < k; ++i) {
+    active[i] = true;
+    slides[i] = false;
+    stiff[i] = 0.0;
+  }
+  const bool sticks = solve_state();
   int states = 1;
-  for (int i = 0; i < k; ++i) states *= 3;
+  for (int i = 0; i < k; ++i) {
+    const double size = sticks ? norm2(t[i][0], t[i][1]) : 0.0;
+    kinds[i] = size > 0.0 && !(size <= r[i].mu * n[i]) ? 4 : 3;
+    edge[i][0] = kinds[i] == 4 ? t[i][0] / size : 0.0;
+    edge[i][1] = kinds[i] == 4 ? t[i][1] / size : 0.0;
+    states *= kinds[i];
+  }
   for (int state = 1; state < states; ++state) {
     bool holds = true;
-    for (int i = 0, code = state; i < k; ++i, code /= 3) {
-      active[i] = code % 3 != 0;
-      slides[i] = code % 3 == 2;
+    for (int i = 0, code = state; i < k; code /= kinds[i], ++i) {
+      const int kind = code % kinds[i];
+      active[i] = kind != 0;
+      slides[i] = kind >= 2;
       stiff[i] = 0.0;
+      if (kind == 3) {
+        aim[i][0] = edge[i][0];
+        aim[i][1] = edge[i][1];
+        continue;
+      }
       const double speed_t = norm2(speed[i][1], speed[i][2]);
       holds = holds && (!slides[i] || speed_t > 0.0);
       aim[i][0] = slides[i] && speed_t > 0.0 ? -speed[i][1] / speed_t : 0.0;
@@ -646,7 +681,13 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
       const double tie = kTie * std::max(std::fabs(added), std::fabs(least));
       if (found && std::fabs(added - least) <= tie &&
           std::fabs(size - smallest) <= kTie * std::max(size, smallest)) {
-        tied = true;
+        double apart = 0.0, largest = 0.0;   // N s
+        for (int i = 0; i < k; ++i) {
+          apart = std::max({apart, std::fabs(n[i] - best_n[i]), std::fabs(t[i][0] - best_t[i][0]),
+                            std::fabs(t[i][1] - best_t[i][1])});
+          largest = std::max({largest, n[i], best_n[i]});
+        }
+        tied = tied || apart > kSame * largest;
       } else if (!found || added < least - tie || (added <= least + tie && size < smallest)) {
         found = true;
         tied = false;

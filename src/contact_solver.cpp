@@ -262,6 +262,10 @@ constexpr double kStill = 1e-6;
 // kinetic energies are this close (relative) give the same motion (rounding)
 constexpr int kNewtonSteps = 8;
 constexpr double kTie = 1e-9;
+// ... and answers as good whose impulses are within this of the largest normal impulse
+// are one answer reached from two states (a redundant block's rounding through its free
+// directions: 1e-8), not a tie (a mirror image: up to 1 apart)
+constexpr double kSame = 1e-7;
 // A row whose friction is at its cone's limit, within rounding: it slides, its friction
 // mu times its normal impulse along its slip (solve_friction_block keeps it there).
 constexpr double kSlides = 1e-9;
@@ -564,23 +568,32 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   }
   // no answer from the state the block held (its moves between states cycled, let every
   // row go, or met a vanishing pivot): every
-  // state, each row left out (0), sticking (1) or sliding (2), and of the answers that
-  // hold the one that leaves the block's bodies the least kinetic energy, of those within
-  // kTie of it the one of least impulses (their squares weighted by the diagonal, as
-  // kRegular weighs them: the one solve's least-norm answer). Coulomb friction on a
-  // redundant block can have several answers: a box struck on a face by a wall whose two
-  // mirror points can each carry it alone, or both (the most dissipative), or a box on a
-  // box through four points, whose states give the same motion with other impulses (the
-  // least, as kRegular picks in one solve). Neither choice depends on the rows' order: a
-  // mirror-symmetric hit gets mirror-symmetric impulses; where another answer is as good
-  // (its energy and impulses within kTie of the best's: the best's mirror image, one point
-  // of a pair carrying a box alone where both together do not hold) the choice would, and
-  // none is taken (-1). A sliding row starts against its
-  // slip without the block's impulses (no slip then: not this state); while one does not
-  // oppose its slip straight (within kAimed; a slip below kStill of the block's speeds is
-  // none), every sliding row takes a Newton step, kNewtonSteps at most. An answer holds
-  // where no active row pulls, no sticking row is beyond its cone, every sliding row's
-  // friction opposes its slip and no row left out approaches beyond its allowance.
+  // state, each row left out (0), sticking (1), sliding (2) or at its cone's edge (3), and
+  // of the answers that hold the one that leaves the block's bodies the least kinetic
+  // energy, of those within kTie of it the one of least impulses (their squares weighted
+  // by the diagonal, as kRegular weighs them: the one solve's least-norm answer). Coulomb
+  // friction on a redundant block can have several answers: a box struck on a face by a
+  // wall whose two mirror points can each carry it alone, or both (the most dissipative),
+  // or a box on a box through four points, whose states give the same motion with other
+  // impulses (the least, as kRegular picks in one solve). Neither choice depends on the
+  // rows' order: a mirror-symmetric hit gets mirror-symmetric impulses; where another
+  // answer is as good (its energy and impulses within kTie of the best's, its impulses
+  // more than kSame of the largest apart: the best's mirror image, one point of a pair
+  // carrying a box alone where both together do not hold) the choice would, and none is
+  // taken (-1); one within kSame is the same answer reached from another state (a
+  // redundant block's rounding). A sliding row starts against its slip without the
+  // block's impulses (no slip then: not this state). A row at its cone's edge is one
+  // that the block's all-sticking answer pushes beyond its cone (only such a row has that
+  // state): it starts sliding along that friction, mu times its normal impulse, and holds
+  // there where its slip vanishes (the block sticks as a whole, its other rows taking the
+  // rest of the load): a box struck on a face by a wall at 240 Hz, whose all-sticking
+  // answer pushed both pairs beyond their cones in opposite directions, all four sliding
+  // turned the slip over each Newton step, and only the one pair held at its edge against
+  // the other pair's sticking holds. While a sliding row does not oppose its slip straight
+  // (within kAimed; a slip below kStill of the block's speeds is none), every sliding row
+  // takes a Newton step, kNewtonSteps at most. An answer holds where no active row pulls,
+  // no sticking row is beyond its cone, every sliding row's friction opposes its slip and
+  // no row left out approaches beyond its allowance.
   if (!search) return -1.0;
   bool found = false;
   bool tied = false;    // another answer as good as the best
@@ -588,14 +601,36 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
   double smallest = 0.0;   // J: its impulses' squares, each times its row's own effect
   double best_n[4], best_t[4][2];
   Twists best_after;
+  // the rows the all-sticking answer pushes beyond their cones, and that friction's
+  // direction (unit, t1 and t2): their edge
+  int kinds[4];   // each row's states: 4 with an edge, else 3
+  double edge[4][2];
+  for (int i = 0; i < k; ++i) {
+    active[i] = true;
+    slides[i] = false;
+    stiff[i] = 0.0;
+  }
+  const bool sticks = solve_state();
   int states = 1;
-  for (int i = 0; i < k; ++i) states *= 3;
+  for (int i = 0; i < k; ++i) {
+    const double size = sticks ? norm2(t[i][0], t[i][1]) : 0.0;
+    kinds[i] = size > 0.0 && !(size <= r[i].mu * n[i]) ? 4 : 3;
+    edge[i][0] = kinds[i] == 4 ? t[i][0] / size : 0.0;
+    edge[i][1] = kinds[i] == 4 ? t[i][1] / size : 0.0;
+    states *= kinds[i];
+  }
   for (int state = 1; state < states; ++state) {
     bool holds = true;
-    for (int i = 0, code = state; i < k; ++i, code /= 3) {
-      active[i] = code % 3 != 0;
-      slides[i] = code % 3 == 2;
+    for (int i = 0, code = state; i < k; code /= kinds[i], ++i) {
+      const int kind = code % kinds[i];
+      active[i] = kind != 0;
+      slides[i] = kind >= 2;
       stiff[i] = 0.0;
+      if (kind == 3) {
+        aim[i][0] = edge[i][0];
+        aim[i][1] = edge[i][1];
+        continue;
+      }
       const double speed_t = norm2(speed[i][1], speed[i][2]);
       holds = holds && (!slides[i] || speed_t > 0.0);
       aim[i][0] = slides[i] && speed_t > 0.0 ? -speed[i][1] / speed_t : 0.0;
@@ -646,7 +681,13 @@ double solve_coupled(ContactRow* r, int k, Twists& v, bool search) {
       const double tie = kTie * std::max(std::fabs(added), std::fabs(least));
       if (found && std::fabs(added - least) <= tie &&
           std::fabs(size - smallest) <= kTie * std::max(size, smallest)) {
-        tied = true;
+        double apart = 0.0, largest = 0.0;   // N s
+        for (int i = 0; i < k; ++i) {
+          apart = std::max({apart, std::fabs(n[i] - best_n[i]), std::fabs(t[i][0] - best_t[i][0]),
+                            std::fabs(t[i][1] - best_t[i][1])});
+          largest = std::max({largest, n[i], best_n[i]});
+        }
+        tied = tied || apart > kSame * largest;
       } else if (!found || added < least - tie || (added <= least + tie && size < smallest)) {
         found = true;
         tied = false;
@@ -742,15 +783,19 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double
     // blocks of a settled pile at 30 Hz)
     if (idle) return 0.0;
   }
-  // every row active: the regularised matrix's inverse (prepare_block), when it has one
+  // every row active: the least-norm answer (prepare_block's inverse), when the block has
+  // one and it leaves no row approaching along the free direction beyond rounding
   if (block.invertible && !lanes_tried) {
     bool ok = true;
+    double loose = 0.0, largest = 0.0;   // m/s: the largest approach left, the largest |q|
     for (int i = 0; i < k; ++i) {
       x[i] = 0.0;
       for (int j = 0; j < k; ++j) x[i] -= block.inverse[i][j] * q[j];
       ok = ok && x[i] >= -1e-12 * (1.0 + std::fabs(x[i]));
+      loose += block.residual[i] * q[i];
+      largest = std::max(largest, std::fabs(q[i]));
     }
-    if (ok) return take_block(r, k, x, v);
+    if (ok && std::fabs(loose) <= 1e-12 * (1.0 + largest)) return take_block(r, k, x, v);
   }
   // x for the active set `set` (bit i: row i active): A_SS x_S = -q_S by Gaussian
   // elimination with partial pivoting, x >= 0 on S and w >= 0 off S; false otherwise
@@ -784,8 +829,8 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double
 
 namespace {
 
-// prepare_block() of a block of k rows (k a constant: every loop unrolled, the Gauss-Jordan
-// tableau in registers); k 1 (no inverse) to 4
+// prepare_block() of a block of k rows (k a constant: every loop unrolled, the
+// eliminations' tableaux in registers); k 1 (no inverse) to 4
 template <int k>
 inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
                                                             const ContactRow* r) {
@@ -799,32 +844,98 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
     // impulse sets that give the same velocities; a diagonal a fraction kRegular heavier
     // (on the total impulses, not their change) picks the one of least norm: coincident
     // points share equally, a symmetric hit gets symmetric impulses, no pivot is near zero
+    // (the active-set search's matrix; the all-active answer's: below)
     block.delassus[i][i] *= 1.0 + kRegular;
+    block.residual[i] = 0.0;
   }
   block.invertible = false;
   if (k < 2) return;
-  // its inverse (Gauss-Jordan, partial pivoting; a pivot below 1e-9 of its diagonal: none)
-  double s[k][2 * k];
-  for (int i = 0; i < k; ++i)
-    for (int j = 0; j < 2 * k; ++j)
-      s[i][j] = j < k ? block.delassus[i][j] : (j - k == i ? 1.0 : 0.0);
+  // The all-active answer x = -inverse q, the least-norm one (impulses weighted by their
+  // rows' own effects, as kRegular weighs them). In units of the rows' own effects
+  // (e = S A S, S = diag(1 / sqrt(A_ii)): a unit diagonal), a direction along which the
+  // block moves its rows by less than kRegular (the regularisation's weight) is free: its
+  // impulses move nothing (four points of one face: 4 normal impulses on 3 motions). The
+  // regularised matrix's inverse had entries 1 / kRegular times the answer along it, and
+  // rounding in their row-ordered sums (1e-16 of q) became impulses 1e-8 of the answer
+  // apart along it (a mirror-symmetric hit's mirror points' normals, which the sliding
+  // rows' frozen solves then amplified to 1e-6). So the free direction z (unit, in e's
+  // units) is left out: inverse = S P E P S, P = 1 - z z^T, E the inverse of e on the other
+  // directions (e's pseudo-inverse: entries of the answer's size). The answer's rows then
+  // approach along z by (z_i / s_i) (z . S q) (m/s: what no impulse of the block changes);
+  // `residual` holds z_j s_j times the largest |z_i / s_i|, so |residual . q| is the
+  // largest of them. Two free directions or more (four points on a line): no inverse (the
+  // active-set search solves the block).
+  double s[k];
+  for (int i = 0; i < k; ++i) {
+    if (!(block.plain[i][i] > 0.0)) return;
+    s[i] = 1.0 / std::sqrt(block.plain[i][i]);
+  }
+  // Gauss-Jordan elimination of [e | 1], each pivot the largest diagonal left (symmetric
+  // pivoting: order[c] the unknown in place c; e is symmetric, positive semi-definite).
+  // The pivot of place c is y^T e y for y its column's multiples (-u) and 1 there: where it
+  // is within kRegular of y . y, y is free (the last place: else no inverse), and the
+  // pivots before it give E (its own row and column 0)
+  double t[k][2 * k];
+  int order[k];
+  for (int i = 0; i < k; ++i) {
+    order[i] = i;
+    for (int j = 0; j < k; ++j) {
+      t[i][j] = s[i] * block.plain[i][j] * s[j];
+      t[i][k + j] = i == j ? 1.0 : 0.0;
+    }
+  }
+  int free = -1;   // the place of the free direction (the last), -1: none
   for (int c = 0; c < k; ++c) {
     int pivot = c;
     for (int i = c + 1; i < k; ++i)
-      if (std::fabs(s[i][c]) > std::fabs(s[pivot][c])) pivot = i;
-    if (std::fabs(s[pivot][c]) <= 1e-9 * std::fabs(block.delassus[c][c]) + 1e-300) return;
-    if (pivot != c)
-      for (int j = 0; j < 2 * k; ++j) std::swap(s[c][j], s[pivot][j]);
-    const double scale = 1.0 / s[c][c];
-    for (int j = 0; j < 2 * k; ++j) s[c][j] *= scale;
+      if (t[i][i] > t[pivot][pivot]) pivot = i;
+    if (pivot != c) {
+      for (int j = 0; j < 2 * k; ++j) std::swap(t[c][j], t[pivot][j]);
+      for (int i = 0; i < k; ++i) std::swap(t[i][c], t[i][pivot]);
+      std::swap(order[c], order[pivot]);
+    }
+    double size = 1.0;   // y . y
+    for (int i = 0; i < c; ++i) size += (t[i][c] / t[i][i]) * (t[i][c] / t[i][i]);
+    if (!(t[c][c] > kRegular * size)) {
+      if (c < k - 1) return;
+      free = c;
+      break;
+    }
     for (int i = 0; i < k; ++i) {
       if (i == c) continue;
-      const double f = s[i][c];
-      for (int j = 0; j < 2 * k; ++j) s[i][j] -= f * s[c][j];
+      const double f = t[i][c] / t[c][c];
+      for (int j = c; j < 2 * k; ++j) t[i][j] -= f * t[c][j];
     }
   }
-  for (int i = 0; i < k; ++i)
-    for (int j = 0; j < k; ++j) block.inverse[i][j] = s[i][k + j];
+  double z[k] = {};   // the free direction, unit (0: none)
+  double inverse[k][k];   // E
+  for (int c = 0; c < k; ++c)
+    for (int j = 0; j < k; ++j) inverse[order[c]][j] = c == free ? 0.0 : t[c][k + j] / t[c][c];
+  if (free >= 0) {
+    double size = 1.0;
+    z[order[free]] = 1.0;
+    for (int c = 0; c < free; ++c) {
+      z[order[c]] = -t[c][free] / t[c][c];
+      size += z[order[c]] * z[order[c]];
+    }
+    size = std::sqrt(size);
+    for (int i = 0; i < k; ++i) z[i] /= size;
+  }
+  // P E P = E - h z^T - z h^T + (z . h) z z^T, h = E z
+  double h[k], zh = 0.0;
+  for (int i = 0; i < k; ++i) {
+    h[i] = 0.0;
+    for (int j = 0; j < k; ++j) h[i] += inverse[i][j] * z[j];
+    zh += z[i] * h[i];
+  }
+  double reach = 0.0;   // the largest |z_i / s_i|
+  for (int i = 0; i < k; ++i) {
+    reach = std::max(reach, std::fabs(z[i] / s[i]));
+    for (int j = 0; j < k; ++j)
+      block.inverse[i][j] =
+          s[i] * (inverse[i][j] - h[i] * z[j] - z[i] * h[j] + zh * z[i] * z[j]) * s[j];
+  }
+  for (int i = 0; i < k; ++i) block.residual[i] = z[i] * s[i] * reach;
   block.invertible = true;
 }
 
@@ -1364,8 +1475,9 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   if (k == 1) {
     step = solve_normal(w[0], g, t, free[0]);
   } else {
-    // solve_block: q = J v + allowance - A normal; x = 0 when idle, else A^-1 (-q) when
-    // every row ends active, else the lane's own search
+    // solve_block: q = J v + allowance - A normal; x = 0 when idle, else inverse (-q) when
+    // every row ends active (and the approach left along the free direction is rounding),
+    // else the lane's own search
     Lanes q[4], x[4];
     Mask idle = (Mask){-1, -1, -1, -1};
     for (int i = 0; i < k; ++i) {
@@ -1374,11 +1486,15 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
     }
     Mask fits = g.invertible != 0.0;
+    Lanes loose = splat(0.0), largest_q = splat(0.0);
     for (int i = 0; i < k; ++i) {
       x[i] = splat(0.0);
       for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
       fits &= x[i] >= -1e-12 * (1.0 + magnitude(x[i]));
+      loose += g.residual[i] * q[i];
+      largest_q = maximum(largest_q, magnitude(q[i]));
     }
+    fits &= magnitude(loose) <= 1e-12 * (1.0 + largest_q);
     // take_block's changes of the normal impulses, per row: each lane's from the one answer
     // that fits it (all-active, edge or face; the three take disjoint lanes), applied to the
     // twists once, below, the same operations on each lane as one apply per answer (a lane
@@ -1736,6 +1852,7 @@ void pad_lane(WideGroup& g, WideRow* w, WideFace& search, int l) {
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j)
       g.plain[i][j][l] = g.inverse[i][j][l] = search.delassus[i][j][l] = 0.0;
+  for (int i = 0; i < 4; ++i) g.residual[i][l] = 0.0;
   for (int i = 0; i < g.count; ++i) {
     WideRow& r = w[i];
     for (int e = 0; e < 3; ++e) {
@@ -1803,6 +1920,11 @@ void pack_full(WideGroup& g, WideRow* w, WideFace& search, const std::vector<Con
   matrix(&Manifold::plain, g.plain);
   matrix(&Manifold::inverse, g.inverse);
   matrix(&Manifold::delassus, search.delassus);
+  {
+    const Lanes row[kLanes] = {load4(m[0]->residual), load4(m[1]->residual),
+                               load4(m[2]->residual), load4(m[3]->residual)};
+    transpose(row, g.residual);
+  }
   const ContactRow* c[kLanes];
   for (int l = 0; l < kLanes; ++l) c[l] = &rows[static_cast<size_t>(m[l]->first)];
   transpose_rows(c, offsetof(ContactRow, n), g.n);   // the frame: n, t1.x
@@ -1888,6 +2010,7 @@ void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& r
         g.inverse[i][j][l] = m.inverse[i][j];
         search.delassus[i][j][l] = m.delassus[i][j];
       }
+    for (int i = 0; i < g.count; ++i) g.residual[i][l] = m.residual[i];
     for (int e = 0; e < 3; ++e) {
       g.n[e][l] = r[0].n[e];
       g.t1[e][l] = r[0].t1[e];

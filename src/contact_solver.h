@@ -154,7 +154,8 @@ struct Manifold {
   int32_t a = 0, b = 0;          // body indices
   int32_t first = 0, count = 0;  // its rows
   int32_t spin = -1;             // index of its SpinRow in the solve's spins, -1: none
-  bool invertible = false;       // `inverse` holds delassus^-1
+  bool invertible = false;       // `inverse` holds the all-active answer's matrix (at
+                                 // most one free direction)
   bool coupled = false;          // its normal rows and friction solved as one block each
                                  // sweep (every block of an impact stage; a manifold one
                                  // of whose bodies had an impact this step, or one of
@@ -169,10 +170,15 @@ struct Manifold {
                                  // solved split
   // 2 to 4 rows (prepare_block, once per step): the normal rows' Delassus matrix
   // J_i M^-1 J_j^T (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block
-  // solve's regularisation), and the inverse of the latter (the all-active answer); the
-  // sweeps read the first two, `delassus` only when the all-active answer does not fit
+  // solve's regularisation), and the all-active answer's matrix: the first's inverse on
+  // all but the block's free direction (none along it: the answer of least norm); the
+  // sweeps read the first two and `residual`, `delassus` only when the all-active answer
+  // does not fit
   double plain[4][4] = {};
-  double inverse[4][4] = {};   // kg: delassus^-1, when `invertible`
+  double inverse[4][4] = {};   // kg, when `invertible`
+  double residual[4] = {};     // (when `invertible`) |residual . q|: the largest approach
+                               // (m/s) the all-active answer leaves its rows along the
+                               // block's free direction, q their velocities (0: none)
   double delassus[4][4] = {};
 };
 
@@ -261,6 +267,7 @@ struct WideGroup {
                                  // (a lane without it is solved by solve_manifold)
   Lanes n[3], t1[3], t2[3];      // each manifold's frame: every row's (unit, world)
   Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
+  Lanes residual[4];                  // Manifold::residual
 };
 
 // What a wide group of 2 to 4 rows reads only where the all-active answer does not fit

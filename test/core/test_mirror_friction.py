@@ -365,3 +365,51 @@ def test_a_box_whose_block_lets_every_point_go_gets_mirror_symmetric_impulses():
         [[0.2050680513592597, 0.2078071466325186, -0.18747945138277555],
          [0.22657086064635484, 0.09702882357798846, 0.036177030240445995]],
         [-0.9798086752680935, 0.0, -0.19993738987338966], 120.0, True)) < 1e-6
+
+
+def test_a_box_struck_sliding_on_a_face_with_a_free_direction_gets_mirror_symmetric_impulses():
+    """Two boxes through four mirror points, touching from the start and closing at 60 Hz (an
+    impact stage), the four points sliding. Four normals of one face leave one direction
+    free (4 normal impulses on 3 motions: the mirror-antisymmetric one), and the block's
+    first sweep, holding no impulse yet, took the all-active answer from the regularised
+    matrix's inverse, whose entries along that direction are 1e8 times the answer: the
+    rounding of its row-ordered sums left the mirror points' normal impulses 1.6e-8 of them
+    apart, and the sliding rows' frozen solves grew that to 1.45e-6 of the largest normal
+    impulse. The inverse now leaves the free direction out (the least-norm answer, no
+    impulse along it): 9e-9. (The numbers are written exactly.)"""
+    assert asymmetry(*sliding_hit(
+        False, [[0.4626397426399336, 0.5809723448008962, 0.13885087718523245],
+                [0.9677264868568713, 0.10236208098141683, 0.2986660722530674]],
+        [2.0516324858136064, 1.6652055543769364], 0.9007320378902577, 0.38867255988649024,
+        [0.3722955409646644, 0.2564178142024412],
+        [-0.06340969619415142, -0.0, 0.2932221179047812],
+        [[0.1553279554824693, 0.0, 0.1735420939146457],
+         [0.07057520227945763, 0.0, 0.16054957469847647]],
+        [1.5628677942806615, 1.5312256645663223], [0.6723594219476832, -1.522942990570752],
+        [[0.2971418320359213, 0.2074129825813849, 0.16359558875079416],
+         [-0.14669779556080378, 0.24121826835183766, -0.14776502752125614]],
+        [0.21136565398050472, 0.0, -0.9774070596826041], 60.0)) < 1e-6
+
+
+def test_a_box_held_at_its_cones_edge_on_four_points_of_a_wall_gets_mirror_symmetric_impulses():
+    """A box on four mirror points of a fixed wall, touching from the start and closing at
+    240 Hz (an impact stage). The block's all-sticking answer pushed both pairs beyond their
+    cones (3.0 and 2.0 times their limits), in opposite directions; sliding along those
+    frictions, the slip ran along one pair's; every row aimed against the slip, it turned
+    over; sticking again: the moves cycled, and no state of the search held (all four
+    sliding, the slip turned over each Newton step). The split solve ran the stage's 100
+    sweeps and left the pairs 2.5e-6 of the largest normal impulse apart. A row that the
+    all-sticking answer pushes beyond its cone may hold at its cone's edge along that
+    friction: the first pair there, the second sticking, the box stopped along the wall
+    (8e-9). (The numbers are written exactly.)"""
+    assert asymmetry(*sliding_hit(
+        True, [[0.8121395346788106, 0.6082147796528422, 0.9796207167154942],
+               [0.6589559497899876, 0.08435244128022693, 0.06534232523481033]],
+        [3.2946302594632466, 0.11018063808571706], 0.17631898018345227, 0.48640331378003415,
+        [0.25445727935002077, 0.3578774656311541],
+        [0.29976859932035244, -0.0, -0.011780783569610135],
+        [[0.0, 0.0, 0.0], [1.0972891371786426, 0.0, -0.1863988494349324]],
+        [0.0, -1.2706863091613658], [2.079079614190599, 2.1401533987029326],
+        [[-0.14507988563879742, 0.20218424012440347, -0.18306295036271336],
+         [0.05643644300393391, 0.05858566468349057, 0.16230229595114776]],
+        [-0.9992286644011747, 0.0, 0.03926927856536712], 240.0)) < 1e-6

@@ -42,7 +42,7 @@
 // finds itself, at a run's start, on the core the caller posted it from (the kernel
 // places a woken thread on its waker's core when it sees no idle one: the two then take
 // turns on one core, and the run costs what it costs alone; a caller that slept between
-// its steps, a node paced at 30 Hz, found its worker there in 72-97 % of its detections)
+// its steps, a node paced at 30 Hz, found its worker there in 72-100 % of its detections)
 // moves to another core the process may run on, at once (its affinity without that core,
 // then as it was: the kernel migrates it, and it runs there or waits its turn; the next
 // wake places it on that core again, its last one, when it is idle). Results do not

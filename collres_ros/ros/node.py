@@ -44,7 +44,9 @@ reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
 ``answer_time_mean_ms``: to the answer published, then
 ``time.encode_ms``, ``time.publish_ms``: the other outputs) and how long a ``body_states``
 input waited between its reception by the DDS and its callback (``time.queued_ms``, mean,
-``queued_max_ms``: a thread that waited for a core, for the lock or for the step before).
+``queued_max_ms``: a thread that waited for a core, for the lock or for the step before),
+and whether the second thread took part (``threads.*``: the runs posted for two threads, the
+share run paired and the share of their chunks the second thread ran).
 Behind (a newer ``body_states``
 input waits when a step is answered), that step's markers are skipped and counted
 (``outputs_skipped_behind``); its answer, contacts, wrenches and ``/tf`` are always

@@ -595,6 +595,25 @@ def _timings(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> dict[
     return {k: v / total for k, v in sums.items()} if total else {}
 
 
+def _threads(diagnostics: list[tuple[int, dict[str, str]]], since: int) -> str:
+    """The second thread's part over the reports after ``since``: the share of the runs
+    posted for two threads that ran paired (``threads.runs``, ``threads.paired_runs``: the
+    change over those reports) and the step-weighted mean of the periods' shares of chunks
+    the second thread ran (``threads.second_share``); 'n/a' from a node without them or
+    without such a run."""
+    reports = [v for t, v in diagnostics if t >= since and 'threads.runs' in v]
+    if len(reports) < 2:
+        return 'n/a'
+    runs = int(reports[-1]['threads.runs']) - int(reports[0]['threads.runs'])
+    paired = int(reports[-1]['threads.paired_runs']) - int(reports[0]['threads.paired_runs'])
+    shares = [(float(v.get('window_steps', 1) or 1), float(v['threads.second_share']))
+              for v in reports[1:] if v.get('threads.second_share', 'n/a') != 'n/a']
+    if not runs or not shares:
+        return 'n/a'
+    second = sum(w * x for w, x in shares) / sum(w for w, _ in shares)
+    return f'{paired / runs:.2f} / {second:.2f}'
+
+
 def node_env(variant: str) -> dict[str, str]:
     """The environment one ``--node-env`` variant adds to the node's process: 'default'
     (nothing), or ``NAME=VALUE[,NAME=VALUE...]``."""
@@ -675,6 +694,7 @@ def measure(count: int, rate: float, args: argparse.Namespace, workdir: Path,
             'contacts_msgs': listener.counts['contacts'],
             'markers_msgs': listener.counts['contact_markers'],
             'timings': timings, 'lock_timings': lock_timings, 'queued_max_ms': queued_max,
+            'threads': _threads(listener.diagnostics, paced_from),
             # every input sent, in order, with what it was built from, and the node's steps:
             # the inputs it answered (received here or by the publisher; an input lost in
             # the node's queue was never stepped)
@@ -819,8 +839,8 @@ def main(argv: list[str] | None = None) -> int:
           'callback ms | '
           'decode | resolve | World.step wall / CPU (in-process wall / CPU; paced CPU) | '
           'answer ms | '
-          'encode | publish | overhead ms | queued mean / max ms |')
-    print('|---' * 22 + '|')
+          'encode | publish | overhead ms | queued mean / max ms | 2nd thread: paired / share |')
+    print('|---' * 23 + '|')
     rows = []
     with tempfile.TemporaryDirectory(prefix='collres_bench_') as tmp:
         use_probe_profile(Path(tmp))
@@ -857,7 +877,9 @@ def main(argv: list[str] | None = None) -> int:
           'answer: callback start to body_states/corrected published (the other outputs '
           'follow: encode, publish); overhead = answer - World.step; queued: a body_states '
           "input's wait from its reception by the node's DDS to its callback (the node's "
-          "time.queued_ms, mean, and the largest queued_max_ms of the paced run)")
+          "time.queued_ms, mean, and the largest queued_max_ms of the paced run); 2nd thread: "
+          "of the node's runs posted for two threads over the paced run, the share run paired "
+          "and the share of their chunks the second thread ran (its threads.* values)")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1, default=str))
     return 0
@@ -884,7 +906,8 @@ def _print_row(r: dict[str, Any]) -> None:
           f'{_f(t, "time.encode_ms")} | '
           f'{_f(t, "time.publish_ms")} | '
           f'{"n/a" if overhead is None else f"{overhead:.2f}"} | '
-          f'{_f(t, "time.queued_ms")} / {r["queued_max_ms"]:.2f} |', flush=True)
+          f'{_f(t, "time.queued_ms")} / {r["queued_max_ms"]:.2f} | {r["threads"]} |',
+          flush=True)
 
 
 if __name__ == '__main__':

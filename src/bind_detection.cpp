@@ -184,6 +184,10 @@ void bind_detection(py::module_& m) {
       .def_property_readonly("helped", [](const collres::Detector& d) {
         return py::make_tuple(d.helped(), d.chunks_run());
       }, "Chunks of the pairs' second halves run so far: (by the second thread, in all).")
+      .def_property_readonly("runs", [](const collres::Detector& d) {
+        return py::make_tuple(d.paired_runs(), d.runs());
+      }, "Detects posted for two threads so far: (run paired, in all); the others the cost "
+         "model ran on the calling thread alone.")
       .def("set_filter", &collres::Detector::set_filter, py::arg("group"), py::arg("mask"),
            py::arg("ignored"),
            "Collision filter for the next step: per body group and mask bits, ignored "

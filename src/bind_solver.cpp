@@ -270,6 +270,10 @@ void bind_solver(py::module_& m) {
       .def_property_readonly("helped", [](const StepSolver& solver) {
         return py::make_tuple(solver.helped(), solver.chunks_run());
       }, "Chunks of the waves' second halves run so far: (by the second thread, in all).")
+      .def_property_readonly("runs", [](const StepSolver& solver) {
+        return py::make_tuple(solver.paired_runs(), solver.runs());
+      }, "Runs posted for two threads so far: (run paired, in all); the others the cost "
+         "model ran on the calling thread alone.")
       .def_property_readonly("redone", &StepSolver::redone,
                              "Steps solved again so far: a contact without a row (prepare's "
                              "row_bound) escaped and got one.")

@@ -145,6 +145,10 @@ class Detector {
   // chunks of the second halves run so far: by the worker, and by either thread
   std::uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
   std::uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
+  // detects posted for two threads so far, and of those run paired (Worker::runs,
+  // paired_runs)
+  std::uint64_t runs() const { return worker_ ? worker_->runs() : 0; }
+  std::uint64_t paired_runs() const { return worker_ ? worker_->paired_runs() : 0; }
   int count() const { return bodies_count_; }   // bodies
   int pieces() const { return static_cast<int>(shapes_.size()); }
 

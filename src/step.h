@@ -228,6 +228,9 @@ class StepSolver {
   // chunks of the waves' second halves run so far: by the second thread, in all
   uint64_t helped() const { return worker_ ? worker_->helped() : 0; }
   uint64_t chunks_run() const { return worker_ ? worker_->chunks_run() : 0; }
+  // runs posted for two threads so far, and of those run paired (Worker::runs, paired_runs)
+  uint64_t runs() const { return worker_ ? worker_->runs() : 0; }
+  uint64_t paired_runs() const { return worker_ ? worker_->paired_runs() : 0; }
   // steps solved again since construction (a contact without a row escaped: StepSolver::escaped)
   uint64_t redone() const { return redone_; }
 

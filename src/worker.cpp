@@ -4,6 +4,10 @@
 #include <chrono>
 #include <stdexcept>
 
+#ifdef __linux__
+#include <sched.h>
+#endif
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #define COLLRES_PAUSE() _mm_pause()
@@ -33,6 +37,35 @@ constexpr uint64_t kClaim = uint64_t{1} << 16;   // a chunk claimed, in a queue'
 inline uint32_t run_of(uint64_t state) { return static_cast<uint32_t>(state >> 32); }
 inline int claimed_of(uint64_t state) { return static_cast<int>((state >> 16) & 0xffffu); }
 inline int finished_of(uint64_t state) { return static_cast<int>(state & 0xffffu); }
+
+// the core this thread runs on (-1: unknown)
+int current_core() {
+#ifdef __linux__
+  return sched_getcpu();
+#else
+  return -1;
+#endif
+}
+
+// (the worker) off the core `caller` when it runs there: its affinity without that core,
+// then the one it had (see the file's header); nothing when the process may run on that
+// core alone
+void leave_core(int caller) {
+#ifdef __linux__
+  const int here = sched_getcpu();
+  if (here < 0 || here != caller) return;
+  cpu_set_t allowed;
+  if (sched_getaffinity(0, sizeof allowed, &allowed) != 0 || !CPU_ISSET(here, &allowed) ||
+      CPU_COUNT(&allowed) < 2)
+    return;
+  cpu_set_t elsewhere = allowed;
+  CPU_CLR(here, &elsewhere);
+  if (sched_setaffinity(0, sizeof elsewhere, &elsewhere) == 0)
+    sched_setaffinity(0, sizeof allowed, &allowed);
+#else
+  (void)caller;
+#endif
+}
 
 void wait_until(const std::function<bool()>& ready) {
   for (int i = 0; !ready(); ++i) {
@@ -85,6 +118,7 @@ void Worker::loop() {
       if (generation_ == seen) continue;   // (woken to stay: spins for the next run)
       generation = seen = generation_;
     }
+    leave_core(caller_core_.load(std::memory_order_relaxed));
     helped_.fetch_add(static_cast<uint64_t>(help(generation, 1)), std::memory_order_relaxed);
   }
 }
@@ -206,10 +240,13 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
   const bool explore = costs.burst > 0;
   const bool paired = explore ? costs.explored : costs.paired <= costs.alone;
   const auto start = std::chrono::steady_clock::now();
+  ++runs_;
   if (paired) {
+    ++paired_runs_;
     uint32_t generation;
     {
       std::lock_guard<std::mutex> lock(mutex_);
+      caller_core_.store(current_core(), std::memory_order_relaxed);
       task_ = &task;
       generation = ++generation_;
       int size[2] = {0, 0};

@@ -38,7 +38,14 @@
 // sleeping thread woken gets its core back sooner than a spinning one that has used up its
 // share of it); between stay(true) and stay(false) (a solver step, whose stages between
 // its runs last 0.1-1.5 ms on 1000 bodies, where a wake costs ~0.1 ms) it spins on,
-// yielding its core now and then, while a kind of run is chosen paired. Results do not
+// yielding its core now and then, while a kind of run is chosen paired. A worker that
+// finds itself, at a run's start, on the core the caller posted it from (the kernel
+// places a woken thread on its waker's core when it sees no idle one: the two then take
+// turns on one core, and the run costs what it costs alone; a caller that slept between
+// its steps, a node paced at 30 Hz, found its worker there in 72-100 % of its detections)
+// moves to another core the process may run on, at once (its affinity without that core,
+// then as it was: the kernel migrates it, and it runs there or waits its turn; the next
+// wake places it on that core again, its last one, when it is idle). Results do not
 // depend on which thread runs a chunk, nor on the mode.
 #pragma once
 
@@ -87,6 +94,10 @@ class Worker {
   // chunks of the second tasks run so far: by the worker, and by either thread
   uint64_t helped() const { return helped_.load(std::memory_order_relaxed); }
   uint64_t chunks_run() const { return chunks_run_; }
+  // runs posted so far for two threads (a run with a chunk in each queue, or a first task
+  // and chunks), and of those the ones the cost model ran paired (the worker woken)
+  uint64_t runs() const { return runs_; }
+  uint64_t paired_runs() const { return paired_runs_; }
 
  private:
   void loop();
@@ -108,6 +119,9 @@ class Worker {
   Queue queue_[2];
   alignas(64) std::atomic<uint64_t> helped_{0};   // chunks the worker ran
   uint64_t chunks_run_ = 0;           // chunks posted (the caller's thread)
+  uint64_t runs_ = 0, paired_runs_ = 0;   // (the caller's) runs(), paired_runs()
+  // the core the caller posted the last paired run from (-1: unknown), read by the worker
+  std::atomic<int> caller_core_{-1};
   struct Costs {                      // (the caller's) per kind of run
     double alone = 0.0, paired = 0.0;   // s per unit of work, running means (0: none yet)
     unsigned runs = 0;                  // since the last runs in the mode not chosen

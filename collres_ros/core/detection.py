@@ -138,6 +138,15 @@ class Detection:
         pairs, rows = self._native.budget()
         return int(pairs), int(rows)
 
+    @property
+    def thread_runs(self) -> tuple[int, int, int, int]:
+        """The second thread's part in the detects so far (``threads`` 2, 64 shapes or more):
+        (detects posted for two threads, of those run paired, their chunks, of those the
+        chunks the second thread ran); ``World.thread_runs``."""
+        paired, runs = self._native.runs
+        helped, chunks = self._native.helped
+        return int(runs), int(paired), int(chunks), int(helped)
+
     def candidate_pairs(self, previous: BodyStates, current: BodyStates,
                         active: np.ndarray | None = None) -> list[tuple[int, int]]:
         """Broad-phase pairs (a < b) whose swept bounds overlap (for tests and tools)."""

@@ -156,6 +156,26 @@ class World:
                 getattr(self, name)[index] = value
         self.sleep.wake_all()
 
+    @property
+    def threads(self) -> int:
+        """Threads of detection and of the solve (``SOLVER_TUNING`` ``threads``)."""
+        return int(self._params.threads)
+
+    @property
+    def thread_runs(self) -> tuple[int, int, int, int]:
+        """The second thread's part in the steps so far (``threads`` 2), detection's and the
+        solve's: (runs posted for two threads, of those the ones the cost model ran paired
+        (the second thread woken; the others ran on the calling thread alone), the chunks
+        of the runs, of those the chunks the second thread ran: about half of a paired
+        run's where it took its share, fewer where it was woken late or not given a core).
+        Not deterministic (wall-time costs choose the mode); the answer's bits do not depend
+        on it."""
+        runs = getattr(self._collision, 'thread_runs', (0, 0, 0, 0))   # (a test's detector)
+        paired, posted = self._solver.runs
+        helped, chunks = self._solver.helped
+        return (runs[0] + int(posted), runs[1] + int(paired), runs[2] + int(chunks),
+                runs[3] + int(helped))
+
     def forget(self, bodies: np.ndarray, last_poses: np.ndarray | None = None) -> None:
         """Drop the warm-start impulses of these body indices (a fresh restart, a reset):
         each moves in the next step from ``last_poses`` ((K, 7) position m, orientation

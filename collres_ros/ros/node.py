@@ -44,7 +44,9 @@ reports the callback's time split (``time.decode_ms``, ``time.resolve_ms``,
 ``answer_time_mean_ms``: to the answer published, then
 ``time.encode_ms``, ``time.publish_ms``: the other outputs) and how long a ``body_states``
 input waited between its reception by the DDS and its callback (``time.queued_ms``, mean,
-``queued_max_ms``: a thread that waited for a core, for the lock or for the step before).
+``queued_max_ms``: a thread that waited for a core, for the lock or for the step before),
+and whether the second thread took part (``threads.*``: the runs posted for two threads, the
+share run paired and the share of their chunks the second thread ran).
 Behind (a newer ``body_states``
 input waits when a step is answered), that step's markers are skipped and counted
 (``outputs_skipped_behind``); its answer, contacts, wrenches and ``/tf`` are always
@@ -229,6 +231,7 @@ class CollresNode(Node):
         self.last_step: Optional[ResolvedStep] = None
         self.health = Health()
         self._served = 0                 # bodies served, all steps
+        self._thread_runs = self.resolver.world.thread_runs   # at the last report
         self.skipped_behind = 0          # steps answered without their markers (behind)
         self._parts_since_step = 0       # per-body inputs since the last per-body step
         self._last_part_step = time.monotonic()
@@ -601,9 +604,23 @@ class CollresNode(Node):
                    'time.queued_ms': f'{1e3 * w["queued"] / max(w["queued_inputs"], 1):.3f}',
                    'queued_max_ms': f'{1e3 * w["queued_max"]:.3f}',
                    **{f'time.{key}_ms': mean(key) for key in TIMED},
+                   **self._thread_values(),
                    **sleep_values(self.resolver)})
         self._window = self._new_window(now)
         return snap
+
+    def _thread_values(self) -> dict[str, Any]:
+        """/diagnostics values of the second thread (``threads``; resets the window):
+        runs posted for two threads and those run paired, since start, and over the
+        period the share of them run paired and the share of their chunks the second thread
+        ran ('n/a' without such a run: one thread, or a scene too small to share)."""
+        now = self.resolver.world.thread_runs
+        runs, paired, chunks, helped = (a - b for a, b in zip(now, self._thread_runs))
+        self._thread_runs = now
+        return {'threads': self.resolver.world.threads, 'threads.runs': now[0],
+                'threads.paired_runs': now[1],
+                'threads.paired_share': f'{paired / runs:.3f}' if runs else 'n/a',
+                'threads.second_share': f'{helped / chunks:.3f}' if chunks else 'n/a'}
 
     @staticmethod
     def _new_window(since: float) -> dict[str, float]:

@@ -112,6 +112,24 @@ def test_two_threads_and_one_by_one_give_the_bytes_of_one_thread_in_lanes():
     assert states[0].position[5:, 2].max() < 0.6          # it fell and piled up
 
 
+def test_the_second_threads_part_is_counted_and_one_thread_posts_no_run():
+    """``World.thread_runs`` (the node's /diagnostics ``threads.*``): at threads 2 every step
+    posts its detect (64 shapes or more) for two threads and the cost model runs a kind's
+    first run paired (no mode measured yet); the second thread runs no more chunks than
+    were posted; at threads 1 no run is posted for two threads."""
+    bodies, start = pile(64)
+    one, two = world(bodies, 1), world(bodies, 2)
+    states = [start.copy(), start.copy()]
+    for _ in range(10):
+        for k, w in enumerate((one, two)):
+            states[k] = w.step(states[k], euler_step(states[k], w.dynamic, GRAVITY, DT),
+                               DT).states
+    assert (one.threads, two.threads) == (1, 2)
+    assert one.thread_runs == (0, 0, 0, 0)
+    runs, paired, chunks, helped = two.thread_runs
+    assert runs >= 10 and 1 <= paired <= runs and 0 <= helped <= chunks
+
+
 def test_shock_propagation_in_lanes_gives_the_bytes_of_one_by_one():
     # eight 20 kg boxes each on a 1 kg box on the floor: shock propagation holds each light
     # box under its heavy one (its rows one by one, the light box movable) and solves the

@@ -67,6 +67,7 @@ class Fixed:
     def __init__(self, contacts: ContactSet, settings: SolverSettings) -> None:
         self.contacts, self.settings, self.collision_filter = contacts, settings, None
         self.budget = (0, 0)      # nothing dropped by a step budget
+        self.thread_runs = (0, 0, 0, 0)   # one thread: no runs posted for two
 
     def detect(self, previous, current, active=None, threads=1) -> ContactSet:
         return self.contacts

@@ -71,6 +71,7 @@ class Detector(Protocol):
     settings: SolverSettings
     collision_filter: CollisionFilter
     budget: tuple[int, int]   # last detect: (pairs, rows) the step budget dropped
+    thread_runs: tuple[int, int, int, int]   # the second thread's part (Detection.thread_runs)
 
     def detect(self, previous: BodyStates, current: BodyStates,
                active: np.ndarray | None = None, threads: int = 1) -> ContactSet: ...
@@ -170,7 +171,7 @@ class World:
         run's where it took its share, fewer where it was woken late or not given a core).
         Not deterministic (wall-time costs choose the mode); the answer's bits do not depend
         on it."""
-        runs = getattr(self._collision, 'thread_runs', (0, 0, 0, 0))   # (a test's detector)
+        runs = self._collision.thread_runs
         paired, posted = self._solver.runs
         helped, chunks = self._solver.helped
         return (runs[0] + int(posted), runs[1] + int(paired), runs[2] + int(chunks),

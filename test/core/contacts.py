@@ -16,6 +16,7 @@ class FixedContacts:
         self.contacts = contacts
         self.settings = settings or SolverSettings()
         self.budget = (0, 0)
+        self.thread_runs = (0, 0, 0, 0)   # one thread: no runs posted for two
 
     def detect(self, previous: BodyStates, current: BodyStates,
                active: np.ndarray | None = None, threads: int = 1) -> ContactSet:

@@ -1059,10 +1059,11 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
 // - each substep's first sweep (and the landing's) changes 0.26-0.62: a face of four
 //   points whose load moves between its two diagonals, its free direction (+-0.31 on the
 //   four floor rows of one cube of 100 in the first substep, -+0.39 back in the landing;
-//   0.42-0.62 in faces between cubes of 1000). One corner there floats a fraction of a
-//   micrometre above its partner: where it may approach (allowance 4e-5 to 5e-4 m/s) the
-//   block's answer carries the face on the other three points, elsewhere on all four, the
-//   answer of least norm; the two are statically the same (no velocity moves);
+//   0.42-0.62 in faces between cubes of 1000): the block's answer jumps between its
+//   all-active one (least norm: the load spread over both diagonals) and one with a point
+//   out (the other three carrying it), statically the same (no velocity moves). Not the
+//   substeps' allowances: with none for points within 1 or 10 um of touching the jumps
+//   (0.27-0.43) and the plateau below stay;
 // - from the second sweep on the largest change stays at 6e-4 to 2.4e-2 a sweep (median
 //   3e-5 to 7e-5; ~78 % of the swept rows above 1e-6 at the 11th sweep) and does not fall:
 //   the rows' velocity error stays at 5e-4 to 5e-3 m/s (median 2e-5 to 7e-5 m/s) and the
@@ -1072,7 +1073,8 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
 //   solved with its friction as one (solve_coupled) leaves the same plateau (1000 cubes at
 //   30 Hz, 11th sweep: 5e-3 to 3.1e-2, velocity error 2.2e-3 to 5.5e-3 m/s; split 2.7e-3 to
 //   2.4e-2, 2.2e-3 to 5.5e-3 m/s); and the faces of columns: a pile of 100 swept cold 1260
-//   times still changes 1.7e-5 a sweep (halving every ~600 sweeps), its slowest mode a
+//   times still changes 1.7e-5 a sweep (halving every ~600 sweeps; velocity error 3e-4 m/s
+//   at the 20th sweep, 1.7e-4 at the 100th, 2.4e-5 at the 1260th), its slowest mode a
 //   column's faces' loads moving between their diagonals, the column rising at 2e-5 m/s;
 // - the warm start is not what keeps them changing (cubes of 100 at 30 Hz, against the
 //   answer of 200 sweeps of each substep): the substeps' warm-started impulses lie as close

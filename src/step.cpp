@@ -1081,8 +1081,12 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
 //   to it (median 2.8e-3 to 5.3e-3) as the substeps' own sweeps' answer (2.4e-3 to 3.3e-3),
 //   whose 200th sweep still changes 4.8e-4 to 6.7e-4; every row that changes is warm
 //   started (none new), and the swept manifolds differ by under 1 % between substeps.
-// So no rule on the change of the impulses stops a settled pile's sweeps before their
-// count; fewer sweeps need a solve that converges on those blocks and columns.
+// Nor the sweeps' order: the manifolds taken top down (by their upper body's contact level,
+// before the waves) leave the rows' velocity error at 6.1e-4 to 2.5e-3 m/s, median 1.1e-5
+// to 3.2e-5 (cubes of 100 at 30 Hz, 11th sweep; as they are: 6.5e-4 to 1.4e-3, median
+// 1.5e-5 to 3.6e-5; sorted bottom up: the same bits). So no rule on the change of the
+// impulses stops a settled pile's sweeps before their count; fewer sweeps need a solve
+// that converges on those blocks and columns.
 int StepSolver::sweep(StepContext& ctx, int iterations) {
   const SolverParams& p = ctx.params;
   admit(ctx, p.activation_margin, false);

@@ -1004,15 +1004,20 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const Quat rel_q = A.q1.conjugate() * B.q1;
   const double shift = settings_.reuse_shift * std::min(shapes_[a].thickness,
                                                         shapes_[b].thickness);
-  if ((rel_p - stored->rel_p).norm() > shift ||
+  // the shift along the contact plane (A's frame): a shift along the manifold's normal
+  // moves no point along either face, and each row's gap is measured again below
+  const StoredRow* const rows =
+      stored->count > 0 ? &stored_[part].row(stored->first) : nullptr;
+  Vec3 moved = rel_p - stored->rel_p;
+  if (rows != nullptr) moved -= moved.dot(rows[0].normal_a) * rows[0].normal_a;
+  if (moved.norm() > shift ||
       std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
     return false;
   }
   // a pair whose every point left the margin is no longer in contact (the rows of a
   // manifold share one normal); each row's points at the current poses give its row, added
   // at once and dropped again when the pair is not reused
-  if (stored->count == 0) return true;
-  const StoredRow* const rows = &stored_[part].row(stored->first);
+  if (rows == nullptr) return true;
   const Vec3 normal = A.r1 * rows[0].normal_a;
   const std::size_t first = out.size();
   double gap = kInf;

@@ -13,20 +13,21 @@
 //    with a < b.
 // 3. Stored manifolds (manifold.h): a pair of flat-faced bodies that was in contact last
 //    step keeps its contact points, stored in the two body frames, while the pair has
-//    shifted relative to each other since they were measured by less than reuse_shift
-//    (DetectionSettings) times the thinner body's smallest half extent (a stored point is
-//    about that far from where a fresh query finds it: the same share of any body's size)
-//    and turned by less than kReuseRotation; only their gaps are recomputed (no coal
-//    query), as long as the narrow phase would call the pair persistent (step 4: its
-//    least gap plus how much the step may have changed it within the margin, no hit fast
-//    enough to bounce, no deep overlap; with a half-space only the motion along its normal
-//    changes the gap). Motion the two bodies share does not count: a pile that its source
-//    integrated one 30 Hz period under gravity keeps its points. A curved body's points
-//    are never reused: on a rolling surface they would turn with the body. A pair the
-//    narrow phase measured apart (beyond the margin) keeps that distance with its relative
-//    pose; while the distance less how far a point of either body has since moved relative
-//    to the other stays beyond the margin and the step's relative motion, the narrow phase
-//    would give it no rows and it is not queried.
+//    shifted relative to each other along its contact plane since they were measured by
+//    less than reuse_shift (DetectionSettings) times the thinner body's smallest half
+//    extent (a stored point is about that far from where a fresh query finds it: the same
+//    share of any body's size; a shift along the manifold's normal moves no point along
+//    either face, only the gaps) and turned by less than kReuseRotation; only their gaps
+//    are recomputed (no coal query), as long as the narrow phase would call the pair
+//    persistent (step 4: its least gap plus how much the step may have changed it within
+//    the margin, no hit fast enough to bounce, no deep overlap; with a half-space only the
+//    motion along its normal changes the gap). Motion the two bodies share does not count:
+//    a pile that its source integrated one 30 Hz period under gravity keeps its points. A
+//    curved body's points are never reused: on a rolling surface they would turn with the
+//    body. A pair the narrow phase measured apart (beyond the margin) keeps that distance
+//    with its relative pose; while the distance less how far a point of either body has
+//    since moved relative to the other stays beyond the margin and the step's relative
+//    motion, the narrow phase would give it no rows and it is not queried.
 // 4. Narrow phase of the other pairs at the current state (coal), then per pair:
 //    PERSISTENT when within the margin at the previous state too (or within it now and
 //    apart before without a hit: a speculative contact); IMPACT when apart before and
@@ -104,7 +105,8 @@ constexpr double kDeepFraction = 0.25;     // EPA's normal is not trusted deeper
                                            // part of the thinner body
 constexpr double kReuseRotation = 1e-2;    // rad: a manifold is reused while its pair has
                                            // turned less than this relative to each other
-                                           // (and shifted less than reuse_shift)
+                                           // (and shifted less than reuse_shift along
+                                           // its contact plane)
 constexpr double kApartSlack = 1e-5;      // m: a stored distance counts this much less (GJK's
                                            // tolerance and the retry step on either measure)
 constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs of boxes

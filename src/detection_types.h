@@ -39,7 +39,8 @@ struct DetectionSettings {
   double reuse_shift = 0.02;           // fraction of the thinner body's smallest half
                                        // extent: a stored manifold is reused while its
                                        // pair shifted less than this times it relative
-                                       // to each other (SOLVER_TUNING)
+                                       // to each other along its contact plane
+                                       // (SOLVER_TUNING)
   int max_pairs = 20000;               // budget: broad-phase pairs queried per step
   int max_contacts = 40000;            // budget: contact rows per step
   int max_contacts_per_pair = 8;       // rows kept per pair of bodies (the deepest; a pair

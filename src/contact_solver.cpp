@@ -784,18 +784,24 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double
     if (idle) return 0.0;
   }
   // every row active: the least-norm answer (prepare_block's inverse), when the block has
-  // one and it leaves no row approaching along the free direction beyond rounding
+  // one and (a block with a free direction) it leaves no row approaching along the free
+  // direction beyond rounding
   if (block.invertible && !lanes_tried) {
     bool ok = true;
-    double loose = 0.0, largest = 0.0;   // m/s: the largest approach left, the largest |q|
     for (int i = 0; i < k; ++i) {
       x[i] = 0.0;
       for (int j = 0; j < k; ++j) x[i] -= block.inverse[i][j] * q[j];
       ok = ok && x[i] >= -1e-12 * (1.0 + std::fabs(x[i]));
-      loose += block.residual[i] * q[i];
-      largest = std::max(largest, std::fabs(q[i]));
     }
-    if (ok && std::fabs(loose) <= 1e-12 * (1.0 + largest)) return take_block(r, k, x, v);
+    if (ok && block.redundant) {
+      double loose = 0.0, largest = 0.0;   // m/s: the largest approach left, the largest |q|
+      for (int i = 0; i < k; ++i) {
+        loose += block.residual[i] * q[i];
+        largest = std::max(largest, std::fabs(q[i]));
+      }
+      ok = std::fabs(loose) <= 1e-12 * (1.0 + largest);
+    }
+    if (ok) return take_block(r, k, x, v);
   }
   // x for the active set `set` (bit i: row i active): A_SS x_S = -q_S by Gaussian
   // elimination with partial pivoting, x >= 0 on S and w >= 0 off S; false otherwise
@@ -848,7 +854,7 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
     block.delassus[i][i] *= 1.0 + kRegular;
     block.residual[i] = 0.0;
   }
-  block.invertible = false;
+  block.invertible = block.redundant = false;
   if (k < 2) return;
   // The all-active answer x = -inverse q, the least-norm one (impulses weighted by their
   // rows' own effects, as kRegular weighs them). In units of the rows' own effects
@@ -874,7 +880,11 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
   // pivoting: order[c] the unknown in place c; e is symmetric, positive semi-definite).
   // The pivot of place c is y^T e y for y its column's multiples (-u) and 1 there: where it
   // is within kRegular of y . y, y is free (the last place: else no inverse), and the
-  // pivots before it give E (its own row and column 0)
+  // pivots before it give E (its own row and column 0). The right half's columns are in
+  // place order too: before place c its columns from c on are still the identity's, so
+  // row c's right half is zero beyond c, and a row's update skips those columns (each
+  // would subtract a zero: the same bits); a column of e, once its place is eliminated,
+  // is never read again and is left as it is.
   double t[k][2 * k];
   int order[k];
   for (int i = 0; i < k; ++i) {
@@ -889,8 +899,8 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
     int pivot = c;
     for (int i = c + 1; i < k; ++i)
       if (t[i][i] > t[pivot][pivot]) pivot = i;
-    if (pivot != c) {
-      for (int j = 0; j < 2 * k; ++j) std::swap(t[c][j], t[pivot][j]);
+    if (pivot != c) {   // (the right half's columns c and pivot: swapped back to the identity)
+      for (int j = c; j < k + c; ++j) std::swap(t[c][j], t[pivot][j]);
       for (int i = 0; i < k; ++i) std::swap(t[i][c], t[i][pivot]);
       std::swap(order[c], order[pivot]);
     }
@@ -904,14 +914,24 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
     for (int i = 0; i < k; ++i) {
       if (i == c) continue;
       const double f = t[i][c] / t[c][c];
-      for (int j = c; j < 2 * k; ++j) t[i][j] -= f * t[c][j];
+      for (int j = c + 1; j <= k + c; ++j) t[i][j] -= f * t[c][j];
     }
   }
-  double z[k] = {};   // the free direction, unit (0: none)
+  if (free < 0) {   // no free direction: inverse = S E S
+    for (int c = 0; c < k; ++c)
+      for (int p = 0; p < k; ++p)
+        block.inverse[order[c]][order[p]] =
+            s[order[c]] * (t[c][k + p] / t[c][c]) * s[order[p]];
+    block.invertible = true;
+    return;
+  }
+  block.redundant = true;
+  double z[k] = {};   // the free direction, unit
   double inverse[k][k];   // E
   for (int c = 0; c < k; ++c)
-    for (int j = 0; j < k; ++j) inverse[order[c]][j] = c == free ? 0.0 : t[c][k + j] / t[c][c];
-  if (free >= 0) {
+    for (int p = 0; p < k; ++p)
+      inverse[order[c]][order[p]] = c == free ? 0.0 : t[c][k + p] / t[c][c];
+  {
     double size = 1.0;
     z[order[free]] = 1.0;
     for (int c = 0; c < free; ++c) {
@@ -948,7 +968,7 @@ void prepare_block(Manifold& block, const ContactRow* r) {
     case 2: prepare_block_of<2>(block, r); break;
     case 3: prepare_block_of<3>(block, r); break;
     case 4: prepare_block_of<4>(block, r); break;
-    default: block.invertible = false; break;   // (more rows: solved row by row)
+    default: block.invertible = block.redundant = false; break;   // (more rows: row by row)
   }
 }
 
@@ -1486,15 +1506,19 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
       idle &= (w[i].normal == 0.0) & (q[i] >= 0.0);
     }
     Mask fits = g.invertible != 0.0;
-    Lanes loose = splat(0.0), largest_q = splat(0.0);
     for (int i = 0; i < k; ++i) {
       x[i] = splat(0.0);
       for (int j = 0; j < k; ++j) x[i] -= g.inverse[i][j] * q[j];
       fits &= x[i] >= -1e-12 * (1.0 + magnitude(x[i]));
-      loose += g.residual[i] * q[i];
-      largest_q = maximum(largest_q, magnitude(q[i]));
     }
-    fits &= magnitude(loose) <= 1e-12 * (1.0 + largest_q);
+    if (g.redundant) {   // (else every lane's residual is 0: the test passes)
+      Lanes loose = splat(0.0), largest_q = splat(0.0);
+      for (int i = 0; i < k; ++i) {
+        loose += g.residual[i] * q[i];
+        largest_q = maximum(largest_q, magnitude(q[i]));
+      }
+      fits &= magnitude(loose) <= 1e-12 * (1.0 + largest_q);
+    }
     // take_block's changes of the normal impulses, per row: each lane's from the one answer
     // that fits it (all-active, edge or face; the three take disjoint lanes), applied to the
     // twists once, below, the same operations on each lane as one apply per answer (a lane
@@ -1993,6 +2017,7 @@ void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& r
   for (int l = 0; l < kLanes; ++l) search.set[l] = -1;   // (nothing kept)
   const bool full = g.lanes == kLanes;
   if (full) pack_full(g, &plan.wide_rows[g.row], search, rows, manifolds);
+  g.redundant = false;
   for (int l = 0; l < g.lanes; ++l) {
     const Manifold& m = manifolds[g.manifold + static_cast<size_t>(l)];
     g.offset_a[l] = 6 * static_cast<int64_t>(m.a);
@@ -2003,6 +2028,7 @@ void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& r
     g.ma[l] = r[0].ma;
     g.mb[l] = r[0].mb;
     g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
+    g.redundant = g.redundant || m.redundant;
     if (full) continue;   // (the rest: pack_full)
     for (int i = 0; i < g.count; ++i)
       for (int j = 0; j < g.count; ++j) {

@@ -156,6 +156,8 @@ struct Manifold {
   int32_t spin = -1;             // index of its SpinRow in the solve's spins, -1: none
   bool invertible = false;       // `inverse` holds the all-active answer's matrix (at
                                  // most one free direction)
+  bool redundant = false;        // ... and the block has a free direction (`residual`
+                                 // is not all zero)
   bool coupled = false;          // its normal rows and friction solved as one block each
                                  // sweep (every block of an impact stage; a manifold one
                                  // of whose bodies had an impact this step, or one of
@@ -176,9 +178,9 @@ struct Manifold {
   // does not fit
   double plain[4][4] = {};
   double inverse[4][4] = {};   // kg, when `invertible`
-  double residual[4] = {};     // (when `invertible`) |residual . q|: the largest approach
+  double residual[4] = {};     // (when `redundant`) |residual . q|: the largest approach
                                // (m/s) the all-active answer leaves its rows along the
-                               // block's free direction, q their velocities (0: none)
+                               // block's free direction, q their velocities (else 0)
   double delassus[4][4] = {};
 };
 
@@ -268,6 +270,8 @@ struct WideGroup {
   Lanes n[3], t1[3], t2[3];      // each manifold's frame: every row's (unit, world)
   Lanes plain[4][4], inverse[4][4];   // Manifold::plain, ::inverse (2 to 4 rows)
   Lanes residual[4];                  // Manifold::residual
+  bool redundant = false;             // a lane's manifold is Manifold::redundant (else
+                                      // `residual` is all zero: its test is skipped)
 };
 
 // What a wide group of 2 to 4 rows reads only where the all-active answer does not fit

@@ -1087,6 +1087,28 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
 // 1.5e-5 to 3.6e-5; sorted bottom up: the same bits). So no rule on the change of the
 // impulses stops a settled pile's sweeps before their count; fewer sweeps need a solve
 // that converges on those blocks and columns.
+// Nor does a conjugate gradient over the sweeps take the plateau out (nonsmooth nonlinear
+// CG: Silcowitz, Niebe and Erleben 2010, Bullet's btNNCGConstraintSolver; scratch build:
+// after each sweep r = the change of every swept row's impulses, beta = |r|^2 / |r'|^2 of
+// the sweep before, restarted above 1, and the impulses, twists with them, moved on by beta
+// times the last step, normal >= 0 and friction scaled into its cone; not after the last
+// sweep). Rows' velocity error, max / median (m/s), first substep: cubes of 100 at 30 Hz,
+// 11th sweep 1.5e-3 / 1.1e-4 (as they are: 1.8e-3 / 1.2e-4), 20th 9.7e-4 / 8.0e-5 (1.2e-3 /
+// 8.1e-5), 200th 7.1e-4 / 2.0e-5 (7.7e-4 / 2.9e-5); 1000 cubes at 30 Hz, 11th 5.6e-3 /
+// 1.6e-4 (4.2e-3 / 1.6e-4); 100 cubes at 120 Hz 3.4e-4 / 5.9e-5 (3.4e-4 / 5.8e-5). From the
+// third sweep on 35-45 % of the sweeps restart it (their change grew: the faces' loads and
+// the cones' turns above are no descent). On a slow mode it does converge: a tower of 20
+// cubes of 0.2 m started cold at 30 Hz, 40th / 60th sweep, 1.1e-3 / 2.3e-4 m/s (3.6e-3 /
+// 3.0e-3), and the pyramid of 55 cubes (bench_laws) drifts 0.0003 mm (0.011 to 0.026 mm)
+// but gains 3.7e-6 J in its first step at 240 Hz (the sweeps as they are leave it sinking,
+// 9.5 um in that step: no gain). Its extra pass, with the wide rows unpacked and packed
+// again at each sweep, costs about a sweep again (cubes of 1000 at 120 Hz: 1.0 M
+// instructions a sweep, the sweep 0.92 M). With deep_overlap 0, of the 30 Hz piles of
+// test_pile_rest (seeds 1-6 of both kinds, and 200 cubes of seeds 1-2) one of the 14 is
+// awake after 4 s (200 cubes: 6 s), the others rest 0.11-0.34 mm deep (as they are: 4
+// awake; with 20 sweeps cubes seed 1 too, 0.61 mm); restarted above 2 instead, one awake
+// too (0.11-0.23 mm), and the pyramid gains 5.5e-5 J, a mirrored hit of bench_laws turns
+// asymmetric (1.1e-6) and its dropped column overlaps 5.4 mm at 30 Hz (1.14 mm).
 int StepSolver::sweep(StepContext& ctx, int iterations) {
   const SolverParams& p = ctx.params;
   admit(ctx, p.activation_margin, false);

@@ -99,7 +99,7 @@ struct SolverParams {
   int landing_sweeps = 3;               // are the last substep's last this many (land)
   double later_impact = 1e-3;           // fraction of the step: a detected impact this much
                                         // later than its body's earliest ...
-  double behind_cosine = 0.9;           // ... and behind it (normals out of the body within
+  double behind_cosine = 0.7;           // ... and behind it (normals out of the body within
                                         // acos of this) waits for it
   double aim_turn = 1e-3;               // rad: an aimed row's frame is turned only where the
                                         // centres' line leans from its normal more (aim)

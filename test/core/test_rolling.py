@@ -165,6 +165,29 @@ def test_a_settled_pile_comes_to_rest_with_the_defaults(kind, rate):
     assert speed.max() < 0.05
 
 
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    'mixed pile seed 4 at 30 and 60 Hz: a ball left on the heap\'s top (ball96) rolls off '
+    'it late, 0.098 / 0.066 m/s 2 s after the drop (up to 1.5 m/s at 1.83 s at 30 Hz), and '
+    'the pile is at rest only after 2.4-3.4 s; seeds 1-3 and 5-8 rest within 2 s'))
+@pytest.mark.parametrize('rate', [30.0, 60.0])
+def test_a_settled_pile_of_another_seed_comes_to_rest_with_the_defaults(rate):
+    """The mixed pile of seed 4 (jitter of the drop), every setting a default: 2 s after the
+    drop every body is slower than 0.05 m/s at its farthest point."""
+    bodies, initial = make_pile(100, seed=4, kind='mixed')
+    sim = Simulation(bodies, initial, rate)
+    for _ in range(int(round(2 * rate))):
+        sim.step()
+    reach = np.array([0.0 if b.static else (b.size[0] if b.shape == 'sphere'
+                                            else 0.5 * float(np.linalg.norm(b.size)))
+                      for b in bodies])
+    speed = np.linalg.norm(sim.state.linear, axis=1) + \
+        np.linalg.norm(sim.state.angular, axis=1) * reach
+    print('at', rate, 'Hz: fastest point after 2 s', speed.max(),
+          bodies[int(speed.argmax())].name)
+    assert speed.max() < 0.05
+
+
 def slider(mu=0.3) -> BodySpec:
     return BodySpec('box', 'box', (2 * R, 2 * R, 2 * R), mass=1.0, restitution=0.0,
                     static_friction=mu, kinetic_friction=mu)

@@ -1029,6 +1029,7 @@ void frame_row(ContactRow& row, const SolverBodies& bodies, const ContactRow* fr
   row.kt[2] = block(2, 2);
 }
 
+COLLRES_CLONED_FLAT
 void prepare_row(ContactRow& row, const ContactRow* framed, const SolverBodies& bodies,
                  const double* slow, double sticking_speed, double mu_static,
                  double mu_kinetic) {

@@ -995,10 +995,6 @@ void slip_velocity(const ContactRow& row, const double* v, double out[2]) {
   out[1] = relative(row, t, 2, row.t2);
 }
 
-double normal_velocity(const ContactRow& row, const double* v) {
-  return relative(row, v, 0, row.n);
-}
-
 void frame_row(ContactRow& row, const SolverBodies& bodies, const ContactRow* framed) {
   if (framed != nullptr && std::memcmp(framed->n.data(), row.n.data(), sizeof(double) * 3) == 0) {
     row.t1 = framed->t1;
@@ -1029,6 +1025,7 @@ void frame_row(ContactRow& row, const SolverBodies& bodies, const ContactRow* fr
   row.kt[2] = block(2, 2);
 }
 
+COLLRES_CLONED_FLAT
 void prepare_row(ContactRow& row, const ContactRow* framed, const SolverBodies& bodies,
                  const double* slow, double sticking_speed, double mu_static,
                  double mu_kinetic) {

@@ -985,6 +985,7 @@ void Detector::limit_rows(ContactRows& out) {
   budget_.rows_dropped = count - keep;
 }
 
+COLLRES_CLONED_FLAT
 bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
   const int part = stored_[1].starts_by(key) ? 1 : 0;

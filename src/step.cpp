@@ -1109,9 +1109,7 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
 // w 1.0 does. At 30 Hz the 100 piles rest 0.10-0.34 mm deep, asleep (seeds 1-6 of both
 // kinds), with w 1.6-1.7 row by row and deep_overlap 0, but 200 cubes then stay awake
 // after 8 s; law-keeping (1.1 along the segment, deep_overlap 0.2 mm) cubes seed 1 stays
-// awake 0.47 mm deep as with w 1.0. So no rule on the change of the impulses stops a
-// settled pile's sweeps before their count; fewer sweeps need a solve that converges on
-// those blocks and columns.
+// awake 0.47 mm deep as with w 1.0.
 // Nor does a conjugate gradient over the sweeps take the plateau out (nonsmooth nonlinear
 // CG: Silcowitz, Niebe and Erleben 2010, Bullet's btNNCGConstraintSolver; scratch build:
 // after each sweep r = the change of every swept row's impulses, beta = |r|^2 / |r'|^2 of
@@ -1134,6 +1132,9 @@ bool StepSolver::admit(StepContext& ctx, double margin, bool verify) {
 // awake; with 20 sweeps cubes seed 1 too, 0.61 mm); restarted above 2 instead, one awake
 // too (0.11-0.23 mm), and the pyramid gains 5.5e-5 J, a mirrored hit of bench_laws turns
 // asymmetric (1.1e-6) and its dropped column overlaps 5.4 mm at 30 Hz (1.14 mm).
+// So no rule on the change of the impulses stops a settled pile's sweeps before their
+// count, and no acceleration of the sweeps as they are takes out their plateau; fewer
+// sweeps need a solve that converges on those blocks and columns.
 int StepSolver::sweep(StepContext& ctx, int iterations) {
   const SolverParams& p = ctx.params;
   admit(ctx, p.activation_margin, false);

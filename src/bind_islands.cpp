@@ -57,7 +57,9 @@ void bind_islands(py::module_& m) {
       .def_readwrite("threshold", &SleepSettings::threshold)
       .def_readwrite("time_to_sleep", &SleepSettings::time_to_sleep)
       .def_readwrite("margin", &SleepSettings::margin)
-      .def_readwrite("late_steps", &SleepSettings::late_steps);
+      .def_readwrite("late_steps", &SleepSettings::late_steps)
+      .def_readwrite("rise_time", &SleepSettings::rise_time)
+      .def_readwrite("rise_step", &SleepSettings::rise_step);
 
   py::class_<Islands>(m, "Islands", "Islands and sleep timers of N bodies (see islands.h).")
       .def(py::init<std::vector<double>, std::vector<std::uint8_t>>(), py::arg("radius"),

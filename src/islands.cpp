@@ -37,6 +37,8 @@ Islands::Islands(std::vector<double> radius, std::vector<std::uint8_t> dynamic)
   asleep_.assign(n, 0);
   island_.assign(n, -1);
   timer_.assign(n, 0.0);
+  speed_.assign(n, 0.0);
+  rising_.assign(n, 0.0);
   accel_.assign(6 * n, 0.0);
   change_.assign(6 * n, 0.0);
   parent_.resize(n);
@@ -47,6 +49,8 @@ void Islands::wake_all() {
   std::fill(asleep_.begin(), asleep_.end(), 0);
   std::fill(island_.begin(), island_.end(), -1);
   std::fill(timer_.begin(), timer_.end(), 0.0);
+  std::fill(speed_.begin(), speed_.end(), 0.0);
+  std::fill(rising_.begin(), rising_.end(), 0.0);
 }
 
 double Islands::speed(int i, const double* v, const double* w) const {
@@ -209,14 +213,20 @@ int Islands::update(double* out_linear, double* out_angular,
       touched.push_back(island_[i]);
     }
   }
-  // timers, then per root: ready while every member is
+  // timers and rises, then per root: ready while every member is (still for
+  // time_to_sleep, and not accelerating: its speed not risen in each step for rise_time)
+  const double least_rise = settings_.rise_step * settings_.threshold;
+  const double accelerating = settings_.rise_time * settings_.time_to_sleep;
   for (int i = 0; i < n; ++i) {
     if (!movable[i]) {
       if (!asleep_[i]) timer_[i] = 0.0;
+      speed_[i] = rising_[i] = 0.0;   // held or asleep: answered at rest
       continue;
     }
-    const bool still = speed(i, out_linear + 3 * i, out_angular + 3 * i) < settings_.threshold;
-    timer_[i] = still ? timer_[i] + dt : 0.0;
+    const double s = speed(i, out_linear + 3 * i, out_angular + 3 * i);
+    timer_[i] = s < settings_.threshold ? timer_[i] + dt : 0.0;
+    rising_[i] = s - speed_[i] > least_rise ? rising_[i] + dt : 0.0;
+    speed_[i] = s;
   }
   std::fill(root_still_.begin(), root_still_.end(), 1);
   awake_islands_ = 0;
@@ -224,7 +234,8 @@ int Islands::update(double* out_linear, double* out_angular,
     if (!movable[i]) continue;
     const int root = find(i);
     if (root == i) ++awake_islands_;
-    if (!(timer_[i] >= settings_.time_to_sleep)) root_still_[root] = 0;
+    if (!(timer_[i] >= settings_.time_to_sleep) || rising_[i] >= accelerating)
+      root_still_[root] = 0;
   }
   int fell = 0;
   for (int i = 0; i < n; ++i) {
@@ -235,6 +246,7 @@ int Islands::update(double* out_linear, double* out_angular,
     asleep_[i] = 1;
     island_[i] = next_id_ + root;   // one id per root, unique across updates (below)
     for (int k = 0; k < 3; ++k) out_linear[3 * i + k] = out_angular[3 * i + k] = 0.0;
+    speed_[i] = rising_[i] = 0.0;
     ++fell;
   }
   next_id_ += n;

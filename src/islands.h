@@ -8,8 +8,15 @@
 // motion on); each dynamic body has a sleep timer, the time its speed has stayed below
 // `threshold` (speed of its farthest point, |v| + |w| r, m/s, r its bounding radius about
 // the centre of mass); an island whose bodies have all been still for `time_to_sleep`
-// (s) falls asleep. Awake islands are rebuilt every step (union-find over the step's
-// contacts, Jolt's way); a sleeping island keeps its members until it wakes.
+// (s) falls asleep. A body whose speed has risen in each of its last steps for
+// `rise_time` times `time_to_sleep` or longer (each rise more than `rise_step` times
+// `threshold`) is accelerating, not at rest: an unbalanced load (a ball on a slope just
+// steeper than its rolling resistance allows) speeds it up step after step however slowly,
+// while a body at rest under balanced loads has a speed that decays or jitters (round-off,
+// the solve's residual); it keeps its still time but keeps its island awake until a step
+// in which its speed did not rise (or it passes the threshold). Awake islands are rebuilt
+// every step (union-find over the step's contacts, Jolt's way); a sleeping island keeps
+// its members until it wakes.
 //
 // In a pipeline the bodies keep arriving: upstream integrates a sleeping body from the
 // held answer (held pose, zero twist), so its input is the held pose plus what its
@@ -50,6 +57,9 @@ struct SleepSettings {
   double margin = 0.02;        // m, speculative margin: bounds are padded by half of it
   int late_steps = 1;          // most periods an upstream's input may be integrated from the
                                // held state and keep it asleep (1: only the usual one)
+  double rise_time = 0.6;      // fraction of time_to_sleep: a body whose speed rose in each
+                               // step for this long keeps its island awake (accelerating)
+  double rise_step = 1e-6;     // fraction of threshold: the least rise (m/s a step) counted
 };
 
 // Rows of N states (read only).
@@ -91,7 +101,8 @@ class Islands {
 
   // After the solve: islands of the `movable` bodies (awake, active, dynamic) joined by the
   // M contacts (a, b) (any normal impulse), timers from the answers' twists, islands all
-  // still for time_to_sleep fall asleep (their answer's twist is zeroed: the held state).
+  // still for time_to_sleep and none of whose bodies is accelerating fall asleep (their
+  // answer's twist is zeroed: the held state).
   // A contact with impulse between a movable body and a sleeper wakes the sleeper's island
   // from the next step, its bodies' still time restarting as every woken body's does (Box2D
   // v3): it is solved from then on and may move (a lower body sinks under the new load), so
@@ -120,6 +131,8 @@ class Islands {
   std::vector<std::uint8_t> asleep_;
   std::vector<std::int64_t> island_;  // sleeping island id (-1: awake)
   std::vector<double> timer_;         // s still
+  std::vector<double> speed_;         // m/s, farthest point's speed in the last answer
+  std::vector<double> rising_;        // s the speed has risen in every step
   std::vector<double> accel_;         // (N, 6) last external acceleration, m/s^2, rad/s^2
   std::vector<double> change_;        // (N, 6) last velocity change per input, m/s, rad/s
   std::vector<int> parent_;           // union-find of the last update

@@ -590,6 +590,38 @@ COLLISION_RULE = 'a pair collides when (group_a & mask_b) != 0 and (group_b & ma
 # pile at 100 Hz given one input from an answer two steps old woke (up to 4 cm/s) and was
 # not asleep 1.1 s later; an answer three periods late is already a node far behind.
 SLEEP_LATE_STEPS = 3
+# Tunings of the still rule (core.sleep): each handed to _native.SleepSettings by its name.
+SLEEP_TUNING: tuple[ParamSpec, ...] = (
+    ParamSpec('rise_time', 'double', 0.6,
+              'A body whose farthest point\'s speed has risen in each step for this long is '
+              'accelerating (an unbalanced load drives it), not at rest: its island does not '
+              'fall asleep until a step in which that speed did not rise', 0.05, 1.0,
+              unit='fraction of time_to_sleep',
+              reason='0.3 s with the default time_to_sleep; below 1, or a body whose '
+                     'rises start a step after its still time would sleep first: a ball '
+                     'from rest on a slope of tan = 1.01-1.1 mu_r (mu_r 0.05 and 0.1, 30 and '
+                     '240 Hz) rises in every step (by 2.9e-5 m/s a step at 240 Hz and more), '
+                     'but dropped 2 mm onto it its rises start a step after the landing: at '
+                     '1 it slept after 0.52 s at 240 Hz, at 0.8 and 0.6 it rolls on. In the '
+                     'settling 100-body piles (seeds 1-2, both kinds, 30 and 120 Hz, '
+                     'sleeping off) bodies under the threshold rose up to 16-24 steps in a '
+                     'row at 30 Hz (0.5-0.8 s, while they settle) and up to 20-118 at 120 Hz: '
+                     'counted from the traces, all their bodies were ready as early at 0.6, '
+                     '0.8 and 1 as with no such rule (0.97-1.73 s), 0.03-0.1 s later at 0.4 '
+                     'and 0.5, and up to 1 s later or never at 0.2. The 1000-body piles '
+                     '(seed 1) fall asleep after 2.77 s (cubes, 30 Hz; 2.67 at 0.8, 2.6 at 1 '
+                     'and by speed alone), 2.18 (cubes, 120 Hz; 2.1), 4.8 (mixed, 30 Hz; '
+                     '4.77) and 2.16 (mixed, 120 Hz; the same)'),
+    ParamSpec('rise_step', 'double', 1e-6,
+              'The least rise of a body\'s farthest-point speed from one step to the next that '
+              'counts for rise_time', 0.0, 1.0, unit='fraction of sleep_threshold',
+              reason='5e-8 m/s with the default threshold: round-off counts no rise (a ball '
+                     'held on a slope of tan = mu_r answers 1.2e-4 m/s, rising by 2e-18 m/s '
+                     'in each of its steps at 30 Hz, and would never sleep at 0), a body '
+                     'accelerating at 1.5e-6 m/s^2 or more at 30 Hz (1.2e-5 at 240 Hz) '
+                     'counts (a ball at tan = 1.01 mu_r, mu_r 0.05: 7e-3 m/s^2 at its '
+                     'farthest point); the piles were ready as early at 0, 5e-11 and 5e-8 m/s'),
+)
 
 # /diagnostics: fresh starts (time going back, jumps, gaps) in at least this fraction of a
 # window's steps are a WARN (two clocks on one topic, a source whose time keeps jumping)

@@ -130,6 +130,39 @@ def test_a_moving_body_never_sleeps() -> None:
     assert not any(sim.step().sleeping[1] for _ in range(200))
 
 
+def _box_on_a_slope(accel: float, mu: float) -> Simulation:
+    """A box at rest on a plane tilted so that, without friction, it slides down at ``accel``
+    (m/s^2, g sin theta); friction coefficient ``mu`` on both."""
+    theta = np.arcsin(accel / 9.81)
+    normal = np.array([-np.sin(theta), 0.0, np.cos(theta)])
+    plane = BodySpec('slope', 'plane', (*normal, 0.0), static=True, restitution=0.0,
+                     static_friction=mu, kinetic_friction=mu)
+    block = box('box', (SIZE,) * 3, 1.0, mu_s=mu, mu_k=mu)
+    initial = states([[0, 0, 0], SIZE / 2 * normal], np.zeros((2, 3)))
+    initial.orientation[1] = [0.0, np.sin(-theta / 2), 0.0, np.cos(-theta / 2)]   # on its face
+    return Simulation([plane, block], initial, RATE)
+
+
+@pytest.mark.parametrize('accel', [1e-3, 1e-2])
+def test_a_slowly_accelerating_body_never_sleeps(accel: float) -> None:
+    """A box sliding from rest down a frictionless slope at 1 or 10 mm/s^2 stays under the
+    threshold for 3 s or more (50 or 5 s), yet it is not at rest: an unbalanced load speeds
+    it up every step, so it never sleeps and slides 0.5 a t^2 (within 1 %). On the same
+    slope with friction (mu 0.5 > tan theta) it holds, a balanced load, and sleeps after
+    time_to_sleep."""
+    sim = _box_on_a_slope(accel, 0.0)
+    start = sim.state.position[1].copy()
+    steps = int(3.0 * RATE)
+    assert not any(sim.step().sleeping[1] for _ in range(steps))
+    assert np.linalg.norm(sim.state.linear[1]) < SolverSettings().sleep_threshold
+    slid = np.linalg.norm(sim.state.position[1] - start)
+    print(f'a {accel} m/s^2: slid {slid * 1e3:.3f} mm in 3 s, law {0.5 * accel * 9e3:.3f}')
+    assert slid == pytest.approx(0.5 * accel * 3.0 ** 2, rel=0.01)
+    held = _box_on_a_slope(accel, 0.5)
+    first = run_until_asleep(held)
+    assert (first + 1) / RATE <= SolverSettings().time_to_sleep + 2.0 / RATE
+
+
 def test_sleeping_answer_equals_the_solvers_for_a_resting_body_and_skips_detection() -> None:
     sim = resting_boxes()
     detection = CountingDetection(sim.world.specs, SolverSettings(sleeping=False))

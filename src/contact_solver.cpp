@@ -989,12 +989,6 @@ void row_velocity(const ContactRow& row, const double* v, double out[3]) {
   for (int k = 0; k < 3; ++k) out[k] = relative(row, t, k, direction(row, k));
 }
 
-void slip_velocity(const ContactRow& row, const double* v, double out[2]) {
-  const Twists t(v, row.a, row.b);
-  out[0] = relative(row, t, 1, row.t1);
-  out[1] = relative(row, t, 2, row.t2);
-}
-
 void frame_row(ContactRow& row, const SolverBodies& bodies, const ContactRow* framed) {
   if (framed != nullptr && std::memcmp(framed->n.data(), row.n.data(), sizeof(double) * 3) == 0) {
     row.t1 = framed->t1;
@@ -2845,21 +2839,6 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
     sweeps(fixed, fixed_sweeps);
   }
   return true;
-}
-
-uint8_t contact_state(const ContactRow& r, const double* velocity, double sticking_speed) {
-  double slip[2];
-  slip_velocity(r, velocity, slip);
-  double size = norm2(r.tangent[0] + r.impact_tangent[0], r.tangent[1] + r.impact_tangent[1]);
-  bool friction = size > kTiny;
-  bool touching = r.normal + r.impact > 0.0;
-  bool at_limit = size >= r.mu * (r.normal + r.impact) * (1.0 - 1e-9);
-  // sliding: it slips after the solve, or friction at the cone limit could not stop a slip
-  // it had before (a held point whose share of the friction reaches its cone is sticking)
-  bool sliding = norm2(slip[0], slip[1]) > sticking_speed || (!r.sticking && friction && at_limit);
-  if (r.bounce && touching) return kImpact;
-  if (touching && sliding && (friction || r.mu == 0.0)) return kSliding;
-  return friction ? kSticking : kResting;
 }
 
 }  // namespace collres

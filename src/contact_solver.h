@@ -504,8 +504,15 @@ inline double normal_velocity(const ContactRow& row, const double* v) {
          dot(load3(a + 3), row.ang_a[0]);
 }
 // Its tangential parts alone, along t1 and t2 (m/s; the same bits as row_velocity's out[1],
-// out[2]).
-void slip_velocity(const ContactRow& row, const double* v, double out[2]);
+// out[2]). Inline: prepare_row and contact_state (once a contact each step) inline it.
+inline void slip_velocity(const ContactRow& row, const double* v, double out[2]) {
+  const double* const a = v + 6 * row.a;
+  const double* const b = v + 6 * row.b;
+  out[0] = dot(load3(b) - load3(a), row.t1) + dot(load3(b + 3), row.ang_b[1]) -
+           dot(load3(a + 3), row.ang_a[1]);
+  out[1] = dot(load3(b) - load3(a), row.t2) + dot(load3(b + 3), row.ang_b[2]) -
+           dot(load3(a + 3), row.ang_a[2]);
+}
 
 // Friction impulse of a row as a world vector (N s, on B): impact stages and resting solve.
 inline Vec3 friction_world(const ContactRow& row) {
@@ -516,6 +523,21 @@ inline Vec3 friction_world(const ContactRow& row) {
 // State of a solved row, the first rule that applies: IMPACT (an impact stage pushed it),
 // SLIDING (slips faster than sticking_speed after the solve, or slid before it with
 // friction at the cone limit), STICKING (non-zero friction held it), RESTING (otherwise).
-uint8_t contact_state(const ContactRow& row, const double* velocity, double sticking_speed);
+// Inline: the step's report (once a contact) inlines it.
+inline uint8_t contact_state(const ContactRow& r, const double* velocity, double sticking_speed) {
+  constexpr double kNoFriction = 1e-12;   // N s: a friction impulse at most this is none
+  double slip[2];
+  slip_velocity(r, velocity, slip);
+  double size = norm2(r.tangent[0] + r.impact_tangent[0], r.tangent[1] + r.impact_tangent[1]);
+  bool friction = size > kNoFriction;
+  bool touching = r.normal + r.impact > 0.0;
+  bool at_limit = size >= r.mu * (r.normal + r.impact) * (1.0 - 1e-9);
+  // sliding: it slips after the solve, or friction at the cone limit could not stop a slip
+  // it had before (a held point whose share of the friction reaches its cone is sticking)
+  bool sliding = norm2(slip[0], slip[1]) > sticking_speed || (!r.sticking && friction && at_limit);
+  if (r.bounce && touching) return kImpact;
+  if (touching && sliding && (friction || r.mu == 0.0)) return kSliding;
+  return friction ? kSticking : kResting;
+}
 
 }  // namespace collres

@@ -1509,32 +1509,38 @@ bool StepSolver::escaped(const StepContext& ctx, bool landed) {
                                   : 0.0;
     }
   });
-  constexpr double kSure = 1.0 + 1e-9;   // (rounding)
   std::atomic<bool> any{false};
   in_parts(ctx, static_cast<int64_t>(rowless_.size()), [&](int64_t lo, int64_t hi) {
-    bool forced = false;
-    for (int64_t j = lo; j < hi; ++j) {
-      const int32_t k = rowless_[static_cast<size_t>(j)];
-      const int64_t a = c.a[k], b = c.b[k];
-      const double* ca = change_.data() + 2 * a;
-      const double* cb = change_.data() + 2 * b;
-      if (gap_[k] > kSure * (ca[0] + cb[0]) &&
-          (!landed || approach_[k] + allowance_[k] > kSure * (ca[1] + cb[1])))
-        continue;
-      const Vec3 normal = load3(c.normal + 3 * k);
-      // its separation at the step's end: the reference gap plus how far the substeps moved
-      // its two points along the normal; after a landing, its approach then
-      bool out = gap_[k] + normal_speed(moved_.data(), a, b, ra_[k], rb_[k], normal) < 0.0;
-      out = out || (landed && normal_speed(velocity_.data(), a, b, ra_[k], rb_[k], normal) +
-                                      allowance_[k] < 0.0);
-      if (out) {
-        forced_[k] = 1;
-        forced = true;
-      }
-    }
-    if (forced) any.store(true, std::memory_order_relaxed);
+    if (escaped_part(ctx, landed, lo, hi)) any.store(true, std::memory_order_relaxed);
   });
   return any.load(std::memory_order_relaxed);
+}
+
+COLLRES_CLONED_FLAT
+bool StepSolver::escaped_part(const StepContext& ctx, bool landed, int64_t lo, int64_t hi) {
+  const ContactsView& c = ctx.contacts;
+  constexpr double kSure = 1.0 + 1e-9;   // (rounding)
+  bool forced = false;
+  for (int64_t j = lo; j < hi; ++j) {
+    const int32_t k = rowless_[static_cast<size_t>(j)];
+    const int64_t a = c.a[k], b = c.b[k];
+    const double* ca = change_.data() + 2 * a;
+    const double* cb = change_.data() + 2 * b;
+    if (gap_[k] > kSure * (ca[0] + cb[0]) &&
+        (!landed || approach_[k] + allowance_[k] > kSure * (ca[1] + cb[1])))
+      continue;
+    const Vec3 normal = load3(c.normal + 3 * k);
+    // its separation at the step's end: the reference gap plus how far the substeps moved
+    // its two points along the normal; after a landing, its approach then
+    bool out = gap_[k] + normal_speed(moved_.data(), a, b, ra_[k], rb_[k], normal) < 0.0;
+    out = out || (landed && normal_speed(velocity_.data(), a, b, ra_[k], rb_[k], normal) +
+                                    allowance_[k] < 0.0);
+    if (out) {
+      forced_[k] = 1;
+      forced = true;
+    }
+  }
+  return forced;
 }
 
 int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int shared) {
@@ -1702,67 +1708,66 @@ bool StepSolver::land(StepContext& ctx, int shared, bool& struck) {
 }
 
 void StepSolver::report(StepContext& ctx) {
-  // (the views by value and the arrays through local pointers: a store of a state, a
-  // byte, may alias any memory, see reference_frame)
-  const ContactsView c = ctx.contacts;
-  const SolverParams& p = ctx.params;
-  const ContactsOut out = ctx.report;
-  const int64_t m = c.count;
-  cached_normal_.resize(m);           // what is stored for the warm start
-  double* const cached = cached_normal_.data();
-  const double* const v = velocity_.data();
-  const int32_t* const row_of = row_of_.data();
-  const double sticking_speed = p.sticking_speed;
+  cached_normal_.resize(ctx.contacts.count);   // what is stored for the warm start
   // per contact, its row's impulses and state (none: speculative, no impulse); each part
   // writes only its contacts' entries (on either thread)
-  in_parts(ctx, m, [&](int64_t lo, int64_t hi) {
-    // (in locals: see above)
-    const ContactsOut o = out;
-    double* const cache = cached;
-    const int32_t* const row = row_of;
-    const ContactRow* const rows = rows_.data();
-    const double* const vel = v;
-    const double sticking = sticking_speed;
-    for (int64_t k = lo; k < hi; ++k) {
-      if (row[k] < 0) {
-        cache[k] = 0.0;
-        o.normal_impulse[k] = 0.0;
-        store3(o.friction_impulse + 3 * k, Vec3::Zero());
-        o.state[k] = kResting;
-        continue;
-      }
-      const ContactRow& r = rows[row[k]];
-      cache[k] = r.normal;
-      o.normal_impulse[k] = r.normal + r.impact + r.landing;
-      store3(o.friction_impulse + 3 * k, friction_world(r));
-      o.state[k] = contact_state(r, vel, sticking);
-    }
-  });
+  in_parts(ctx, ctx.contacts.count,
+           [&](int64_t lo, int64_t hi) { report_contacts(ctx, lo, hi); });
   // STICKING -> RESTING where a manifold's friction impulses sum to nothing (a box at rest
   // on a flat floor may carry equal and opposite friction at its corners: no net friction);
   // each part writes only its manifolds' contacts
-  in_parts(ctx, c.manifold_count, [&](int64_t first, int64_t last) {
-    const ContactsOut o = out;   // (in locals: see above)
-    const int64_t* const manifolds = c.manifolds;
-    const double balanced = p.balanced_friction;
-    for (int64_t span = first; span < last; ++span) {
-      const int64_t lo = manifolds[kManifoldFields * span + 2];
-      const int64_t hi = lo + manifolds[kManifoldFields * span + 3];
-      bool sticking = false;
-      for (int64_t k = lo; k < hi && !sticking; ++k) sticking = o.state[k] == kSticking;
-      if (!sticking) continue;
-      Vec3 friction = Vec3::Zero();
-      double normal = 0.0;
-      for (int64_t k = lo; k < hi; ++k) {
-        friction += load3(o.friction_impulse + 3 * k);
-        normal += o.normal_impulse[k];
-      }
-      if (length(friction) <= balanced * normal + 1e-15) {
-        for (int64_t k = lo; k < hi; ++k)
-          if (o.state[k] == kSticking) o.state[k] = kResting;
-      }
+  in_parts(ctx, ctx.contacts.manifold_count,
+           [&](int64_t lo, int64_t hi) { report_manifolds(ctx, lo, hi); });
+}
+
+COLLRES_CLONED_FLAT
+void StepSolver::report_contacts(const StepContext& ctx, int64_t lo, int64_t hi) {
+  // (the views by value and the arrays through local pointers: a store of a state, a
+  // byte, may alias any memory, see reference_frame)
+  const ContactsOut o = ctx.report;
+  double* const cache = cached_normal_.data();
+  const int32_t* const row = row_of_.data();
+  const ContactRow* const rows = rows_.data();
+  const double* const vel = velocity_.data();
+  const double sticking = ctx.params.sticking_speed;
+  for (int64_t k = lo; k < hi; ++k) {
+    if (row[k] < 0) {
+      cache[k] = 0.0;
+      o.normal_impulse[k] = 0.0;
+      store3(o.friction_impulse + 3 * k, Vec3::Zero());
+      o.state[k] = kResting;
+      continue;
     }
-  });
+    const ContactRow& r = rows[row[k]];
+    cache[k] = r.normal;
+    o.normal_impulse[k] = r.normal + r.impact + r.landing;
+    store3(o.friction_impulse + 3 * k, friction_world(r));
+    o.state[k] = contact_state(r, vel, sticking);
+  }
+}
+
+COLLRES_CLONED_FLAT
+void StepSolver::report_manifolds(const StepContext& ctx, int64_t first, int64_t last) const {
+  const ContactsOut o = ctx.report;   // (in locals: see report_contacts)
+  const int64_t* const manifolds = ctx.contacts.manifolds;
+  const double balanced = ctx.params.balanced_friction;
+  for (int64_t span = first; span < last; ++span) {
+    const int64_t lo = manifolds[kManifoldFields * span + 2];
+    const int64_t hi = lo + manifolds[kManifoldFields * span + 3];
+    bool sticking = false;
+    for (int64_t k = lo; k < hi && !sticking; ++k) sticking = o.state[k] == kSticking;
+    if (!sticking) continue;
+    Vec3 friction = Vec3::Zero();
+    double normal = 0.0;
+    for (int64_t k = lo; k < hi; ++k) {
+      friction += load3(o.friction_impulse + 3 * k);
+      normal += o.normal_impulse[k];
+    }
+    if (length(friction) <= balanced * normal + 1e-15) {
+      for (int64_t k = lo; k < hi; ++k)
+        if (o.state[k] == kSticking) o.state[k] = kResting;
+    }
+  }
 }
 
 int32_t StepSolver::levels(StepContext& ctx) {

@@ -264,6 +264,9 @@ class StepSolver {
   // approaches faster than its allowance: its row would have carried an impulse. Each such
   // is marked in forced_ (a row from then on).
   bool escaped(const StepContext& ctx, bool landed);
+  // escaped's check of the contacts without a row rowless_[lo, hi): marks those that
+  // escaped in forced_; returns whether one did
+  bool escaped_part(const StepContext& ctx, bool landed, int64_t lo, int64_t hi);
   // A contact of two spheres, one pressed onto the other from the start, without an
   // impact in the step (aimed_), is aimed along the line of their centres where the solve
   // moves them: at their previous poses plus `moved` (N, 6; null: none), plus half a
@@ -325,6 +328,10 @@ class StepSolver {
   void beside(const StepContext& ctx, const std::function<void()>& here,
               const std::function<void()>& there, int kind);
   void report(StepContext& ctx);
+  // report's passes over the contacts [lo, hi) (their impulses and states, the warm start's
+  // cache) and over the manifolds [lo, hi) (sticking -> resting where balanced)
+  void report_contacts(const StepContext& ctx, int64_t lo, int64_t hi);
+  void report_manifolds(const StepContext& ctx, int64_t first, int64_t last) const;
   void advance(StepContext& ctx);
   void push_out(StepContext& ctx);
 

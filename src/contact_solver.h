@@ -492,26 +492,28 @@ bool solve_positions(std::vector<ContactRow>& rows, const SolverBodies& bodies,
                      const std::vector<int32_t>& level, double ratio, double* pseudo,
                      int iterations, int fixed_sweeps, int deep_sweeps, double deep_push);
 
+// Velocity of B's point relative to A's along d, row direction k (0..2 = n, t1, t2), from
+// the bodies' twists in v (m/s).
+inline double point_velocity(const ContactRow& row, const double* v, int k, const Vec3& d) {
+  const double* const a = v + 6 * row.a;
+  const double* const b = v + 6 * row.b;
+  return dot(load3(b) - load3(a), d) + dot(load3(b + 3), row.ang_b[k]) -
+         dot(load3(a + 3), row.ang_a[k]);
+}
+
 // Relative velocity of a row along n, t1, t2 (m/s) for velocities v (N, 6).
 void row_velocity(const ContactRow& row, const double* v, double out[3]);
 // Its normal part alone (m/s, < 0: approaching; the same bits as row_velocity's out[0]).
 // Inline: the passes over the rows (the substeps' separations, the landing, the push-out,
 // the active set's checks) call it once a row each, several times a step.
 inline double normal_velocity(const ContactRow& row, const double* v) {
-  const double* const a = v + 6 * row.a;
-  const double* const b = v + 6 * row.b;
-  return dot(load3(b) - load3(a), row.n) + dot(load3(b + 3), row.ang_b[0]) -
-         dot(load3(a + 3), row.ang_a[0]);
+  return point_velocity(row, v, 0, row.n);
 }
 // Its tangential parts alone, along t1 and t2 (m/s; the same bits as row_velocity's out[1],
 // out[2]). Inline: prepare_row and contact_state (once a contact each step) inline it.
 inline void slip_velocity(const ContactRow& row, const double* v, double out[2]) {
-  const double* const a = v + 6 * row.a;
-  const double* const b = v + 6 * row.b;
-  out[0] = dot(load3(b) - load3(a), row.t1) + dot(load3(b + 3), row.ang_b[1]) -
-           dot(load3(a + 3), row.ang_a[1]);
-  out[1] = dot(load3(b) - load3(a), row.t2) + dot(load3(b + 3), row.ang_b[2]) -
-           dot(load3(a + 3), row.ang_a[2]);
+  out[0] = point_velocity(row, v, 1, row.t1);
+  out[1] = point_velocity(row, v, 2, row.t2);
 }
 
 // Friction impulse of a row as a world vector (N s, on B): impact stages and resting solve.

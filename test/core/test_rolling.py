@@ -199,13 +199,26 @@ def test_a_settled_pile_comes_to_rest_with_the_defaults(kind, rate):
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason=(
-    'mixed pile seed 4 at 30 and 60 Hz: a ball left on the heap\'s top (ball96) rolls off '
-    'it late, 0.098 / 0.066 m/s 2 s after the drop (up to 1.5 m/s at 1.83 s at 30 Hz), and '
-    'the pile is at rest only after 2.4-3.4 s; seeds 1-3 and 5-8 rest within 2 s'))
+    'mixed pile seed 4 at 30 and 60 Hz: a ball left on an unstable perch of the heap rolls '
+    'off it late, as physics says (0.098 / 0.066 m/s 2 s after the drop), and the pile is at '
+    'rest 2.9 s after the drop'))
 @pytest.mark.parametrize('rate', [30.0, 60.0])
-def test_a_settled_pile_of_another_seed_comes_to_rest_with_the_defaults(rate):
+def test_a_dropped_pile_of_another_seed_comes_to_rest_with_the_defaults(rate):
     """The mixed pile of seed 4 (jitter of the drop), every setting a default: 2 s after the
-    drop every body is slower than 0.05 m/s at its farthest point."""
+    drop every body is slower than 0.05 m/s at its farthest point. It is not, and that is
+    the drop's physics, not a defect (traced step by step, the same with sleeping off; no
+    body asleep meanwhile). At 30 Hz the two balls under ball96 roll until 1.33 s, then one
+    rolls away and leaves it on the other's top (17 deg off it towards the bin's wall, which
+    holds it across), crossing that top at 0.08-0.1 m/s: an unstable balance that a rolling
+    resistance of 0.01 holds only within 0.6 deg of the top. It rolls off (1.5 m/s at
+    1.83 s) with its energy falling in every step (2.666 -> 2.360 J from 1.37 to 2.37 s),
+    lands and rolls into the wall; then ball64, in a groove of 12 deg along the wall, rolls
+    down it (2.67-2.9 s) once the load of the ball above it has faded (0.044 -> 0 N s a step
+    over 2.4-2.7 s) while the push-out relieves the pile's overlaps (its potential energy
+    +4 mJ a step at 2-2.6 s, decaying). At 60 Hz box81, which holds ball96 on a ball's
+    side 19 deg off its top, slides away at 0.02 m/s (1.75-2.0 s) after the pile's last
+    rolling balls: ball96 rolls off (its energy rose in 8 steps by 1.2 mJ in all, while the
+    boxes beside it pushed it, and fell by 87 mJ)."""
     assert fastest_point_2_s_after_the_drop('mixed', rate, seed=4) < 0.05
 
 

@@ -168,33 +168,57 @@ def test_without_rolling_resistance_a_ball_rolls_on(rate):
     assert abs(slip) < 1e-9
 
 
+SLEEP_SPEED = 0.05   # m/s at a body's farthest point: Box2D's sleep speed
+SETTLE = 1.0         # s: the bench's settle (bench_step.py), stepped awake at the step's rate
+
+
+def fastest_points(bodies, initial, rate: float, seconds: float, settings=None) -> np.ndarray:
+    """``bodies`` from ``initial`` stepped at ``rate`` Hz for ``seconds`` (every setting a
+    default unless ``settings``): the fastest body's speed at its farthest point, |v| +
+    |w| r (r its bounding radius, m/s), after each step."""
+    sim = Simulation(bodies, initial, rate, settings)
+    reach = np.array([0.0 if b.static else (b.size[0] if b.shape == 'sphere'
+                                            else 0.5 * float(np.linalg.norm(b.size)))
+                      for b in bodies])
+    fastest = []
+    for _ in range(int(round(seconds * rate))):
+        sim.step()
+        fastest.append(float(np.max(np.linalg.norm(sim.state.linear, axis=1) +
+                                    np.linalg.norm(sim.state.angular, axis=1) * reach)))
+    return np.array(fastest)
+
+
 def fastest_point_2_s_after_the_drop(kind: str, rate: float, seed: int = 1) -> float:
     """The bench's pile of ``kind`` (seed ``seed``) dropped into its bin and stepped at
     ``rate`` Hz with every setting a default: its fastest body's speed at its farthest point
     (m/s) 2 s after the drop."""
-    bodies, initial = make_pile(100, seed=seed, kind=kind)
-    sim = Simulation(bodies, initial, rate)
-    for _ in range(int(round(2 * rate))):
-        sim.step()
-    reach = np.array([0.0 if b.static else (b.size[0] if b.shape == 'sphere'
-                                            else 0.5 * float(np.linalg.norm(b.size)))
-                      for b in bodies])
-    speed = np.linalg.norm(sim.state.linear, axis=1) + \
-        np.linalg.norm(sim.state.angular, axis=1) * reach
-    print(kind, 'seed', seed, 'at', rate, 'Hz: fastest point after 2 s', speed.max(),
-          bodies[int(speed.argmax())].name)
-    return float(speed.max())
+    fastest = fastest_points(*make_pile(100, seed=seed, kind=kind), rate, 2.0)
+    print(kind, 'seed', seed, 'at', rate, 'Hz: fastest point after 2 s', fastest[-1])
+    return float(fastest[-1])
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize('rate', [30.0, 60.0, 120.0, 240.0])
+@pytest.mark.parametrize('seed', [1, 2, 3])
 @pytest.mark.parametrize('kind', ['mixed', 'cubes'])
-def test_a_settled_pile_comes_to_rest_with_the_defaults(kind, rate):
+def test_a_dropped_pile_comes_to_rest_within_2_s_with_the_defaults(kind, seed, rate):
     """The bench's pile (100 boxes, or boxes and spheres, dropped into a bin, default
-    rolling resistance and torsional friction, every setting a default): 2 s after the drop
-    every body is slower than 0.05 m/s at its farthest point, at 30 to 240 Hz (without
-    them spheres wedged in the pile keep rolling at 2-3 rad/s)."""
-    assert fastest_point_2_s_after_the_drop(kind, rate) < 0.05
+    rolling resistance and torsional friction, every setting a default): from 2 s after the
+    drop on (to 3 s) every body is slower than 0.05 m/s at its farthest point, at 30 to
+    240 Hz. Seeds 1-3 rest after 0.43-1.42 s (without rolling resistance and torsional
+    friction 8 of the 32 drops of mixed seeds 1-8 still move from 2 to 3 s, up to 0.57 m/s;
+    with them 3). Not every drop does: of seeds 1-12 of both kinds at 30-240 Hz,
+    mixed seed 4 at 30 and 60 Hz rests after 2.9 s (below), mixed seed 5 at 30 Hz after
+    2.57 s (a ball pinched between a ball below and one above, 163 deg apart, turns about
+    the chord through its two contacts, which lowers it against the torsional friction: it
+    speeds up from 1.4 s on, its energy falling in every step, 0.054 m/s at 2 s) and cubes
+    seed 10 at 120 Hz after 2.25 s (a column of boxes rocks as one, 0.03-0.15 m/s at its
+    top); the rest after 0.43-1.97 s."""
+    fastest = fastest_points(*make_pile(100, seed=seed, kind=kind), rate, 3.0)
+    late = fastest[int(round(2 * rate)) - 1:]
+    print(kind, 'seed', seed, 'at', rate, 'Hz: fastest point from 2 to 3 s after the drop',
+          late.max())
+    assert late.max() < SLEEP_SPEED
 
 
 @pytest.mark.slow
@@ -220,6 +244,37 @@ def test_a_dropped_pile_of_another_seed_comes_to_rest_with_the_defaults(rate):
     rolling balls: ball96 rolls off (its energy rose in 8 steps by 1.2 mJ in all, while the
     boxes beside it pushed it, and fell by 87 mJ)."""
     assert fastest_point_2_s_after_the_drop('mixed', rate, seed=4) < 0.05
+
+
+def settled_pile(kind: str, seed: int, rate: float):
+    """The bench's settled pile (bench_step.py's settle): the 100-body pile of ``kind`` and
+    ``seed`` dropped into its bin and stepped at ``rate`` Hz for 1 s, sleeping off. Its
+    bodies and that state."""
+    bodies, initial = make_pile(100, seed=seed, kind=kind)
+    sim = Simulation(bodies, initial, rate, SolverSettings(sleeping=False))
+    for _ in range(int(round(SETTLE * rate))):
+        sim.step()
+    return bodies, sim.state.copy()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('rate', [30.0, 60.0, 120.0, 240.0])
+@pytest.mark.parametrize('seed', range(1, 9))
+@pytest.mark.parametrize('kind', ['mixed', 'cubes'])
+def test_a_settled_pile_comes_to_rest_within_2_s_with_the_defaults(kind, seed, rate):
+    """The law of rolling resistance's defaults: a settled pile comes to rest (every body
+    under Box2D's sleep speed, 0.05 m/s at its farthest point) within 2 s. The bench's
+    settled pile (settled_pile: 1 s after the drop, still moving at up to 1.25 m/s), handed
+    to a world with every setting a default: from 2 s on (to 3 s) every body is slower than
+    0.05 m/s at its farthest point. Seeds 1-12 of both kinds at 30-240 Hz are at rest after
+    0-1.73 s (the latest: mixed seed 8 at 30 Hz); seed 4, whose drop does not rest within
+    2 s (above), after 0-1.17 s. Without rolling resistance and torsional friction 4 of the
+    32 mixed piles of seeds 1-8 still move from 2 to 3 s (up to 0.71 m/s)."""
+    fastest = fastest_points(*settled_pile(kind, seed, rate), rate, 3.0)
+    late = fastest[int(round(2 * rate)) - 1:]
+    print(kind, 'seed', seed, 'at', rate, 'Hz: fastest point from 2 to 3 s after the settle',
+          late.max())
+    assert late.max() < SLEEP_SPEED
 
 
 def slider(mu=0.3) -> BodySpec:

@@ -41,15 +41,20 @@ ROCKING_REASON = (
     'substep): the warm start (the cached impulses in the first substep, the last '
     "substep's in the others) applies the impulses that held the column while it leaned "
     'the other way, doing up to 6.6 mJ of work at once, and 10 sweeps a substep take back '
-    'only a third of it in a 7-cube stack. hold_energy judges the kinetic energy against '
-    "the substep's start, which holds the substep's share of gravity's velocity (about "
-    "15 mJ of kinetic energy that the floor's impulse takes back in a resting column), so "
-    'it passes. A step rises by up to 4.43 mJ at 120 Hz, 17.43 mJ at 30 Hz (the substeps\' '
-    'work: 4.72 / 18.0 mJ; with the push-out 4.67 / 18.02 mJ); 40 sweeps 1.24 / 3.19 mJ, '
-    '80 sweeps 0.61 / 1.56 mJ; without warm start none, but the column falls over. '
-    'Judging the work instead (frictionless retry when positive) also makes it fall. With '
-    'the defaults the column moves faster than 0.01 m/s until 3.62 s (120 Hz) / 3.33 s '
-    '(30 Hz)')
+    'a quarter to a third of it in a 7-cube stack. hold_energy judges the kinetic energy '
+    "against the substep's start, which holds the substep's share of gravity's velocity "
+    "(0.5 M (g h)^2, 15 mJ at 30 Hz, 5.9 mJ at 120 Hz, that the floor's impulse takes "
+    'back), so it passes. A step rises by up to 4.43 mJ at 120 Hz, 17.43 mJ at 30 Hz '
+    "(the substeps' work: 4.72 / 18.0 mJ; with the push-out 4.67 / 18.02 mJ); 40 sweeps "
+    '1.24 / 3.19 mJ, 80 sweeps 0.61 / 1.56 mJ; without warm start none, but the column '
+    'falls over, as it does when hold_energy judges the work (frictionless retry). Each '
+    "island's substep impulses scaled to no work (-u.v0 / u.u, u their twist change): no "
+    'rise, at rest after 1.62 / 2.03 s, but a column of 8 cubes dropped apart at 30 Hz '
+    'overlaps 11.4 mm (law 5.4 mm) and a dropped mixed pile (seed 1, 60 Hz) still moves '
+    'at 0.064 m/s after 2 s; only the warm start so scaled: 0.48 / 3.12 mJ, at rest after '
+    '1.45 / 2.00 s, but a 1000 kg box on a 1 kg one drifts 2.7-3.4 mm and settled piles '
+    'sink beyond the slop. With the defaults the column moves faster than 0.01 m/s until '
+    '3.62 s (120 Hz) / 3.33 s (30 Hz)')
 
 
 def column(rate: float, settings: SolverSettings) -> Simulation:

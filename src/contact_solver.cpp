@@ -1155,7 +1155,11 @@ WIDE Lanes root(Lanes a) {
   for (int l = 0; l < kLanes; ++l) r[l] = std::sqrt(a[l]);
   return r;
 }
-WIDE bool any(Mask m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+WIDE bool any(Mask m) {   // (its halves or-ed, then their two numbers)
+  typedef int64_t Half __attribute__((vector_size(16)));
+  const Half h = __builtin_shufflevector(m, m, 0, 1) | __builtin_shufflevector(m, m, 2, 3);
+  return (h[0] | h[1]) != 0;
+}
 
 // Four rows of four to four columns (a 4x4 transpose: lane l of column c is row l's c):
 // a body's twist read or written four numbers at once (one load or store per lane, not
@@ -1682,11 +1686,11 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
         Lanes x[4];   // the set's r-th row's impulse
         for (int r = 0; r < 4; ++r) x[r] = e[r][4] / e[r][r];
         Lanes xs[4] = {zero, zero, zero, zero};   // by row of the block
-        for (int i = 0; i < k; ++i)
-          for (int r = 0; r <= i; ++r) {
-            xs[i] = pick(in[r][i], x[r], xs[i]);
-            ok &= ~in[r][i] | (x[r] >= -1e-12 * (1.0 + magnitude(x[r])));
-          }
+        for (int i = 0; i < k; ++i) {
+          for (int r = 0; r <= i; ++r) xs[i] = pick(in[r][i], x[r], xs[i]);
+          // (a row of the set: its x[r]'s test; one left out holds +0, which passes)
+          ok &= xs[i] >= -1e-12 * (1.0 + magnitude(xs[i]));
+        }
         for (int i = 0; i < k; ++i) {   // the rows left out: no approach
           Lanes w_i = q[i];
           for (int j = 0; j < k; ++j) w_i += kept->delassus[i][j] * xs[j];

@@ -1144,7 +1144,9 @@ typedef int64_t Mask __attribute__((vector_size(32), aligned(32)));
 
 WIDE Lanes splat(double x) { return Lanes{x, x, x, x}; }
 WIDE Lanes pick(Mask m, Lanes a, Lanes b) {   // m ? a : b, lane by lane (m: 0 or -1)
-  return m ? a : b;   // (one blend where the target has one, e.g. the AVX2 clone)
+  // (by its sign: one blend where the target has one, e.g. the AVX2 clone, with no test
+  // of a mask read back from memory against zero first)
+  return m < 0 ? a : b;
 }
 WIDE Lanes maximum(Lanes a, Lanes b) { return pick(a < b, b, a); }   // std::max(a, b)
 WIDE Lanes magnitude(Lanes a) {                                        // std::fabs
@@ -1470,9 +1472,9 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
   {
     Mask idle = (Mask){-1, -1, -1, -1};
     const Mask zero = (Mask){0, 0, 0, 0};
-    for (int i = 0; i < k; ++i)
-      idle &= ((Mask)w[i].normal == zero) & ((Mask)w[i].tangent[0] == zero) &
-              ((Mask)w[i].tangent[1] == zero) & (free[i] >= 0.0);
+    for (int i = 0; i < k; ++i)   // (+0: all bits clear; the three or-ed, one test)
+      idle &= (((Mask)w[i].normal | (Mask)w[i].tangent[0] | (Mask)w[i].tangent[1]) == zero) &
+              (free[i] >= 0.0);
     if (!any(~idle)) {
       if (spin_lanes != nullptr) {
         spin_lanes->load = splat(0.0);

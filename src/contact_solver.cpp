@@ -1000,23 +1000,51 @@ void frame_row(ContactRow& row, const SolverBodies& bodies, const ContactRow* fr
   row.mb = bodies.inv_mass[row.b];
   const Mat3& ia = bodies.inv_inertia[row.a];
   const Mat3& ib = bodies.inv_inertia[row.b];
-  for (int k = 0; k < 3; ++k) {
-    Vec3 d = direction(row, k);
-    row.ang_a[k] = cross(row.ra, d);
-    row.ang_b[k] = cross(row.rb, d);
-    row.dw_a[k] = mul(ia, row.ang_a[k]);
-    row.dw_b[k] = mul(ib, row.ang_b[k]);
-  }
-  // K_ij = (m_A + m_B) d_i . d_j + (r_A x d_i) I_A^-1 (r_A x d_j) + (same for B)
-  auto block = [&](int i, int j) {
-    double linear = i == j ? row.ma + row.mb : 0.0;
-    return linear + dot(row.ang_a[i], row.dw_a[j]) + dot(row.ang_b[i], row.dw_b[j]);
+  // the three directions d = n, t1, t2 side by side, lane k direction k (lane 3 idle):
+  // each lane takes the IEEE operations of cross(r, d), mul(I^-1, .) and dot, in their
+  // order, for its direction (the bits of one direction at a time)
+  auto splat = [](double x) { return Lanes{x, x, x, x}; };
+  const Lanes d[3] = {Lanes{row.n.x(), row.t1.x(), row.t2.x(), 0.0},
+                      Lanes{row.n.y(), row.t1.y(), row.t2.y(), 0.0},
+                      Lanes{row.n.z(), row.t1.z(), row.t2.z(), 0.0}};
+  auto cross_all = [&](const Vec3& r, Lanes out[3]) {   // r x d, x y z
+    out[0] = splat(r.y()) * d[2] - splat(r.z()) * d[1];
+    out[1] = splat(r.z()) * d[0] - splat(r.x()) * d[2];
+    out[2] = splat(r.x()) * d[1] - splat(r.y()) * d[0];
   };
-  double k_n = block(0, 0);
+  auto mul_all = [&](const Mat3& m, const Lanes v[3], Lanes out[3]) {   // m v, row by row
+    for (int i = 0; i < 3; ++i)
+      out[i] = splat(m(i, 0)) * v[0] + splat(m(i, 1)) * v[1] + splat(m(i, 2)) * v[2];
+  };
+  Lanes ang_a[3], ang_b[3], dw_a[3], dw_b[3];
+  cross_all(row.ra, ang_a);
+  cross_all(row.rb, ang_b);
+  mul_all(ia, ang_a, dw_a);
+  mul_all(ib, ang_b, dw_b);
+  for (int k = 0; k < 3; ++k) {
+    row.ang_a[k] = Vec3(ang_a[0][k], ang_a[1][k], ang_a[2][k]);
+    row.ang_b[k] = Vec3(ang_b[0][k], ang_b[1][k], ang_b[2][k]);
+    row.dw_a[k] = Vec3(dw_a[0][k], dw_a[1][k], dw_a[2][k]);
+    row.dw_b[k] = Vec3(dw_b[0][k], dw_b[1][k], dw_b[2][k]);
+  }
+  // K_ij = (m_A + m_B) d_i . d_j + (r_A x d_i) I_A^-1 (r_A x d_j) + (same for B), in lanes:
+  // K_kk (the lanes as they are), K_12 and K_21 (lanes 1 and 2 of dw swapped)
+  auto dot_all = [](const Lanes a[3], const Lanes b[3]) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  };
+  auto swap12 = [](const Lanes v[3], Lanes out[3]) {
+    for (int i = 0; i < 3; ++i) out[i] = __builtin_shufflevector(v[i], v[i], 0, 2, 1, 3);
+  };
+  Lanes cross_a[3], cross_b[3];
+  swap12(dw_a, cross_a);
+  swap12(dw_b, cross_b);
+  const Lanes diagonal = splat(row.ma + row.mb) + dot_all(ang_a, dw_a) + dot_all(ang_b, dw_b);
+  const Lanes off = splat(0.0) + dot_all(ang_a, cross_a) + dot_all(ang_b, cross_b);
+  const double k_n = diagonal[0];
   row.normal_mass = k_n > kTiny ? 1.0 / k_n : 0.0;
-  row.kt[0] = block(1, 1);
-  row.kt[1] = block(1, 2) + block(2, 1);
-  row.kt[2] = block(2, 2);
+  row.kt[0] = diagonal[1];
+  row.kt[1] = off[1] + off[2];
+  row.kt[2] = diagonal[2];
 }
 
 COLLRES_CLONED_FLAT

@@ -12,7 +12,8 @@ constexpr int kKinds = 5;
 
 // The movable bodies' ranks (s.rank), breadth first through the manifolds that join two
 // of them, each group of bodies so joined from a body its search from its first body
-// reached last.
+// reached last; a movable body in no manifold then ranks after all of them (s.ranked), an
+// immovable one -1.
 void rank_bodies(const std::vector<Manifold>& manifolds, const double* inv_mass,
                  int64_t body_count, WaveScratch& s) {
   const size_t n = static_cast<size_t>(body_count);
@@ -59,6 +60,11 @@ void rank_bodies(const std::vector<Manifold>& manifolds, const double* inv_mass,
     for (const int32_t body : {k.a, k.b})
       if (movable(body) && s.rank[body] < 0) search(search(body, false), true);
   s.ranked = ranked;
+  for (size_t body = 0; body < n; ++body)
+    if (!movable(static_cast<int32_t>(body)))
+      s.rank[body] = -1;
+    else if (s.rank[body] < 0)
+      s.rank[body] = ranked;
 }
 
 // Each chosen manifold's class into s.side: 0 where every movable body of it is ranked
@@ -68,12 +74,9 @@ void rank_bodies(const std::vector<Manifold>& manifolds, const double* inv_mass,
 // the rows left out of the smaller half). A movable body not ranked counts as ranked
 // after all of them.
 void sides(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
-           const double* inv_mass, WaveScratch& s) {
+           WaveScratch& s) {
   const int32_t ranked = s.ranked;
-  auto rank = [&](int32_t body) {   // (-1: immovable)
-    if (!(inv_mass[body] > 0.0)) return -1;
-    return s.rank[body] >= 0 ? s.rank[body] : ranked;
-  };
+  auto rank = [&](int32_t body) { return s.rank[body]; };   // (-1: immovable)
   // rows per rank: of the manifolds whose highest-ranked movable body has it (before), and
   // of those whose lowest-ranked one has it (from)
   const size_t keys = static_cast<size_t>(ranked) + 1;
@@ -202,8 +205,10 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   plan.waves.clear();
   plan.sequence.clear();
   plan.packed = false;
-  out.clear();
-  if (count == 0) return;
+  if (count == 0) {
+    out.clear();
+    return;
+  }
   // each manifold of `order` its wave (bucket[index], for now), from wave `least` on;
   // last[body]: the last wave that moved it; returns one past the last wave
   auto wave = [&](const std::vector<int32_t>& order, size_t from, size_t to, int32_t least) {
@@ -238,7 +243,7 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
       rank_bodies(manifolds, inv_mass, body_count, s);
       s.epoch = plan.rows_epoch;
     }
-    sides(manifolds, chosen, inv_mass, s);
+    sides(manifolds, chosen, s);
     // the sweep's order: class 0's manifolds, class 1's, then the seam's, each in the
     // solve's order; the seam in waves of its own after the others' (its manifolds are
     // the last on their bodies: any later wave keeps the bits of the order), on side 1
@@ -261,19 +266,31 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   }
   s.speculative.resize(count);
   s.kind.resize(count);
+  // a manifold's kind, found once for the rows prepared (a frame that changes without
+  // them is a one-row manifold's: kind 1 whatever it is)
+  if (s.framed != plan.rows_epoch || s.framing.size() != manifolds.size()) {
+    s.framing.assign(manifolds.size(), 0);
+    s.framed = plan.rows_epoch;
+  }
   auto same = [](const Vec3& a, const Vec3& b) {
     return std::memcmp(a.data(), b.data(), 3 * sizeof(double)) == 0;
   };
+  plan.spin_rows = false;
   for (size_t index = 0; index < count; ++index) {
-    const Manifold& m = manifolds[static_cast<size_t>((*order)[index])];
-    bool all = true, framed = m.count <= 4;
-    const ContactRow& r = rows[static_cast<size_t>(m.first)];
-    for (int32_t i = m.first; i < m.first + m.count; ++i) {
-      all = all && rows[i].allowance > 0.0;
-      framed = framed && same(rows[i].n, r.n) && same(rows[i].t1, r.t1) && same(rows[i].t2, r.t2);
-    }
+    const auto at = static_cast<size_t>((*order)[index]);
+    const Manifold& m = manifolds[at];
+    plan.spin_rows = plan.spin_rows || m.spin >= 0;
+    bool all = true;
+    for (int32_t i = m.first; i < m.first + m.count && all; ++i) all = rows[i].allowance > 0.0;
     s.speculative[index] = all ? 1 : 0;
-    s.kind[index] = static_cast<int8_t>(framed ? m.count : kKinds);
+    if (s.framing[at] == 0) {
+      bool framed = m.count <= 4;
+      const ContactRow& r = rows[static_cast<size_t>(m.first)];
+      for (int32_t i = m.first + 1; i < m.first + m.count && framed; ++i)
+        framed = same(rows[i].n, r.n) && same(rows[i].t1, r.t1) && same(rows[i].t2, r.t2);
+      s.framing[at] = static_cast<int8_t>(framed ? m.count : kKinds);
+    }
+    s.kind[index] = s.framing[at];
   }
   fill_lanes(manifolds, *order, inv_mass, waves, fence, s);
   // stable counting sort by (wave, side, kind, speculative): bucket (2 wave + side) *
@@ -300,10 +317,12 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   // per part: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
   // 1..4's remainders of two or three (padded groups), then the remainders of one and the
   // longer manifolds (one by one: a group of one lane costs more than its one manifold);
-  // each copied in once (not over a new entry's zeros)
-  out.reserve(count);
+  // each copied in once, over the last plan's entries (a new entry's zeros only past them)
+  out.resize(count);
+  size_t placed = 0;
   auto place = [&](size_t from, size_t end) {
-    for (size_t k = from; k < end; ++k) out.push_back(manifolds[static_cast<size_t>(s.order[k])]);
+    for (size_t k = from; k < end; ++k)
+      out[placed++] = manifolds[static_cast<size_t>(s.order[k])];
   };
   size_t from = 0;
   for (size_t p = 0; p < parts; ++p) {
@@ -316,23 +335,23 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
     SweepWave part;
     part.side = static_cast<int32_t>(p % 2);
     part.seam = p / 2 >= static_cast<size_t>(fence);
-    part.first = out.size();
+    part.first = placed;
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
       place(first[k], first[k] + (n - n % kLanes));
     }
-    part.wide_end = out.size();
+    part.wide_end = placed;
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
       if (n % kLanes >= 2) place(first[k] + (n - n % kLanes), first[k + 1]);
     }
-    part.lone = out.size();
+    part.lone = placed;
     for (int k = 0; k < 4; ++k) {
       const size_t n = first[k + 1] - first[k];
       if (n % kLanes == 1) place(first[k + 1] - 1, first[k + 1]);
     }
     place(first[4], first[5]);
-    part.end = out.size();
+    part.end = placed;
     plan.waves.push_back(part);
   }
   // the sweep's parts in order (SweepPlan::sequence): the rows of the parts before the
@@ -340,8 +359,6 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   // manifold has a spin row); with two sides, each part's wait: the other side's part
   // last in that order to move one of its bodies (s.last[body]: the last part that moved
   // it, s.index[part]: its place in the order)
-  plan.spin_rows = false;
-  for (const Manifold& m : out) plan.spin_rows = plan.spin_rows || m.spin >= 0;
   const auto size = static_cast<int32_t>(plan.waves.size());
   int32_t seam = size;   // the seam's first part
   while (seam > 0 && plan.waves[static_cast<size_t>(seam) - 1].seam) --seam;

@@ -45,7 +45,7 @@ namespace collres {
 // wave_manifolds' scratch, kept between calls
 struct WaveScratch {
   std::vector<int32_t> last;     // (N,) per body: the last wave or part that moved it
-  std::vector<int32_t> rank;     // (N,) per body: its place breadth first (-1: none)
+  std::vector<int32_t> rank;     // (N,) per body: its place breadth first (-1: immovable)
   int32_t ranked = 0;            // bodies ranked
   uint64_t epoch = ~uint64_t{0};   // the rows (SweepPlan::rows_epoch) they were ranked for
   std::vector<int32_t> begin, adjacent, queue;   // the movable bodies' neighbours; search
@@ -57,6 +57,8 @@ struct WaveScratch {
   std::vector<uint8_t> speculative;   // per chosen manifold: every row with allowance > 0
   std::vector<int8_t> kind;          // per chosen manifold: its rows (1 to 4) where they
                                      // share one frame (WideGroup), else 5 (one by one)
+  std::vector<int8_t> framing;       // per manifold of `manifolds`: its kind, 0 until found
+  uint64_t framed = ~uint64_t{0};    // the rows (SweepPlan::rows_epoch) framing is for
   std::vector<int8_t> key;           // per chosen manifold: 4 side + kind - 1 (-1: kind 5)
   std::vector<int32_t> next;         // per chosen manifold: the next one on its body A, B
   std::vector<int32_t> members, carry, moved;   // fill_lanes: the waves' manifolds
@@ -76,7 +78,9 @@ struct WaveScratch {
 // plan.sequence and plan.spin_rows, and clears plan.packed (its other fields are left as
 // they are). The manifolds keep their rows and
 // spin rows (Manifold::spin); the rows keep their ContactRow::manifold. `inv_mass` (N,)
-// 1/kg: 0 for immovable bodies.
+// 1/kg: 0 for immovable bodies. A manifold's kind is found once while plan.rows_epoch
+// stays: the caller changes it whenever it changes a row's frame (a one-row manifold's
+// may change: its kind is 1 whatever its frame).
 void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<int32_t>& chosen,
                     const std::vector<ContactRow>& rows, const double* inv_mass,
                     int64_t body_count, SweepPlan& plan, std::vector<Manifold>& out,

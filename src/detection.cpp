@@ -208,6 +208,9 @@ Detector::Detector(std::vector<BodyShape> shapes, int bodies)
   }
   if (next != bodies) throw std::invalid_argument("every body needs at least one shape");
   boxes_.resize(finite_.size());
+  sieve_.resize(shapes_.size());
+  for (int k = 0; k < pieces(); ++k) sieve_[k].body = shapes_[k].body;
+  sieve_filter();
   mark_active_edges(shapes_);
   for (Mesh& mesh : meshes_) {
     std::vector<Aabb> boxes;
@@ -226,6 +229,14 @@ void Detector::set_settings(const DetectionSettings& settings) {
 void Detector::set_filter(std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
                           const std::vector<std::pair<int, int>>& ignored) {
   filter_ = PairFilter(count(), std::move(group), std::move(mask), ignored);
+  sieve_filter();
+}
+
+void Detector::sieve_filter() {
+  for (Sieve& shape : sieve_) {
+    shape.group = filter_.group(shape.body);
+    shape.mask = filter_.mask(shape.body);
+  }
 }
 
 // -- motion and broad phase ----------------------------------------------------------------
@@ -245,6 +256,8 @@ void Detector::prepare(const StepPoses& poses, bool queried, int lo, int hi) {
                    (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
       if (!std::isfinite(body.moved)) body.moved = 0.0;
       body.swing = body.turn * radius_or_zero(k);
+      sieve_[k].fixed = body.fixed;
+      sieve_[k].valid = body.valid;
       if (queried) {
         body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
                                        body.p1 + body.r1 * shapes_[k].offset);
@@ -275,6 +288,8 @@ void Detector::prepare(const StepPoses& poses, bool queried, int lo, int hi) {
       body.q0 = body.q1;
       body.fixed = true;
     }
+    sieve_[k].fixed = body.fixed;
+    sieve_[k].valid = body.valid;
     body.turn = angle_between(body.q0, body.q1);
     body.shift = body.p1 - body.p0;
     body.swing = body.turn * radius_or_zero(k);
@@ -329,19 +344,21 @@ void Detector::bound(std::size_t lo, std::size_t hi) {
   }
 }
 
-bool Detector::skip(const std::pair<int, int>& pair) const {
-  const Body& a = bodies_[pair.first];
-  const Body& b = bodies_[pair.second];
-  const int body_a = shapes_[pair.first].body, body_b = shapes_[pair.second].body;
-  return (a.fixed && b.fixed) || !a.valid || !b.valid || body_a == body_b ||
-         !filter_.collides(body_a, body_b);
+// Inlined into the loops over the broad phase's pairs: without branches but for the filter's
+// ignored pairs (none by default)
+inline bool Detector::skip(const std::pair<int, int>& pair) const {
+  const Sieve& a = sieve_[pair.first];
+  const Sieve& b = sieve_[pair.second];
+  const bool drop = (a.fixed & b.fixed) | !(a.valid & b.valid) | (a.body == b.body) |
+                    ((a.group & b.mask) == 0) | ((b.group & a.mask) == 0);
+  return drop || filter_.ignores(a.body, b.body);
 }
 
 std::size_t Detector::finite_pairs(std::size_t from, std::size_t to, std::size_t lo,
                                    std::size_t hi, std::vector<std::pair<int, int>>& others) {
   // the finite pairs, sorted by (a, b) (finite_ is increasing), the skipped ones dropped
   std::pair<int, int>* const part = pairs_.data() + from;
-  const std::size_t tested = sweep_.test(boxes_, from, to, part);
+  const std::size_t tested = sweep_.test(from, to, part);
   std::size_t kept = 0;
   for (std::size_t k = 0; k < tested; ++k) {
     const std::pair<int, int> pair{finite_[part[k].first], finite_[part[k].second]};

@@ -216,7 +216,10 @@ class Detector {
                            std::vector<std::pair<int, int>>& others);
   void merge_pairs();
   // pairs of two fixed bodies, of a non-finite pose, of one body, or that the filter drops
+  // (from sieve_)
   bool skip(const std::pair<int, int>& pair) const;
+  // sieve_'s group and mask bits from the filter
+  void sieve_filter();
   // detect's stages on two threads (see set_threads)
   void detect_paired(const StepPoses& poses, ContactRows& out);
   double sphere_gap(int a, int b) const;
@@ -337,6 +340,12 @@ class Detector {
   DetectionSettings settings_;
   PairFilter filter_;   // default: every pair collides
   std::vector<Body> bodies_;
+  struct Sieve {   // per shape, what `skip` reads of it, side by side
+    std::uint64_t group = 0, mask = 0;   // its body's collision filter bits (PairFilter)
+    int body = 0;                        // its body
+    bool fixed = false, valid = true;    // its Body's (prepare)
+  };
+  std::vector<Sieve> sieve_;
   std::vector<Aabb> boxes_;
   CoherentPairs sweep_;
   std::vector<std::pair<int, int>> pairs_;

@@ -153,11 +153,11 @@ std::size_t CoherentPairs::test(std::size_t from, std::size_t to,
     const auto [i, j] = fat_pairs_[k];
     const Key& p = keys_[i];
     const Key& q = keys_[j];
-    // each entry -1 (all bits) where its comparison holds, else 0
+    // each entry -1 (all bits) where its comparison holds, else 0: both -1, one more kept
     const auto holds = (p.low[0] <= q.high[0]) & (p.low[1] <= q.high[1]) &
                        (p.low[2] <= q.high[2]);
     out[kept] = {i, j};
-    kept += static_cast<std::size_t>((holds[0] & holds[1]) != 0);
+    kept += static_cast<std::size_t>(-(holds[0] & holds[1]));
   }
   return kept;
 }

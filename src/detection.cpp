@@ -50,11 +50,17 @@ void ContactRows::drop_from(std::size_t first) { rows_ = first; }
 
 void ContactRows::trim() { resize_columns(rows_); }
 
-// Room for kRoomRows more rows (zeros, overwritten by `add`): one resize per column per
-// kRoomRows rows, within the reserved capacity for a step's usual rows.
-void ContactRows::make_room() {
+// Room for kRoomRows more rows or `count` if more (zeros, overwritten by `add` and `put`):
+// one resize per column per kRoomRows rows, within the reserved capacity for a step's
+// usual rows.
+void ContactRows::make_room(std::size_t count) {
   constexpr std::size_t kRoomRows = 64;
-  resize_columns(rows_ + kRoomRows);
+  resize_columns(rows_ + std::max(count, kRoomRows));
+}
+
+void ContactRows::set_kind(std::size_t first, ContactKind contact) {
+  std::fill(kind.begin() + static_cast<std::ptrdiff_t>(first),
+            kind.begin() + static_cast<std::ptrdiff_t>(rows_), static_cast<std::int8_t>(contact));
 }
 
 void ContactRows::resize_columns(std::size_t rows) {
@@ -121,7 +127,7 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
 void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
                       double gap, double fraction, ContactKind contact, std::int64_t id) {
   const std::size_t row = rows_;
-  if (row == body_a.size()) make_room();
+  if (row == body_a.size()) make_room(1);
   body_a[row] = a.body;
   body_b[row] = b.body;
   piece_a[row] = a.piece;
@@ -134,6 +140,27 @@ void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, co
   toi[row] = fraction;
   feature[row] = id;
   kind[row] = static_cast<std::int8_t>(contact);
+  rows_ = row + 1;
+}
+
+void ContactRows::room(std::size_t count) {
+  if (body_a.size() - rows_ < count) make_room(count);
+}
+
+void ContactRows::put(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
+                      double gap, double fraction, std::int64_t id) {
+  const std::size_t row = rows_;
+  body_a[row] = a.body;
+  body_b[row] = b.body;
+  piece_a[row] = a.piece;
+  piece_b[row] = b.piece;
+  double* const p = point.data() + 3 * row;
+  double* const m = normal.data() + 3 * row;
+  for (int k = 0; k < 3; ++k) p[k] = at[k];
+  for (int k = 0; k < 3; ++k) m[k] = n[k];
+  separation[row] = gap;
+  toi[row] = fraction;
+  feature[row] = id;
   rows_ = row + 1;
 }
 
@@ -1039,13 +1066,14 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const Vec3 normal = A.r1 * rows[0].normal_a;
   const std::size_t first = out.size();
   double gap = kInf;
+  out.room(static_cast<std::size_t>(stored->count));
   for (int k = 0; k < stored->count; ++k) {
     const Vec3 on_a = A.r1 * rows[k].local_a + A.p1;
     const Vec3 on_b = B.r1 * rows[k].local_b + B.p1;
     const double separation = (on_b - on_a).dot(normal);
     gap = std::min(gap, separation);
-    out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, separation, 0.0,
-            ContactKind::persistent, rows[k].feature);
+    out.put(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, separation, 0.0,
+            rows[k].feature);
   }
   if (gap > margin) {
     out.drop_from(first);
@@ -1061,6 +1089,7 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
     out.drop_from(first);
     return false;
   }
+  out.set_kind(first, ContactKind::persistent);
   lane.next.begin(key, stored->rel_p, stored->rel_q);
   lane.next.add_rows(rows, stored->count);
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
@@ -1128,12 +1157,11 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
     lane.next.begin_apart(static_cast<std::int64_t>(a) * pieces() + b,
                           A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1, distance);
   }
-  const double speed = speed_bound(a, b);
   // overlapping now, possibly apart before, and closing fast enough to bounce: its
   // previous state decides between a persistent contact and an impact
   const double approach = approach_bound(a, b);
   const bool may_have_hit = distance < 0.0 && distance + approach > 0.0 &&
-                            may_bounce(a, b, normal, speed);
+                            may_bounce(a, b, normal, speed_bound(a, b));
   if (near && distance + approach <= margin && !may_have_hit) {
     // within the margin at the previous state for sure: a persistent contact
     const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
@@ -1152,7 +1180,7 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
     return;
   }
   if (near || (settings_.ccd && relative > distance)) {
-    classify(lane, a, b, distance, normal, relative, speed, near, out);
+    classify(lane, a, b, distance, normal, relative, speed_bound(a, b), near, out);
   }
 }
 
@@ -1330,18 +1358,21 @@ void Detector::speculate(Lane& lane, int a, int b, const Vec3& normal, const Poi
       if (!(height <= reach)) continue;
       // within the patch's band about the deepest point's gap: a corner of the manifold
       // already, or one beside the partner's face (the patch holds the face's points)
-      const bool known = skip_known && std::fabs(height - gap) < kPatchTolerance;
+      if (skip_known && std::fabs(height - gap) < kPatchTolerance) continue;
       // on the partner: its projection within the partner's box (grown by the margin); a
       // plane has no box (it is unbounded: every corner is over it), and a sphere's point
       // carried from the previous state touched it there (a ball driven through a corner
       // of two walls is beside both faces at the end of the step)
-      const Vec3 local = r_partner.transpose() * (q + height * towards - p_partner);
-      const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
-      const bool over = shapes_[partner].kind == ShapeKind::plane ||
-                        (!skip_known && shape.single_point) ||
-                        ((local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
-                         (local.array() <= (shapes_[partner].local_hi + grow).array()).all());
-      if (!known && over) lane.heights.emplace_back(height, static_cast<int>(k));
+      auto within = [&] {
+        const Vec3 local = r_partner.transpose() * (q + height * towards - p_partner);
+        const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
+        return (local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
+               (local.array() <= (shapes_[partner].local_hi + grow).array()).all();
+      };
+      if (shapes_[partner].kind == ShapeKind::plane || (!skip_known && shape.single_point) ||
+          within()) {
+        lane.heights.emplace_back(height, static_cast<int>(k));
+      }
     }
     std::sort(lane.heights.begin(), lane.heights.end());
     if (lane.heights.size() > static_cast<std::size_t>(kMaxManifoldPoints))
@@ -1446,7 +1477,8 @@ void Detector::emit(Lane& lane, int a, int b, const Vec3& normal_in, double toi,
                     const Mat3& rb, const Vec3& pb, ContactRows& out) const {
   const double length = normal_in.norm();
   const Vec3 normal = normal_in / std::max(length, 1e-300);
-  const bool store = kind == ContactKind::persistent;
+  // a persistent manifold is stored for `reuse`, which never reuses a curved body's points
+  const bool store = kind == ContactKind::persistent && !shapes_[a].curved && !shapes_[b].curved;
   if (store) {
     const Body& A = bodies_[a];
     const Body& B = bodies_[b];

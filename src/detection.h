@@ -23,8 +23,8 @@
 //    the margin, no hit fast enough to bounce, no deep overlap; with a half-space only the
 //    motion along its normal changes the gap). Motion the two bodies share does not count:
 //    a pile that its source integrated one 30 Hz period under gravity keeps its points. A
-//    curved body's points are never reused: on a rolling surface they would turn with the
-//    body. A pair the narrow phase measured apart (beyond the margin) keeps that distance
+//    curved body's points are never reused (nor stored): on a rolling surface they would
+//    turn with the body. A pair the narrow phase measured apart (beyond the margin) keeps that distance
 //    with its relative pose; while the distance less how far a point of either body has
 //    since moved relative to the other stays beyond the margin and the step's relative
 //    motion, the narrow phase would give it no rows and it is not queried.

@@ -565,9 +565,21 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
 }
 
 void Detector::run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows& out) const {
+  const double margin = settings_.speculative_margin;
   for (std::size_t k = lo; k < hi; ++k) {
     const auto [a, b] = pairs_[k];
-    if (!reuse(lane, a, b, out)) narrow_phase(lane, a, b, out);
+    // the pair's record of last step, if any, for `reuse`
+    const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
+    const int part = stored_[1].starts_by(key) ? 1 : 0;
+    const StoredManifold* stored = stored_[part].find(key, lane.cursor[part]);
+    if (stored != nullptr && reuse(lane, a, b, key, stored_[part], *stored, out)) continue;
+    // bounding spheres farther apart than the margin and than the relative motion: the pair
+    // can neither touch now nor have met during the step (no query)
+    const double relative = relative_motion(a, b);
+    const double bound = (bodies_[b].p1 - bodies_[a].p1).norm() - shapes_[a].radius -
+                         shapes_[b].radius;
+    if (bound > margin && bound >= relative) continue;
+    narrow_phase(lane, a, b, relative, out);
   }
 }
 
@@ -1030,14 +1042,11 @@ void Detector::limit_rows(ContactRows& out) {
 }
 
 COLLRES_CLONED_FLAT
-bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
-  const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
-  const int part = stored_[1].starts_by(key) ? 1 : 0;
-  const StoredManifold* stored = stored_[part].find(key, lane.cursor[part]);
-  if (stored == nullptr) return false;
+bool Detector::reuse(Lane& lane, int a, int b, std::int64_t key, const ManifoldStore& store,
+                     const StoredManifold& record, ContactRows& out) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
-  if (stored->apart > 0.0) return still_apart(lane, key, a, b, *stored);
+  if (record.apart > 0.0) return still_apart(lane, key, a, b, record);
   if (shapes_[a].curved || shapes_[b].curved) return false;
   // the pair's own motion over the step, as the narrow phase classifies it: the motion
   // both share (a pile that its source integrated one long period under gravity) moves no
@@ -1051,12 +1060,11 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
                                                         shapes_[b].thickness);
   // the shift along the contact plane (A's frame): a shift along the manifold's normal
   // moves no point along either face, and each row's gap is measured again below
-  const StoredRow* const rows =
-      stored->count > 0 ? &stored_[part].row(stored->first) : nullptr;
-  Vec3 moved = rel_p - stored->rel_p;
+  const StoredRow* const rows = record.count > 0 ? &store.row(record.first) : nullptr;
+  Vec3 moved = rel_p - record.rel_p;
   if (rows != nullptr) moved -= moved.dot(rows[0].normal_a) * rows[0].normal_a;
   if (moved.norm() > shift ||
-      std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
+      std::abs(rel_q.dot(record.rel_q)) < std::cos(0.5 * kReuseRotation)) {
     return false;
   }
   // a pair whose every point left the margin is no longer in contact (the rows of a
@@ -1066,8 +1074,8 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const Vec3 normal = A.r1 * rows[0].normal_a;
   const std::size_t first = out.size();
   double gap = kInf;
-  out.room(static_cast<std::size_t>(stored->count));
-  for (int k = 0; k < stored->count; ++k) {
+  out.room(static_cast<std::size_t>(record.count));
+  for (int k = 0; k < record.count; ++k) {
     const Vec3 on_a = A.r1 * rows[k].local_a + A.p1;
     const Vec3 on_b = B.r1 * rows[k].local_b + B.p1;
     const double separation = (on_b - on_a).dot(normal);
@@ -1090,8 +1098,8 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
     return false;
   }
   out.set_kind(first, ContactKind::persistent);
-  lane.next.begin(key, stored->rel_p, stored->rel_q);
-  lane.next.add_rows(rows, stored->count);
+  lane.next.begin(key, record.rel_p, record.rel_q);
+  lane.next.add_rows(rows, record.count);
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
   return true;
 }
@@ -1139,15 +1147,10 @@ Motion Detector::motion(int body) const {
   return Motion(b.p0, b.p1, b.q0, b.q1, shapes_[body].offset, shapes_[body].rotation);
 }
 
-void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
+void Detector::narrow_phase(Lane& lane, int a, int b, double relative, ContactRows& out) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   const double margin = settings_.speculative_margin;
-  const double relative = relative_motion(a, b);
-  // bounding spheres farther apart than the margin and than the relative motion: the pair
-  // can neither touch now nor have met during the step
-  const double bound = (B.p1 - A.p1).norm() - shapes_[a].radius - shapes_[b].radius;
-  if (bound > margin && bound >= relative) return;
   Vec3 normal;
   PointPair witness;
   const double distance = lane.query.signed_distance(*shapes_[a].geometry, A.pose1,

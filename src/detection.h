@@ -261,8 +261,12 @@ class Detector {
   };
   // The per-pair stages: each reads the step's bodies and the stored manifolds and
   // writes only `lane` and `out` (so two lanes run at once).
-  bool reuse(Lane& lane, int a, int b, ContactRows& out) const;
-  // pairs_[lo, hi) in turn: the stored points or the narrow phase
+  // The pair's record of last step (`record`, in `store`, under `key`): its stored points
+  // or its distance; false: the narrow phase's.
+  bool reuse(Lane& lane, int a, int b, std::int64_t key, const ManifoldStore& store,
+             const StoredManifold& record, ContactRows& out) const;
+  // pairs_[lo, hi) in turn: the stored points or the narrow phase (the bounding spheres'
+  // test first)
   void run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows& out) const;
   // A pair stored apart (step 3) whose distance then, less how far either body moved
   // relative to the other since, is still beyond the margin and the step's relative motion:
@@ -272,7 +276,8 @@ class Detector {
   // Pairs whose distance is worth storing: neither a sphere (coal's closed forms cost
   // about as much as the check), a plane or a mesh triangle.
   bool may_store_apart(int a, int b) const;
-  void narrow_phase(Lane& lane, int a, int b, ContactRows& out) const;
+  // `relative`: relative_motion(a, b)
+  void narrow_phase(Lane& lane, int a, int b, double relative, ContactRows& out) const;
   void classify(Lane& lane, int a, int b, double distance_now, const Vec3& normal_now,
                 double relative, double speed, bool near, ContactRows& out) const;
   bool time_of_impact(Lane& lane, int a, int b, const Motion& ma, const Motion& mb, double s0,

@@ -102,7 +102,7 @@ void CoherentPairs::pairs(const std::vector<Aabb>& boxes,
   const std::size_t kept = pairs.size();
   // into room for every fat pair, cut to those kept
   pairs.resize(kept + fat);
-  pairs.resize(kept + test(boxes, 0, fat, pairs.data() + kept));
+  pairs.resize(kept + test(0, fat, pairs.data() + kept));
 }
 
 bool CoherentPairs::inside(const std::vector<Aabb>& boxes, std::size_t lo,
@@ -128,24 +128,36 @@ std::size_t CoherentPairs::refit(const std::vector<Aabb>& boxes, bool inside) {
     overlapping_pairs(fat_, fat_pairs_);
     sort_fat_pairs(static_cast<int>(boxes.size()));
   }
+  keys_.resize(boxes.size());
+  for (std::size_t k = 0; k < boxes.size(); ++k) {
+    const Vec3& lo = boxes[k].lo;
+    const Vec3& hi = boxes[k].hi;
+    Key& key = keys_[k];
+    key.low[0] = Two{lo.x(), lo.y()};
+    key.low[1] = Two{lo.z(), -hi.x()};
+    key.low[2] = Two{-hi.y(), -hi.z()};
+    key.high[0] = Two{hi.x(), hi.y()};
+    key.high[1] = Two{hi.z(), -lo.x()};
+    key.high[2] = Two{-lo.y(), -lo.z()};
+  }
   return fat_pairs_.size();
 }
 
-std::size_t CoherentPairs::test(const std::vector<Aabb>& boxes, std::size_t from,
-                                std::size_t to, std::pair<int, int>* out) const {
+std::size_t CoherentPairs::test(std::size_t from, std::size_t to,
+                                std::pair<int, int>* out) const {
   // the exact test without branches (whether a fat pair overlaps is a coin toss to the
   // branch predictor): each fat pair is written to the next place, which only a kept one
   // keeps
   std::size_t kept = 0;
   for (std::size_t k = from; k < to; ++k) {
     const auto [i, j] = fat_pairs_[k];
-    const Aabb& p = boxes[i];
-    const Aabb& q = boxes[j];
-    const bool overlap = (p.lo.x() <= q.hi.x()) & (q.lo.x() <= p.hi.x()) &
-                         (p.lo.y() <= q.hi.y()) & (q.lo.y() <= p.hi.y()) &
-                         (p.lo.z() <= q.hi.z()) & (q.lo.z() <= p.hi.z());
+    const Key& p = keys_[i];
+    const Key& q = keys_[j];
+    // each entry -1 (all bits) where its comparison holds, else 0: both -1, one more kept
+    const auto holds = (p.low[0] <= q.high[0]) & (p.low[1] <= q.high[1]) &
+                       (p.low[2] <= q.high[2]);
     out[kept] = {i, j};
-    kept += static_cast<std::size_t>(overlap);
+    kept += static_cast<std::size_t>(-(holds[0] & holds[1]));
   }
   return kept;
 }

@@ -42,15 +42,24 @@ class CoherentPairs {
   // `pairs` in steps, so that two threads may share them: `inside`, whether boxes [lo, hi)
   // are all inside their fat boxes (false when the boxes are not as many as the fat ones);
   // `refit` to `boxes`, rebuilt unless `inside` held for all of them, returns the number of
-  // fat pairs; `test` writes the fat pairs [from, to) (of that number, in order) that
-  // overlap exactly to `out` on, in increasing (i, j) order, and returns how many. Several
-  // `inside`s, or several `test`s of one refit, may run at once.
+  // fat pairs; `test` writes the fat pairs [from, to) (of that number, in order) whose boxes
+  // (refit's) overlap exactly to `out` on, in increasing (i, j) order, and returns how many.
+  // Several `inside`s, or several `test`s of one refit, may run at once.
   bool inside(const std::vector<Aabb>& boxes, std::size_t lo, std::size_t hi) const;
   std::size_t refit(const std::vector<Aabb>& boxes, bool inside);
-  std::size_t test(const std::vector<Aabb>& boxes, std::size_t from, std::size_t to,
-                   std::pair<int, int>* out) const;
+  std::size_t test(std::size_t from, std::size_t to, std::pair<int, int>* out) const;
 
  private:
+  // A box as the two rows of the exact test: box p overlaps box q when each entry of p's
+  // `low` is at most the same entry of q's `high`: p.lo <= q.hi, and -p.hi <= -q.lo for
+  // q.lo <= p.hi (negation is exact: the same six comparisons, NaN failing them as before);
+  // in rows of two entries, compared two at a time.
+  typedef double Two __attribute__((vector_size(16)));
+  struct Key {
+    Two low[3], high[3];   // m: (lo.x, lo.y), (lo.z, -hi.x), (-hi.y, -hi.z); the same of
+                           // (hi, -lo)
+  };
+
   // fat_pairs_ sorted by (i, j) in linear time: a counting sort by j, then one by i that
   // keeps the order of equal i (`count` boxes)
   void sort_fat_pairs(int count);
@@ -58,6 +67,7 @@ class CoherentPairs {
   double skin_;
   std::vector<Aabb> fat_;
   std::vector<std::pair<int, int>> fat_pairs_;
+  std::vector<Key> keys_;                         // refit's boxes, for `test`
   std::vector<int> start_;                       // sort_fat_pairs: bucket starts
   std::vector<std::pair<int, int>> sorted_;      // sort_fat_pairs: sorted by j
 };
@@ -132,11 +142,14 @@ class PairFilter {
              const std::vector<std::pair<int, int>>& ignored);
 
   bool collides(int a, int b) const {
-    if (!group_.empty() && ((group_[a] & mask_[b]) == 0 || (group_[b] & mask_[a]) == 0)) {
-      return false;
-    }
-    return ignored_.empty() ||
-           !std::binary_search(ignored_.begin(), ignored_.end(), key(a, b));
+    return (group(a) & mask(b)) != 0 && (group(b) & mask(a)) != 0 && !ignores(a, b);
+  }
+  // collides' parts: body a's group and mask bits (all of them in the default filter), and
+  // whether the pair a != b is an ignored one
+  std::uint64_t group(int a) const { return group_.empty() ? ~std::uint64_t{0} : group_[a]; }
+  std::uint64_t mask(int a) const { return mask_.empty() ? ~std::uint64_t{0} : mask_[a]; }
+  bool ignores(int a, int b) const {
+    return !ignored_.empty() && std::binary_search(ignored_.begin(), ignored_.end(), key(a, b));
   }
 
  private:

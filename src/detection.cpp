@@ -50,11 +50,17 @@ void ContactRows::drop_from(std::size_t first) { rows_ = first; }
 
 void ContactRows::trim() { resize_columns(rows_); }
 
-// Room for kRoomRows more rows (zeros, overwritten by `add`): one resize per column per
-// kRoomRows rows, within the reserved capacity for a step's usual rows.
-void ContactRows::make_room() {
+// Room for kRoomRows more rows or `count` if more (zeros, overwritten by `add` and `put`):
+// one resize per column per kRoomRows rows, within the reserved capacity for a step's
+// usual rows.
+void ContactRows::make_room(std::size_t count) {
   constexpr std::size_t kRoomRows = 64;
-  resize_columns(rows_ + kRoomRows);
+  resize_columns(rows_ + std::max(count, kRoomRows));
+}
+
+void ContactRows::set_kind(std::size_t first, ContactKind contact) {
+  std::fill(kind.begin() + static_cast<std::ptrdiff_t>(first),
+            kind.begin() + static_cast<std::ptrdiff_t>(rows_), static_cast<std::int8_t>(contact));
 }
 
 void ContactRows::resize_columns(std::size_t rows) {
@@ -121,7 +127,7 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
 void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
                       double gap, double fraction, ContactKind contact, std::int64_t id) {
   const std::size_t row = rows_;
-  if (row == body_a.size()) make_room();
+  if (row == body_a.size()) make_room(1);
   body_a[row] = a.body;
   body_b[row] = b.body;
   piece_a[row] = a.piece;
@@ -134,6 +140,27 @@ void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, co
   toi[row] = fraction;
   feature[row] = id;
   kind[row] = static_cast<std::int8_t>(contact);
+  rows_ = row + 1;
+}
+
+void ContactRows::room(std::size_t count) {
+  if (body_a.size() - rows_ < count) make_room(count);
+}
+
+void ContactRows::put(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
+                      double gap, double fraction, std::int64_t id) {
+  const std::size_t row = rows_;
+  body_a[row] = a.body;
+  body_b[row] = b.body;
+  piece_a[row] = a.piece;
+  piece_b[row] = b.piece;
+  double* const p = point.data() + 3 * row;
+  double* const m = normal.data() + 3 * row;
+  for (int k = 0; k < 3; ++k) p[k] = at[k];
+  for (int k = 0; k < 3; ++k) m[k] = n[k];
+  separation[row] = gap;
+  toi[row] = fraction;
+  feature[row] = id;
   rows_ = row + 1;
 }
 
@@ -208,6 +235,9 @@ Detector::Detector(std::vector<BodyShape> shapes, int bodies)
   }
   if (next != bodies) throw std::invalid_argument("every body needs at least one shape");
   boxes_.resize(finite_.size());
+  sieve_.resize(shapes_.size());
+  for (int k = 0; k < pieces(); ++k) sieve_[k].body = shapes_[k].body;
+  sieve_filter();
   mark_active_edges(shapes_);
   for (Mesh& mesh : meshes_) {
     std::vector<Aabb> boxes;
@@ -226,6 +256,14 @@ void Detector::set_settings(const DetectionSettings& settings) {
 void Detector::set_filter(std::vector<std::uint64_t> group, std::vector<std::uint64_t> mask,
                           const std::vector<std::pair<int, int>>& ignored) {
   filter_ = PairFilter(count(), std::move(group), std::move(mask), ignored);
+  sieve_filter();
+}
+
+void Detector::sieve_filter() {
+  for (Sieve& shape : sieve_) {
+    shape.group = filter_.group(shape.body);
+    shape.mask = filter_.mask(shape.body);
+  }
 }
 
 // -- motion and broad phase ----------------------------------------------------------------
@@ -245,6 +283,8 @@ void Detector::prepare(const StepPoses& poses, bool queried, int lo, int hi) {
                    (shapes_[k].is_static ? 0.0 : body.turn * shapes_[k].radius);
       if (!std::isfinite(body.moved)) body.moved = 0.0;
       body.swing = body.turn * radius_or_zero(k);
+      sieve_[k].fixed = body.fixed;
+      sieve_[k].valid = body.valid;
       if (queried) {
         body.pose1 = coal::Transform3s(body.r1 * shapes_[k].rotation,
                                        body.p1 + body.r1 * shapes_[k].offset);
@@ -275,6 +315,8 @@ void Detector::prepare(const StepPoses& poses, bool queried, int lo, int hi) {
       body.q0 = body.q1;
       body.fixed = true;
     }
+    sieve_[k].fixed = body.fixed;
+    sieve_[k].valid = body.valid;
     body.turn = angle_between(body.q0, body.q1);
     body.shift = body.p1 - body.p0;
     body.swing = body.turn * radius_or_zero(k);
@@ -329,19 +371,21 @@ void Detector::bound(std::size_t lo, std::size_t hi) {
   }
 }
 
-bool Detector::skip(const std::pair<int, int>& pair) const {
-  const Body& a = bodies_[pair.first];
-  const Body& b = bodies_[pair.second];
-  const int body_a = shapes_[pair.first].body, body_b = shapes_[pair.second].body;
-  return (a.fixed && b.fixed) || !a.valid || !b.valid || body_a == body_b ||
-         !filter_.collides(body_a, body_b);
+// Inlined into the loops over the broad phase's pairs: without branches but for the filter's
+// ignored pairs (none by default)
+inline bool Detector::skip(const std::pair<int, int>& pair) const {
+  const Sieve& a = sieve_[pair.first];
+  const Sieve& b = sieve_[pair.second];
+  const bool drop = (a.fixed & b.fixed) | !(a.valid & b.valid) | (a.body == b.body) |
+                    ((a.group & b.mask) == 0) | ((b.group & a.mask) == 0);
+  return drop || filter_.ignores(a.body, b.body);
 }
 
 std::size_t Detector::finite_pairs(std::size_t from, std::size_t to, std::size_t lo,
                                    std::size_t hi, std::vector<std::pair<int, int>>& others) {
   // the finite pairs, sorted by (a, b) (finite_ is increasing), the skipped ones dropped
   std::pair<int, int>* const part = pairs_.data() + from;
-  const std::size_t tested = sweep_.test(boxes_, from, to, part);
+  const std::size_t tested = sweep_.test(from, to, part);
   std::size_t kept = 0;
   for (std::size_t k = 0; k < tested; ++k) {
     const std::pair<int, int> pair{finite_[part[k].first], finite_[part[k].second]};
@@ -521,9 +565,21 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
 }
 
 void Detector::run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows& out) const {
+  const double margin = settings_.speculative_margin;
   for (std::size_t k = lo; k < hi; ++k) {
     const auto [a, b] = pairs_[k];
-    if (!reuse(lane, a, b, out)) narrow_phase(lane, a, b, out);
+    // the pair's record of last step, if any, for `reuse`
+    const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
+    const int part = stored_[1].starts_by(key) ? 1 : 0;
+    const StoredManifold* stored = stored_[part].find(key, lane.cursor[part]);
+    if (stored != nullptr && reuse(lane, a, b, key, stored_[part], *stored, out)) continue;
+    // bounding spheres farther apart than the margin and than the relative motion: the pair
+    // can neither touch now nor have met during the step (no query)
+    const double relative = relative_motion(a, b);
+    const double bound = (bodies_[b].p1 - bodies_[a].p1).norm() - shapes_[a].radius -
+                         shapes_[b].radius;
+    if (bound > margin && bound >= relative) continue;
+    narrow_phase(lane, a, b, relative, out);
   }
 }
 
@@ -986,14 +1042,11 @@ void Detector::limit_rows(ContactRows& out) {
 }
 
 COLLRES_CLONED_FLAT
-bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
-  const std::int64_t key = static_cast<std::int64_t>(a) * pieces() + b;
-  const int part = stored_[1].starts_by(key) ? 1 : 0;
-  const StoredManifold* stored = stored_[part].find(key, lane.cursor[part]);
-  if (stored == nullptr) return false;
+bool Detector::reuse(Lane& lane, int a, int b, std::int64_t key, const ManifoldStore& store,
+                     const StoredManifold& record, ContactRows& out) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
-  if (stored->apart > 0.0) return still_apart(lane, key, a, b, *stored);
+  if (record.apart > 0.0) return still_apart(lane, key, a, b, record);
   if (shapes_[a].curved || shapes_[b].curved) return false;
   // the pair's own motion over the step, as the narrow phase classifies it: the motion
   // both share (a pile that its source integrated one long period under gravity) moves no
@@ -1007,12 +1060,11 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
                                                         shapes_[b].thickness);
   // the shift along the contact plane (A's frame): a shift along the manifold's normal
   // moves no point along either face, and each row's gap is measured again below
-  const StoredRow* const rows =
-      stored->count > 0 ? &stored_[part].row(stored->first) : nullptr;
-  Vec3 moved = rel_p - stored->rel_p;
+  const StoredRow* const rows = record.count > 0 ? &store.row(record.first) : nullptr;
+  Vec3 moved = rel_p - record.rel_p;
   if (rows != nullptr) moved -= moved.dot(rows[0].normal_a) * rows[0].normal_a;
   if (moved.norm() > shift ||
-      std::abs(rel_q.dot(stored->rel_q)) < std::cos(0.5 * kReuseRotation)) {
+      std::abs(rel_q.dot(record.rel_q)) < std::cos(0.5 * kReuseRotation)) {
     return false;
   }
   // a pair whose every point left the margin is no longer in contact (the rows of a
@@ -1022,13 +1074,14 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
   const Vec3 normal = A.r1 * rows[0].normal_a;
   const std::size_t first = out.size();
   double gap = kInf;
-  for (int k = 0; k < stored->count; ++k) {
+  out.room(static_cast<std::size_t>(record.count));
+  for (int k = 0; k < record.count; ++k) {
     const Vec3 on_a = A.r1 * rows[k].local_a + A.p1;
     const Vec3 on_b = B.r1 * rows[k].local_b + B.p1;
     const double separation = (on_b - on_a).dot(normal);
     gap = std::min(gap, separation);
-    out.add(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, separation, 0.0,
-            ContactKind::persistent, rows[k].feature);
+    out.put(shapes_[a], shapes_[b], 0.5 * (on_a + on_b), normal, separation, 0.0,
+            rows[k].feature);
   }
   if (gap > margin) {
     out.drop_from(first);
@@ -1044,8 +1097,9 @@ bool Detector::reuse(Lane& lane, int a, int b, ContactRows& out) const {
     out.drop_from(first);
     return false;
   }
-  lane.next.begin(key, stored->rel_p, stored->rel_q);
-  lane.next.add_rows(rows, stored->count);
+  out.set_kind(first, ContactKind::persistent);
+  lane.next.begin(key, record.rel_p, record.rel_q);
+  lane.next.add_rows(rows, record.count);
   out.close_manifold(shapes_[a].body, shapes_[b].body, first);
   return true;
 }
@@ -1093,15 +1147,10 @@ Motion Detector::motion(int body) const {
   return Motion(b.p0, b.p1, b.q0, b.q1, shapes_[body].offset, shapes_[body].rotation);
 }
 
-void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
+void Detector::narrow_phase(Lane& lane, int a, int b, double relative, ContactRows& out) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
   const double margin = settings_.speculative_margin;
-  const double relative = relative_motion(a, b);
-  // bounding spheres farther apart than the margin and than the relative motion: the pair
-  // can neither touch now nor have met during the step
-  const double bound = (B.p1 - A.p1).norm() - shapes_[a].radius - shapes_[b].radius;
-  if (bound > margin && bound >= relative) return;
   Vec3 normal;
   PointPair witness;
   const double distance = lane.query.signed_distance(*shapes_[a].geometry, A.pose1,
@@ -1111,12 +1160,11 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
     lane.next.begin_apart(static_cast<std::int64_t>(a) * pieces() + b,
                           A.r1.transpose() * (B.p1 - A.p1), A.q1.conjugate() * B.q1, distance);
   }
-  const double speed = speed_bound(a, b);
   // overlapping now, possibly apart before, and closing fast enough to bounce: its
   // previous state decides between a persistent contact and an impact
   const double approach = approach_bound(a, b);
   const bool may_have_hit = distance < 0.0 && distance + approach > 0.0 &&
-                            may_bounce(a, b, normal, speed);
+                            may_bounce(a, b, normal, speed_bound(a, b));
   if (near && distance + approach <= margin && !may_have_hit) {
     // within the margin at the previous state for sure: a persistent contact
     const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
@@ -1135,7 +1183,7 @@ void Detector::narrow_phase(Lane& lane, int a, int b, ContactRows& out) const {
     return;
   }
   if (near || (settings_.ccd && relative > distance)) {
-    classify(lane, a, b, distance, normal, relative, speed, near, out);
+    classify(lane, a, b, distance, normal, relative, speed_bound(a, b), near, out);
   }
 }
 
@@ -1313,18 +1361,21 @@ void Detector::speculate(Lane& lane, int a, int b, const Vec3& normal, const Poi
       if (!(height <= reach)) continue;
       // within the patch's band about the deepest point's gap: a corner of the manifold
       // already, or one beside the partner's face (the patch holds the face's points)
-      const bool known = skip_known && std::fabs(height - gap) < kPatchTolerance;
+      if (skip_known && std::fabs(height - gap) < kPatchTolerance) continue;
       // on the partner: its projection within the partner's box (grown by the margin); a
       // plane has no box (it is unbounded: every corner is over it), and a sphere's point
       // carried from the previous state touched it there (a ball driven through a corner
       // of two walls is beside both faces at the end of the step)
-      const Vec3 local = r_partner.transpose() * (q + height * towards - p_partner);
-      const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
-      const bool over = shapes_[partner].kind == ShapeKind::plane ||
-                        (!skip_known && shape.single_point) ||
-                        ((local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
-                         (local.array() <= (shapes_[partner].local_hi + grow).array()).all());
-      if (!known && over) lane.heights.emplace_back(height, static_cast<int>(k));
+      auto within = [&] {
+        const Vec3 local = r_partner.transpose() * (q + height * towards - p_partner);
+        const Vec3 grow = Vec3::Constant(settings_.speculative_margin);
+        return (local.array() >= (shapes_[partner].local_lo - grow).array()).all() &&
+               (local.array() <= (shapes_[partner].local_hi + grow).array()).all();
+      };
+      if (shapes_[partner].kind == ShapeKind::plane || (!skip_known && shape.single_point) ||
+          within()) {
+        lane.heights.emplace_back(height, static_cast<int>(k));
+      }
     }
     std::sort(lane.heights.begin(), lane.heights.end());
     if (lane.heights.size() > static_cast<std::size_t>(kMaxManifoldPoints))
@@ -1429,7 +1480,8 @@ void Detector::emit(Lane& lane, int a, int b, const Vec3& normal_in, double toi,
                     const Mat3& rb, const Vec3& pb, ContactRows& out) const {
   const double length = normal_in.norm();
   const Vec3 normal = normal_in / std::max(length, 1e-300);
-  const bool store = kind == ContactKind::persistent;
+  // a persistent manifold is stored for `reuse`, which never reuses a curved body's points
+  const bool store = kind == ContactKind::persistent && !shapes_[a].curved && !shapes_[b].curved;
   if (store) {
     const Body& A = bodies_[a];
     const Body& B = bodies_[b];

@@ -23,8 +23,8 @@
 //    the margin, no hit fast enough to bounce, no deep overlap; with a half-space only the
 //    motion along its normal changes the gap). Motion the two bodies share does not count:
 //    a pile that its source integrated one 30 Hz period under gravity keeps its points. A
-//    curved body's points are never reused: on a rolling surface they would turn with the
-//    body. A pair the narrow phase measured apart (beyond the margin) keeps that distance
+//    curved body's points are never reused (nor stored): on a rolling surface they would
+//    turn with the body. A pair the narrow phase measured apart (beyond the margin) keeps that distance
 //    with its relative pose; while the distance less how far a point of either body has
 //    since moved relative to the other stays beyond the margin and the step's relative
 //    motion, the narrow phase would give it no rows and it is not queried.
@@ -216,7 +216,10 @@ class Detector {
                            std::vector<std::pair<int, int>>& others);
   void merge_pairs();
   // pairs of two fixed bodies, of a non-finite pose, of one body, or that the filter drops
+  // (from sieve_)
   bool skip(const std::pair<int, int>& pair) const;
+  // sieve_'s group and mask bits from the filter
+  void sieve_filter();
   // detect's stages on two threads (see set_threads)
   void detect_paired(const StepPoses& poses, ContactRows& out);
   double sphere_gap(int a, int b) const;
@@ -258,8 +261,12 @@ class Detector {
   };
   // The per-pair stages: each reads the step's bodies and the stored manifolds and
   // writes only `lane` and `out` (so two lanes run at once).
-  bool reuse(Lane& lane, int a, int b, ContactRows& out) const;
-  // pairs_[lo, hi) in turn: the stored points or the narrow phase
+  // The pair's record of last step (`record`, in `store`, under `key`): its stored points
+  // or its distance; false: the narrow phase's.
+  bool reuse(Lane& lane, int a, int b, std::int64_t key, const ManifoldStore& store,
+             const StoredManifold& record, ContactRows& out) const;
+  // pairs_[lo, hi) in turn: the stored points or the narrow phase (the bounding spheres'
+  // test first)
   void run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows& out) const;
   // A pair stored apart (step 3) whose distance then, less how far either body moved
   // relative to the other since, is still beyond the margin and the step's relative motion:
@@ -269,7 +276,8 @@ class Detector {
   // Pairs whose distance is worth storing: neither a sphere (coal's closed forms cost
   // about as much as the check), a plane or a mesh triangle.
   bool may_store_apart(int a, int b) const;
-  void narrow_phase(Lane& lane, int a, int b, ContactRows& out) const;
+  // `relative`: relative_motion(a, b)
+  void narrow_phase(Lane& lane, int a, int b, double relative, ContactRows& out) const;
   void classify(Lane& lane, int a, int b, double distance_now, const Vec3& normal_now,
                 double relative, double speed, bool near, ContactRows& out) const;
   bool time_of_impact(Lane& lane, int a, int b, const Motion& ma, const Motion& mb, double s0,
@@ -337,6 +345,12 @@ class Detector {
   DetectionSettings settings_;
   PairFilter filter_;   // default: every pair collides
   std::vector<Body> bodies_;
+  struct Sieve {   // per shape, what `skip` reads of it, side by side
+    std::uint64_t group = 0, mask = 0;   // its body's collision filter bits (PairFilter)
+    int body = 0;                        // its body
+    bool fixed = false, valid = true;    // its Body's (prepare)
+  };
+  std::vector<Sieve> sieve_;
   std::vector<Aabb> boxes_;
   CoherentPairs sweep_;
   std::vector<std::pair<int, int>> pairs_;

@@ -102,6 +102,15 @@ struct ContactRows {
   // (Inline, defined in detection.cpp, where all rows are added.)
   inline void add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
                   double gap, double fraction, ContactKind contact, std::int64_t id);
+  // The rows of a loop that adds rows of one kind (a reused manifold's): `room` for
+  // `count` more rows first, then `put` each (add's columns but the kind, no room test),
+  // then `set_kind` of the rows from `first` on. With the kind's byte store (which may
+  // alias any column's data pointer, loaded again after it) out of the loop, the columns'
+  // pointers stay in registers through it. (Inline, defined in detection.cpp.)
+  inline void room(std::size_t count);
+  inline void put(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
+                  double gap, double fraction, std::int64_t id);
+  void set_kind(std::size_t first, ContactKind contact);
   // Close the manifold of pair (a, b) whose rows start at `first` (the rows added since);
   // a manifold without rows is no manifold.
   void close_manifold(std::int64_t a, std::int64_t b, std::size_t first);
@@ -125,7 +134,8 @@ struct ContactRows {
   std::size_t size() const { return rows_; }
 
  private:
-  void make_room();   // room for more rows in every row column (add, when it is full)
+  void make_room(std::size_t count);   // room for `count` more rows (at least 64) in every
+                                       // row column (add and room, when it is short)
   void resize_columns(std::size_t rows);   // every row column to this many rows
   // f(column, values a row) for each row column (not the manifolds)
   template <class F>

@@ -1774,8 +1774,12 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
 }
 
 // The wide groups [lo, hi) of wave l, in order (one call for a part of a wave: the groups'
-// updates inlined, no call each).
-COLLRES_CLONED
+// updates inlined, no call each). Without GCC's code hoisting: it moved products to the
+// block that dominates their uses (e.g. the line search's impulses times the inverse
+// masses, all sixteen ahead of the sums that read them), which kept more Lanes live than
+// the AVX2 clone's 16 registers hold, each spilled and read back (the same operations
+// either way: the same bits).
+COLLRES_CLONED COLLRES_NO_HOISTING
 void solve_groups(SweepPlan& plan, size_t l, size_t lo, size_t hi,
                   std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                   double* v, std::vector<SpinRow>* spins, Progress& progress) {

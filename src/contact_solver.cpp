@@ -1190,6 +1190,11 @@ WIDE bool any(Mask m) {   // (its halves or-ed, then their two numbers)
   const Half h = __builtin_shufflevector(m, m, 0, 1) | __builtin_shufflevector(m, m, 2, 3);
   return (h[0] | h[1]) != 0;
 }
+WIDE bool all(Mask m) {   // (its halves and-ed, then their two numbers)
+  typedef int64_t Half __attribute__((vector_size(16)));
+  const Half h = __builtin_shufflevector(m, m, 0, 1) & __builtin_shufflevector(m, m, 2, 3);
+  return (h[0] & h[1]) != 0;
+}
 
 // Four rows of four to four columns (a 4x4 transpose: lane l of column c is row l's c):
 // a body's twist read or written four numbers at once (one load or store per lane, not
@@ -1319,7 +1324,8 @@ WIDE void apply(const WideRow& r, const WideGroup& g, WideTwists& t, int k, cons
   t.wb.z = pick(on, t.wb.z + s * r.dw_b[k][2], t.wb.z);
 }
 
-// apply() in every lane, lanes where s is 0 included: each adds or subtracts products
+// apply() in every lane, lanes where s is 0 included: apply() itself where no lane's s is
+// 0 (its picks keep no old number). Elsewhere each adds or subtracts products
 // that are +-0 there, which leave a number unchanged but for the sign of a zero. For
 // twists whose change from the start is all that is read (solve_friction_block's `moved`,
 // read as moved - start) that is the same bits as apply(): along a lane, the sums take
@@ -1370,8 +1376,13 @@ WIDE Lanes solve_friction(WideRow& r, const WideGroup& g, WideTwists& t, Mask li
   const Lanes d_x = pick(live, tx - r.tangent[0], zero), d_y = pick(live, ty - r.tangent[1], zero);
   r.tangent[0] = pick(live, tx, r.tangent[0]);
   r.tangent[1] = pick(live, ty, r.tangent[1]);
-  apply(r, g, t, 1, g.t1, d_x);
-  apply(r, g, t, 2, g.t2, d_y);
+  if (all((d_x != 0.0) & (d_y != 0.0))) {   // (mostly: apply() would keep no lane's twist)
+    apply_all(r, g, t, 1, g.t1, d_x);
+    apply_all(r, g, t, 2, g.t2, d_y);
+  } else {
+    apply(r, g, t, 1, g.t1, d_x);
+    apply(r, g, t, 2, g.t2, d_y);
+  }
   return maximum(magnitude(d_x), magnitude(d_y));
 }
 
@@ -1434,20 +1445,31 @@ WIDE Lanes solve_friction_block(WideRow* w, const WideGroup& g, WideTwists& t, M
     curve += d[i][0] * relative(w[i], delta, 1, g.t1) +
              d[i][1] * relative(w[i], delta, 2, g.t2);
   const Lanes s = pick(curve > -along, -along / curve, splat(1.0));
-  auto take = [&](WideVec& to, const WideVec& by) __attribute__((always_inline)) {
-    to.x = pick(go, to.x + s * by.x, to.x);
-    to.y = pick(go, to.y + s * by.y, to.y);
-    to.z = pick(go, to.z + s * by.z, to.z);
+  // the proposals taken in the lanes of `go` (`every`: all four, mostly; no pick then)
+  auto take = [&](const bool every) __attribute__((always_inline)) {
+    auto at = [&](Lanes taken, Lanes kept) __attribute__((always_inline)) {
+      return every ? taken : pick(go, taken, kept);
+    };
+    auto by = [&](WideVec& to, const WideVec& change) __attribute__((always_inline)) {
+      to.x = at(to.x + s * change.x, to.x);
+      to.y = at(to.y + s * change.y, to.y);
+      to.z = at(to.z + s * change.z, to.z);
+    };
+    by(t.va, delta.va);
+    by(t.wa, delta.wa);
+    by(t.vb, delta.vb);
+    by(t.wb, delta.wb);
+    for (int i = 0; i < k; ++i) {
+      const Lanes d_x = s * d[i][0], d_y = s * d[i][1];
+      w[i].tangent[0] = at(w[i].tangent[0] + d_x, w[i].tangent[0]);
+      w[i].tangent[1] = at(w[i].tangent[1] + d_y, w[i].tangent[1]);
+      change = maximum(change, at(maximum(magnitude(d_x), magnitude(d_y)), zero));
+    }
   };
-  take(t.va, delta.va);
-  take(t.wa, delta.wa);
-  take(t.vb, delta.vb);
-  take(t.wb, delta.wb);
-  for (int i = 0; i < k; ++i) {
-    const Lanes d_x = s * d[i][0], d_y = s * d[i][1];
-    w[i].tangent[0] = pick(go, w[i].tangent[0] + d_x, w[i].tangent[0]);
-    w[i].tangent[1] = pick(go, w[i].tangent[1] + d_y, w[i].tangent[1]);
-    change = maximum(change, pick(go, maximum(magnitude(d_x), magnitude(d_y)), zero));
+  if (all(go)) {
+    take(true);
+  } else {
+    take(false);
   }
   return change;
 }
@@ -1774,8 +1796,12 @@ WIDE void solve_group_of(WideGroup& g, WideRow* w, std::vector<ContactRow>& rows
 }
 
 // The wide groups [lo, hi) of wave l, in order (one call for a part of a wave: the groups'
-// updates inlined, no call each).
-COLLRES_CLONED
+// updates inlined, no call each). Without GCC's code hoisting: it moved products to the
+// block that dominates their uses (e.g. the line search's impulses times the inverse
+// masses, all sixteen ahead of the sums that read them), which kept more Lanes live than
+// the AVX2 clone's 16 registers hold, each spilled and read back (the same operations
+// either way: the same bits).
+COLLRES_CLONED COLLRES_NO_HOISTING
 void solve_groups(SweepPlan& plan, size_t l, size_t lo, size_t hi,
                   std::vector<ContactRow>& rows, const std::vector<Manifold>& manifolds,
                   double* v, std::vector<SpinRow>* spins, Progress& progress) {

@@ -32,6 +32,14 @@
 #define COLLRES_CLONED
 #define COLLRES_CLONED_FLAT
 #endif
+// A function compiled without GCC's code hoisting (-fcode-hoisting, on at -O2 and above),
+// where it lengthens the lives of vector values beyond the registers (the function says
+// where). Scheduling only: the same IEEE operations, the same bits. GCC only.
+#if defined(__GNUC__) && !defined(__clang__)
+#define COLLRES_NO_HOISTING __attribute__((optimize("no-code-hoisting")))
+#else
+#define COLLRES_NO_HOISTING
+#endif
 
 namespace collres {
 

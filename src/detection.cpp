@@ -122,25 +122,14 @@ void ContactRows::take(const std::vector<std::size_t>& rows, ContactRows& out) c
 }
 
 // Inlined into the loops that add rows: into the columns' room (one test a row, not one a
-// column); the kind's byte is stored last (a byte's store may alias any column's data
-// pointer, which the stores before it then need not load again).
+// column), the row's columns but its kind (put), then the kind's byte, stored last (a byte's
+// store may alias any column's data pointer, which the stores before it then need not load
+// again).
 void ContactRows::add(const BodyShape& a, const BodyShape& b, const Vec3& at, const Vec3& n,
                       double gap, double fraction, ContactKind contact, std::int64_t id) {
-  const std::size_t row = rows_;
-  if (row == body_a.size()) make_room(1);
-  body_a[row] = a.body;
-  body_b[row] = b.body;
-  piece_a[row] = a.piece;
-  piece_b[row] = b.piece;
-  double* const p = point.data() + 3 * row;
-  double* const m = normal.data() + 3 * row;
-  for (int k = 0; k < 3; ++k) p[k] = at[k];
-  for (int k = 0; k < 3; ++k) m[k] = n[k];
-  separation[row] = gap;
-  toi[row] = fraction;
-  feature[row] = id;
-  kind[row] = static_cast<std::int8_t>(contact);
-  rows_ = row + 1;
+  room(1);
+  put(a, b, at, n, gap, fraction, id);
+  kind[rows_ - 1] = static_cast<std::int8_t>(contact);
 }
 
 void ContactRows::room(std::size_t count) {

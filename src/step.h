@@ -416,6 +416,8 @@ class StepSolver {
   std::vector<double> moved_a_;      // m: how far A's point moves along the normal over the
                                      // step on its path (A's part of closed + drift_)
   std::vector<double> span_;         // s: the time a row's allowance spans (> 0)
+  std::vector<int32_t> level_far_;   // (N,) stack levels over every row (levels)
+  std::vector<uint8_t> adjacent_near_;   // per adjacency_ entry: over a near row (levels)
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row
   std::vector<int32_t> aimed_;       // the rows that aim turns: two spheres, one row,

@@ -633,6 +633,151 @@ def warm() -> None:
                 f'v {np.round(lin, 4)}, |w| {np.linalg.norm(ang):.1e}', ok)
 
 
+# ---------------------------------------------------------------- variants of the above
+
+COMBINE = {'average': lambda a, b: (a + b) / 2, 'min': min, 'max': max,
+           'multiply': lambda a, b: a * b}
+
+
+@check('restitution_rules')
+def restitution_rules() -> None:
+    """A ball dropped from 1 m on a floor of another restitution bounces to e^2 with e the
+    two combined by solver.restitution_rule (average, min, max, multiply; within 2 %)."""
+    for rule, combined in COMBINE.items():
+        for e_ball, e_floor in ((0.8, 0.5), (0.9, 0.0), (1.0, 0.6)):
+            for rate in (60.0, 240.0):
+                r = 0.05
+                e = combined(e_ball, e_floor)
+                sim = Simulation([plane(e=e_floor), sphere('ball', r, 1.0, e=e_ball)],
+                                 states([[0, 0, 0], [0, 0, 1.0 + r]], np.zeros((2, 3))), rate,
+                                 SolverSettings(restitution_rule=rule,
+                                                restitution_threshold=0.05))
+                heights = apexes(sim.run(1.6).positions()[:, 1, 2] - r)
+                first = heights[0] if heights else 0.0
+                law = e * e
+                ok = abs(first - law) <= 0.02 * law + G / (8 * rate * rate) if law > 0 \
+                    else first < 2e-3
+                row('restitution rule', f'{rule}, ball {e_ball} on floor {e_floor}, '
+                    f'{rate:g} Hz', f'apex {first:.4f} law {law:.4f}', ok)
+
+
+@check('bounce_sizes')
+def bounce_sizes() -> None:
+    """A ball of 1 cm, 10 cm or 1 m dropped from 1 m: e 0.5 bounces to e^2, e^4 (2 %), e 1
+    back to 1 m twice, e 0 stays on the floor."""
+    for rate in RATES:
+        for r in (0.01, 0.1, 1.0):
+            for e in (0.0, 0.5, 1.0):
+                sim = Simulation([plane(), sphere('ball', r, 1.0, e=e)],
+                                 states([[0, 0, 0], [0, 0, 1.0 + r]], np.zeros((2, 3))), rate,
+                                 SolverSettings(restitution_threshold=0.05))
+                height = sim.run(2.6 if e < 1 else 3.0).positions()[:, 1, 2] - r
+                if e == 0:
+                    after = np.abs(height[int(0.6 * rate):]).max()
+                    ok, figure = after < 1e-3, f'highest after landing {after:.1e} m'
+                else:
+                    got = apexes(height)[:2]
+                    law = [e ** 2, e ** 4]
+                    ok = len(got) == 2 and all(abs(h - w) <= 0.02 * w + G / (8 * rate * rate)
+                                               for h, w in zip(got, law))
+                    figure = f'apexes {np.round(got, 4)} law {np.round(law, 4)}'
+                row('e^2 bounces', f'e {e}, r {r}, {rate:g} Hz', figure, ok)
+
+
+@check('order')
+def order() -> None:
+    """Impacts do not depend on the order of the bodies or of the contacts: the symmetric
+    three-ball hit in every order of its bodies, its two contacts either way round (the same
+    velocities within 1e-9), and the cradles of 3 and 5 with their bodies reversed (the
+    cradle law)."""
+    import itertools
+    r = 0.1
+    th = math.radians(120)
+    n = [np.array([1.0, 0.0, 0.0]), np.array([math.cos(th), math.sin(th), 0.0])]
+    first = None
+    for perm in itertools.permutations(range(3)):
+        inv = np.argsort(perm)
+        pos = [[0, 0, 0], 2 * r * n[0], 2 * r * n[1]]
+        lin = [[0, 0, 0], -2 * n[0], -2 * n[1]]
+        bodies = [sphere(f'b{i}', r, 1.0, e=1.0) for i in range(3)]
+        before = states([pos[i] for i in perm], [lin[i] for i in perm])
+        for flipped in (False, True):
+            pick = slice(None, None, -1 if flipped else 1)
+            contacts = contact_set([inv[0]] * 2, [inv[1], inv[2]][pick],
+                                   [r * n[0], r * n[1]][pick], n[pick], 0.0,
+                                   kind=ContactKind.IMPACT)
+            world = World([bodies[i] for i in perm], SolverSettings(), FixedContacts(contacts))
+            v = world.step(before, before.copy(), 0.01).states.linear[inv]
+            first = v if first is None else first
+            d = float(np.abs(v - first).max())
+            row('order independence', f'three-ball hit, bodies {perm}, contacts '
+                + ('reversed' if flipped else 'in order'), f'max |dv| {d:.1e} m/s', d < 1e-9)
+    for touching in (3, 5):
+        for rate in (30.0, 240.0):
+            r, v0 = 0.05, 1.0
+            count = touching + 1
+            x = [-2 * r - 0.004] + [2 * r * i for i in range(touching)]
+            back = list(range(count))[::-1]
+            lin = np.zeros((count, 3))
+            lin[0, 0] = v0
+            sim = Simulation([sphere(f's{i}', r, 1.0, e=1.0) for i in back],
+                             states([[x[i], 0.0, 0.0] for i in back], lin[back]), rate,
+                             gravity=ZERO_G)
+            e0 = sim.energy()
+            for _ in range(max(8, int(0.3 * rate))):
+                sim.step()
+            v = sim.state.linear[np.argsort(back), 0]
+            ratio = sim.energy() / e0
+            ok = abs(ratio - 1) <= 0.01 and v[-1] >= 0.95 * v0 and \
+                np.all(np.abs(v[:-1]) <= 0.05 * v0)
+            row('order independence', f'cradle of {touching}, bodies reversed, {rate:g} Hz',
+                f'E {ratio:.4f}, last {v[-1] / v0:.3f} v0, others <= '
+                f'{np.abs(v[:-1]).max() / v0:.3f} v0', ok)
+
+
+@check('cradle_sizes')
+def cradle_sizes() -> None:
+    """The cradle law (energy within 1 %, the last ball >= 0.95 v0, the others <= 0.05 v0)
+    with balls of 1 cm and 1 m, of 10 kg, and a striker touching the row at the start."""
+    for touching in (3, 5):
+        for rate in (30.0, 240.0):
+            for r, mass, gap in ((0.01, 1.0, 0.001), (1.0, 1.0, 0.05), (0.05, 10.0, 0.004),
+                                 (0.05, 1.0, 0.0)):
+                v0 = 1.0
+                x = [-2 * r - gap] + [2 * r * i for i in range(touching)]
+                lin = np.zeros((touching + 1, 3))
+                lin[0, 0] = v0
+                sim = Simulation([sphere(f's{i}', r, mass, e=1.0) for i in range(touching + 1)],
+                                 states([[xi, 0.0, 0.0] for xi in x], lin), rate,
+                                 gravity=ZERO_G)
+                e0 = sim.energy()
+                for _ in range(max(8, int(0.3 * rate))):
+                    sim.step()
+                v = sim.state.linear[:, 0]
+                ratio = sim.energy() / e0
+                ok = abs(ratio - 1) <= 0.01 and v[-1] >= 0.95 * v0 and \
+                    np.all(np.abs(v[:-1]) <= 0.05 * v0)
+                row('cradle', f'{touching} touching, r {r}, m {mass}, gap {gap}, {rate:g} Hz',
+                    f'E {ratio:.4f}, last {v[-1] / v0:.3f} v0, others <= '
+                    f'{np.abs(v[:-1]).max() / v0:.3f} v0', ok)
+
+
+@check('stack_sizes')
+def stack_sizes() -> None:
+    """The 1000:1 and 100:1 stacks of cubes of 1 cm, 5 cm and 1 m move < 0.1 mm in 10 s
+    (at 30 Hz a step's fall g dt^2, 11 mm, exceeds the 1 cm cubes' size)."""
+    for size in (0.01, 0.05, 1.0):
+        for ratio in (100.0, 1000.0):
+            for rate in (30.0, 120.0, 240.0):
+                bodies = [plane(), cube('light', size, 1.0), cube('heavy', size, ratio)]
+                start = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, size / 2],
+                                  [0.0, 0.0, 1.5 * size]])
+                moved, e0, highest = stand(bodies, start, rate=rate)
+                row(f'{ratio:g}:1 stack', f'{size} m, {rate:g} Hz',
+                    f'drift {moved * 1000:.4f} mm',
+                    moved < 1e-4 and highest <= e0 + 1e-9 * abs(e0))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--only', nargs='*', default=None, help=f'groups: {", ".join(CHECKS)}')

@@ -94,7 +94,7 @@ struct SolverParams {
   bool wide_rows = true;                // wide groups solved in lanes (SweepPlan)
   double max_substep = 0.0067;          // s: the resting solve's substeps are at most this
                                         // long (StepSolver::soft_step) ...
-  int max_substeps = 10;                // ... and at most this many per step
+  int max_substeps = 32;                // ... and at most this many per step
   int landing_substeps = 5;             // from this many substeps on, the landing's sweeps
   int landing_sweeps = 3;               // are the last substep's last this many (land)
   double later_impact = 1e-3;           // fraction of the step: a detected impact this much

@@ -381,15 +381,19 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'runs every part the worker has not begun; timings on a machine other '
                      'processes kept busy vary by 5-10 %)'),
 
-    ParamSpec('max_substeps', 'integer', 10,
+    ParamSpec('max_substeps', 'integer', 32,
               'Most substeps of a step\'s resting solve (max_substep)', 1, 64,
-              reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 10 solves; '
+              reason='a long step (10 Hz, a fresh start of 0.5 s) costs at most 32 solves; '
                      'the stack bound (stack_sink) asks 15 for towers of 20 cubes of 5 cm '
-                     'at 30 Hz with sleeping off: at 8 they fell (2.69 m in 10 s), at 9 '
-                     'drifted 9.6 mm, at 10 stand within 0.65 mm; a dropped mixed pile of '
-                     '1000 at 30 Hz takes 508 substeps over 3 s instead of 501 (5 steps '
-                     'above 8), and settled piles keep theirs at 30-240 Hz (at 10 Hz a settled '
-                     'pile of 100 takes 10 instead of 8)'),
+                     'at 30 Hz with sleeping off (at 8 they fell, 2.69 m in 10 s, at 9 '
+                     'drifted 9.6 mm, at 10 stand within 0.65 mm) and 32 for cubes of 1 cm '
+                     '(at 10 towers of 1 cm cubes fell at 30 and 60 Hz, of 2 cm at 30 Hz; '
+                     'at 32 they stand within 0.10, 0.03 and 0.20 mm in 10 s); settled piles '
+                     'keep theirs at 30-240 Hz, '
+                     'a dropped pile of 100 at 30 Hz too (a dropped mixed pile of 1000 takes '
+                     '503 substeps over 3 s, 2 steps above 10, against 518); at 10 Hz '
+                     '(max_substep asks 15) a '
+                     'dropped pile of 100 takes 537-565 substeps over 3 s instead of 300'),
     ParamSpec('landing_substeps', 'integer', 5,
               'From this many substeps on, the landing (StepSolver::land) replaces sweeps: the '
               'last substep\'s first sweeps give the poses\' travel, its last landing_sweeps, '
@@ -458,7 +462,8 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      '/ D (1.3 for this; 5 cm: 3.8 ms, 10 cm: 5.3 ms): 5 cm cubes at 30 and '
                      '60 Hz, 10 cm at 30 Hz (1.97, 3.03, 5.45 m in 10 s); at 0.5 the towers '
                      'of 5 to 20 cm stand within 0.9 mm at 30-240 Hz (the 5 cm ones at 30 Hz '
-                     'with 10 substeps, max_substeps); a settled pile of 1000 '
+                     'with 10 substeps), of 1 and 2 cm within 0.2 mm at 30 Hz with 32 '
+                     '(max_substeps); a settled pile of 1000 '
                      'keeps max_substep (5 substeps at 30 Hz, 3 at 60 Hz, as before)'),
     ParamSpec('aim_turn', 'double', 1e-3,
               'A contact of two spheres pressed one onto the other is aimed along their '

@@ -92,14 +92,16 @@ def test_tower_of_20_default_cubes_stands_10s_at_every_rate(size, rate):
                         [BodySpec(f'c{i}', 'box', (size,) * 3) for i in range(20)], size, rate)
 
 
-@pytest.mark.parametrize('size, rate', [(0.05, 60.0), (0.1, 30.0), (0.2, 30.0)])
+@pytest.mark.parametrize('size, rate', [(0.05, 60.0), (0.1, 30.0), (0.2, 30.0), (0.01, 30.0),
+                                        (0.01, 60.0), (0.02, 30.0)])
 def test_tower_of_20_default_cubes_stands_10s_awake(size, rate):
     """The solver's answer, not the sleepers': with sleeping off a tower of 20 default
     cubes sways from round-off, and where a substep is long against the stack's depth the
     sway grew (a stack D levels tall tips over its lowest contacts with D times the weight
     at D times the lever) until the tower fell: 5 cm cubes at 60 Hz 3.03 m, 10 cm at
     30 Hz 5.45 m in 10 s; the substeps are now also short against the depth
-    (SOLVER_TUNING stack_sink)."""
+    (SOLVER_TUNING stack_sink). Cubes of 1 cm at 30 Hz need 32 substeps so: with at most
+    10 (max_substeps) the towers of 1 cm cubes at 30 and 60 Hz, of 2 cm at 30 Hz, fell."""
     bodies = [BodySpec('floor', 'plane', (0.0, 0.0, 1.0, 0.0), static=True)] + \
         [BodySpec(f'c{i}', 'box', (size,) * 3) for i in range(20)]
     start = np.array([[0.0, 0.0, 0.0]] + [[0.0, 0.0, size * (i + 0.5)] for i in range(20)])

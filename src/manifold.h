@@ -128,9 +128,11 @@ class PairQuery {
                       const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
                       const coal::CollisionRequest& request, coal::CollisionResult& result);
   // The loaded contact of a triangle as the file comment says; false when it is none.
-  // `tb` is B's pose of the loaded query.
+  // B's pose of the loaded query is `tb` moved by `shift` (m, world; the pose is built only
+  // for a triangle's contact).
   bool onto_face(const coal::CollisionGeometry& ga, const coal::Transform3s& ta,
-                const coal::CollisionGeometry& gb, const coal::Transform3s& tb);
+                 const coal::CollisionGeometry& gb, const coal::Transform3s& tb,
+                 const Vec3& shift);
 
   coal::CollisionRequest request_;
   coal::CollisionResult result_;
@@ -153,6 +155,7 @@ class PairQuery {
   std::unique_ptr<TypedDistance> distance_[coal::NODE_COUNT][coal::NODE_COUNT];
   std::unique_ptr<TypedPatch> patch_[coal::NODE_COUNT][coal::NODE_COUNT];
   Vec3 loaded_shift_ = Vec3::Zero();  // m, B's step of the loaded contact (failed queries)
+  int loaded_types_[2] = {-1, -1};    // the node types of the last collide's geometries
 };
 
 // Indices (at most four) of the polygon's points that keep its deepest point and the most

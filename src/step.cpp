@@ -107,8 +107,6 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   // the stages from prepare to the landing, again (from the pre-solve velocities) while a
   // contact without a row escapes (escaped): it gets a row
   pre_.assign(velocity_.begin(), velocity_.end());
-  exact_last_.swap(exact_now_);
-  exact_now_.assign(n, 0);
   forced_.assign(static_cast<size_t>(contacts.count), 0);
   struck_.assign(static_cast<size_t>(contacts.count), 0);
   recalled_ = false;
@@ -916,7 +914,6 @@ void StepSolver::prepare(StepContext& ctx) {
     reach_[2 * m + 1] = std::sqrt(reach_b);
   }
   islands_ = false;
-  small_ = false;
   known_ = false;
   speed_.resize(rows_.size());
   chosen_.clear();
@@ -1493,107 +1490,6 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
   return solve_velocities(rows_, retry_, ctx.solver, iterations, ctx.params.converged);
 }
 
-int StepSolver::exact_islands(StepContext& ctx, double share) {
-  const SolverParams& p = ctx.params;
-  const int64_t n = ctx.bodies.count;
-  const double* inv_mass = ctx.bodies.inv_mass;
-  if (!small_) {   // (the islands stay for the step: hold_energy found them)
-    island_rows_.assign(n, 0);
-    island_bodies_.assign(n, 0);
-    for (const ContactRow& r : rows_) ++island_rows_[island_[r.ma != 0.0 ? r.a : r.b]];
-    for (int64_t i = 0; i < n; ++i)
-      if (touched_[i] && inv_mass[i] != 0.0) ++island_bodies_[island_[i]];
-    for (const int32_t x : driven_) island_bodies_[x] = 0;
-    small_ = true;
-  }
-  auto small = [&](int32_t x) {
-    return island_bodies_[x] >= 2 && island_rows_[x] <= p.exact_rows;
-  };
-  // per small island: the mechanical energy its contacts' impulses gave it in the substep
-  // (J): the kinetic energy at the end less at the start without the substep's external
-  // change c (a ramped body's share), less the potential energy the change's force lost as
-  // the pose moved with the end velocity (M c . v1: symplectic Euler); its kinetic energy
-  // at that start (J); whether one of its bodies was solved exactly in this step or the
-  // last while it moved (held)
-  gain_exact_.assign(2 * n, 0.0);
-  held_.assign(n, 0);
-  const bool last = exact_last_.size() == static_cast<size_t>(n);
-  bool any = false;
-  for (int64_t i = 0; i < n; ++i) {
-    if (!touched_[i] || inv_mass[i] == 0.0) continue;
-    const int32_t x = island_[i];
-    if (!small(x)) continue;
-    const double* v0 = start_.data() + 6 * i;
-    const double* v1 = velocity_.data() + 6 * i;
-    const Mat3& inertia = inertia_[i];
-    const double mass = 1.0 / inv_mass[i];
-    const Vec3 l1 = load3(v1), w1 = load3(v1 + 3), iw1 = mul(inertia, w1);
-    Vec3 l0 = load3(v0), w0 = load3(v0 + 3), cl = Vec3::Zero(), cw = Vec3::Zero();
-    if (ramped_[i]) {
-      cl = share * load3(ramp_.data() + 6 * i);
-      cw = share * load3(ramp_.data() + 6 * i + 3);
-      l0 -= cl;
-      w0 -= cw;
-    }
-    const double before = 0.5 * (mass * dot(l0, l0) + dot(w0, mul(inertia, w0)));
-    gain_exact_[2 * x] += 0.5 * (mass * dot(l1, l1) + dot(w1, iw1)) - before -
-                          mass * dot(cl, l1) - dot(cw, iw1);
-    gain_exact_[2 * x + 1] += before;
-    held_[x] |= exact_now_[i] | (last && exact_last_[i]);
-    any = any || held_[x] || gain_exact_[2 * x] > p.exact_work;
-  }
-  if (!any) return 0;
-  // the islands to solve (their roots' slots), their rows and bodies
-  exact_slot_.assign(n, -1);
-  size_t islands = 0;
-  for (int64_t i = 0; i < n; ++i)
-    if (island_[i] == i && small(static_cast<int32_t>(i)) &&
-        (held_[i] || gain_exact_[2 * i] > p.exact_work))
-      exact_slot_[i] = static_cast<int32_t>(islands++);
-  if (exact_rows_.size() < islands) {
-    exact_rows_.resize(islands);
-    exact_bodies_.resize(islands);
-  }
-  for (size_t k = 0; k < islands; ++k) {
-    exact_rows_[k].clear();
-    exact_bodies_[k].clear();
-  }
-  for (size_t i = 0; i < rows_.size(); ++i) {
-    const ContactRow& r = rows_[i];
-    const int32_t slot = exact_slot_[island_[r.ma != 0.0 ? r.a : r.b]];
-    if (slot >= 0) exact_rows_[slot].push_back(static_cast<int32_t>(i));
-  }
-  // an island solved exactly stays so while it gains or moves (kinetic energy above
-  // exact_rest): the sweeps of a rocking column, warm started from the exact impulses,
-  // stay near them, but from their own they gain again
-  for (int64_t i = 0; i < n; ++i) {
-    if (!touched_[i] || inv_mass[i] == 0.0) continue;
-    const int32_t x = island_[i];
-    if (exact_slot_[x] < 0) continue;
-    exact_bodies_[exact_slot_[x]].push_back(static_cast<int32_t>(i));
-    if (gain_exact_[2 * x] > p.exact_work || gain_exact_[2 * x + 1] > p.exact_rest)
-      exact_now_[i] = 1;
-  }
-  // the velocities the rows' impulses act on: the substep's start with the spin rows' torques
-  base_.assign(start_.begin(), start_.end());
-  for (const SpinRow& spin : spins_) {
-    if (exact_slot_[island_[inv_mass[spin.a] != 0.0 ? spin.a : spin.b]] < 0) continue;
-    if (inv_mass[spin.a] != 0.0)
-      store3(base_.data() + 6 * spin.a + 3,
-             load3(base_.data() + 6 * spin.a + 3) - mul(spin.inv_a, spin.torque));
-    if (inv_mass[spin.b] != 0.0)
-      store3(base_.data() + 6 * spin.b + 3,
-             load3(base_.data() + 6 * spin.b + 3) + mul(spin.inv_b, spin.torque));
-  }
-  IslandSettings settings;
-  settings.max_rounds = p.exact_rounds;
-  int taken = 0;
-  for (size_t k = 0; k < islands; ++k)
-    taken += island_solve_.solve(rows_, exact_rows_[k], exact_bodies_[k], ctx.solver,
-                                 inertia_.data(), base_.data(), velocity_.data(), settings);
-  return taken;
-}
-
 bool StepSolver::escaped(const StepContext& ctx, bool landed) {
   const ContactsView& c = ctx.contacts;
   const int64_t n = ctx.bodies.count;
@@ -1652,7 +1548,6 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
   const int64_t n = ctx.bodies.count;
   const size_t rows = rows_.size();
   const double share = 1.0 / substeps;
-  share_ = share;
   // per body: the displacement and turn (m, rad) since its reference time and the mean
   // velocity over the substeps (what the poses travel with); per row: the summed
   // impulses (N s) of the substeps before the last
@@ -1707,7 +1602,6 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
     // impulses, can raise the energy the sweeps kept (a box on one point of a fixed
     // sphere: +2.6e-4)
     sweeps += hold_energy(ctx, iterations);
-    exact_islands(ctx, share);
     // the poses travel with the substep's velocity for its share of the body's time (per
     // body), and the impulses are summed (per row), in parts
     const double dt = ctx.dt;
@@ -1805,7 +1699,6 @@ bool StepSolver::land(StepContext& ctx, int shared, bool& struck) {
   // judged as a substep (against the last substep's start): the landing's sweeps with
   // friction can raise the energy too (a box on three close points: +7 % of the step's)
   hold_energy(ctx, sweeps);
-  exact_islands(ctx, share_);
   for (size_t i = 0; i < rows_.size(); ++i) {
     ContactRow& r = rows_[i];
     r.landing = r.normal - landing_[i];     // reported, not warm started

@@ -465,46 +465,6 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'with 10 substeps), of 1 and 2 cm within 0.2 mm at 30 Hz with 32 '
                      '(max_substeps); a settled pile of 1000 '
                      'keeps max_substep (5 substeps at 30 Hz, 3 at 60 Hz, as before)'),
-    ParamSpec('exact_rows', 'integer', 32,
-              'An island of two or more movable bodies (joined by rows between movable '
-              'bodies) with at most this many rows is solved exactly after a substep\'s '
-              'sweeps (and the landing\'s) where they gave it more mechanical energy than '
-              'exact_work (StepSolver::exact_islands: every row an equality of its rule, '
-              'one dense system, taken where it leaves no more kinetic energy); 0: never',
-              0, 1000,
-              reason='the sweeps of a rocking column of 7 cubes (28 rows), warm started from '
-                     'the impulses that held it leaning the other way, gave it up to 17 mJ a '
-                     'step (test_column_rocking); solved exactly it gains at most 3.3e-7 J a '
-                     'step and rests after 0.67 / 0.83 s (30 / 120 Hz); a dense system of 3 '
-                     'unknowns a row costs (3 R)^3 / 3 a round, 0.3 M operations at 32 rows'),
-    ParamSpec('exact_rounds', 'integer', 16,
-              'Most changes of an exact island solve\'s active set (exact_rows): the rows '
-              'breaking their rule the most change each round; unsolved, the sweeps\' answer '
-              'stays', 1, 1000,
-              reason='from every row held, the rocking column finds its set in 16 at 30 and '
-                     '120 Hz (while it rocks: the exact answer of one substep warm starts '
-                     'the next)'),
-    ParamSpec('exact_work', 'double', 3e-4,
-              'An island (exact_rows) is solved exactly from the substep in which its '
-              'contacts gave it more mechanical energy than this (kinetic energy at the '
-              'end less at the start without the substep\'s external change, plus the '
-              'external force\'s potential energy over the substep), and from then on while '
-              'its kinetic energy stays above exact_rest',
-              0.0, 1.0, unit='J',
-              reason='the rocking column shows 1e-4-6e-3 J in a substep before its first '
-                     'exact solve: at 1e-3 it gained 0.65 mJ a step at 120 Hz, at 3e-4 and '
-                     '1e-4 at most 3.3e-7 J; settled bench piles (bench/pile.py, 100 and 1000 '
-                     'cubes at 120 Hz) show up to 1.1e-4 J in towers of 7 cubes (at 1e-4 one '
-                     'or two a pile were solved exactly for 5-20 substeps, at 1e-9 towers of '
-                     '6-7 bodies of every pile 171 times in 10 steps each); at 3e-4 none'),
-    ParamSpec('exact_rest', 'double', 1e-9,
-              'An island solved exactly (exact_work) stays so in the next step while its '
-              'kinetic energy at the substep\'s start (without the external change) is '
-              'above this', 0.0, 1.0, unit='J',
-              reason='released as soon as the gain fell below exact_work, the column gained '
-                     '10 mJ a step at 30 Hz again: the sweeps warm started from their own '
-                     'impulses lose the exact answer\'s set; a column at rest (7 kg at 1e-5 m/s) '
-                     'is below it'),
     ParamSpec('aim_turn', 'double', 1e-3,
               'A contact of two spheres pressed one onto the other is aimed along their '
               'centres\' line in each substep (StepSolver::aim); its row\'s frame is turned '

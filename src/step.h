@@ -287,7 +287,8 @@ class StepSolver {
   // would change nothing. admit lets in each manifold left out that is no longer so
   // (monotone within a step) and plans the sweeps again; returns true when one came in.
   // sweep solves the swept manifolds (solve_velocities, `iterations` sweeps) after
-  // admitting by activation_margin, then admits by margin 0 every manifold the solved
+  // admitting by `share` times activation_margin (a substep's all of it, the landing's
+  // 1 / substeps: StepSolver::land), then admits by margin 0 every manifold the solved
   // velocities drive beyond its allowance (or that gained impulse) and, if one came in,
   // solves again from the velocities and impulses it started from, until none: every
   // manifold left out is idle in the answer (it carries nothing and approaches no faster
@@ -303,13 +304,13 @@ class StepSolver {
   bool admit(StepContext& ctx, double margin, bool verify);
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
   bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
-  int sweep(StepContext& ctx, int iterations);
+  int sweep(StepContext& ctx, int iterations, double share = 1.0);
   // true when it swept (a landing row, or `shared`); `struck`: a landing row closed faster
   // than the restitution threshold and was newly marked in struck_ (an impact when solved
   // again)
   // `shared` > 0: the last substep's last `shared` sweeps (soft_step left them), with or
   // without a landing row, instead of velocity_iterations sweeps after the substeps
-  bool land(StepContext& ctx, int shared, bool& struck);
+  bool land(StepContext& ctx, int substeps, int shared, bool& struck);
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use

@@ -319,7 +319,9 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'manifold saves nothing the laws allow'),
     ParamSpec('activation_margin', 'double', 0.1,
               'A manifold whose points hold no impulse and separate faster than their '
-              'speculative allowance by more than this is left out of the velocity sweeps; '
+              'speculative allowance by more than this is left out of the velocity sweeps '
+              '(the landing\'s, whose allowances are the step\'s: by this over the '
+              'substeps); '
               'after the sweeps every one left out is checked against the solved '
               'velocities, and any they drive beyond its allowance is let in and the sweeps '
               'go on (the answer is the one of every manifold swept)', 0.0, 1e3, unit='m/s',

@@ -214,6 +214,11 @@ void bind_solver(py::module_& m) {
       .def_readwrite("stack_sink", &SolverParams::stack_sink)
       .def_readwrite("later_impact", &SolverParams::later_impact)
       .def_readwrite("behind_cosine", &SolverParams::behind_cosine)
+      .def_readwrite("exact_rows", &SolverParams::exact_rows)
+      .def_readwrite("exact_rounds", &SolverParams::exact_rounds)
+      .def_readwrite("exact_work", &SolverParams::exact_work)
+      .def_readwrite("exact_hold", &SolverParams::exact_hold)
+      .def_readwrite("exact_quiet", &SolverParams::exact_quiet)
       .def_readwrite("aim_turn", &SolverParams::aim_turn)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);

@@ -101,6 +101,14 @@ struct SolverParams {
                                         // later than its body's earliest ...
   double behind_cosine = 0.7;           // ... and behind it (normals out of the body within
                                         // acos of this) waits for it
+  int exact_rows = 32;                  // an island of two or more movable bodies and at
+                                        // most this many rows is solved exactly ...
+  int exact_rounds = 16;                // ... in at most this many changes of its active set
+  double exact_work = 3e-4;             // J: ... where its contacts gave it more mechanical
+                                        // energy than this in a substep, and from then on
+  double exact_hold = 0.2;              // s: until its sweeps have given it no more ...
+  double exact_quiet = 1e-7;            // J: ... than this a substep for so long, or its set
+                                        // is not found (StepSolver::exact_islands)
   double aim_turn = 1e-3;               // rad: an aimed row's frame is turned only where the
                                         // centres' line leans from its normal more (aim)
   double substep_sink = 0.02;           // ... and so short that a substep's external change

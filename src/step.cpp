@@ -107,12 +107,18 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
   // the stages from prepare to the landing, again (from the pre-solve velocities) while a
   // contact without a row escapes (escaped): it gets a row
   pre_.assign(velocity_.begin(), velocity_.end());
+  // (an island's hold, quiet_, as the step found it: again for a step solved again)
+  if (quiet_.size() != static_cast<size_t>(n)) quiet_.assign(n, -1.0);
+  quiet_then_.assign(quiet_.begin(), quiet_.end());
   forced_.assign(static_cast<size_t>(contacts.count), 0);
   struck_.assign(static_cast<size_t>(contacts.count), 0);
   recalled_ = false;
   StepStats stats;
   for (;; ++stats.redone) {
-    if (stats.redone > 0) std::copy(pre_.begin(), pre_.end(), velocity_.begin());
+    if (stats.redone > 0) {
+      std::copy(pre_.begin(), pre_.end(), velocity_.begin());
+      std::copy(quiet_then_.begin(), quiet_then_.end(), quiet_.begin());
+    }
     // prepare: rows of the contacts that can carry an impulse, combined materials
     prepare(ctx);
     // impacts: successive stages of the rows approaching faster than the threshold
@@ -914,6 +920,7 @@ void StepSolver::prepare(StepContext& ctx) {
     reach_[2 * m + 1] = std::sqrt(reach_b);
   }
   islands_ = false;
+  small_ = false;
   known_ = false;
   speed_.resize(rows_.size());
   chosen_.clear();
@@ -1490,6 +1497,137 @@ int StepSolver::hold_energy(StepContext& ctx, int iterations) {
   return solve_velocities(rows_, retry_, ctx.solver, iterations, ctx.params.converged);
 }
 
+int StepSolver::exact_islands(StepContext& ctx, double share, double elapsed) {
+  const SolverParams& p = ctx.params;
+  const int64_t n = ctx.bodies.count;
+  const double* inv_mass = ctx.bodies.inv_mass;
+  if (!small_) {   // (the islands stay for the step: hold_energy found them)
+    island_rows_.assign(n, 0);
+    island_bodies_.assign(n, 0);
+    for (const ContactRow& r : rows_) ++island_rows_[island_[r.ma != 0.0 ? r.a : r.b]];
+    for (int64_t i = 0; i < n; ++i)
+      if (touched_[i] && inv_mass[i] != 0.0) ++island_bodies_[island_[i]];
+    for (const int32_t x : driven_) island_bodies_[x] = 0;
+    small_ = true;
+  }
+  auto small = [&](int32_t x) {
+    return island_bodies_[x] >= 2 && island_rows_[x] <= p.exact_rows;
+  };
+  // per small island: the mechanical energy its contacts' impulses gave it in the substep
+  // (J): the kinetic energy at the end less at the start without the substep's external
+  // change c (a ramped body's share), less the potential energy the change's force lost as
+  // the pose moved with the end velocity (M c . v1: symplectic Euler); and how long it has
+  // been held without such a gain (s, the least of its held bodies': quiet_; -1: not held).
+  // A body that left the small islands is let go
+  gain_exact_.assign(n, 0.0);
+  island_quiet_.assign(n, -1.0);
+  bool any = false;
+  for (int64_t i = 0; i < n; ++i) {
+    if (!touched_[i] || inv_mass[i] == 0.0) {
+      quiet_[i] = -1.0;
+      continue;
+    }
+    const int32_t x = island_[i];
+    if (!small(x)) {
+      quiet_[i] = -1.0;
+      continue;
+    }
+    const double* v0 = start_.data() + 6 * i;
+    const double* v1 = velocity_.data() + 6 * i;
+    const Mat3& inertia = inertia_[i];
+    const double mass = 1.0 / inv_mass[i];
+    const Vec3 l1 = load3(v1), w1 = load3(v1 + 3), iw1 = mul(inertia, w1);
+    Vec3 l0 = load3(v0), w0 = load3(v0 + 3), cl = Vec3::Zero(), cw = Vec3::Zero();
+    if (ramped_[i]) {
+      cl = share * load3(ramp_.data() + 6 * i);
+      cw = share * load3(ramp_.data() + 6 * i + 3);
+      l0 -= cl;
+      w0 -= cw;
+    }
+    gain_exact_[x] += 0.5 * (mass * dot(l1, l1) + dot(w1, iw1)) -
+                      0.5 * (mass * dot(l0, l0) + dot(w0, mul(inertia, w0))) -
+                      mass * dot(cl, l1) - dot(cw, iw1);
+    if (quiet_[i] >= 0.0) {
+      double& quiet = island_quiet_[x];
+      quiet = quiet < 0.0 ? quiet_[i] : std::min(quiet, quiet_[i]);
+      any = true;
+    }
+    any = any || gain_exact_[x] > p.exact_work;
+  }
+  if (!any) return 0;
+  // the islands to solve (their roots' slots): those whose contacts gave more than
+  // exact_work, and those held since such a substep until the sweeps have given them no
+  // more than exact_quiet for exact_hold: a rocking column's sweeps gain where it changes
+  // the edge it rocks on (the warm start's impulses held it leaning the other way), and
+  // it changes edges within 0.15 s until it rests; a settled tower's sweeps lose
+  exact_slot_.assign(n, -1);
+  exact_held_.resize(n);
+  size_t islands = 0;
+  for (int64_t i = 0; i < n; ++i) {
+    if (island_[i] != i || !small(static_cast<int32_t>(i))) continue;
+    double& quiet = island_quiet_[i];
+    const bool held = quiet >= 0.0, fired = gain_exact_[i] > p.exact_work;
+    if (held)
+      quiet += elapsed;
+    else if (fired)
+      quiet = 0.0;
+    if (quiet > p.exact_hold && !fired) quiet = -1.0;
+    if (quiet < 0.0) continue;
+    exact_held_[islands] = held;
+    exact_slot_[i] = static_cast<int32_t>(islands++);
+  }
+  if (exact_rows_.size() < islands) {
+    exact_rows_.resize(islands);
+    exact_bodies_.resize(islands);
+    exact_root_.resize(islands);
+  }
+  for (size_t k = 0; k < islands; ++k) {
+    exact_rows_[k].clear();
+    exact_bodies_[k].clear();
+  }
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    const ContactRow& r = rows_[i];
+    const int32_t slot = exact_slot_[island_[r.ma != 0.0 ? r.a : r.b]];
+    if (slot >= 0) exact_rows_[slot].push_back(static_cast<int32_t>(i));
+  }
+  for (int64_t i = 0; i < n; ++i) {
+    if (!touched_[i] || inv_mass[i] == 0.0) continue;
+    const int32_t slot = exact_slot_[island_[i]];
+    if (slot >= 0) exact_bodies_[slot].push_back(static_cast<int32_t>(i));
+    if (island_[i] == i && slot >= 0) exact_root_[slot] = static_cast<int32_t>(i);
+  }
+  // the velocities the rows' impulses act on: the substep's start with the spin rows' torques
+  base_.assign(start_.begin(), start_.end());
+  for (const SpinRow& spin : spins_) {
+    if (exact_slot_[island_[inv_mass[spin.a] != 0.0 ? spin.a : spin.b]] < 0) continue;
+    if (inv_mass[spin.a] != 0.0)
+      store3(base_.data() + 6 * spin.a + 3,
+             load3(base_.data() + 6 * spin.a + 3) - mul(spin.inv_a, spin.torque));
+    if (inv_mass[spin.b] != 0.0)
+      store3(base_.data() + 6 * spin.b + 3,
+             load3(base_.data() + 6 * spin.b + 3) + mul(spin.inv_b, spin.torque));
+  }
+  IslandSettings settings;
+  settings.max_rounds = p.exact_rounds;
+  int taken = 0;
+  for (size_t k = 0; k < islands; ++k) {
+    const IslandSolve::Outcome outcome =
+        island_solve_.solve(rows_, exact_rows_[k], exact_bodies_[k], ctx.solver,
+                            inertia_.data(), base_.data(), velocity_.data(), settings);
+    taken += outcome == IslandSolve::kTaken;
+    double& quiet = island_quiet_[exact_root_[k]];
+    if (outcome == IslandSolve::kTaken && gain_exact_[exact_root_[k]] > p.exact_quiet)
+      quiet = 0.0;
+    else if (outcome == IslandSolve::kUnsolved && !exact_held_[k])
+      quiet = -1.0;
+  }
+  // the islands' holds, on their bodies (for the next substep and step)
+  for (int64_t i = 0; i < n; ++i)
+    if (touched_[i] && inv_mass[i] != 0.0 && small(island_[i]))
+      quiet_[i] = island_quiet_[island_[i]];
+  return taken;
+}
+
 bool StepSolver::escaped(const StepContext& ctx, bool landed) {
   const ContactsView& c = ctx.contacts;
   const int64_t n = ctx.bodies.count;
@@ -1548,6 +1686,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
   const int64_t n = ctx.bodies.count;
   const size_t rows = rows_.size();
   const double share = 1.0 / substeps;
+  share_ = share;
   // per body: the displacement and turn (m, rad) since its reference time and the mean
   // velocity over the substeps (what the poses travel with); per row: the summed
   // impulses (N s) of the substeps before the last
@@ -1602,6 +1741,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
     // impulses, can raise the energy the sweeps kept (a box on one point of a fixed
     // sphere: +2.6e-4)
     sweeps += hold_energy(ctx, iterations);
+    exact_islands(ctx, share, ctx.dt * share);
     // the poses travel with the substep's velocity for its share of the body's time (per
     // body), and the impulses are summed (per row), in parts
     const double dt = ctx.dt;
@@ -1705,6 +1845,7 @@ bool StepSolver::land(StepContext& ctx, int substeps, int shared, bool& struck) 
   // judged as a substep (against the last substep's start): the landing's sweeps with
   // friction can raise the energy too (a box on three close points: +7 % of the step's)
   hold_energy(ctx, sweeps);
+  exact_islands(ctx, share_, 0.0);
   for (size_t i = 0; i < rows_.size(); ++i) {
     ContactRow& r = rows_[i];
     r.landing = r.normal - landing_[i];     // reported, not warm started

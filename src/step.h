@@ -87,7 +87,10 @@
 //    shock propagation raised above what it had before the warm start is solved again
 //    from its pre-solve velocities without friction (coupled Coulomb friction can have no
 //    answer the sweeps converge to: they cycle, and may stop where energy was gained; the
-//    frictionless solve is a projection, which never gains) (hold_energy);
+//    frictionless solve is a projection, which never gains) (hold_energy); then a small
+//    island whose contacts gave it mechanical energy (a rocking column, which the warm
+//    start from the impulses that held it leaning the other way drives) is solved exactly,
+//    and so while it moves (exact_islands, IslandSolve);
 // 6. landing: the poses travel with the substeps' mean velocity; a speculative contact
 //    that closes within the step and holds (gap > 0 at the reference time, impulse > 0)
 //    is solved again with no allowance, for the velocities only, so it ends the step
@@ -128,6 +131,7 @@
 #include "contact_cache.h"
 #include "contact_solver.h"
 #include "detection_types.h"
+#include "island_solve.h"
 #include "sweep_waves.h"
 
 namespace collres {
@@ -302,6 +306,18 @@ class StepSolver {
   // whose rows' speed_ less those changes, plus their allowances now, stay beyond the
   // margin. Both answers are the test's (still out): the same bits.
   bool admit(StepContext& ctx, double margin, bool verify);
+  // after a substep's sweeps, shock propagation and hold_energy (and the landing's): each
+  // island of two or more movable bodies and at most exact_rows rows (not driven) whose
+  // contacts gave it more mechanical energy than exact_work in the substep is solved
+  // exactly (IslandSolve) from the substep's start velocities (start_) and the spin rows'
+  // torques, and so in the later substeps (and steps) until its sweeps have given it no
+  // more than exact_quiet for exact_hold, or its set is not found. The gain: the kinetic
+  // energy at the end (v1) less at the start without the substep's share of the external
+  // change c, less M c . v1 (a body resting under gravity: none; a converged inelastic
+  // solve: at most none). `share`: the substep's share of a ramped body's change (ramp_);
+  // `elapsed`: the substep's time (s; the landing: 0). Returns the islands whose exact
+  // answer was taken
+  int exact_islands(StepContext& ctx, double share, double elapsed);
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
   bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
   int sweep(StepContext& ctx, int iterations, double share = 1.0);
@@ -472,6 +488,22 @@ class StepSolver {
                                      // friction impulses (rows, 3), the spin rows' torque
                                      // and load (spins, 4)
   std::vector<Manifold> retry_;      // manifolds of the islands solved again (hold_energy)
+  // exact_islands: per island root, its rows and movable bodies (found once a step, with
+  // the islands: small_ false until then); per root, the substep's gain of mechanical
+  // energy (J) and its hold (island_quiet_); per body, its island's hold: how long it has
+  // been held without a gain beyond exact_quiet (s; -1: not held), kept from step to step
+  // (quiet_; as the step found it: quiet_then_); the islands solved: their slots (per
+  // root), rows, bodies and roots; the velocities their impulses act on (N, 6); the last
+  // soft_step's 1 / substeps (the landing's share)
+  bool small_ = false;
+  std::vector<int32_t> island_rows_, island_bodies_;
+  std::vector<double> gain_exact_, island_quiet_, quiet_, quiet_then_;
+  std::vector<int32_t> exact_slot_, exact_root_;
+  std::vector<uint8_t> exact_held_;
+  std::vector<std::vector<int32_t>> exact_rows_, exact_bodies_;
+  std::vector<double> base_;
+  double share_ = 1.0;
+  IslandSolve island_solve_;
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)

@@ -467,6 +467,60 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'with 10 substeps), of 1 and 2 cm within 0.2 mm at 30 Hz with 32 '
                      '(max_substeps); a settled pile of 1000 '
                      'keeps max_substep (5 substeps at 30 Hz, 3 at 60 Hz, as before)'),
+    ParamSpec('exact_rows', 'integer', 32,
+              'An island of two or more movable bodies (joined by rows between movable '
+              'bodies) with at most this many rows is solved exactly after a substep\'s '
+              'sweeps (and the landing\'s) where they gave it more mechanical energy than '
+              'exact_work (StepSolver::exact_islands: every row an equality of its rule, '
+              'one dense system, taken where it leaves no more kinetic energy); 0: never',
+              0, 1000,
+              reason='the sweeps of a rocking column of 7 cubes (28 rows), warm started from '
+                     'the impulses that held it leaning the other way, gave it up to 17 mJ a '
+                     'step (test_column_rocking); solved exactly it gains at most 3.3e-7 J a '
+                     'step and rests after 0.67 / 0.83 s (30 / 120 Hz); a dense system of 3 '
+                     'unknowns a row costs (3 R)^3 / 3 a round, 0.3 M operations at 32 rows'),
+    ParamSpec('exact_rounds', 'integer', 16,
+              'Most changes of an exact island solve\'s active set (exact_rows): the rows '
+              'breaking their rule the most change each round; unsolved, the sweeps\' answer '
+              'stays', 1, 1000,
+              reason='from every row held, the rocking column finds its set in 16 at 30 and '
+                     '120 Hz (while it rocks: the exact answer of one substep warm starts '
+                     'the next)'),
+    ParamSpec('exact_work', 'double', 3e-4,
+              'An island (exact_rows) is solved exactly from the substep in which its '
+              'contacts gave it more mechanical energy than this (kinetic energy at the '
+              'end less at the start without the substep\'s external change, plus the '
+              'external force\'s potential energy over the substep), and from then on while '
+              'it is held (exact_hold)',
+              0.0, 1.0, unit='J',
+              reason='the rocking column shows 1e-4-6e-3 J in a substep before its first '
+                     'exact solve: at 1e-3 it gained 0.65 mJ a step at 120 Hz, at 3e-4 and '
+                     '1e-4 at most 2.2e-8 J; settled bench piles (bench/pile.py, 100 and 1000 '
+                     'cubes at 120 Hz) show up to 1.1e-4 J in towers of 7 cubes (at 1e-4 one '
+                     'or two a pile were solved exactly for 5-20 substeps, at 1e-9 towers of '
+                     '6-7 bodies of every pile 171 times in 10 steps each); at 3e-4 none'),
+    ParamSpec('exact_hold', 'double', 0.2,
+              'An island solved exactly (exact_work) stays so in every substep until this '
+              'long has passed since the last substep in which its sweeps gave it more than '
+              'exact_quiet and its exact answer was taken; one whose first solve finds no '
+              'set (exact_rounds) is not held', 0.0, 10.0, unit='s',
+              reason='the rocking column changes the edge it rocks on (where the sweeps, '
+                     'warm started from the impulses that held it leaning the other way, '
+                     'gain) at most 0.15 s apart: held 0.1 s it gained 1.8 mJ a step at 30 '
+                     'Hz, 0.15-0.3 s at most 2.2e-8 J; held while its kinetic energy was '
+                     'above 1e-9 J instead, the towers of piles settled from the drop '
+                     '(bench/bench_step.py) never got below it (the rows\' allowances move '
+                     'them at 1e-4 m/s) and were solved in every substep (cubes 100 at 120 '
+                     'Hz 1.06 -> 7.58 ms a step); let go at a first unsolved substep, the '
+                     'column (with the push-out, 30 Hz) rested after 1.83 s'),
+    ParamSpec('exact_quiet', 'double', 1e-7,
+              'A substep in which the sweeps gave an island held exactly (exact_hold) more '
+              'mechanical energy than this, where its exact answer was taken, starts its '
+              'hold again', 0.0, 1.0, unit='J',
+              reason='a tenth of the rocking column\'s law (1e-6 J a step): the sweeps of '
+                     'the towers of settled piles give them at most 3e-9 J a substep, the '
+                     'column up to 4.7e-3 J where it changes edges; from 0 to 1e-5 the '
+                     'column gains and rests alike'),
     ParamSpec('aim_turn', 'double', 1e-3,
               'A contact of two spheres pressed one onto the other is aimed along their '
               'centres\' line in each substep (StepSolver::aim); its row\'s frame is turned '

@@ -1686,7 +1686,6 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
   const int64_t n = ctx.bodies.count;
   const size_t rows = rows_.size();
   const double share = 1.0 / substeps;
-  share_ = share;
   // per body: the displacement and turn (m, rad) since its reference time and the mean
   // velocity over the substeps (what the poses travel with); per row: the summed
   // impulses (N s) of the substeps before the last
@@ -1845,7 +1844,7 @@ bool StepSolver::land(StepContext& ctx, int substeps, int shared, bool& struck) 
   // judged as a substep (against the last substep's start): the landing's sweeps with
   // friction can raise the energy too (a box on three close points: +7 % of the step's)
   hold_energy(ctx, sweeps);
-  exact_islands(ctx, share_, 0.0);
+  exact_islands(ctx, 1.0 / substeps, 0.0);
   for (size_t i = 0; i < rows_.size(); ++i) {
     ContactRow& r = rows_[i];
     r.landing = r.normal - landing_[i];     // reported, not warm started

@@ -493,8 +493,7 @@ class StepSolver {
   // energy (J) and its hold (island_quiet_); per body, its island's hold: how long it has
   // been held without a gain beyond exact_quiet (s; -1: not held), kept from step to step
   // (quiet_; as the step found it: quiet_then_); the islands solved: their slots (per
-  // root), rows, bodies and roots; the velocities their impulses act on (N, 6); the last
-  // soft_step's 1 / substeps (the landing's share)
+  // root), rows, bodies and roots; the velocities their impulses act on (N, 6)
   bool small_ = false;
   std::vector<int32_t> island_rows_, island_bodies_;
   std::vector<double> gain_exact_, island_quiet_, quiet_, quiet_then_;
@@ -502,7 +501,6 @@ class StepSolver {
   std::vector<uint8_t> exact_held_;
   std::vector<std::vector<int32_t>> exact_rows_, exact_bodies_;
   std::vector<double> base_;
-  double share_ = 1.0;
   IslandSolve island_solve_;
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)

@@ -1081,8 +1081,11 @@ void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
 namespace {
 
 // What a part of a sweep did: the largest impulse change, the largest normal impulse (N s);
-// the wide groups' kept per lane (lanes_*, folded in by solve_velocities)
-struct Progress {
+// the wide groups' kept per lane (lanes_*, folded in by solve_velocities). A cache line of
+// its own: a sweep's chunks are solve_velocities' adjacent entries, each written after
+// every group by the thread that runs it, and two sides' chunks sharing a line made the
+// two cores pass it back and forth the whole sweep
+struct alignas(64) Progress {
   double change = 0.0, largest = 0.0;
   Lanes lanes_change = {0.0, 0.0, 0.0, 0.0}, lanes_largest = {0.0, 0.0, 0.0, 0.0};
 };

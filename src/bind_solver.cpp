@@ -219,6 +219,8 @@ void bind_solver(py::module_& m) {
       .def_readwrite("exact_work", &SolverParams::exact_work)
       .def_readwrite("exact_hold", &SolverParams::exact_hold)
       .def_readwrite("exact_quiet", &SolverParams::exact_quiet)
+      .def_readwrite("exact_tolerance", &SolverParams::exact_tolerance)
+      .def_readwrite("exact_regularise", &SolverParams::exact_regularise)
       .def_readwrite("aim_turn", &SolverParams::aim_turn)
       .def_readwrite("restitution_rule", &SolverParams::restitution_rule)
       .def_readwrite("friction_rule", &SolverParams::friction_rule);

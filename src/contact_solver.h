@@ -109,6 +109,9 @@ struct SolverParams {
   double exact_hold = 0.2;              // s: until its sweeps have given it no more ...
   double exact_quiet = 1e-7;            // J: ... than this a substep for so long, or its set
                                         // is not found (StepSolver::exact_islands)
+  double exact_tolerance = 1e-9;        // m/s: a breach of a row's rule at most this is none
+  double exact_regularise = 1e-8;       // fraction of an exact solve's unknown's own diagonal
+                                        // added to it (IslandSolve)
   double aim_turn = 1e-3;               // rad: an aimed row's frame is turned only where the
                                         // centres' line leans from its normal more (aim)
   double substep_sink = 0.02;           // ... and so short that a substep's external change

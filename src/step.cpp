@@ -1607,8 +1607,7 @@ int StepSolver::exact_islands(StepContext& ctx, double share, double elapsed) {
       store3(base_.data() + 6 * spin.b + 3,
              load3(base_.data() + 6 * spin.b + 3) + mul(spin.inv_b, spin.torque));
   }
-  IslandSettings settings;
-  settings.max_rounds = p.exact_rounds;
+  const IslandSettings settings{p.exact_rounds, p.exact_tolerance, p.exact_regularise};
   int taken = 0;
   for (size_t k = 0; k < islands; ++k) {
     const IslandSolve::Outcome outcome =

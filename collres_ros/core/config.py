@@ -521,6 +521,28 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'the towers of settled piles give them at most 3e-9 J a substep, the '
                      'column up to 4.7e-3 J where it changes edges; from 0 to 1e-5 the '
                      'column gains and rests alike'),
+    ParamSpec('exact_tolerance', 'double', 1e-9,
+              'An exact island solve (exact_rows) has found its set where no row breaks its '
+              'rule by more than this (apart: approaching faster than its allowance; '
+              'active: pulling, or its friction beyond the cone or along its slip, as the '
+              'speed its own diagonal gives that impulse)', 0.0, 1.0, unit='m/s',
+              reason='the rounding of a found set\'s answer, far below the rows\' '
+                     'allowances (1e-4 m/s in settled piles): 33 nm in a 30 Hz step; the '
+                     'rocking column\'s sets break their rules by rounding or by far more: '
+                     'from 0 to 1e-4 it gains at most 2.2e-8 / 5.0e-9 J a step and rests '
+                     'after 0.67 / 0.83 s at 30 / 120 Hz alike'),
+    ParamSpec('exact_regularise', 'double', 1e-8,
+              'An exact island solve (exact_rows) weighs each unknown\'s own equation this '
+              'fraction more on its diagonal: a redundant set (a box on four coplanar '
+              'points: four normal rows, three motions) has one answer, near the least '
+              'weighted norm, whatever the rows\' order', 0.0, 1.0,
+              unit='fraction of the diagonal',
+              reason='the least that finds the rocking column\'s sets: at 1e-10 its solves '
+                     'met no set in 16 rounds 599 times in 3 s and it gained 3.0 mJ a step '
+                     'at 120 Hz, at 1e-9 1.2 mJ, at 0 17 mJ (the sweeps\' answer); the '
+                     'weight moves the answer, so its gain grows with it: at most 2.2e-8 / '
+                     '5.0e-9 J a step at 30 / 120 Hz at 1e-8, 2.3e-7 at 1e-7, 1.7e-6 at 1e-6 '
+                     '(beyond the law, 1e-6 J)'),
     ParamSpec('aim_turn', 'double', 1e-3,
               'A contact of two spheres pressed one onto the other is aimed along their '
               'centres\' line in each substep (StepSolver::aim); its row\'s frame is turned '

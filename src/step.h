@@ -311,9 +311,10 @@ class StepSolver {
   // contacts gave it more mechanical energy than exact_work in the substep is solved
   // exactly (IslandSolve) from the substep's start velocities (start_) and the spin rows'
   // torques, and so in the later substeps (and steps) until its sweeps have given it no
-  // more than exact_quiet for exact_hold, or its set is not found. The gain: the kinetic
-  // energy at the end (v1) less at the start without the substep's share of the external
-  // change c, less M c . v1 (a body resting under gravity: none; a converged inelastic
+  // more than exact_quiet for exact_hold, or its set is not found; one whose first solve
+  // found no set is not solved again for exact_hold (its next solves found none either).
+  // The gain: the kinetic energy at the end (v1) less at the start without the substep's
+  // share of the external change c, less M c . v1 (a body resting under gravity: none; a converged inelastic
   // solve: at most none). `share`: the substep's share of a ramped body's change (ramp_);
   // `elapsed`: the substep's time (s; the landing: 0). Returns the islands whose exact
   // answer was taken
@@ -490,13 +491,16 @@ class StepSolver {
   std::vector<Manifold> retry_;      // manifolds of the islands solved again (hold_energy)
   // exact_islands: per island root, its rows and movable bodies (found once a step, with
   // the islands: small_ false until then); per root, the substep's gain of mechanical
-  // energy (J) and its hold (island_quiet_); per body, its island's hold: how long it has
-  // been held without a gain beyond exact_quiet (s; -1: not held), kept from step to step
-  // (quiet_; as the step found it: quiet_then_); the islands solved: their slots (per
-  // root), rows, bodies and roots; the velocities their impulses act on (N, 6)
+  // energy (J), its hold and its lapse (island_quiet_, island_lapse_); per body, its
+  // island's hold: how long it has been held without a gain beyond exact_quiet, and its
+  // lapse: how long since its first solve found no set (s; -1: not held, no lapse), kept
+  // from step to step (quiet_, lapse_; as the step found them: quiet_then_, lapse_then_);
+  // the islands solved: their slots (per root), rows, bodies and roots; the velocities
+  // their impulses act on (N, 6)
   bool small_ = false;
   std::vector<int32_t> island_rows_, island_bodies_;
   std::vector<double> gain_exact_, island_quiet_, quiet_, quiet_then_;
+  std::vector<double> island_lapse_, lapse_, lapse_then_;
   std::vector<int32_t> exact_slot_, exact_root_;
   std::vector<uint8_t> exact_held_;
   std::vector<std::vector<int32_t>> exact_rows_, exact_bodies_;

@@ -503,7 +503,8 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
               'An island solved exactly (exact_work) stays so in every substep until this '
               'long has passed since the last substep in which its sweeps gave it more than '
               'exact_quiet and its exact answer was taken; one whose first solve finds no '
-              'set (exact_rounds) is not held', 0.0, 10.0, unit='s',
+              'set (exact_rounds) is not held, nor solved again for this long', 0.0, 10.0,
+              unit='s',
               reason='the rocking column changes the edge it rocks on (where the sweeps, '
                      'warm started from the impulses that held it leaning the other way, '
                      'gain) at most 0.15 s apart: held 0.1 s it gained 1.8 mJ a step at 30 '
@@ -512,7 +513,11 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      '(bench/bench_step.py) never got below it (the rows\' allowances move '
                      'them at 1e-4 m/s) and were solved in every substep (cubes 100 at 120 '
                      'Hz 1.06 -> 7.58 ms a step); let go at a first unsolved substep, the '
-                     'column (with the push-out, 30 Hz) rested after 1.83 s'),
+                     'column (with the push-out, 30 Hz) rested after 1.83 s; towers of '
+                     'piles settling from the drop (1000 cubes at 120 Hz) whose first solve '
+                     'found no set found none in the later substeps either while their '
+                     'sweeps gained more than exact_work (1087 solves in the 1 s settle of '
+                     'bench/bench_step.py, 806 unsolved), solved again in every one'),
     ParamSpec('exact_quiet', 'double', 1e-7,
               'A substep in which the sweeps gave an island held exactly (exact_hold) more '
               'mechanical energy than this, where its exact answer was taken, starts its '

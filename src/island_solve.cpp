@@ -25,7 +25,8 @@ IslandSolve::Outcome IslandSolve::solve(std::vector<ContactRow>& rows,
                                         const std::vector<int32_t>& bodies,
                                         const SolverBodies& solver, const Mat3* inertia,
                                         const double* base, double* velocity,
-                                        const IslandSettings& settings) {
+                                        const IslandSettings& settings, uint8_t* set,
+                                        double* along) {
   const int64_t count = static_cast<int64_t>(members.size());
   const int64_t size = 3 * count;
   if (local_.size() < static_cast<size_t>(solver.count)) local_.assign(solver.count, -1);
@@ -65,12 +66,19 @@ IslandSolve::Outcome IslandSolve::solve(std::vector<ContactRow>& rows,
       }
     }
   }
-  // every row active and held (without friction: sliding) at first: a set that does not
-  // hang on the sweeps' answer, whose order a mirror image changes
-  state_.assign(count, kStick);
-  along_.assign(2 * count, 0.0);
-  for (int64_t i = 0; i < count; ++i)
-    if (rows[members[i]].mu == 0.0) state_[i] = kSlide;
+  // the given set (a set that does not hang on the sweeps' answer, whose order a mirror
+  // image changes), each row's state as its friction allows
+  state_.assign(set, set + count);
+  along_.assign(along, along + 2 * count);
+  for (int64_t i = 0; i < count; ++i) {
+    if (state_[i] == kApart) continue;
+    if (rows[members[i]].mu == 0.0) {
+      state_[i] = kSlide;
+      along_[2 * i] = along_[2 * i + 1] = 0.0;
+    } else if (state_[i] == kSlide && along_[2 * i] == 0.0 && along_[2 * i + 1] == 0.0) {
+      state_[i] = kStick;
+    }
+  }
   lambda_.assign(size, 0.0);
   u_.assign(size, 0.0);
   breach_.assign(count, 0.0);
@@ -174,6 +182,8 @@ IslandSolve::Outcome IslandSolve::solve(std::vector<ContactRow>& rows,
       }
     }
   }
+  std::copy(state_.begin(), state_.end(), set);
+  std::copy(along_.begin(), along_.end(), along);
   if (!solved) {
     for (const int32_t body : bodies) local_[body] = -1;
     return kUnsolved;

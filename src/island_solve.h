@@ -11,7 +11,9 @@
 //   impulse >= 0 and the friction within the cone |f| <= mu N;
 // - sliding: u_n = -allowance, the friction mu N along a direction fixed when it began to
 //   slide (against the slip then), the slip not along the friction.
-// It starts with every row sticking (sliding without friction), not from the sweeps'
+// It starts from the set it is given (StepSolver::exact_islands: the set its rows' last
+// solve found, else, or where that finds none, every row sticking, sliding without
+// friction), never from the sweeps'
 // answer (whose order a mirror image of the scene changes). Each round solves the active
 // rows' equalities as one dense system (partial pivoting) and changes every row that breaks
 // its rule by at least kTie of the worst breach (rows that a mirror image maps onto each
@@ -47,13 +49,17 @@ class IslandSolve {
   // answer, replaced (with the rows' normal and tangent impulses) by the exact one where
   // that is found within max_rounds and leaves the island's bodies no more kinetic energy
   // (`inertia` (N,): their world inertias, kg m^2).
+  // `set` (R,) and `along` (R, 2): the active set to start from, each row's State and a
+  // sliding row's friction direction (unit, along t1, t2; a row without friction slides,
+  // one sliding along no direction sticks); on return the set found (unsolved: the last
+  // round's)
   Outcome solve(std::vector<ContactRow>& rows, const std::vector<int32_t>& members,
              const std::vector<int32_t>& bodies, const SolverBodies& solver,
              const Mat3* inertia, const double* base, double* velocity,
-             const IslandSettings& settings);
+             const IslandSettings& settings, uint8_t* set, double* along);
+  enum State : uint8_t { kApart = 0, kStick = 1, kSlide = 2 };
 
  private:
-  enum State : uint8_t { kApart = 0, kStick = 1, kSlide = 2 };
   std::vector<int32_t> local_;       // (N,) a body's index among the island's, -1: other
   std::vector<double> a_;            // (3R, 3R) 1/kg: J M^-1 J^T of the rows' directions
   std::vector<double> b_;            // (3R) m/s: J base

@@ -125,6 +125,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -313,8 +314,10 @@ class StepSolver {
   // torques, and so in the later substeps (and steps) until its sweeps have given it no
   // more than exact_quiet for exact_hold, or its set is not found; one whose first solve
   // found no set is not solved again for exact_hold (its next solves found none either).
-  // The gain: the kinetic energy at the end (v1) less at the start without the substep's
-  // share of the external change c, less M c . v1 (a body resting under gravity: none; a converged inelastic
+  // Each solve starts from the set its rows' last solve found (if in the substep before),
+  // else, or where that start finds no set, from every row sticking. The gain: the kinetic
+  // energy at the end (v1) less at the start without the substep's share of the external
+  // change c, less M c . v1 (a body resting under gravity: none; a converged inelastic
   // solve: at most none). `share`: the substep's share of a ramped body's change (ramp_);
   // `elapsed`: the substep's time (s; the landing: 0). Returns the islands whose exact
   // answer was taken
@@ -506,6 +509,19 @@ class StepSolver {
   std::vector<std::vector<int32_t>> exact_rows_, exact_bodies_;
   std::vector<double> base_;
   IslandSolve island_solve_;
+  // the active set each exact solve of the last substep that solved any found (none where
+  // it found none), per contact (its bodies a < b and feature): its row's
+  // IslandSolve::State and a sliding row's friction direction (unit, world), where the
+  // next solve of its island starts (as the step found it: exact_set_then_; the
+  // substep's: exact_next_); a solve's set (its rows: R states, (R, 2) friction
+  // directions along t1, t2)
+  struct ExactSet {
+    uint8_t state;
+    Vec3 along;
+  };
+  std::map<std::array<int64_t, 3>, ExactSet> exact_set_, exact_set_then_, exact_next_;
+  std::vector<uint8_t> exact_state_;
+  std::vector<double> exact_along_;
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)

@@ -481,11 +481,16 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'unknowns a row costs (3 R)^3 / 3 a round, 0.3 M operations at 32 rows'),
     ParamSpec('exact_rounds', 'integer', 16,
               'Most changes of an exact island solve\'s active set (exact_rows): the rows '
-              'breaking their rule the most change each round; unsolved, the sweeps\' answer '
-              'stays', 1, 1000,
+              'breaking their rule the most change each round, from the set its rows\' '
+              'solve found in the substep before (else, or where that finds none within '
+              'these, from every row held); unsolved, the sweeps\' answer stays', 1, 1000,
               reason='from every row held, the rocking column finds its set in 16 at 30 and '
                      '120 Hz (while it rocks: the exact answer of one substep warm starts '
-                     'the next)'),
+                     'the next); from the set before it changes 1.4 times a solve (5.9 from '
+                     'every row held); a column of 8 cubes landing as one island (bench_laws '
+                     'column, 30 Hz) started from the set of its landing substep (its base '
+                     'sliding along the impact\'s friction) changed its rows between sliding '
+                     'and sticking for all 16 (from every row held: found in 15)'),
     ParamSpec('exact_work', 'double', 3e-4,
               'An island (exact_rows) is solved exactly from the substep in which its '
               'contacts gave it more mechanical energy than this (kinetic energy at the '
@@ -535,16 +540,16 @@ SOLVER_TUNING: tuple[ParamSpec, ...] = (
                      'allowances (1e-4 m/s in settled piles): 33 nm in a 30 Hz step; the '
                      'rocking column\'s sets break their rules by rounding or by far more: '
                      'from 0 to 1e-4 it gains at most 2.2e-8 / 5.0e-9 J a step and rests '
-                     'after 0.67 / 0.83 s at 30 / 120 Hz alike'),
+                     'after 0.67-0.73 / 0.83 s at 30 / 120 Hz (1e-3: 1.1e-7 J at 120 Hz)'),
     ParamSpec('exact_regularise', 'double', 1e-8,
               'An exact island solve (exact_rows) weighs each unknown\'s own equation this '
               'fraction more on its diagonal: a redundant set (a box on four coplanar '
               'points: four normal rows, three motions) has one answer, near the least '
               'weighted norm, whatever the rows\' order', 0.0, 1.0,
               unit='fraction of the diagonal',
-              reason='the least that finds the rocking column\'s sets: at 1e-10 its solves '
-                     'met no set in 16 rounds 599 times in 3 s and it gained 3.0 mJ a step '
-                     'at 120 Hz, at 1e-9 1.2 mJ, at 0 17 mJ (the sweeps\' answer); the '
+              reason='the least that finds the rocking column\'s sets: at 1e-10 it gained '
+                     '9.2 mJ a step at 30 Hz, at 1e-9 0.68 mJ, at 0 17 mJ (the sweeps\' '
+                     'answer; at 120 Hz 4.4 mJ, 1e-9 and 1e-10 within the law); the '
                      'weight moves the answer, so its gain grows with it: at most 2.2e-8 / '
                      '5.0e-9 J a step at 30 / 120 Hz at 1e-8, 2.3e-7 at 1e-7, 1.7e-6 at 1e-6 '
                      '(beyond the law, 1e-6 J)'),

@@ -6,7 +6,11 @@ give a face's normal and its four corners), so over the first second no two cube
 more than 2 mm. A time of impact where the faces just touch or barely overlap (0-25 um)
 once took EPA's answer there, a normal 25-85 deg off the faces' and one corner: the cube spun
 up and sank 9 mm into the one below (120 Hz, layout 4; 4.8 mm at 240 Hz, layout 9; 17 mm at
-60 Hz, layout 0, at a pose 2 um deep).
+60 Hz, layout 0, at a pose 2 um deep). At 30 Hz, layout 5, the column lands as one island
+solved exactly (StepSolver::exact_islands); its next substep's solve, started from the set
+found as it landed (its base rows sliding along the impact's friction directions), found
+none, and left to the sweeps the cubes sank 2.30 mm into each other (1.14 mm once that
+solve starts again from every row sticking).
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from integrator import Simulation
 SIZE, GAP, COUNT = 0.1, 0.02, 8
 
 
-@pytest.mark.parametrize('rate, layout', [(60.0, 0), (120.0, 4), (240.0, 9)])
+@pytest.mark.parametrize('rate, layout', [(30.0, 5), (60.0, 0), (120.0, 4), (240.0, 9)])
 def test_a_dropped_column_of_cubes_lands_without_sinking_into_itself(rate, layout):
     rng = np.random.default_rng(layout)
     shift = rng.uniform(-0.003, 0.003, (COUNT, 2))

@@ -23,9 +23,10 @@ What meets it: the sweeps alone, warm started from the impulses that held the co
 it leaned the other way, give it up to 4.7 mJ in a substep where it changes the edge it
 rocks on (17 mJ a step at 30 Hz); the column (one island of 7 movable cubes, 28 rows) is
 then solved exactly (StepSolver::exact_islands: its rows' rules as equalities of one dense
-system from the substep's start velocities) in every substep until 0.2 s have passed
-without such a gain (its edges change at most 0.15 s apart): it gains at most 2.2e-8 /
-5.0e-9 J a step and rests after 0.67 / 0.83 s at 30 / 120 Hz.
+system from the substep's start velocities, each from the set the one before found) in
+every substep until 0.2 s have passed without such a gain (its edges change at most 0.15 s
+apart): it gains at most 2.2e-8 / 5.0e-9 J a step and rests after 0.67 / 0.83 s at 30 /
+120 Hz.
 """
 
 from __future__ import annotations

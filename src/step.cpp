@@ -82,9 +82,9 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
                            double dt, bool warm_enabled, const SolverParams& params,
                            BodyStatesOut& out, ContactsOut& report_out) {
   // the second thread spins between its runs while the step is on (Worker::stay: its
-  // runs come with serial stages between them), woken now: where the last step's sweeps
-  // were cut in two sides (a pile too small for that, 100 bodies, pays more for the wake
-  // than its per-contact passes gain)
+  // runs come with serial stages between them), woken now: where the last step on two
+  // threads had its sweeps cut in two sides (a pile too small for that, 100 bodies, pays
+  // more for the wake than its per-contact passes gain)
   struct Stay {
     Worker* worker;
     ~Stay() {
@@ -215,7 +215,10 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     cache_.store(contacts.count, contacts.a, contacts.b, contacts.feature,
                  cached_normal_.data(), report_out.friction_impulse, contacts.point);
   }, kBesideStore);
-  shared_ = std::find(plan_.sides.begin(), plan_.sides.end(), 1) != plan_.sides.end();
+  // (a step on one thread cuts no sweep for two: it leaves what the last step on two
+  // threads found, so that the next one, on two, stays as that one would have)
+  if (plan_.worker != nullptr)
+    shared_ = std::find(plan_.sides.begin(), plan_.sides.end(), 1) != plan_.sides.end();
   return stats;
 }
 

@@ -525,7 +525,8 @@ class StepSolver {
   std::vector<SpinRow> spins_;       // rolling resistance and torsional friction per manifold
   SweepPlan plan_;                   // the sweeps' waves (plan_sweeps)
   std::unique_ptr<Worker> worker_;   // the sweeps' second thread (threads >= 2)
-  bool shared_ = false;              // the last step's sweeps were cut in two sides
+  bool shared_ = false;              // the last step on two threads had its sweeps cut in
+                                     // two sides
   WaveScratch waving_;               // plan_sweeps: scratch
   std::vector<int32_t> level_, queue_, adjacency_, first_, order32_;
 };

@@ -972,18 +972,6 @@ void prepare_block(Manifold& block, const ContactRow* r) {
   }
 }
 
-double combine(double a, double b, CombineRule rule) {
-  switch (rule) {
-    case CombineRule::kMin: return std::min(a, b);
-    case CombineRule::kMax: return std::max(a, b);
-    case CombineRule::kMultiply: return a * b;
-    case CombineRule::kGeometric: return std::sqrt(a * b);
-    case CombineRule::kAverage:
-    case CombineRule::kPerObject: break;
-  }
-  return 0.5 * (a + b);
-}
-
 void row_velocity(const ContactRow& row, const double* v, double out[3]) {
   const Twists t(v, row.a, row.b);   // (loaded once: out may alias v for the compiler)
   for (int k = 0; k < 3; ++k) out[k] = relative(row, t, k, direction(row, k));

@@ -19,6 +19,8 @@
 // are the caller's flat arrays.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -40,7 +42,18 @@ enum class CombineRule : int {
 };
 
 // One coefficient (dimensionless) from the two bodies' ones (kPerObject: the mean).
-double combine(double a, double b, CombineRule rule);
+// (inline: prepare combines five per manifold)
+inline double combine(double a, double b, CombineRule rule) {
+  switch (rule) {
+    case CombineRule::kMin: return std::min(a, b);
+    case CombineRule::kMax: return std::max(a, b);
+    case CombineRule::kMultiply: return a * b;
+    case CombineRule::kGeometric: return std::sqrt(a * b);
+    case CombineRule::kAverage:
+    case CombineRule::kPerObject: break;
+  }
+  return 0.5 * (a + b);
+}
 
 // What a contact did this step (values equal the Contact.msg constants).
 enum ContactStateCode : uint8_t { kImpact = 1, kResting = 2, kSliding = 3, kSticking = 4 };

@@ -803,8 +803,14 @@ void StepSolver::prepare(StepContext& ctx) {
       placed[2 * span + 3] = count > 0;
     }
   });
+  // (and how many of manifolds_ each body is in, from detection's pairs: see search below)
   placed[0] = placed[1] = 0;
+  manifolds_of_.assign(static_cast<size_t>(ctx.solver.count), 0);
   for (int64_t span = 0; span < spans; ++span) {
+    if (placed[2 * span + 3] != 0) {
+      ++manifolds_of_[c.manifolds[kManifoldFields * span]];
+      ++manifolds_of_[c.manifolds[kManifoldFields * span + 1]];
+    }
     placed[2 * span + 2] += placed[2 * span];
     placed[2 * span + 3] += placed[2 * span + 1];
   }
@@ -874,72 +880,56 @@ void StepSolver::prepare(StepContext& ctx) {
                   then_.data(), p.sticking_speed, mu[0], mu[1]);
     }
   });
-  // a manifold with a point that slips (faster than the sticking speed, prepare_row): its
-  // blocks with their friction as one too. Split, a box sliding on four points of a wall
-  // (or of another box) was solved by an iteration whose mirror-antisymmetric part grew
-  // (8 of 42,700 random mirror hits, up to 0.62 of the largest normal impulse); a settled
-  // pile has none such (its cost per step unchanged within 1.5 %)
-  for (Manifold& block : manifolds_)
-    for (int32_t i = block.first; i < block.first + block.count && !block.coupled; ++i)
-      block.coupled = !rows_[i].sticking;
-  // a coupled block whose moves between states find no answer searches every state
-  // (solve_coupled) where it is the only manifold of each of its movable bodies: the block
-  // alone then answers for its bodies, and each sweep searches from the twists without its
-  // impulses, which no other manifold moves. Where a body is in other manifolds too, the
-  // block is solved split: the search's answer jumps between states as the neighbours'
-  // impulses change, and their next updates undo the jump (a pile of 100 cubes dropped at
-  // 120 Hz: 598 answers found, each moving 1 to 100 % of its block's largest normal
-  // impulse, kept a box rocking at 0.1 m/s a second longer), where the split solve's
-  // updates move the impulses a share at a time
-  manifolds_of_.assign(static_cast<size_t>(ctx.solver.count), 0);
-  for (const Manifold& block : manifolds_) {
-    ++manifolds_of_[block.a];
-    ++manifolds_of_[block.b];
-  }
+  // Per manifold, in one pass over its rows (they are read once while at hand):
+  // - a manifold with a point that slips (faster than the sticking speed, prepare_row): its
+  //   blocks with their friction as one too. Split, a box sliding on four points of a wall
+  //   (or of another box) was solved by an iteration whose mirror-antisymmetric part grew
+  //   (8 of 42,700 random mirror hits, up to 0.62 of the largest normal impulse); a settled
+  //   pile has none such (its cost per step unchanged within 1.5 %);
+  // - a coupled block whose moves between states find no answer searches every state
+  //   (solve_coupled) where it is the only manifold of each of its movable bodies
+  //   (manifolds_of_): the block alone then answers for its bodies, and each sweep searches
+  //   from the twists without its impulses, which no other manifold moves. Where a body is
+  //   in other manifolds too, the block is solved split: the search's answer jumps between
+  //   states as the neighbours' impulses change, and their next updates undo the jump (a
+  //   pile of 100 cubes dropped at 120 Hz: 598 answers found, each moving 1 to 100 % of its
+  //   block's largest normal impulse, kept a box rocking at 0.1 m/s a second longer), where
+  //   the split solve's updates move the impulses a share at a time;
+  // - the rows aim turns: of two spheres, alone in their manifold, one pressed onto the
+  //   other from the start (pressed_), neither body impacted;
+  // - the largest lever of its rows on A and on B (reach_);
+  // - one SpinRow per manifold whose combined rolling resistance or torsional friction is
+  //   not 0 (in manifold order), written over the last step's as the rows are.
+  // None is in the sweeps yet (admit lets them in; the plan follows them), no block
+  // prepared (only a manifold solved needs one: block())
   auto only = [&](int32_t i) { return ctx.solver.inv_mass[i] == 0.0 || manifolds_of_[i] == 1; };
-  for (Manifold& block : manifolds_) block.search = block.coupled && only(block.a) && only(block.b);
-  // the rows aim turns: of two spheres, alone in their manifold, one pressed onto the
-  // other from the start (pressed_), neither body impacted
   aimed_.clear();
   aiming_.assign(rows_.size(), 0);
   turned_.assign(rows_.size(), 0);
   aimed_gap_.resize(rows_.size());
-  for (const Manifold& manifold : manifolds_) {
+  in_.assign(manifolds_.size(), 0);
+  blocked_.assign(manifolds_.size(), 0);
+  slack_.assign(manifolds_.size(), 0.0);
+  reach_.resize(2 * manifolds_.size());
+  size_t spun = 0;
+  for (size_t m = 0; m < manifolds_.size(); ++m) {
+    Manifold& manifold = manifolds_[m];
+    double reach_a = 0.0, reach_b = 0.0;   // (squared here: one root a manifold)
+    for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i) {
+      const ContactRow& row = rows_[i];
+      manifold.coupled = manifold.coupled || !row.sticking;
+      reach_a = std::max(reach_a, dot(row.ra, row.ra));
+      reach_b = std::max(reach_b, dot(row.rb, row.rb));
+    }
+    reach_[2 * m] = std::sqrt(reach_a);
+    reach_[2 * m + 1] = std::sqrt(reach_b);
+    manifold.search = manifold.coupled && only(manifold.a) && only(manifold.b);
     const ContactRow& r = rows_[manifold.first];
     if (manifold.count == 1 && bodies.radius[r.a] > 0.0 && bodies.radius[r.b] > 0.0 &&
         pressed_[r.contact] && !impact_[r.contact] && !impacted_[r.a] && !impacted_[r.b]) {
       aimed_.push_back(manifold.first);
       aiming_[manifold.first] = 1;
     }
-  }
-  // none in the sweeps yet (admit lets them in; the plan follows them), no block prepared
-  // (only a manifold solved needs one: block())
-  in_.assign(manifolds_.size(), 0);
-  blocked_.assign(manifolds_.size(), 0);
-  slack_.assign(manifolds_.size(), 0.0);
-  reach_.resize(2 * manifolds_.size());
-  for (size_t m = 0; m < manifolds_.size(); ++m) {
-    const Manifold& manifold = manifolds_[m];
-    double reach_a = 0.0, reach_b = 0.0;   // (squared here: one root a manifold)
-    for (int32_t i = manifold.first; i < manifold.first + manifold.count; ++i) {
-      reach_a = std::max(reach_a, dot(rows_[i].ra, rows_[i].ra));
-      reach_b = std::max(reach_b, dot(rows_[i].rb, rows_[i].rb));
-    }
-    reach_[2 * m] = std::sqrt(reach_a);
-    reach_[2 * m + 1] = std::sqrt(reach_b);
-  }
-  islands_ = false;
-  small_ = false;
-  known_ = false;
-  speed_.resize(rows_.size());
-  chosen_.clear();
-  ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
-  plan_sweeps(ctx);
-  // one SpinRow per manifold whose combined rolling resistance or torsional friction is
-  // not 0 (in manifold order), written over the last step's as the rows are
-  size_t spun = 0;
-  for (Manifold& manifold : manifolds_) {
-    const ContactRow& r = rows_[manifold.first];
     const double roll = combine(bodies.rolling_resistance[r.a], bodies.rolling_resistance[r.b],
                                 p.friction_rule);
     const double twist = combine(bodies.torsional_friction[r.a],
@@ -967,6 +957,13 @@ void StepSolver::prepare(StepContext& ctx) {
     }
   }
   spins_.resize(spun);
+  islands_ = false;
+  small_ = false;
+  known_ = false;
+  speed_.resize(rows_.size());
+  chosen_.clear();
+  ++plan_.rows_epoch;   // (rows anew: no wide group of the last ones is taken over)
+  plan_sweeps(ctx);
 }
 
 bool StepSolver::idle(const Manifold& manifold) const {

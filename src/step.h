@@ -251,7 +251,7 @@ class StepSolver {
   // an unsettled contact's before_ and resting_speed_ (frame_contacts leaves them to this:
   // unsettled_), once
   void settle(const StepContext& ctx, int64_t k);
-  double longest_substep(const StepContext& ctx, int32_t depth) const;   // s: the substeps' bound
+  double longest_substep(const StepContext& ctx, int32_t depth);   // s: the substeps' bound
   void prepare(StepContext& ctx);
   double warm(StepContext& ctx, int substeps);   // returns the fraction of persistent
                                                  // contacts cold
@@ -438,6 +438,9 @@ class StepSolver {
                                      // step on its path (A's part of closed + drift_)
   std::vector<double> span_;         // s: the time a row's allowance spans (> 0)
   std::vector<int32_t> level_far_;   // (N,) stack levels over every row (levels)
+  std::vector<double> accel_;        // (N,) m/s^2: external acceleration (longest_substep)
+  std::vector<double> speeds_;       // (N, 2) m/s, rad/s: previous linear, angular speed
+                                     // (to_travel)
   std::vector<uint8_t> adjacent_near_;   // per adjacency_ entry: over a near row (levels)
   std::vector<uint8_t> impact_;
   std::vector<int32_t> row_of_;      // row index per contact, -1 when no row

@@ -317,12 +317,14 @@ void wave_manifolds(const std::vector<Manifold>& manifolds, const std::vector<in
   // per part: the wide groups of each row count 1..4 (kLanes manifolds each), then counts
   // 1..4's remainders of two or three (padded groups), then the remainders of one and the
   // longer manifolds (one by one: a group of one lane costs more than its one manifold);
-  // each copied in once, over the last plan's entries (a new entry's zeros only past them)
-  out.resize(count);
+  // each copied in once, constructed in its place (each step's first plan follows
+  // prepare's empty one: resized, every entry was zeroed first, then copied over)
+  out.clear();
+  out.reserve(count);
   size_t placed = 0;
   auto place = [&](size_t from, size_t end) {
-    for (size_t k = from; k < end; ++k)
-      out[placed++] = manifolds[static_cast<size_t>(s.order[k])];
+    for (size_t k = from; k < end; ++k, ++placed)
+      out.push_back(manifolds[static_cast<size_t>(s.order[k])]);
   };
   size_t from = 0;
   for (size_t p = 0; p < parts; ++p) {

@@ -10,9 +10,14 @@ steps of World.step on the default threads (``SOLVER_TUNING`` ``threads``: 2; me
 90th percentile of the whole step and of its detection and solve phases; contact points
 per step and how many became solver rows, how many of those the velocity sweeps visited
 (the active set: StepSolver::sweep), how many points carried a normal impulse, and
-the solve's cost per row per velocity sweep in ns), each followed by a step on one thread
-(the same bits), timed apart: the ratio of the one-thread step to the default one is
-printed. The same pile is then
+the solve's cost per row per velocity sweep in ns), and as many steps on one thread (the
+same bits), timed apart: the ratio of the one-thread step to the default one is printed.
+The two thread counts take turns by blocks of ``BLOCK`` timed steps, each block led by one
+untimed step: a user runs one thread count throughout, and a step that follows steps on
+the other count finds the pile's data where those left it (in the caches of the caller's
+core after one-thread steps; the first step of a block took 0.5-3 % more than the block's
+others on the 1000-body piles at 120 Hz); alternating blocks keep the machine's drift alike
+on both. The same pile is then
 settled and timed again at 30 Hz: the ratio of that step to the 120 Hz one is printed
 (a step four times longer should not cost much more), and on a line of its own the 30 Hz
 step's detection and solve, points and rows, each against the 120 Hz one. On the same
@@ -70,6 +75,7 @@ DT = 1.0 / 120.0
 ROOT = HERE.parent
 PEER_ENGINES = ('mujoco_cg', 'mujoco_newton', 'pybullet', 'rapier')
 SLOW_DT = 1.0 / 30.0   # s, the low-rate step compared with the 120 Hz one
+BLOCK = 10             # timed steps in a row on one thread count
 
 
 def coal_detection(bodies, state, repeats: int = 20) -> tuple[float, int]:
@@ -124,26 +130,33 @@ def settled_steps(kind: str, size: int, steps: int, settle_s: float, dt: float):
     timed = {key: [] for key in ('total', 'detect', 'solve', 'contacts', 'rows', 'sweeps',
                                  'carrying', 'swept', 'one_thread')}
     default_threads = world._params.threads
-    for k in range(2 * steps):
-        # every other step on one thread (the same bits: SOLVER_TUNING threads), timed apart
-        world._params.threads = 1 if k % 2 else default_threads
-        current = integrate(state, world.dynamic, dt)
-        start = time.perf_counter()
-        result = world.step(state, current, dt)
-        if k % 2:
-            timed['one_thread'].append(time.perf_counter() - start)
+    # blocks of BLOCK steps on each thread count in turn, as a user runs one count
+    # throughout (the machine's drift hits both alike); a block's first step, which pays
+    # the switch (the data last touched by the other count's steps), is stepped untimed
+    for block in range(2 * -(-steps // BLOCK)):
+        one = block % 2 == 1
+        world._params.threads = 1 if one else default_threads
+        count = min(BLOCK, steps - (block // 2) * BLOCK)
+        for k in range(1 + count):
+            current = integrate(state, world.dynamic, dt)
+            start = time.perf_counter()
+            result = world.step(state, current, dt)
+            elapsed = time.perf_counter() - start
             state = result.states
-            continue
-        timed['total'].append(time.perf_counter() - start)
-        timed['detect'].append(world.timing['detect'])
-        timed['solve'].append(world.timing['solve'])
-        timed['contacts'].append(result.report.contacts.count)
-        timed['rows'].append(world.timing['rows'])
-        timed['carrying'].append(int(np.count_nonzero(result.report.normal_impulse > 0.0)))
-        # rows in the velocity sweeps (the manifolds the active set let in by the step's end)
-        timed['swept'].append(int(world._solver.sweep_bodies[:, 2].sum()))
-        timed['sweeps'].append(world.timing['iterations'])
-        state = result.states
+            if k == 0:
+                continue
+            if one:
+                timed['one_thread'].append(elapsed)
+                continue
+            timed['total'].append(elapsed)
+            timed['detect'].append(world.timing['detect'])
+            timed['solve'].append(world.timing['solve'])
+            timed['contacts'].append(result.report.contacts.count)
+            timed['rows'].append(world.timing['rows'])
+            timed['carrying'].append(int(np.count_nonzero(result.report.normal_impulse > 0.0)))
+            # rows in the velocity sweeps (the manifolds the active set let in by the step's end)
+            timed['swept'].append(int(world._solver.sweep_bodies[:, 2].sum()))
+            timed['sweeps'].append(world.timing['iterations'])
     world._params.threads = default_threads
     return bodies, state, timed
 
@@ -404,8 +417,8 @@ def main(argv: list[str] | None = None) -> int:
           'the same poses; ns/row: solve time per solver row per velocity sweep; 30/120: '
           'our step at 30 Hz / at 120 Hz on the same pile settled at each rate; 1thr/2: '
           'our step on one thread / on the default threads (SOLVER_TUNING threads: 2), '
-          'every other step of the same run; us/x: our step (default threads) / theirs '
-          '(one thread; same run)')
+          f'in alternating blocks of {BLOCK} steps of the same run; us/x: our step '
+          '(default threads) / theirs (one thread; same run)')
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({'dt': DT, 'rows': rows}, indent=1))
     print(f'written {args.out}')

@@ -1543,6 +1543,12 @@ int StepSolver::exact_islands(StepContext& ctx, double share, double elapsed) {
   island_quiet_.assign(n, -1.0);
   island_lapse_.assign(n, -1.0);
   bool any = false;
+  // (an island's hold or lapse: the least of its bodies' that have one)
+  auto least = [&any](double own, double& island) {
+    if (own < 0.0) return;
+    island = island < 0.0 ? own : std::min(island, own);
+    any = true;
+  };
   for (int64_t i = 0; i < n; ++i) {
     if (!touched_[i] || inv_mass[i] == 0.0) {
       quiet_[i] = lapse_[i] = -1.0;
@@ -1568,16 +1574,8 @@ int StepSolver::exact_islands(StepContext& ctx, double share, double elapsed) {
     gain_exact_[x] += 0.5 * (mass * dot(l1, l1) + dot(w1, iw1)) -
                       0.5 * (mass * dot(l0, l0) + dot(w0, mul(inertia, w0))) -
                       mass * dot(cl, l1) - dot(cw, iw1);
-    if (quiet_[i] >= 0.0) {
-      double& quiet = island_quiet_[x];
-      quiet = quiet < 0.0 ? quiet_[i] : std::min(quiet, quiet_[i]);
-      any = true;
-    }
-    if (lapse_[i] >= 0.0) {
-      double& lapse = island_lapse_[x];
-      lapse = lapse < 0.0 ? lapse_[i] : std::min(lapse, lapse_[i]);
-      any = true;
-    }
+    least(quiet_[i], island_quiet_[x]);
+    least(lapse_[i], island_lapse_[x]);
     any = any || gain_exact_[x] > p.exact_work;
   }
   if (!any) {
@@ -1654,8 +1652,11 @@ int StepSolver::exact_islands(StepContext& ctx, double share, double elapsed) {
     // between sliding and sticking for all of exact_rounds (from every row sticking: its
     // set in 15); left to the sweeps, the column sank 2.30 mm into itself (1.14 mm)
     const std::vector<int32_t>& members = exact_rows_[k];
-    exact_state_.assign(members.size(), IslandSolve::kStick);
-    exact_along_.assign(2 * members.size(), 0.0);
+    auto sticking = [&] {   // every row sticking (sliding along no direction)
+      exact_state_.assign(members.size(), IslandSolve::kStick);
+      exact_along_.assign(2 * members.size(), 0.0);
+    };
+    sticking();
     bool warm = false;
     for (size_t j = 0; j < members.size(); ++j) {
       const ContactRow& r = rows_[members[j]];
@@ -1676,8 +1677,7 @@ int StepSolver::exact_islands(StepContext& ctx, double share, double elapsed) {
                             base_.data(), velocity_.data(), settings, exact_state_.data(),
                             exact_along_.data());
     if (outcome == IslandSolve::kUnsolved && warm) {
-      exact_state_.assign(members.size(), IslandSolve::kStick);
-      exact_along_.assign(2 * members.size(), 0.0);
+      sticking();
       outcome = island_solve_.solve(rows_, members, exact_bodies_[k], ctx.solver,
                                     inertia_.data(), base_.data(), velocity_.data(), settings,
                                     exact_state_.data(), exact_along_.data());

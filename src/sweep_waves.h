@@ -29,9 +29,9 @@
 // SweepPlan::sequence), on side 1, waiting for side 0's last parts on their bodies: the
 // worker's, which then runs on from the seam into the next sweep while the caller waits for
 // it (the other way round, the worker waited through the seam and had fallen asleep by the
-// next sweep: it started 20-100 us late). On one thread (no worker) a wave's two sides
-// are one part and nothing waits: the same order, with no more part-filled groups than
-// one side leaves.
+// next sweep: it started 20-100 us late). On one thread (no worker), or where the worker's
+// cost model runs the sweeps alone (Worker::pairs), a wave's two sides are one part and
+// nothing waits: the same order, with no more part-filled groups than one side leaves.
 // Below that size, one side in the solve's order.
 #pragma once
 
@@ -67,14 +67,14 @@ struct WaveScratch {
 // The manifolds `chosen` (indices into `manifolds`, ascending: the solve's order), in the
 // sweep's order (above: the solve's, or with two sides the sides' then the seam's) wave by
 // wave, each wave side 0's part then side 1's (the parts that are not empty; one part on
-// one thread: plan.worker null), into `out`
+// one thread: plan.worker null, or its sweeps run alone), into `out`
 // (SweepPlan's layout, a part per SweepWave: within a part, wide groups of kLanes
 // manifolds of one row count 1..4 first, then the rest of each row count 1..4 left two or
 // three (padded groups), then the rest left one and the longer manifolds one by one (and
 // those whose rows do not share one frame, n, t1 and t2: a wide group keeps one a lane);
 // within a row count the speculative manifolds, every row with allowance > 0, last), each
 // copied once; fills plan.waves (with each part's side, after, spin_after and seam; with
-// a worker the waits, else none),
+// two parts a wave the waits, else none),
 // plan.sequence and plan.spin_rows, and clears plan.packed (its other fields are left as
 // they are). The manifolds keep their rows and
 // spin rows (Manifold::spin); the rows keep their ContactRow::manifold. `inv_mass` (N,)

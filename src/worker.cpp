@@ -209,24 +209,29 @@ int Worker::help(uint32_t generation, int own) {
 void Worker::run_pair(const std::function<void()>& first, const std::function<void(int)>& second,
                       int chunks, int kind, double work) {
   if (chunks < 0 || chunks > kMaxChunks) throw std::invalid_argument("Worker: chunks out of range");
-  run(&first, second, chunks, nullptr, nullptr, kind, work);
+  run(&first, second, chunks, nullptr, nullptr, kind, work, false);
 }
 
 void Worker::run_sides(const std::function<void(int)>& task, int chunks, const uint8_t* side,
                        const int32_t* need, int kind, double work) {
   int in[2] = {0, 0};   // chunks per queue
   for (int c = 0; c < chunks; ++c) ++in[side[c] & 1];
-  if (in[0] == 0 || in[1] == 0 || std::max(in[0], in[1]) > kMaxChunks) {
+  if (in[0] == 0 || std::max(in[0], in[1]) > kMaxChunks) {
     for (int c = 0; c < chunks; ++c) task(c);
     return;
   }
-  run(nullptr, task, chunks, side, need, kind, work);
+  run(nullptr, task, chunks, side, need, kind, work, in[1] == 0);
+}
+
+bool Worker::pairs(int kind) const {
+  const Costs& costs = costs_[std::clamp(kind, 0, kKinds - 1)];
+  return costs.burst > 0 ? costs.explored : costs.paired <= costs.alone;
 }
 
 void Worker::run(const std::function<void()>* first, const std::function<void(int)>& task,
                  int chunks, const uint8_t* side, const int32_t* need, int kind,
-                 double work) {
-  chunks_run_ += static_cast<uint64_t>(chunks);
+                 double work, bool lone) {
+  if (!lone) chunks_run_ += static_cast<uint64_t>(chunks);
   Costs& costs = costs_[std::clamp(kind, 0, kKinds - 1)];
   // the mode that has cost less per unit of work (an unmeasured mode first), the other
   // one for kBurst runs in a row every costs.every-th run: the first of those wakes the
@@ -239,8 +244,14 @@ void Worker::run(const std::function<void()>* first, const std::function<void(in
   }
   const bool explore = costs.burst > 0;
   const bool paired = explore ? costs.explored : costs.paired <= costs.alone;
+  if (lone && paired) {
+    // (cut for one thread where pairing is chosen now: its cost is neither mode's, and a
+    // burst due waits for the next run cut for two, which pairs(kind) now asks for)
+    for (int c = 0; c < chunks; ++c) task(c);
+    return;
+  }
   const auto start = std::chrono::steady_clock::now();
-  ++runs_;
+  if (!lone) ++runs_;
   if (paired) {
     ++paired_runs_;
     uint32_t generation;

@@ -80,9 +80,20 @@ class Worker {
   // chunks of the other queue have finished; returns when all are done. The chunks of a
   // queue, in their order, and `need` must leave each chunk after the ones it depends on
   // in the order 0, 1, ... (need[c] counts the other queue's chunks before c at most). A
-  // run with an empty queue, or more than kMaxChunks in one, runs here, in order.
+  // run with an empty queue, or more than kMaxChunks in one, runs here, in order; one
+  // with chunks in queue 0 only (built for one thread: pairs(kind) was false when its
+  // caller cut its chunks) counts in the kind's cost alone, unless the kind's next run is
+  // to run paired (the mode turned, or a burst of paired runs is due, since): then it
+  // counts nowhere, and the burst waits for a run that can pair. Either counts in no
+  // runs() or chunks_run() (it is not posted for two threads).
   void run_sides(const std::function<void(int)>& task, int chunks, const uint8_t* side,
                  const int32_t* need, int kind, double work);
+
+  // whether the next run of `kind` runs paired (in a burst: the burst's mode; a burst of
+  // paired runs starts at a run cut for one thread and waits, run_sides): for a caller
+  // that cuts a run's chunks for two threads or for one (sweep_waves.h: a sweep cut for
+  // one thread costs less than its two sides run alone)
+  bool pairs(int kind) const;
 
   // on: the worker spins between runs (yielding its core now and then) until stay(false),
   // instead of sleeping after a few polls, and is woken now, so that its wake (~0.1 ms on
@@ -102,8 +113,10 @@ class Worker {
  private:
   void loop();
   // runs `first` here and the chunks of `task` here and on the worker (run_pair, run_sides)
+  // (lone: a run cut for one thread, run here)
   void run(const std::function<void()>* first, const std::function<void(int)>& task,
-           int chunks, const uint8_t* side, const int32_t* need, int kind, double work);
+           int chunks, const uint8_t* side, const int32_t* need, int kind, double work,
+           bool lone);
   // claims and runs chunks of run `generation`, its own queue's first (`own`), until none
   // is left to claim, each once it is ready; returns how many it ran
   int help(uint32_t generation, int own);

@@ -9,7 +9,8 @@ is solved four manifolds at a time in wide rows (``SOLVER_TUNING`` ``wide_rows``
 or three left of a row count in a group padded with idle lanes); with two threads
 (``threads``) and waves that average at least twice ``parallel_wave`` manifolds, each wave
 is cut in two sides (connected halves of the pile), each side's parts one thread's queue, a
-part waiting only for the other side's last part that moved one of its bodies; the
+part waiting only for the other side's last part that moved one of its bodies (where the
+worker's cost model runs the sweeps paired; else one part a wave, as on one thread); the
 per-contact passes of the step are shared too. Detection shares a step's stages
 between the two threads too (``src/detection.h``: the bodies' motion and boxes, the broad
 phase's fat pairs by halves; the pairs, a first part here, the rest on the worker, each into
@@ -106,8 +107,10 @@ def test_two_threads_and_one_by_one_give_the_bytes_of_one_thread_in_lanes():
             answers.append(answer(result))
         assert all(a == answers[0] for a in answers[1:])
         shared_steps += any(part[4] == 1 for part in worlds[1]._solver.waves)
-    # the pile was in contact with waves cut in two sides nearly all the time
-    assert shared_steps > STEPS // 2
+    # some steps had their waves cut in two sides: a sweep is cut for two threads where the
+    # worker's cost model runs the sweeps paired (its first run of a kind, then as measured:
+    # a pile this small may cost less alone, and the paired runs are then its bursts)
+    assert shared_steps > 0
     assert np.isfinite(states[0].position).all()
     assert states[0].position[5:, 2].max() < 0.6          # it fell and piled up
 
@@ -219,6 +222,7 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
         assert seams == sorted(seams)
         own = [set(), set()]    # each side's bodies (but the seam's)
         order = {}       # per movable body: (class, first row) of its last manifold so far
+        sided = any(part[4] == 1 for part in waves)   # (two threads, the sweeps paired)
         for first, wide_end, lone, end, side, _, _, seam in waves:
             assert first < wide_end or wide_end < end              # never empty
             assert first <= wide_end <= lone <= end and (wide_end - first) % 4 == 0
@@ -241,8 +245,8 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
                         key = (2 if seam else side, row)
                         assert order.get(b, (-1, -1)) < key
                         order[b] = key
-            if seam:    # the seam joins two movable bodies, on side 1 (one thread: 0)
-                assert side == threads - 1 and movable[pairs].all()
+            if seam:    # the seam joins two movable bodies, on side 1 (cut for one thread: 0)
+                assert side == sided and movable[pairs].all()
             else:
                 own[side].update(used.tolist())
             wide += wide_end - first
@@ -266,15 +270,15 @@ def test_no_two_manifolds_of_a_wave_share_a_movable_body_and_each_follows_its_bo
             assert (after if q < size else spin_after) == max(other, key=place.get, default=-1)
             last.update((b, q) for b in used)
             place[q] = at
-        # cut in sides, each holds a fair share of the rows: halves by rows; on one thread a
-        # wave's two sides are one part (side 0), the cut seen in the seam's waves
+        # cut in sides, each holds a fair share of the rows: halves by rows; cut for one
+        # thread a wave's two sides are one part (side 0), the cut seen in the seam's waves
         rows = [sum(int(sweep[p[0]:p[3], 2].sum()) for p in waves if p[4] == k and not p[7])
                 for k in (0, 1)]
         if rows[1]:
             split += 1
             assert min(rows) > 0.3 * int(sweep[:, 2].sum())
         else:
-            split += threads == 1 and any(seams)
+            split += any(seams)
             whole_total += sum(p[3] - p[0] for p in waves)
             whole_wide += sum(p[1] - p[0] for p in waves)
     assert total > 0 and lanes > wide   # some manifolds solved in padded groups

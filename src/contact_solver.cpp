@@ -765,7 +765,8 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double
   }
   const bool lanes_tried = searched != nullptr && block.invertible && !block.coupled;
   if (lanes_tried && k == 2) return -1.0;
-  const double (&a)[4][4] = block.delassus;
+  const BlockMatrices& m = *block.matrices;
+  const double (&a)[4][4] = m.delassus;
   double q[4], x[4];
   if (searched != nullptr) {
     for (int i = 0; i < k; ++i) q[i] = searched[i];
@@ -774,7 +775,7 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double
     for (int i = 0; i < k; ++i) {
       double b = relative(r[i], v, 0, r[i].n) + r[i].allowance;
       q[i] = b;
-      for (int j = 0; j < k; ++j) q[i] -= block.plain[i][j] * r[j].normal;
+      for (int j = 0; j < k; ++j) q[i] -= m.plain[i][j] * r[j].normal;
       idle = idle && r[i].normal == 0.0 && q[i] >= 0.0;
     }
     // no impulse and no row approaching beyond its allowance: x = 0 is the answer (the only
@@ -790,13 +791,13 @@ double solve_block(ContactRow* r, const Manifold& block, Twists& v, const double
     bool ok = true;
     for (int i = 0; i < k; ++i) {
       x[i] = 0.0;
-      for (int j = 0; j < k; ++j) x[i] -= block.inverse[i][j] * q[j];
+      for (int j = 0; j < k; ++j) x[i] -= m.inverse[i][j] * q[j];
       ok = ok && x[i] >= -1e-12 * (1.0 + std::fabs(x[i]));
     }
     if (ok && block.redundant) {
       double loose = 0.0, largest = 0.0;   // m/s: the largest approach left, the largest |q|
       for (int i = 0; i < k; ++i) {
-        loose += block.residual[i] * q[i];
+        loose += m.residual[i] * q[i];
         largest = std::max(largest, std::fabs(q[i]));
       }
       ok = std::fabs(loose) <= 1e-12 * (1.0 + largest);
@@ -839,20 +840,21 @@ namespace {
 // eliminations' tableaux in registers); k 1 (no inverse) to 4
 template <int k>
 inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
+                                                            BlockMatrices& m,
                                                             const ContactRow* r) {
   for (int i = 0; i < k; ++i) {
     for (int j = 0; j < k; ++j) {
-      block.plain[i][j] = (r[i].ma + r[i].mb) * dot(r[i].n, r[j].n) +
-                          dot(r[i].ang_a[0], r[j].dw_a[0]) + dot(r[i].ang_b[0], r[j].dw_b[0]);
-      block.delassus[i][j] = block.plain[i][j];
+      m.plain[i][j] = (r[i].ma + r[i].mb) * dot(r[i].n, r[j].n) +
+                      dot(r[i].ang_a[0], r[j].dw_a[0]) + dot(r[i].ang_b[0], r[j].dw_b[0]);
+      m.delassus[i][j] = m.plain[i][j];
     }
     // ill-conditioned blocks (coincident points, four points of a face: rank 3) have many
     // impulse sets that give the same velocities; a diagonal a fraction kRegular heavier
     // (on the total impulses, not their change) picks the one of least norm: coincident
     // points share equally, a symmetric hit gets symmetric impulses, no pivot is near zero
     // (the active-set search's matrix; the all-active answer's: below)
-    block.delassus[i][i] *= 1.0 + kRegular;
-    block.residual[i] = 0.0;
+    m.delassus[i][i] *= 1.0 + kRegular;
+    m.residual[i] = 0.0;
   }
   block.invertible = block.redundant = false;
   if (k < 2) return;
@@ -873,8 +875,8 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
   // active-set search solves the block).
   double s[k];
   for (int i = 0; i < k; ++i) {
-    if (!(block.plain[i][i] > 0.0)) return;
-    s[i] = 1.0 / std::sqrt(block.plain[i][i]);
+    if (!(m.plain[i][i] > 0.0)) return;
+    s[i] = 1.0 / std::sqrt(m.plain[i][i]);
   }
   // Gauss-Jordan elimination of [e | 1], each pivot the largest diagonal left (symmetric
   // pivoting: order[c] the unknown in place c; e is symmetric, positive semi-definite).
@@ -890,7 +892,7 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
   for (int i = 0; i < k; ++i) {
     order[i] = i;
     for (int j = 0; j < k; ++j) {
-      t[i][j] = s[i] * block.plain[i][j] * s[j];
+      t[i][j] = s[i] * m.plain[i][j] * s[j];
       t[i][k + j] = i == j ? 1.0 : 0.0;
     }
   }
@@ -920,7 +922,7 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
   if (free < 0) {   // no free direction: inverse = S E S
     for (int c = 0; c < k; ++c)
       for (int p = 0; p < k; ++p)
-        block.inverse[order[c]][order[p]] =
+        m.inverse[order[c]][order[p]] =
             s[order[c]] * (t[c][k + p] / t[c][c]) * s[order[p]];
     block.invertible = true;
     return;
@@ -952,22 +954,23 @@ inline __attribute__((always_inline)) void prepare_block_of(Manifold& block,
   for (int i = 0; i < k; ++i) {
     reach = std::max(reach, std::fabs(z[i] / s[i]));
     for (int j = 0; j < k; ++j)
-      block.inverse[i][j] =
+      m.inverse[i][j] =
           s[i] * (inverse[i][j] - h[i] * z[j] - z[i] * h[j] + zh * z[i] * z[j]) * s[j];
   }
-  for (int i = 0; i < k; ++i) block.residual[i] = z[i] * s[i] * reach;
+  for (int i = 0; i < k; ++i) m.residual[i] = z[i] * s[i] * reach;
   block.invertible = true;
 }
 
 }  // namespace
 
 COLLRES_CLONED
-void prepare_block(Manifold& block, const ContactRow* r) {
+void prepare_block(Manifold& block, const ContactRow* r, BlockMatrices& matrices) {
+  block.matrices = &matrices;
   switch (block.count) {
-    case 1: prepare_block_of<1>(block, r); break;
-    case 2: prepare_block_of<2>(block, r); break;
-    case 3: prepare_block_of<3>(block, r); break;
-    case 4: prepare_block_of<4>(block, r); break;
+    case 1: prepare_block_of<1>(block, matrices, r); break;
+    case 2: prepare_block_of<2>(block, matrices, r); break;
+    case 3: prepare_block_of<3>(block, matrices, r); break;
+    case 4: prepare_block_of<4>(block, matrices, r); break;
     default: block.invertible = block.redundant = false; break;   // (more rows: row by row)
   }
 }
@@ -1976,19 +1979,21 @@ void pack_full(WideGroup& g, WideRow* w, WideFace& search, const std::vector<Con
   const Manifold* m[kLanes];
   for (int l = 0; l < kLanes; ++l) m[l] = &manifolds[g.manifold + static_cast<size_t>(l)];
   // a matrix's row i, four numbers (columns past g.count too: never read)
-  auto matrix = [&](double const (Manifold::*of)[4][4], Lanes (*to)[4]) {
+  const BlockMatrices* b[kLanes];
+  for (int l = 0; l < kLanes; ++l) b[l] = m[l]->matrices;
+  auto matrix = [&](double const (BlockMatrices::*of)[4][4], Lanes (*to)[4]) {
     for (int i = 0; i < g.count; ++i) {
-      const Lanes row[kLanes] = {load4((m[0]->*of)[i]), load4((m[1]->*of)[i]),
-                                 load4((m[2]->*of)[i]), load4((m[3]->*of)[i])};
+      const Lanes row[kLanes] = {load4((b[0]->*of)[i]), load4((b[1]->*of)[i]),
+                                 load4((b[2]->*of)[i]), load4((b[3]->*of)[i])};
       transpose(row, to[i]);
     }
   };
-  matrix(&Manifold::plain, g.plain);
-  matrix(&Manifold::inverse, g.inverse);
-  matrix(&Manifold::delassus, search.delassus);
+  matrix(&BlockMatrices::plain, g.plain);
+  matrix(&BlockMatrices::inverse, g.inverse);
+  matrix(&BlockMatrices::delassus, search.delassus);
   {
-    const Lanes row[kLanes] = {load4(m[0]->residual), load4(m[1]->residual),
-                               load4(m[2]->residual), load4(m[3]->residual)};
+    const Lanes row[kLanes] = {load4(b[0]->residual), load4(b[1]->residual),
+                               load4(b[2]->residual), load4(b[3]->residual)};
     transpose(row, g.residual);
   }
   const ContactRow* c[kLanes];
@@ -2072,13 +2077,14 @@ void pack_entry(SweepPlan& plan, int32_t entry, const std::vector<ContactRow>& r
     g.invertible[l] = m.invertible && !m.coupled ? 1.0 : 0.0;
     g.redundant = g.redundant || m.redundant;
     if (full) continue;   // (the rest: pack_full)
+    const BlockMatrices& b = *m.matrices;
     for (int i = 0; i < g.count; ++i)
       for (int j = 0; j < g.count; ++j) {
-        g.plain[i][j][l] = m.plain[i][j];
-        g.inverse[i][j][l] = m.inverse[i][j];
-        search.delassus[i][j][l] = m.delassus[i][j];
+        g.plain[i][j][l] = b.plain[i][j];
+        g.inverse[i][j][l] = b.inverse[i][j];
+        search.delassus[i][j][l] = b.delassus[i][j];
       }
-    for (int i = 0; i < g.count; ++i) g.residual[i][l] = m.residual[i];
+    for (int i = 0; i < g.count; ++i) g.residual[i][l] = b.residual[i];
     for (int e = 0; e < 3; ++e) {
       g.n[e][l] = r[0].n[e];
       g.t1[e][l] = r[0].t1[e];
@@ -2452,7 +2458,12 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
     }
     ++blocks.back().count;
   }
-  for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
+  if (shock.matrices.size() < blocks.capacity()) {   // (as many as it has room for: grown
+    shock.matrices.clear();                          // as it grows, nothing copied)
+    shock.matrices.resize(blocks.capacity());
+  }
+  for (size_t j = 0; j < blocks.size(); ++j)
+    prepare_block(blocks[j], &scratch[blocks[j].first], shock.matrices[j]);
   // each lower level's blocks in waves: a body's blocks in their order (its inverse mass
   // as its rows had it before the copies held the lower one: a held body is movable, so
   // the blocks on it stay in order too)
@@ -2669,8 +2680,8 @@ void stage_velocity(const ContactRow& c, const ContactRow& row, const double* v,
 
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     const ImpactSettings& settings, std::vector<ContactRow>& scratch,
-                    std::vector<Manifold>& blocks, std::vector<int32_t>& members,
-                    std::vector<double>& work) {
+                    std::vector<Manifold>& blocks, std::vector<BlockMatrices>& matrices,
+                    std::vector<int32_t>& members, std::vector<double>& work) {
   double* v = bodies.velocity;
   ImpactSupport support;   // found when a first stage has rows
   std::vector<uint8_t> struck;
@@ -2729,7 +2740,12 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
       ++blocks.back().count;
       scratch.push_back(c);
     }
-    for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
+    if (matrices.size() < blocks.capacity()) {   // (as many as it has room for: grown as
+      matrices.clear();                          // it grows, nothing copied)
+      matrices.resize(blocks.capacity());
+    }
+    for (size_t j = 0; j < blocks.size(); ++j)
+      prepare_block(blocks[j], &scratch[blocks[j].first], matrices[j]);
     // exact inelastic compression with friction; the energy it took (J). Coulomb
     // friction on coupled points can return energy (a slip turned around); such a stage
     // is compressed again without friction, and if it still gains, without holding
@@ -2765,7 +2781,8 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
         c.mu = c.normal = c.tangent[0] = c.tangent[1] = c.allowance = 0.0;
         row_velocity(c, v, &work[7 * j]);
       }
-      for (Manifold& block : blocks) prepare_block(block, &scratch[block.first]);
+      for (size_t j = 0; j < blocks.size(); ++j)
+        prepare_block(blocks[j], &scratch[blocks[j].first], matrices[j]);
     }
     // restitution: e times the compression impulse along each normal (per object: A's
     // and B's own e); the energy it returns, linear + quadratic in a common scale s

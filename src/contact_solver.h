@@ -172,16 +172,34 @@ struct alignas(64) ContactRow {
   double pseudo = 0.0;           // N s (pseudo), accumulated by the position pass
 };
 
+// The matrices of a block of 2 to 4 normal rows (prepare_block, once per step, only for the
+// blocks a solve takes: kept apart from Manifold, which the sweeps' plans copy in their
+// order, so those copies move no matrices): the rows' Delassus matrix J_i M^-1 J_j^T
+// (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block solve's
+// regularisation), and the all-active answer's matrix: the first's inverse on all but the
+// block's free direction (none along it: the answer of least norm); the sweeps read the
+// first two and `residual`, `delassus` only when the all-active answer does not fit. Of k
+// rows, the entries [0, k) are set; `inverse` only when Manifold::invertible (the others
+// are never read).
+struct BlockMatrices {
+  double plain[4][4];
+  double inverse[4][4];   // kg, when `invertible`
+  double residual[4];     // (when `redundant`) |residual . q|: the largest approach (m/s)
+                          // the all-active answer leaves its rows along the block's free
+                          // direction, q their velocities (else 0)
+  double delassus[4][4];
+};
+
 // One manifold's constraint: its rows [first, first + count) of the row array, all of
 // body pair (a, b); the normal rows of 2 to 4 points are solved together as one block.
 struct Manifold {
   int32_t a = 0, b = 0;          // body indices
   int32_t first = 0, count = 0;  // its rows
   int32_t spin = -1;             // index of its SpinRow in the solve's spins, -1: none
-  bool invertible = false;       // `inverse` holds the all-active answer's matrix (at
-                                 // most one free direction)
-  bool redundant = false;        // ... and the block has a free direction (`residual`
-                                 // is not all zero)
+  bool invertible = false;       // its matrices' `inverse` holds the all-active answer's
+                                 // matrix (at most one free direction)
+  bool redundant = false;        // ... and the block has a free direction (their
+                                 // `residual` is not all zero)
   bool coupled = false;          // its normal rows and friction solved as one block each
                                  // sweep (every block of an impact stage; a manifold one
                                  // of whose bodies had an impact this step, or one of
@@ -194,22 +212,14 @@ struct Manifold {
                                  // block that is the only manifold of each of its
                                  // movable bodies (StepSolver::prepare); else it is
                                  // solved split
-  // 2 to 4 rows (prepare_block, once per step): the normal rows' Delassus matrix
-  // J_i M^-1 J_j^T (1/kg), as is and with its diagonal a fraction 1e-8 heavier (the block
-  // solve's regularisation), and the all-active answer's matrix: the first's inverse on
-  // all but the block's free direction (none along it: the answer of least norm); the
-  // sweeps read the first two and `residual`, `delassus` only when the all-active answer
-  // does not fit
-  double plain[4][4] = {};
-  double inverse[4][4] = {};   // kg, when `invertible`
-  double residual[4] = {};     // (when `redundant`) |residual . q|: the largest approach
-                               // (m/s) the all-active answer leaves its rows along the
-                               // block's free direction, q their velocities (else 0)
-  double delassus[4][4] = {};
+  const BlockMatrices* matrices = nullptr;   // its block's (prepare_block: every manifold
+                                             // a solve takes has them), its owner's store
 };
 
-// The Delassus matrices of a manifold of 2 to 4 prepared rows (`rows`: its first row).
-void prepare_block(Manifold& block, const ContactRow* rows);
+// The matrices of a manifold of 2 to 4 prepared rows (`rows`: its first row; one row: the
+// entries [0][0] alone; more than 4: none, its flags only) into `matrices`, which the
+// manifold then points to (Manifold::matrices).
+void prepare_block(Manifold& block, const ContactRow* rows, BlockMatrices& matrices);
 
 // Rolling resistance and torsional friction of one manifold (its rows):
 // an angular impulse (N m s) on B, opposite on A, against the bodies' relative angular
@@ -427,6 +437,7 @@ int solve_velocities(std::vector<ContactRow>& rows, const std::vector<Manifold>&
 // where `wide`, the same bits as in their order) and its SweepPlan (one thread).
 struct ShockBlocks {
   std::vector<Manifold> blocks;               // all of them, by lower level
+  std::vector<BlockMatrices> matrices;        // blocks' (Manifold::matrices)
   std::vector<std::vector<Manifold>> levels;  // each lower level's, in waves
   std::vector<SweepPlan> plans;               // each lower level's
   std::vector<double> inv_mass;               // (N,) 1/kg of the blocks' bodies (scratch)
@@ -484,7 +495,7 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
 // pair of stages. Stops when no row approaches or after `stages` stages (the rest is
 // left to the resting solve); returns the stages done. A stage's rows of one manifold
 // (ContactRow::manifold, rows of a manifold consecutive) form one block. `scratch`,
-// `blocks`, `members` and `work` are scratch space.
+// `blocks` (and their `matrices`), `members` and `work` are scratch space.
 struct ImpactSettings {
   const double* threshold = nullptr;  // m/s per contact (ContactRow::contact): slower
                                       // approaches do not bounce
@@ -496,8 +507,8 @@ struct ImpactSettings {
 };
 int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
                     const ImpactSettings& settings, std::vector<ContactRow>& scratch,
-                    std::vector<Manifold>& blocks, std::vector<int32_t>& members,
-                    std::vector<double>& work);
+                    std::vector<Manifold>& blocks, std::vector<BlockMatrices>& matrices,
+                    std::vector<int32_t>& members, std::vector<double>& work);
 
 // Split-impulse push-out: pseudo velocities (N, 6, zeroed here; m/s and rad/s) that give
 // each row its `push` normal speed (m/s); rows with push 0 keep the pseudo motion from

@@ -147,8 +147,8 @@ StepStats StepSolver::step(const BodyStatesView& previous, const BodyStatesView&
     int32_t depth = 0;
     int substeps = 1;
     beside(ctx, [&] {
-      resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_, order32_,
-                      impact_work_);
+      resolve_impacts(rows_, ctx.solver, impacts, shock_rows_, impact_blocks_,
+                      impact_matrices_, order32_, impact_work_);
       for (ContactRow& r : rows_) r.allowance = allowance_[r.contact];
       // from here on an impacted body's velocity is the one its pose travels with over the
       // rest of the step (its velocity at the time of impact plus half the external change
@@ -825,6 +825,12 @@ void StepSolver::prepare(StepContext& ctx) {
   const auto blocks = static_cast<size_t>(placed[2 * spans + 1]);
   rows_.resize(used);
   manifolds_.resize(blocks);   // (each constructed anew below)
+  // their matrices (block() writes an entry), as many as manifolds_ has room for: grown as
+  // it grows, nothing copied (no entry outlives its step)
+  if (matrices_.size() < manifolds_.capacity()) {
+    matrices_.clear();
+    matrices_.resize(manifolds_.capacity());
+  }
   friction_.resize(2 * blocks);
   in_parts(ctx, spans, [&](int64_t lo, int64_t hi) {
     for (int64_t span = lo; span < hi; ++span) {
@@ -983,7 +989,8 @@ bool StepSolver::idle(const Manifold& manifold) const {
 
 void StepSolver::block(size_t manifold) {
   if (blocked_[manifold]) return;
-  prepare_block(manifolds_[manifold], &rows_[static_cast<size_t>(manifolds_[manifold].first)]);
+  prepare_block(manifolds_[manifold], &rows_[static_cast<size_t>(manifolds_[manifold].first)],
+                matrices_[manifold]);
   blocked_[manifold] = 1;
 }
 

@@ -469,6 +469,8 @@ class StepSolver {
   std::vector<ContactRow> rows_, shock_rows_;
   std::vector<Manifold> manifolds_, impact_blocks_;  // constraints over rows_ / shock_rows_
                                                      // (manifolds_ in detection's order)
+  std::vector<BlockMatrices> matrices_, impact_matrices_;   // their blocks' matrices
+                                                            // (manifolds_: by index, block())
   std::vector<double> friction_;     // (manifolds_, 2) its pair's static and kinetic
                                      // friction coefficients (prepare)
   std::vector<int32_t> manifolds_of_;  // (N,) how many of manifolds_ each body is in (prepare)

@@ -69,7 +69,7 @@ class Fixed:
         self.budget = (0, 0)      # nothing dropped by a step budget
         self.thread_runs = (0, 0, 0, 0)   # one thread: no runs posted for two
 
-    def detect(self, previous, current, active=None, threads=1) -> ContactSet:
+    def detect(self, previous, current, active=None, threads=1, dt=0.0) -> ContactSet:
         return self.contacts
 
 

@@ -78,6 +78,7 @@ void bind_detection(py::module_& m) {
     }
   }
   m.attr("HULL_FLATNESS") = collres::kHullFlatness;
+  m.attr("RESTING_MARGIN") = collres::kRestingMargin;
   m.def("extreme_vertices",
         [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
            int count) {
@@ -115,6 +116,7 @@ void bind_detection(py::module_& m) {
                      &collres::DetectionSettings::restitution_threshold)
       .def_readwrite("resting_factor", &collres::DetectionSettings::resting_factor)
       .def_readwrite("reuse_shift", &collres::DetectionSettings::reuse_shift)
+      .def_readwrite("margin_speed", &collres::DetectionSettings::margin_speed)
       .def_readwrite("max_pairs", &collres::DetectionSettings::max_pairs)
       .def_readwrite("max_contacts", &collres::DetectionSettings::max_contacts)
       .def_readwrite("max_contacts_per_pair",
@@ -198,10 +200,12 @@ void bind_detection(py::module_& m) {
               const py::array& p1, const py::array& q1, const py::array& linear,
               const py::array& angular, const py::array& linear0,
               const py::array& angular0, const std::optional<py::array>& active,
-              int threads) {
+              int threads, double dt) {
              if (threads < 1 || threads > 2) throw py::value_error("threads: 1 or 2");
+             if (!(dt >= 0.0)) throw py::value_error("dt: a period >= 0 s");
              Poses in;
              poses_of(d, p0, q0, p1, q1, linear, angular, linear0, angular0, active, in);
+             in.poses.dt = dt;
              const collres::StepPoses& poses = in.poses;
              collres::ContactRows rows;
              {
@@ -224,10 +228,11 @@ void bind_detection(py::module_& m) {
            py::arg("p0"), py::arg("q0"), py::arg("p1"), py::arg("q1"), py::arg("linear"),
            py::arg("angular"),
            py::arg("linear0"), py::arg("angular0"), py::arg("active") = py::none(),
-           py::arg("threads") = 1,
+           py::arg("threads") = 1, py::arg("dt") = 0.0,
            "Contacts of the step: (body_a, body_b, point, normal, separation, toi, kind, "
            "feature, manifolds, piece_a, piece_b), the fields of ContactSet; the same bits "
-           "with `threads` 1 or 2.")
+           "with `threads` 1 or 2. `dt` (s) the step's period, which sets the least margin "
+           "of a pair at rest (0: kRestingMargin's alone).")
       .def("hold_back",
            [](collres::Detector& d, const py::array& p0, const py::array& q0,
               const py::array& p1, const py::array& q1, const py::array& linear,

@@ -530,6 +530,9 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
   out.clear();
   out.reserve(last_rows_ + last_rows_ / 8 + 16);
   budget_ = StepBudget();
+  const double margin = settings_.speculative_margin;
+  resting_ = std::min(margin,
+                      std::max(kRestingMargin * margin, settings_.margin_speed * poses.dt));
   for (Lane& lane : lanes_) {
     lane.next.clear();
     lane.cursor[0] = lane.cursor[1] = 0;
@@ -554,7 +557,6 @@ void Detector::detect(const StepPoses& poses, ContactRows& out) {
 }
 
 void Detector::run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows& out) const {
-  const double margin = settings_.speculative_margin;
   for (std::size_t k = lo; k < hi; ++k) {
     const auto [a, b] = pairs_[k];
     // the pair's record of last step, if any, for `reuse`
@@ -567,7 +569,7 @@ void Detector::run_pairs(Lane& lane, std::size_t lo, std::size_t hi, ContactRows
     const double relative = relative_motion(a, b);
     const double bound = (bodies_[b].p1 - bodies_[a].p1).norm() - shapes_[a].radius -
                          shapes_[b].radius;
-    if (bound > margin && bound >= relative) continue;
+    if (bound > pair_margin(a, b) && bound >= relative) continue;
     narrow_phase(lane, a, b, relative, out);
   }
 }
@@ -982,18 +984,22 @@ double Detector::approach_bound(int a, int b) const {
   return std::abs((O.shift - P.shift).dot(normal)) + P.swing + O.swing;
 }
 
+double Detector::pair_margin(int a, int b) const {
+  const double margin = settings_.speculative_margin;
+  return std::min(margin, resting_ + bodies_[a].moved + bodies_[b].moved);
+}
+
 // Only pairs that need a coal query count: bounding spheres farther apart than the margin
 // and than the relative motion cannot touch (narrow_phase skips them unqueried).
 void Detector::limit_pairs() {
   const auto keep = static_cast<std::size_t>(std::max(settings_.max_pairs, 0));
   if (pairs_.size() <= keep) return;
-  const double margin = settings_.speculative_margin;
   depth_.clear();
   order_.clear();
   for (std::size_t k = 0; k < pairs_.size(); ++k) {
     const auto [a, b] = pairs_[k];
     const double gap = sphere_gap(a, b);
-    if (gap > margin && gap >= relative_motion(a, b)) continue;
+    if (gap > pair_margin(a, b) && gap >= relative_motion(a, b)) continue;
     order_.push_back(k);
     depth_.push_back(-gap);
   }
@@ -1040,7 +1046,7 @@ bool Detector::reuse(Lane& lane, int a, int b, std::int64_t key, const ManifoldS
   // the pair's own motion over the step, as the narrow phase classifies it: the motion
   // both share (a pile that its source integrated one long period under gravity) moves no
   // point of one relative to the other
-  const double margin = settings_.speculative_margin;
+  const double margin = pair_margin(a, b);
   const double relative = approach_bound(a, b);
   if (relative > margin) return false;
   const Vec3 rel_p = A.r1.transpose() * (B.p1 - A.p1);
@@ -1114,7 +1120,7 @@ bool Detector::still_apart(Lane& lane, std::int64_t key, int a, int b,
                        2.0 * std::sqrt(1.0 - cosine * cosine) * shapes_[b].radius;
   // the distance of two convex shapes changes by no more than that drift
   const double least = stored.apart - drift - kApartSlack;
-  if (!(least > settings_.speculative_margin && least >= relative_motion(a, b))) return false;
+  if (!(least > pair_margin(a, b) && least >= relative_motion(a, b))) return false;
   lane.next.begin_apart(key, stored.rel_p, stored.rel_q, stored.apart);
   return true;
 }
@@ -1139,7 +1145,7 @@ Motion Detector::motion(int body) const {
 void Detector::narrow_phase(Lane& lane, int a, int b, double relative, ContactRows& out) const {
   const Body& A = bodies_[a];
   const Body& B = bodies_[b];
-  const double margin = settings_.speculative_margin;
+  const double margin = pair_margin(a, b);
   Vec3 normal;
   PointPair witness;
   const double distance = lane.query.signed_distance(*shapes_[a].geometry, A.pose1,
@@ -1182,8 +1188,9 @@ void Detector::classify(Lane& lane, int a, int b, double distance_now, const Vec
   const coal::CollisionGeometry& gb = *shapes_[b].geometry;
   const Motion ma = motion(a), mb = motion(b);
   PointPair closest;
+  const double margin = pair_margin(a, b);
   const double before = lane.query.distance(ga, ma.at(0.0), gb, mb.at(0.0), closest);
-  if (before <= settings_.speculative_margin) {
+  if (before <= margin) {
     // touching at the previous state (within the slop): in contact from the start of the
     // step, never an impact within it
     const bool touched = before <= settings_.linear_slop;
@@ -1401,11 +1408,9 @@ void Detector::current_manifold(Lane& lane, int a, int b, ContactRows& out) cons
   double distance = 0.0;
   Vec3 normal;
   PointPair witness;
-  if (!lane.query.contact(ga, A.pose1, gb, B.pose1, settings_.speculative_margin, distance, normal,
-                      witness)) {
-    return;
-  }
-  const double reach = settings_.speculative_margin + relative_motion(a, b);
+  const double margin = pair_margin(a, b);
+  if (!lane.query.contact(ga, A.pose1, gb, B.pose1, margin, distance, normal, witness)) return;
+  const double reach = margin + relative_motion(a, b);
   const double deep = kDeepFraction * std::min(shapes_[a].thickness, shapes_[b].thickness);
   if (-distance > deep && deep_persistent(lane, a, b, deep, reach, out)) return;
   lane.points.clear();

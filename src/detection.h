@@ -49,6 +49,22 @@
 //    reach over the rest of the step, each a row on that plane with its height as a
 //    positive separation, so the solver keeps them from closing by more than that.
 //
+// The margin of a pair (pair_margin; "the margin" above and below, but the broad phase's
+// padding, the budget's and the stages an impact starts: speculate's reach after a time
+// of impact, deep_persistent): while neither body moves over the step, the larger of
+// kRestingMargin of the speculative margin and margin_speed (DetectionSettings) times the
+// step's dt (StepPoses::dt; a gap a pair at rest closes within the step at that speed),
+// grown by how far each of the two moves (Body::moved, as Rapier's soft CCD prediction
+// grows with each body's own motion), up to the speculative margin. A body that moves
+// stops its partner within the step only where the pair has a row: a column falling as
+// one, whose lowest cube the floor stops, keeps its rows between cubes (a margin grown by
+// the relative motion alone, none for bodies falling together, let a 30 Hz column sink
+// 94 mm into itself); a settled pile at 120 Hz moves by g dt^2 (0.7 mm a step) and keeps
+// its points within about 11.4 mm: at the full margin its farther points never became
+// rows, yet were detected, framed, cached and reported every step. At 60 Hz the floor of
+// margin_speed (1.2 m/s: 20 mm) keeps the whole margin: with the quarter alone a settled
+// pile's balls rolled on longer.
+//
 // Compound bodies (as Box2D v3 and Jolt): the detector works on shapes, each with its body
 // and its pose in the body frame; a body of one shape has one. Every stage above runs on
 // pairs of shapes (two shapes of one body never pair; the filter is the bodies'), and each
@@ -109,6 +125,9 @@ constexpr double kReuseRotation = 1e-2;    // rad: a manifold is reused while it
                                            // its contact plane)
 constexpr double kApartSlack = 1e-5;      // m: a stored distance counts this much less (GJK's
                                            // tolerance and the retry step on either measure)
+constexpr double kRestingMargin = 0.25;   // of the speculative margin: the margin of a
+                                           // pair of bodies that do not move over the step
+                                           // (pair_margin)
 constexpr double kSkin = 0.05;             // m: the broad phase keeps the pairs of boxes
                                            // grown by this while no box leaves its own
 constexpr int kParallelShapes = 64;        // a detector of fewer shapes runs on one thread
@@ -225,6 +244,8 @@ class Detector {
   double sphere_gap(int a, int b) const;
   double relative_motion(int a, int b) const;
   double approach_bound(int a, int b) const;
+  // m, the pair's margin: pairs closer than this are in contact (kRestingMargin)
+  double pair_margin(int a, int b) const;
   double resting_floor(int a, int b) const;
   bool may_bounce(int a, int b, const Vec3& normal, double speed) const;
   void limit_pairs();
@@ -361,6 +382,7 @@ class Detector {
   double pair_share_ = 0.5;    // detect_paired: the first part's share of the pairs
   std::unique_ptr<Worker> worker_;   // the second half's thread, started at its first use
   std::size_t last_rows_ = 0;  // rows of the last step (reserved for the next)
+  double resting_ = 0.0;       // m, the step's margin of a pair at rest (pair_margin)
   ManifoldStore stored_[2];    // the last step's persistent manifolds: the first lane's,
                                // then the second's (its keys all greater; may be empty)
   StepBudget budget_;

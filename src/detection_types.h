@@ -41,6 +41,9 @@ struct DetectionSettings {
                                        // pair shifted less than this times it relative
                                        // to each other along its contact plane
                                        // (SOLVER_TUNING)
+  double margin_speed = 1.2;           // m/s: a pair of bodies that do not move over the
+                                       // step keeps at least this times dt of the margin
+                                       // (Detector::pair_margin; SOLVER_TUNING)
   int max_pairs = 20000;               // budget: broad-phase pairs queried per step
   int max_contacts = 40000;            // budget: contact rows per step
   int max_contacts_per_pair = 8;       // rows kept per pair of bodies (the deepest; a pair
@@ -75,6 +78,8 @@ struct StepPoses {
   const double* linear0 = nullptr;  // (N, 3) m/s, previous linear velocity (null: as current)
   const double* angular0 = nullptr; // (N, 3) rad/s, previous angular velocity (null: as current)
   const std::uint8_t* active = nullptr;  // (N,) or null: 0 = frozen, held at its current pose
+  double dt = 0.0;                  // s, the step's period (0: unknown; the margin of a
+                                    // pair at rest is then kRestingMargin's alone)
 };
 
 struct BodyShape;   // shapes.h

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / 'config' / 'scenes' / 'billiard_break.yaml'
 STEPS = 240
 # Regenerate: `.venv/bin/python test/test_determinism.py` (see the module docstring).
-EXPECTED = '4453f777e9dc4cf4399c0ad13d5950b12147b1eab59722d20d4e7e5c4989d03a/1664'
+EXPECTED = '5148d4e52c222fd3956a098875028ef98376169523cf66f38e26c51c9d2f1bc3/1278'
 
 
 def run_hash(steps: int = STEPS) -> str:

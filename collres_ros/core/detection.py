@@ -70,8 +70,8 @@ DETECTION_FIELDS = ('speculative_margin', 'toi_tolerance', 'toi_max_iterations',
                     'max_contacts_per_pair')
 # ... and the SOLVER_TUNING entries it reads, by the same names: the solver reads them
 # too, all but DETECTION_ONLY's (the compiled solver has no field of their name).
-DETECTION_TUNING = ('resting_factor', 'reuse_shift')
-DETECTION_ONLY = ('reuse_shift',)
+DETECTION_TUNING = ('resting_factor', 'reuse_shift', 'margin_speed')
+DETECTION_ONLY = ('reuse_shift', 'margin_speed')
 
 
 class Detection:
@@ -112,15 +112,18 @@ class Detection:
         self._filter = value
 
     def detect(self, previous: BodyStates, current: BodyStates,
-               active: np.ndarray | None = None, threads: int = 1) -> ContactSet:
+               active: np.ndarray | None = None, threads: int = 1,
+               dt: float = 0.0) -> ContactSet:
         """Contacts of the step ``previous`` -> ``current`` (see the module docstring).
 
         ``active`` (N,) bool: False marks a frozen body, held at its current pose over
         the whole step (its previous pose is ignored); it still collides. ``threads`` 1
         or 2 (``SOLVER_TUNING`` ``threads``): the pairs shared by two threads give the
-        same bits.
+        same bits. ``dt`` (s) the step's period: a pair at rest keeps at least
+        ``margin_speed`` times it of the margin (0: a quarter of the margin alone).
         """
-        rows = self._native.detect(*self._arrays(previous, current, active), threads=threads)
+        rows = self._native.detect(*self._arrays(previous, current, active), threads=threads,
+                                   dt=dt)
         return ContactSet(*rows)
 
     def hold_back(self, previous: BodyStates, answer: BodyStates,

@@ -74,7 +74,8 @@ class Detector(Protocol):
     thread_runs: tuple[int, int, int, int]   # the second thread's part (Detection.thread_runs)
 
     def detect(self, previous: BodyStates, current: BodyStates,
-               active: np.ndarray | None = None, threads: int = 1) -> ContactSet: ...
+               active: np.ndarray | None = None, threads: int = 1,
+               dt: float = 0.0) -> ContactSet: ...
 
 
 class World:
@@ -259,7 +260,7 @@ class World:
             self._cache.clear()
             return _unchanged(current_rows)
         contacts = _finite(self._collision.detect(previous, current, active,
-                                                  self._params.threads))
+                                                  self._params.threads, dt=dt))
         budget = self._collision.budget
         self.budget = (max(self.budget[0], budget[0]), max(self.budget[1], budget[1]))
         detected = time.perf_counter()

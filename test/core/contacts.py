@@ -19,7 +19,8 @@ class FixedContacts:
         self.thread_runs = (0, 0, 0, 0)   # one thread: no runs posted for two
 
     def detect(self, previous: BodyStates, current: BodyStates,
-               active: np.ndarray | None = None, threads: int = 1) -> ContactSet:
+               active: np.ndarray | None = None, threads: int = 1,
+               dt: float = 0.0) -> ContactSet:
         return self.contacts
 
 

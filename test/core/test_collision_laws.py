@@ -10,13 +10,14 @@ import coal
 import numpy as np
 import pytest
 
-from collres_ros.core import rotation
+from collres_ros.core import _native, rotation
 from collres_ros.core.detection import Detection
-from collres_ros.core.config import SolverSettings
+from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.types import BodySpec, ContactKind
 from contacts import at_rest
 
 SETTINGS = SolverSettings()
+MARGIN_SPEED = next(spec.default for spec in SOLVER_TUNING if spec.name == 'margin_speed')
 states = at_rest
 
 
@@ -81,14 +82,45 @@ def test_sphere_on_plane_depth_matches_geometry() -> None:
 
 
 def test_speculative_contact_within_margin_has_positive_separation() -> None:
+    """A pair's margin is RESTING_MARGIN of the speculative margin while neither body moves,
+    grown by how far each moves over the step, up to the speculative margin: a ball at rest
+    4 mm above the floor has a speculative contact there, one at rest 8 mm above has none,
+    and one that fell 10 mm over the step to 12 mm above has one again."""
     world = Detection([BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
                        BodySpec('ball', 'sphere', (0.1,))], SETTINGS)
-    state = states([[0, 0, 0], [0, 0, 0.1 + 0.005]])
+    resting = _native.RESTING_MARGIN * SETTINGS.speculative_margin
+    assert 0.004 < resting < 0.008
+    state = states([[0, 0, 0], [0, 0, 0.1 + 0.004]])
     contacts = world.detect(state, state)
     assert contacts.count == 1 and contacts.kind[0] == ContactKind.PERSISTENT
-    assert contacts.separation[0] == pytest.approx(0.005, abs=1e-9)
+    assert contacts.separation[0] == pytest.approx(0.004, abs=1e-9)
+    still = states([[0, 0, 0], [0, 0, 0.1 + 0.008]])
+    assert world.detect(still, still).count == 0
+    above = states([[0, 0, 0], [0, 0, 0.1 + 0.022]])
+    fell = states([[0, 0, 0], [0, 0, 0.1 + 0.012]])
+    assert resting + 0.010 > 0.012
+    contacts = world.detect(above, fell)
+    assert contacts.count == 1 and contacts.kind[0] == ContactKind.PERSISTENT
+    assert contacts.separation[0] == pytest.approx(0.012, abs=1e-9)
     far = states([[0, 0, 0], [0, 0, 0.1 + 2 * SETTINGS.speculative_margin]])
     assert world.detect(far, far).count == 0
+
+
+def test_resting_margin_grows_with_the_step() -> None:
+    """A pair at rest keeps at least MARGIN_SPEED times the step's dt of the margin (a gap
+    it closes within the step at that speed), up to the speculative margin: a ball at rest
+    8 mm above the floor has a speculative contact at a step whose dt brings that to
+    10 mm, none at one that brings it to 4 mm (the resting quarter then holds)."""
+    world = Detection([BodySpec('floor', 'plane', (0, 0, 1, 0), static=True),
+                       BodySpec('ball', 'sphere', (0.1,))], SETTINGS)
+    still = states([[0, 0, 0], [0, 0, 0.1 + 0.008]])
+    assert _native.RESTING_MARGIN * SETTINGS.speculative_margin < 0.008
+    contacts = world.detect(still, still, dt=0.010 / MARGIN_SPEED)
+    assert contacts.count == 1 and contacts.kind[0] == ContactKind.PERSISTENT
+    assert contacts.separation[0] == pytest.approx(0.008, abs=1e-9)
+    assert world.detect(still, still, dt=0.004 / MARGIN_SPEED).count == 0
+    far = states([[0, 0, 0], [0, 0, 0.1 + 0.022]])
+    assert world.detect(far, far, dt=1.0).count == 0
 
 
 def test_convex_hull_of_a_cube_collides_like_the_box() -> None:

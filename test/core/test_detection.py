@@ -10,7 +10,7 @@ import coal
 import numpy as np
 import pytest
 
-from collres_ros.core import rotation
+from collres_ros.core import _native, rotation
 from collres_ros.core.detection import Detection
 from collres_ros.core.config import SOLVER_TUNING, SolverSettings
 from collres_ros.core.shapes import make_geometry
@@ -21,6 +21,7 @@ SETTINGS = SolverSettings()
 states = at_rest
 REUSE_SHIFT = next(spec.default for spec in SOLVER_TUNING if spec.name == 'reuse_shift')
 REUSE_LIMIT = REUSE_SHIFT * 0.1   # m: how far a pair of 0.2 m boxes may shift, reused
+RESTING = _native.RESTING_MARGIN * SETTINGS.speculative_margin   # m: the margin of a pair at rest
 
 
 def brute_pairs(lo: np.ndarray, hi: np.ndarray) -> set[tuple[int, int]]:
@@ -222,14 +223,16 @@ def test_stored_points_of_a_pair_moved_along_its_normal_stay_within_the_reuse_li
     pair was lifted apart or pressed together (a box of a stack rocked by the push-out of
     its overlap, 0.1-0.2 mm a 30 Hz step, then back), its rows' gaps are a fresh query's
     and its points lie within the reuse limit of a fresh query's, the limit being spent
-    only by the shift along the faces (here a nudge of half of it)."""
+    only by the shift along the faces (here a nudge of half of it). (The lifts keep the pair,
+    at rest, within its margin.)"""
     specs, resting = stack(4)
     world = Detection(specs, SETTINGS)
     first = world.detect(resting, resting)
     assert first.count == 16
     pair = (first.body_a == 1) & (first.body_b == 2)
     assert pair.sum() == 4
-    for lift in (3 * REUSE_LIMIT, -0.5 * REUSE_LIMIT, 6 * REUSE_LIMIT):
+    for lift in (1.5 * REUSE_LIMIT, -0.5 * REUSE_LIMIT, 2 * REUSE_LIMIT):
+        assert lift < RESTING
         moved = resting.copy()
         moved.position[2:] += [0.5 * REUSE_LIMIT, 0.0, lift]   # pair (1, 2) moves
         stored = world.detect(moved, moved)
@@ -272,16 +275,18 @@ def test_motion_a_pair_shares_keeps_its_stored_points() -> None:
 
 
 def test_a_box_falling_along_a_wall_keeps_its_stored_points() -> None:
-    """A box 10 mm from a wall that its source integrated one 30 Hz period under gravity
-    moved g dt^2 (11 mm) along the wall: its distance to the wall did not change (only the
-    motion along the wall's normal changes the gap to a half-space), so the pair, in
+    """A box 4 mm from a wall (within the margin of a pair at rest) that its source
+    integrated one 30 Hz period under gravity moved g dt^2 (11 mm) along the wall: its
+    distance to the wall did not change (only the motion along the wall's normal changes
+    the gap to a half-space), so the pair, in
     contact (within the margin) at both ends and barely turned relative to its stored
     manifold, keeps its stored points: they move with each body, the wall's stays where
     it was and the midpoints move by half the nudge, where a fresh query finds the box's
     corners projected on the wall, moved by the whole nudge."""
     specs = [BodySpec('wall', 'plane', (1.0, 0.0, 0.0, 0.0), static=True),
              BodySpec('box', 'box', (0.2, 0.2, 0.2))]
-    resting = states([[0, 0, 0], [0.11, 0, 1.0]])
+    resting = states([[0, 0, 0], [0.104, 0, 1.0]])
+    assert 0.004 < RESTING
     world = Detection(specs, SETTINGS)
     first = world.detect(resting, resting)
     assert first.count == 4 and set(first.kind) == {ContactKind.PERSISTENT}

@@ -71,9 +71,9 @@ class CountingDetection(Detection):
 
     calls = 0
 
-    def detect(self, previous, current, active=None, threads=1):
+    def detect(self, previous, current, active=None, threads=1, dt=0.0):
         self.calls += 1
-        return super().detect(previous, current, active, threads)
+        return super().detect(previous, current, active, threads, dt=dt)
 
 
 def resting_boxes(xs=(0.0,), settings: SolverSettings | None = None,

@@ -2458,10 +2458,7 @@ void shock_rows(const std::vector<ContactRow>& rows, const std::vector<int32_t>&
     }
     ++blocks.back().count;
   }
-  if (shock.matrices.size() < blocks.capacity()) {   // (as many as it has room for: grown
-    shock.matrices.clear();                          // as it grows, nothing copied)
-    shock.matrices.resize(blocks.capacity());
-  }
+  fit_matrices(shock.matrices, blocks);
   for (size_t j = 0; j < blocks.size(); ++j)
     prepare_block(blocks[j], &scratch[blocks[j].first], shock.matrices[j]);
   // each lower level's blocks in waves: a body's blocks in their order (its inverse mass
@@ -2740,10 +2737,7 @@ int resolve_impacts(std::vector<ContactRow>& rows, SolverBodies& bodies,
       ++blocks.back().count;
       scratch.push_back(c);
     }
-    if (matrices.size() < blocks.capacity()) {   // (as many as it has room for: grown as
-      matrices.clear();                          // it grows, nothing copied)
-      matrices.resize(blocks.capacity());
-    }
+    fit_matrices(matrices, blocks);
     for (size_t j = 0; j < blocks.size(); ++j)
       prepare_block(blocks[j], &scratch[blocks[j].first], matrices[j]);
     // exact inelastic compression with friction; the energy it took (J). Coulomb

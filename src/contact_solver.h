@@ -216,6 +216,16 @@ struct Manifold {
                                              // a solve takes has them), its owner's store
 };
 
+// Gives `store` an entry for each manifold `blocks` has room for (Manifold::matrices point
+// into it): grown as `blocks` grows, cleared first so that nothing is copied (no entry
+// outlives its step).
+inline void fit_matrices(std::vector<BlockMatrices>& store,
+                         const std::vector<Manifold>& blocks) {
+  if (store.size() >= blocks.capacity()) return;
+  store.clear();
+  store.resize(blocks.capacity());
+}
+
 // The matrices of a manifold of 2 to 4 prepared rows (`rows`: its first row; one row: the
 // entries [0][0] alone; more than 4: none, its flags only) into `matrices`, which the
 // manifold then points to (Manifold::matrices).

@@ -825,12 +825,7 @@ void StepSolver::prepare(StepContext& ctx) {
   const auto blocks = static_cast<size_t>(placed[2 * spans + 1]);
   rows_.resize(used);
   manifolds_.resize(blocks);   // (each constructed anew below)
-  // their matrices (block() writes an entry), as many as manifolds_ has room for: grown as
-  // it grows, nothing copied (no entry outlives its step)
-  if (matrices_.size() < manifolds_.capacity()) {
-    matrices_.clear();
-    matrices_.resize(manifolds_.capacity());
-  }
+  fit_matrices(matrices_, manifolds_);   // (block() writes an entry)
   friction_.resize(2 * blocks);
   in_parts(ctx, spans, [&](int64_t lo, int64_t hi) {
     for (int64_t span = lo; span < hi; ++span) {

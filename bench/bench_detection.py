@@ -7,7 +7,8 @@ For each size: build the pile (bench/pile.py), let it settle with the core at 12
 then, on the same poses:
 
 * ``detect``: ``Detection.detect`` (the compiled broad phase, narrow phase, patches,
-  time of impact) stepping along the settled motion, its stored manifolds warm;
+  time of impact) stepping along the settled motion, its stored manifolds warm, with the
+  step's dt (the margin of a pair at rest as ``World.step`` gives it);
 * ``cold``: the same on a new detector every time (no stored manifold);
 * ``coal``: coal's DynamicAABBTree ``update`` + ``collide`` with the default callback
   (C++ broad and narrow phase, one contact per pair, half-spaces in the tree), the poses
@@ -96,7 +97,7 @@ def detect_ms(bodies, frames, cold: bool) -> tuple[float, int]:
         if cold:
             detector = Detection(bodies, SolverSettings())
         start = time.perf_counter()
-        contacts = detector.detect(previous, current)
+        contacts = detector.detect(previous, current, dt=DT)
         times.append(time.perf_counter() - start)
         rows.append(contacts.count)
     return 1000.0 * float(np.median(times[1:])), int(np.median(rows))

@@ -1761,6 +1761,25 @@ bool StepSolver::escaped_part(const StepContext& ctx, bool landed, int64_t lo, i
   return forced;
 }
 
+// What a 30 Hz step costs against a 120 Hz one, measured on the bench's settled mixed piles
+// (bench/pile.py; instructions of a warm step, detection and solve, one thread): 100 bodies 5.23 ->
+// 8.69 M (1.66x), 1000 bodies 50.0 -> 81.8 M (1.64x); wall, bench_step: 1.58x and 1.77x. The sweeps
+// decide it: five substeps of 11 sweeps here (the last three the landing's) against two of 11 and a
+// landing of 10 at 120 Hz, 55 against 32 (1.72x), and they cost 1.92x / 1.86x (a few more manifolds
+// swept, in more part-filled groups: 100 bodies 183 manifolds in 53 groups a sweep against 176 in
+// 47). With every other stage as at 120 Hz, the sweeps at their count alone would make the step
+// 1.34x / 1.31x: a ratio near 1.3 needs fewer sweeps a substep or fewer substeps
+// (velocity_iterations and max_substep, whose reasons are laws that failed), not less overhead. The
+// rest, 30 / 120 Hz at 100 and 1000 bodies: detection 1.24x / 1.22x (the pair margin: 20 mm against
+// 10, a third more points; at 1000 bodies 97 % of the stored manifolds reused against 99.8 %, the
+// others shifted or turned beyond reuse_shift and kReuseRotation in the longer step); prepare 1.42x
+// / 1.21x (rows 1.43x / 1.29x: 22-25 % of a 30 Hz step's rows are speculative ones never swept);
+// admission 1.61x / 2.34x, of which the sweeps' plans 1.0x / 2.49x (manifolds let in at the
+// substeps' starts: 7.5 plans a step against 4 at 1000 bodies); the substeps' own passes over every
+// row (warm start 2.9x, aim 2.9x / 3.3x, shock propagation 2.0x / 2.2x, hold_energy 1.7x, the
+// allowances, sums and the sweeps' starting impulses), which are bound by memory (at 1000 bodies
+// 1.5 ms of a 30 Hz step against 0.4 ms of a 120 Hz one); push-out 1.57x / 1.34x; the landing 0.42x
+// / 0.58x (shared); the net solved no step twice at either rate
 int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int shared) {
   const SolverParams& p = ctx.params;
   const int64_t n = ctx.bodies.count;

@@ -1051,15 +1051,15 @@ void prepare_row(ContactRow& row, const ContactRow* framed, const SolverBodies& 
 }
 
 COLLRES_CLONED
-void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies) {
+void warm_start(ContactRow* rows, size_t count, SolverBodies& bodies) {
   double* v = bodies.velocity;
   // a run of consecutive rows of one pair (a manifold's) on its two twists loaded once and
   // stored once: each number takes the same operations in the same order as row by row
-  for (size_t i = 0; i < rows.size();) {
+  for (size_t i = 0; i < count;) {
     const int32_t a = rows[i].a, b = rows[i].b;
     Twists t(v, a, b);
     bool changed = false;
-    for (; i < rows.size() && rows[i].a == a && rows[i].b == b; ++i) {
+    for (; i < count && rows[i].a == a && rows[i].b == b; ++i) {
       const ContactRow& r = rows[i];
       if (r.normal != 0.0) apply(r, t, 0, r.n, r.normal), changed = true;
       if (r.tangent[0] != 0.0) apply(r, t, 1, r.t1, r.tangent[0]), changed = true;

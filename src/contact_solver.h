@@ -273,8 +273,9 @@ void prepare_row(ContactRow& row, const ContactRow* framed, const SolverBodies& 
                  const double* slow, double sticking_speed, double mu_static,
                  double mu_kinetic);
 
-// Apply the rows' accumulated impulses (warm start) to the velocities.
-void warm_start(std::vector<ContactRow>& rows, SolverBodies& bodies);
+// Apply the accumulated impulses of rows [0, count) (warm start) to the velocities. A run
+// of one pair's rows cut between two calls gives the same bits as whole.
+void warm_start(ContactRow* rows, size_t count, SolverBodies& bodies);
 
 // Lanes of a wide row: four doubles, one per manifold of a wide group, solved together
 // (GCC / Clang vector extensions: two SSE2 or NEON registers, one ymm register where the

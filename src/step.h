@@ -324,7 +324,9 @@ class StepSolver {
   int exact_islands(StepContext& ctx, double share, double elapsed);
   void block(size_t manifold);   // prepare_block of manifolds_[manifold], once a step
   bool idle(const Manifold& manifold) const;   // no impulse held (+0), no spin torque
-  int sweep(StepContext& ctx, int iterations, double share = 1.0);
+  // `saved`: the rows' impulses are in from_impulse_ already (soft_step's pass)
+  int sweep(StepContext& ctx, int iterations, double share = 1.0, bool saved = false);
+  // (after soft_step: it gives every row the step's allowance, allowance_, again)
   // true when it swept (a landing row, or `shared`); `struck`: a landing row closed faster
   // than the restitution threshold and was newly marked in struck_ (an impact when solved
   // again)
@@ -334,6 +336,9 @@ class StepSolver {
   // the sweeps' plan_ of swept_: waves (sweep_waves.h), wide groups, threads
   void plan_sweeps(StepContext& ctx);
   Worker* worker();   // the second thread, started at its first use
+  // rows a substep's warm start takes before soft_step's pass over them (20 KB: in the
+  // first level cache)
+  static constexpr size_t kWarmRows = 32;
   // part(lo, hi) over [0, count) of independent items (each part writes only its items'
   // entries): in kParts parts on the two threads with threads 2 and parts of at least
   // parallel_wave items, else at once here

@@ -96,17 +96,9 @@ def _quat_rotate(q, v) -> np.ndarray:
     return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
 
 
-def _scaled_axis(q) -> tuple[float, float, float]:
-    x, y, z, w = q
-    s = math.sqrt(x * x + y * y + z * z)
-    if s < 1e-12:
-        return (0.0, 0.0, 0.0)
-    angle = 2.0 * math.atan2(s, w)
-    return (x / s * angle, y / s * angle, z / s * angle)
-
-
 def run_rapier(scene: dict):
     import rapier3d as r
+    from peers import scaled_axis   # (this file's directory: its peer mode too)
     world = r.PhysicsWorld(gravity=tuple(scene['gravity']))
     world.set_num_threads(1)
     world.integration_parameters.dt = 1.0 / scene['rate']
@@ -121,7 +113,7 @@ def run_rapier(scene: dict):
         builder = r.RigidBody.fixed() if b['static'] else \
             r.RigidBody.dynamic().linvel(tuple(b['linear'])).can_sleep(False)
         builder = builder.translation(tuple(b['position'])) \
-            .rotation(_scaled_axis(b['orientation']))
+            .rotation(scaled_axis(b['orientation']))
         collider = r.Collider.cuboid(*[s / 2 for s in b['size']]) if b['shape'] == 'box' \
             else r.Collider.ball(b['size'][0])
         if not b['static']:

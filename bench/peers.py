@@ -125,7 +125,7 @@ def pybullet_run(scene: dict, warmup: int, steps: int) -> dict | None:
     return result
 
 
-def _scaled_axis(q: list[float]) -> tuple[float, float, float]:
+def scaled_axis(q: list[float]) -> tuple[float, float, float]:
     """Rotation vector (axis times angle, rad) of a unit quaternion x, y, z, w."""
     x, y, z, w = q
     s = math.sqrt(x * x + y * y + z * z)
@@ -150,7 +150,7 @@ def rapier_run(scene: dict, warmup: int, steps: int) -> dict | None:
         if body['static']:
             continue
         rigid = r.RigidBody.dynamic().translation(tuple(scene['position'][i])) \
-            .rotation(_scaled_axis(scene['orientation'][i])).can_sleep(False)
+            .rotation(scaled_axis(scene['orientation'][i])).can_sleep(False)
         if body['shape'] == 'box':
             collider = r.Collider.cuboid(*[s / 2 for s in body['size']])
         else:

@@ -190,6 +190,7 @@ def run_mujoco(scene: dict, solver: str):
 
 def run_pybullet(scene: dict):
     import pybullet as p
+    from peers import pybullet_shape   # (this file's directory: its peer mode too)
     client = p.connect(p.DIRECT)
     p.setGravity(*scene['gravity'], physicsClientId=client)
     p.setTimeStep(1.0 / scene['rate'], physicsClientId=client)
@@ -203,12 +204,7 @@ def run_pybullet(scene: dict):
                                            physicsClientId=client)
             uid = p.createMultiBody(0.0, shape, basePosition=point, physicsClientId=client)
         else:
-            if b['shape'] == 'box':
-                shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in b['size']],
-                                               physicsClientId=client)
-            else:
-                shape = p.createCollisionShape(p.GEOM_SPHERE, radius=b['size'][0],
-                                               physicsClientId=client)
+            shape = pybullet_shape(p, b, client)
             uid = p.createMultiBody(b['mass'], shape, basePosition=b['position'],
                                     baseOrientation=b['orientation'], physicsClientId=client)
         p.changeDynamics(uid, -1, lateralFriction=mu, restitution=e, linearDamping=0.0,

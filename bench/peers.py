@@ -95,6 +95,15 @@ def mujoco_run(scene: dict, solver: str, warmup: int, steps: int) -> dict | None
     return result
 
 
+def pybullet_shape(p, body: dict, client: int) -> int:
+    """PyBullet's collision shape of a box (``size``: full extents, m) or a sphere (``size``:
+    its radius first) in the connection ``client`` of the ``pybullet`` module ``p``."""
+    if body['shape'] == 'box':
+        return p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in body['size']],
+                                      physicsClientId=client)
+    return p.createCollisionShape(p.GEOM_SPHERE, radius=body['size'][0], physicsClientId=client)
+
+
 def pybullet_run(scene: dict, warmup: int, steps: int) -> dict | None:
     try:
         import pybullet as p
@@ -109,12 +118,7 @@ def pybullet_run(scene: dict, warmup: int, steps: int) -> dict | None:
     for i, body in enumerate(scene['bodies']):
         if body['static']:
             continue
-        if body['shape'] == 'box':
-            shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in body['size']],
-                                           physicsClientId=client)
-        else:
-            shape = p.createCollisionShape(p.GEOM_SPHERE, radius=body['size'][0],
-                                           physicsClientId=client)
+        shape = pybullet_shape(p, body, client)
         uid = p.createMultiBody(body['mass'], shape, basePosition=scene['position'][i],
                                 baseOrientation=scene['orientation'][i], physicsClientId=client)
         p.changeDynamics(uid, -1, lateralFriction=body['mu'], restitution=body['e'],

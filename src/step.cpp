@@ -38,6 +38,18 @@ bool holds_nothing(const ContactRow& r) {
   return (bits[0] | bits[1] | bits[2]) == 0;
 }
 
+// A row's impulses (normal, tangent[0], tangent[1]: N s) stored at, or added to, at[0..2]
+inline void save_impulses(const ContactRow& r, double* at) {
+  at[0] = r.normal;
+  at[1] = r.tangent[0];
+  at[2] = r.tangent[1];
+}
+inline void add_impulses(const ContactRow& r, double* at) {
+  at[0] += r.normal;
+  at[1] += r.tangent[0];
+  at[2] += r.tangent[1];
+}
+
 bool persistent(int8_t kind) { return kind == static_cast<int8_t>(ContactKind::persistent); }
 
 // Normal velocity of B's point relative to A's (< 0 approaching) for A's twist at ta and
@@ -1167,11 +1179,7 @@ int StepSolver::sweep(StepContext& ctx, int iterations, double share, bool saved
   from_velocity_.assign(velocity_.begin(), velocity_.end());
   if (!saved) {
     from_impulse_.resize(3 * rows_.size());
-    for (size_t i = 0; i < rows_.size(); ++i) {
-      from_impulse_[3 * i] = rows_[i].normal;
-      from_impulse_[3 * i + 1] = rows_[i].tangent[0];
-      from_impulse_[3 * i + 2] = rows_[i].tangent[1];
-    }
+    for (size_t i = 0; i < rows_.size(); ++i) save_impulses(rows_[i], &from_impulse_[3 * i]);
   }
   from_spin_.resize(4 * spins_.size());
   for (size_t i = 0; i < spins_.size(); ++i) {
@@ -1811,16 +1819,10 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
     double *const total = total_.data(), *const from = from_impulse_.data();
     for (int64_t i = lo; i < hi; ++i) {
       ContactRow& r = row[i];
-      if (sum && !aiming[i]) {
-        total[3 * i] += r.normal;
-        total[3 * i + 1] += r.tangent[0];
-        total[3 * i + 2] += r.tangent[1];
-      }
+      if (sum && !aiming[i]) add_impulses(r, total + 3 * i);
       const double separation = aiming[i] ? aimed[i] : gap[r.contact] + normal_velocity(r, moved);
       r.allowance = std::max(separation, 0.0) / (span[r.contact] * share);
-      from[3 * i] = r.normal;
-      from[3 * i + 1] = r.tangent[0];
-      from[3 * i + 2] = r.tangent[1];
+      save_impulses(r, from + 3 * i);
     }
   };
   int sweeps = 0;
@@ -1844,12 +1846,7 @@ int StepSolver::soft_step(StepContext& ctx, int substeps, int iterations, int sh
       });
       for (SpinRow& spin : spins_) spin.torque = Vec3::Zero();
       if (!aimed_.empty()) {
-        for (const int32_t i : aimed_) {
-          const ContactRow& r = rows_[static_cast<size_t>(i)];
-          total_[3 * i] += r.normal;
-          total_[3 * i + 1] += r.tangent[0];
-          total_[3 * i + 2] += r.tangent[1];
-        }
+        for (const int32_t i : aimed_) add_impulses(rows_[static_cast<size_t>(i)], &total_[3 * i]);
         aim(ctx, moved_.data(), velocity_.data(), 0.5 * ctx.dt * share);
         bool stale = false;   // (shock propagation's copy of a turned row)
         for (const ContactRow& r : shock_rows_) stale = stale || turned_[r.contact];
